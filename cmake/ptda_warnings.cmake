@@ -1,0 +1,24 @@
+# One interface target carries the project's warning and sanitizer flags; every ptda target links it.
+add_library(ptda_options INTERFACE)
+target_compile_options(ptda_options INTERFACE
+  -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Woverloaded-virtual
+  -Wimplicit-fallthrough -Wformat=2 -Wundef)
+if(PTDA_WERROR)
+  target_compile_options(ptda_options INTERFACE -Werror)
+endif()
+if(PTDA_SANITIZE)
+  target_compile_options(ptda_options INTERFACE -fsanitize=${PTDA_SANITIZE} -fno-omit-frame-pointer -fno-sanitize-recover=all)
+  target_link_options(ptda_options INTERFACE -fsanitize=${PTDA_SANITIZE})
+endif()
+
+# ptda_add_test(NAME name SOURCES a.cpp b.cpp LIBS lib...) builds one gtest binary and registers its tests.
+function(ptda_add_test)
+  cmake_parse_arguments(T "" "NAME" "SOURCES;LIBS" ${ARGN})
+  add_executable(${T_NAME} ${T_SOURCES})
+  target_link_libraries(${T_NAME} PRIVATE ${T_LIBS} ptda_options GTest::gtest GTest::gtest_main)
+  target_compile_definitions(${T_NAME} PRIVATE
+    PTDA_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+    PTDA_SHARED_DIR="${PROJECT_SOURCE_DIR}/../shared")
+  gtest_discover_tests(${T_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 60
+    PROPERTIES ENVIRONMENT "PTDA_TEST_TMP=${CMAKE_BINARY_DIR}/test-tmp")
+endfunction()

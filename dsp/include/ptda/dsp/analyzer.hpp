@@ -1,0 +1,52 @@
+// Per-window path: deterministic part, residual and features of one window against its class
+// baseline. Everything is allocated in the constructor; analyze() is allocation-free and
+// deterministic, so the daemon's processing thread and `ptda monitor` give identical numbers.
+#pragma once
+
+#include <complex>
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/real_fft.hpp"
+#include "ptda/dsp/types.hpp"
+
+namespace ptda::dsp {
+
+class WindowAnalyzer {
+ public:
+  /// Thread: any (setup). Allocates. Throws ptda::Error when n is not a RealFft length.
+  explicit WindowAnalyzer(std::size_t n);
+
+  [[nodiscard]] std::size_t size() const noexcept { return n_; }
+
+  /// Residual r = x - d and its features, with d by `method`:
+  ///   raw : d = 0
+  ///   tda : d = cls.tda_mean                                      (eq. 5)
+  ///   ptda: d = IDFT(|D_avg[k]| e^{j theta_x[k]})                 (eqs. 8-9, 12-13)
+  /// x.size() must equal size(); cls vectors must be sized for size(). Thread: the owner's.
+  /// Never allocates, throws or blocks.
+  Features analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept;
+
+  /// Like analyze() but with an explicit mean magnitude / TDA mean (used for leave-one-out training).
+  Features analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
+                        std::span<const float> tda_mean, Method method) noexcept;
+
+  /// Buffers of the last analyze() call (valid until the next call), for reports and tests.
+  [[nodiscard]] std::span<const float> deterministic() const noexcept { return d_; }
+  [[nodiscard]] std::span<const float> residual() const noexcept { return r_; }
+  [[nodiscard]] std::span<const std::complex<float>> spectrum() const noexcept { return X_; }
+  [[nodiscard]] std::span<const std::complex<float>> residual_spectrum() const noexcept { return R_; }
+
+  /// |DFT| of x into mag (bins = N/2+1), used by training (eq. 7). Never allocates.
+  void magnitude(std::span<const float> x, std::span<float> mag) noexcept;
+
+ private:
+  std::size_t n_;
+  RealFft fft_;
+  std::vector<float> d_, r_;
+  std::vector<std::complex<float>> X_, D_, R_;
+};
+
+}  // namespace ptda::dsp

@@ -1,0 +1,104 @@
+// The healthy reference learned by training: one ClassBaseline per recurring constant-speed segment.
+// Persisted by formats/baseline_file.hpp; consumed read-only by the monitor path.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ptda/dsp/types.hpp"
+
+namespace ptda::dsp {
+
+/// Closed interval [lo, hi]; a feature outside it makes a window abnormal.
+struct Band {
+  double lo = 0.0;
+  double hi = 0.0;
+  [[nodiscard]] bool contains(double v) const noexcept { return v >= lo && v <= hi; }
+};
+
+struct FeatureThresholds {
+  Band rms;
+  Band entropy;
+};
+
+/// Distribution of one feature over the (leave-one-out) healthy training windows.
+struct FeatureStats {
+  double mean = 0.0;
+  double stddev = 0.0;
+  double min = 0.0;
+  double max = 0.0;
+  std::uint32_t n = 0;
+};
+
+/// How thresholds are set from the healthy leave-one-out feature distribution.
+struct ThresholdPolicy {
+  enum class Kind : std::uint8_t {
+    kGaussian = 0,  ///< mean +- z * stddev, z from the two-sided false-alarm target
+    kQuantile = 1,  ///< empirical quantiles alpha/2 and 1-alpha/2, widened by margin
+  };
+  Kind kind = Kind::kGaussian;
+  double false_alarm_rate = 1e-3;  ///< per window and per feature, two-sided
+  double margin = 0.0;             ///< extra relative widening of the band (0.1 = 10 % of its width)
+};
+
+/// A recurring constant-speed segment of the job: a window is only compared with its own class.
+struct SegmentClass {
+  std::uint32_t id = 0;
+  std::int8_t direction = 1;       ///< +1 or -1 (sign of the joint speed)
+  double speed_rad_s = 0.0;        ///< mean |speed| of the class's regions
+  double speed_tol_rad_s = 0.0;    ///< a window matches when | |speed| - speed_rad_s | <= this
+  double duration_s = 0.0;         ///< median constant-speed region length seen in training
+  std::uint32_t regions = 0;       ///< training regions (cycles) in the class
+};
+
+/// Healthy reference of one segment class, for every method.
+struct ClassBaseline {
+  SegmentClass segment;
+  std::uint32_t n_windows = 0;               ///< healthy windows M averaged
+  std::vector<float> mean_magnitude;         ///< |D_avg[k]| (eq. 7), k = 0..N/2
+  std::vector<float> tda_mean;               ///< d[n] (eq. 5), n = 0..N-1
+  std::array<FeatureThresholds, kMethodCount> thresholds{};  ///< indexed by Method
+  std::array<FeatureStats, kMethodCount> rms_stats{};        ///< leave-one-out, indexed by Method
+  std::array<FeatureStats, kMethodCount> entropy_stats{};
+};
+
+/// Gearbox description, kept in the baseline so a report can name the mesh frequencies.
+struct GearboxInfo {
+  enum class Kind : std::uint8_t { kCycloidal = 0, kParallel = 1, kUnknown = 2 };
+  Kind kind = Kind::kUnknown;
+  std::uint32_t z_in = 0;    ///< cycloidal: input gear teeth; parallel: pinion (driving) teeth
+  std::uint32_t z_spur = 0;  ///< cycloidal: spur gear teeth; parallel: driven gear teeth
+  std::uint32_t z_pin = 0;   ///< cycloidal: pins; parallel: 0
+  double ratio = 0.0;        ///< input shaft speed / output (joint) speed (eq. 1 for cycloidal)
+};
+
+struct Baseline {
+  double fs_hz = 0.0;
+  std::uint32_t window_len = 0;  ///< N samples per window
+  GearboxInfo gearbox;
+  ThresholdPolicy policy;
+  std::vector<ClassBaseline> classes;
+  std::string source;  ///< free text: what it was trained on (recording path, tool version)
+
+  /// The class matching a window's speed and direction, or nullptr. Picks the closest speed when
+  /// several match. Thread: any. Never allocates.
+  [[nodiscard]] const ClassBaseline* match(double speed_rad_s) const noexcept {
+    const ClassBaseline* best = nullptr;
+    double best_d = 0.0;
+    const std::int8_t dir = speed_rad_s < 0.0 ? -1 : 1;
+    const double mag = speed_rad_s < 0.0 ? -speed_rad_s : speed_rad_s;
+    for (const auto& c : classes) {
+      if (c.segment.direction != dir) continue;
+      const double d = mag > c.segment.speed_rad_s ? mag - c.segment.speed_rad_s : c.segment.speed_rad_s - mag;
+      if (d <= c.segment.speed_tol_rad_s && (best == nullptr || d < best_d)) {
+        best = &c;
+        best_d = d;
+      }
+    }
+    return best;
+  }
+};
+
+}  // namespace ptda::dsp

@@ -1,0 +1,54 @@
+// The `candump -l` log format: "(seconds.microseconds) iface FRAME [R|T]".
+// FRAME: 3-hex standard or 8-hex extended id; "#" classic data (0..8 bytes, '.' separators allowed),
+// "#R" / "#R<dlc>" remote frames, "##<flags-nibble><data>" CAN FD (0..64 bytes), error frames as
+// 8-hex ids with CAN_ERR_FLAG (0x20000000). Newer can-utils suffixes ("_<dlc>") and CAN XL lines are
+// accepted and their extra fields ignored. Lines not starting with '(' are comments (as canplayer).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <iosfwd>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "ptda/common/can_frame.hpp"
+
+namespace ptda::formats {
+
+struct CandumpRecord {
+  CanFrame frame;       ///< frame.t_ns = UNIX ns from the log timestamp
+  std::string iface;
+  char direction = 0;   ///< 'R', 'T' or 0 when absent
+};
+
+/// Parses one line. Returns std::nullopt for comment/blank lines. Throws ptda::Error
+/// "<source>:<line_no>: <what>" for a malformed line.
+[[nodiscard]] std::optional<CandumpRecord> parse_candump_line(std::string_view line, const std::string& source,
+                                                              long line_no);
+
+/// Streaming reader: next() returns false at the end. Throws ptda::Error on a malformed line.
+class CandumpReader {
+ public:
+  explicit CandumpReader(const std::filesystem::path& path);
+  ~CandumpReader();
+  CandumpReader(const CandumpReader&) = delete;
+  CandumpReader& operator=(const CandumpReader&) = delete;
+  bool next(CandumpRecord& out);
+  [[nodiscard]] long line_no() const noexcept { return line_no_; }
+
+ private:
+  std::filesystem::path path_;
+  std::FILE* f_ = nullptr;
+  long line_no_ = 0;
+  std::string line_;
+};
+
+[[nodiscard]] std::vector<CandumpRecord> read_candump(const std::filesystem::path& path);
+
+/// Formats one record exactly as `candump -l` does (timestamp with 6 decimals).
+[[nodiscard]] std::string format_candump_line(const CandumpRecord& rec);
+void write_candump(const std::filesystem::path& path, const std::vector<CandumpRecord>& records);
+
+}  // namespace ptda::formats
