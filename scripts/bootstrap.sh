@@ -6,7 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake pkgconf
   libeigen3-dev libkissfft-dev libspdlog-dev libfmt-dev libtomlplusplus-dev zlib1g-dev
-  libgtest-dev libgmock-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
   libgpiod-dev libsystemd-dev can-utils
   ${PTDA_EXTRA_PACKAGES:-}
 )

@@ -25,11 +25,15 @@ class WindowAnalyzer {
   ///   raw : d = 0
   ///   tda : d = cls.tda_mean                                      (eq. 5)
   ///   ptda: d = IDFT(|D_avg[k]| e^{j theta_x[k]})                 (eqs. 8-9, 12-13)
-  /// x.size() must equal size(); cls vectors must be sized for size(). Thread: the owner's.
-  /// Never allocates, throws or blocks.
+  /// x.size() must equal size(); the cls vector the method uses must be sized for size()
+  /// (tda_mean: N, mean_magnitude: N/2+1). On a size mismatch nothing is computed and both features
+  /// are NaN (NaN is outside every band, so such a window counts as abnormal, never as healthy).
+  /// Features: rms(r) and spectral_entropy(R) with R = FFT(r). Thread: the owner's (one analyzer per
+  /// thread). Never allocates, throws or blocks.
   Features analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept;
 
   /// Like analyze() but with an explicit mean magnitude / TDA mean (used for leave-one-out training).
+  /// Same size rule, thread and allocation contract as analyze().
   Features analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
                         std::span<const float> tda_mean, Method method) noexcept;
 
@@ -39,7 +43,8 @@ class WindowAnalyzer {
   [[nodiscard]] std::span<const std::complex<float>> spectrum() const noexcept { return X_; }
   [[nodiscard]] std::span<const std::complex<float>> residual_spectrum() const noexcept { return R_; }
 
-  /// |DFT| of x into mag (bins = N/2+1), used by training (eq. 7). Never allocates.
+  /// |DFT| of x into mag (bins = N/2+1), used by training (eq. 7). On a size mismatch mag is filled
+  /// with NaN. Overwrites spectrum(). Thread: the owner's. Never allocates or blocks.
   void magnitude(std::span<const float> x, std::span<float> mag) noexcept;
 
  private:

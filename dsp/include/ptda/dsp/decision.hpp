@@ -26,10 +26,12 @@ class KOfNDebouncer {
   static constexpr std::uint32_t kMaxN = 64;
   /// Throws ptda::Error unless 1 <= k <= n <= kMaxN. Thread: any (setup).
   KOfNDebouncer(std::uint32_t k, std::uint32_t n);
-  /// Records one window; returns whether the k-of-n condition holds now. Never allocates.
+  /// Records one window; returns whether the k-of-n condition holds now (fewer than n windows seen:
+  /// counts over those). Thread: the owner's. Never allocates or blocks.
   bool push(bool abnormal) noexcept;
   [[nodiscard]] bool active() const noexcept { return count_ >= k_; }
   [[nodiscard]] std::uint32_t abnormal_in_window() const noexcept { return count_; }
+  /// Forgets all history (e.g. after a class change or a gap). Thread: the owner's. Never allocates.
   void reset() noexcept;
 
  private:

@@ -12,7 +12,9 @@ namespace ptda::dsp {
 
 class RealFft {
  public:
-  /// True when n is even, >= 4 and has no prime factor other than 2, 3, 5.
+  /// True when n is even, >= 4, <= 2^30 (KissFFT takes an int) and has no prime factor other
+  /// than 2, 3, 5.
+  /// Thread: any. Never allocates.
   [[nodiscard]] static bool supported_length(std::size_t n) noexcept;
 
   /// Sets up forward and inverse plans in buffers owned by this object.
@@ -27,12 +29,14 @@ class RealFft {
   [[nodiscard]] std::size_t size() const noexcept { return n_; }
   [[nodiscard]] std::size_t bins() const noexcept { return n_ / 2 + 1; }
 
-  /// X[k] = sum_n x[n] e^{-j 2 pi k n / N}, k = 0..N/2 (eq. 6). x.size() == size(), X.size() == bins().
+  /// spectrum[k] = X[k] = sum_n x[n] e^{-j 2 pi k n / N}, k = 0..N/2 (eq. 6).
+  /// x.size() == size(), spectrum.size() == bins(); wrong sizes (or a moved-from object) leave
+  /// spectrum untouched. Thread: the owner's. Never allocates or blocks.
+  void forward(std::span<const float> x, std::span<std::complex<float>> spectrum) noexcept;
+  /// x[n] = (1/N) sum_k X[k] e^{+j 2 pi k n / N} with X = spectrum (eq. 9, scaled so
+  /// inverse(forward(x)) == x). spectrum is not modified; wrong sizes leave x untouched.
   /// Thread: the owner's. Never allocates or blocks.
-  void forward(std::span<const float> x, std::span<std::complex<float>> X) noexcept;
-  /// x[n] = (1/N) sum_k X[k] e^{+j 2 pi k n / N} (eq. 9, scaled so inverse(forward(x)) == x).
-  /// X is not modified. Thread: the owner's. Never allocates or blocks.
-  void inverse(std::span<const std::complex<float>> X, std::span<float> x) noexcept;
+  void inverse(std::span<const std::complex<float>> spectrum, std::span<float> x) noexcept;
 
  private:
   struct Impl;

@@ -3,20 +3,37 @@
 // before it. Written atomically: temporary file in the same directory, fsync, rename, fsync(dir).
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
 
 #include "ptda/dsp/baseline.hpp"
 
 namespace ptda::formats {
 
+/// Layout version written and read by this build (docs/recording-format.md describes it).
+inline constexpr std::uint32_t kBaselineFormatVersion = 1;
+
 /// Throws ptda::Error (naming the path and the failed step); never leaves a partial file at `path`.
+/// Thread: any (offline / configure time). Blocks (fsync) and allocates.
 void write_baseline(const std::filesystem::path& path, const dsp::Baseline& baseline);
 
 /// Throws ptda::Error when missing, truncated, corrupt (CRC), of another version or inconsistent,
-/// saying which.
+/// saying which. Thread: any (configure time). Blocks and allocates.
 [[nodiscard]] dsp::Baseline read_baseline(const std::filesystem::path& path);
 
-/// CRC-32 (IEEE 802.3, reflected, poly 0xEDB88320), as zlib's crc32. Exposed for tests.
+/// The exact bytes write_baseline stores (CRC included). Throws ptda::Error for an inconsistent
+/// baseline (vector lengths vs window_len, bad enums). Thread: any; allocates.
+[[nodiscard]] std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& baseline);
+/// Parses bytes produced by serialize_baseline; `source` names them in error messages. Throws like
+/// read_baseline. Thread: any; allocates.
+[[nodiscard]] dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::string& source);
+
+/// CRC-32 (IEEE 802.3, reflected, poly 0xEDB88320), as zlib's crc32. Exposed for tests. Pass the
+/// previous result as `crc` to continue over several buffers. Thread: any; never allocates.
 [[nodiscard]] std::uint32_t crc32(const void* data, std::size_t len, std::uint32_t crc = 0) noexcept;
 
 }  // namespace ptda::formats

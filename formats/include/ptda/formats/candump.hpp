@@ -2,10 +2,12 @@
 // FRAME: 3-hex standard or 8-hex extended id; "#" classic data (0..8 bytes, '.' separators allowed),
 // "#R" / "#R<dlc>" remote frames, "##<flags-nibble><data>" CAN FD (0..64 bytes), error frames as
 // 8-hex ids with CAN_ERR_FLAG (0x20000000). Newer can-utils suffixes ("_<dlc>") and CAN XL lines are
-// accepted and their extra fields ignored. Lines not starting with '(' are comments (as canplayer).
+// accepted and their extra fields ignored (CAN XL lines are skipped like comments, since CanFrame cannot
+// hold them). Lines not starting with '(' are comments (as canplayer). Offline code: throws ptda::Error.
 #pragma once
 
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <iosfwd>
 #include <optional>
@@ -23,12 +25,18 @@ struct CandumpRecord {
   char direction = 0;   ///< 'R', 'T' or 0 when absent
 };
 
-/// Parses one line. Returns std::nullopt for comment/blank lines. Throws ptda::Error
-/// "<source>:<line_no>: <what>" for a malformed line.
+/// Parses one line. Returns std::nullopt for comment/blank lines (and CAN XL lines). Throws ptda::Error
+/// "<source>:<line_no>: <what>" for a malformed line. Thread: any. Does not block; allocates only when
+/// the iface name outgrows the capacity of `out.iface` (see the overload below).
 [[nodiscard]] std::optional<CandumpRecord> parse_candump_line(std::string_view line, const std::string& source,
                                                               long line_no);
 
-/// Streaming reader: next() returns false at the end. Throws ptda::Error on a malformed line.
+/// Parses into `out` (reusing its iface capacity). Returns false for comment/blank/CAN XL lines, leaving
+/// `out` unspecified. Throws like parse_candump_line.
+bool parse_candump_line_into(std::string_view line, const std::string& source, long line_no, CandumpRecord& out);
+
+/// Streaming reader: next() returns false at the end. Throws ptda::Error on a malformed line or a read
+/// error. Thread: the owner's. Blocks on file I/O; after warm-up next() does not allocate.
 class CandumpReader {
  public:
   explicit CandumpReader(const std::filesystem::path& path);
@@ -40,15 +48,20 @@ class CandumpReader {
 
  private:
   std::filesystem::path path_;
+  std::string source_;  // path_ as text, for error messages without a per-line conversion
   std::FILE* f_ = nullptr;
   long line_no_ = 0;
   std::string line_;
 };
 
+/// Reads a whole log. Throws ptda::Error. Thread: any; blocks, allocates.
 [[nodiscard]] std::vector<CandumpRecord> read_candump(const std::filesystem::path& path);
 
-/// Formats one record exactly as `candump -l` does (timestamp with 6 decimals).
+/// Formats one record exactly as `candump -l` does (timestamp with 6 decimals, truncated to whole
+/// microseconds), without the newline. Throws ptda::Error for a record candump could not have written
+/// (negative time, standard id above 0x7FF, too long payload, empty iface). Thread: any; allocates.
 [[nodiscard]] std::string format_candump_line(const CandumpRecord& rec);
+/// Writes one line per record. Throws ptda::Error naming the file. Thread: any; blocks, allocates.
 void write_candump(const std::filesystem::path& path, const std::vector<CandumpRecord>& records);
 
 }  // namespace ptda::formats

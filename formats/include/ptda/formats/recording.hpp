@@ -1,5 +1,6 @@
 // A recording directory: recording.toml + a WAV file + a candump log (+ truth.toml from the simulator,
-// which no analysis command reads).
+// which no analysis command reads). Layout and keys: docs/recording-format.md. Offline code: any thread,
+// blocks on file I/O, allocates, throws ptda::Error.
 #pragma once
 
 #include <cstdint>
@@ -18,9 +19,11 @@ struct RecordingMeta {
 };
 
 /// Reads and validates DIR/recording.toml (format = "ptda-recording", version = 1; every key checked,
-/// referenced files must exist). Throws ptda::Error with file, line and column of the bad key.
+/// referenced files must exist, `channel` must exist in the WAV, whose header is read to check). Throws
+/// ptda::Error with file, line and column of the bad key or value.
 [[nodiscard]] RecordingMeta read_recording_meta(const std::filesystem::path& dir);
-/// Writes DIR/recording.toml (creates DIR). Throws ptda::Error.
+/// Writes DIR/recording.toml (creates DIR); floats are written in shortest round-trip form, so they
+/// read back bit-identical. Does not check that the referenced files exist. Throws ptda::Error.
 void write_recording_meta(const std::filesystem::path& dir, const RecordingMeta& meta);
 
 }  // namespace ptda::formats

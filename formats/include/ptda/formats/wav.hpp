@@ -1,4 +1,7 @@
 // RIFF/WAVE: PCM 16/24/32-bit or IEEE float32, 1..8 channels, up to 200 kHz; WAVE_FORMAT_EXTENSIBLE too.
+// Unknown chunks are skipped (odd sizes padded); a data size of 0 or 0xFFFFFFFF (streamed writers) means
+// "up to the end of the file". All functions here are offline: any thread, they block on file I/O and
+// allocate, and they throw ptda::Error naming the file.
 #pragma once
 
 #include <cstdint>
@@ -32,7 +35,12 @@ class WavReader {
   [[nodiscard]] const WavInfo& info() const noexcept { return info_; }
   /// Reads up to out.size() frames of `channel`; returns frames read (0 at the end).
   /// Throws ptda::Error on a short/corrupt file (with the frame index) or a bad channel.
+  /// Thread: the owner's. Blocks on file I/O; allocates only the first time a larger block is needed.
   std::size_t read(std::uint16_t channel, std::span<float> out);
+  /// Moves the read position to `frame` (clamped to the end). Throws ptda::Error on an I/O error.
+  void seek(std::uint64_t frame);
+  /// Current read position in frames.
+  [[nodiscard]] std::uint64_t position() const noexcept { return pos_frames_; }
 
  private:
   std::filesystem::path path_;
@@ -41,7 +49,12 @@ class WavReader {
   std::uint64_t data_offset_ = 0;
   std::uint64_t pos_frames_ = 0;
   std::vector<std::uint8_t> buf_;
+  std::uint16_t block_align_ = 0;       // bytes per frame
+  std::uint16_t bytes_per_sample_ = 0;  // container bytes of one sample
 };
+
+/// Bytes of one sample in `format` (2, 3, 4, 4).
+[[nodiscard]] std::uint16_t wav_bytes_per_sample(WavSampleFormat format) noexcept;
 
 /// Reads one whole channel. Throws ptda::Error.
 [[nodiscard]] std::vector<float> read_wav_channel(const std::filesystem::path& path, std::uint16_t channel,

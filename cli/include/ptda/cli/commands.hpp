@@ -1,0 +1,29 @@
+// The subcommands of `ptda`. Each takes its arguments (after the subcommand name) and writes its normal
+// output to `out`; errors are thrown (UsageError -> exit 2, ptda::Error -> exit 1) and turned into
+// "ptda <cmd>: <what and where>" on stderr by run_cli(). Thread: the main thread of the tool.
+#pragma once
+
+#include <iosfwd>
+#include <span>
+#include <string>
+
+namespace ptda::cli {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;  ///< data or runtime error (bad file, mismatch, I/O)
+inline constexpr int kExitUsage = 2;    ///< the command line is wrong
+
+int cmd_simulate(std::span<const std::string> args, std::ostream& out);
+int cmd_import(std::span<const std::string> args, std::ostream& out);
+int cmd_train(std::span<const std::string> args, std::ostream& out);
+int cmd_monitor(std::span<const std::string> args, std::ostream& out);
+int cmd_report(std::span<const std::string> args, std::ostream& out);
+
+/// Dispatches args[0] as the subcommand ("--help"/"-h"/"help" or nothing: overview). Catches every
+/// exception and returns the exit code; error text goes to err.
+int run_cli(std::span<const std::string> args, std::ostream& out, std::ostream& err);
+
+/// Text of `ptda --help`.
+[[nodiscard]] std::string overview_help();
+
+}  // namespace ptda::cli

@@ -1,0 +1,122 @@
+// The one place where a recording directory is turned into the two input streams of the monitoring
+// pipeline: vibration samples (WAV, streamed in blocks, times recording scale) and joint speed samples
+// (candump log, decoded with config::decode_speed, latency applied), interleaved by time. `ptda train`,
+// `ptda monitor` and `ptda report` all feed their slicer/engine through run_recording(), so they cut
+// exactly the same windows. Thread: any (offline). Allocates; throws ptda::Error naming the file.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "ptda/cli/args.hpp"
+#include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/types.hpp"
+#include "ptda/formats/recording.hpp"
+#include "ptda/formats/wav.hpp"
+
+namespace ptda::cli {
+
+/// What a recording directory holds, validated (recording.toml read, WAV header read).
+struct RecordingInfo {
+  std::filesystem::path dir;
+  formats::RecordingMeta meta;
+  formats::WavInfo wav;
+  std::filesystem::path wav_path;
+  std::filesystem::path can_path;
+  std::int64_t t0_ns = 0;     ///< UNIX ns of sample 0
+  double duration_s = 0.0;    ///< frames / rate
+};
+
+/// Reads DIR/recording.toml and the WAV header. Throws ptda::Error (missing directory, bad toml,
+/// unreadable WAV, channel out of range), naming the file.
+[[nodiscard]] RecordingInfo open_recording(const std::filesystem::path& dir);
+
+/// The sample rate the pipeline runs at: the recording's, which must equal the configuration's
+/// [acquisition] fs_hz when that is non-zero. Throws ptda::Error naming both sources on a mismatch.
+[[nodiscard]] double pipeline_fs_hz(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                                    const std::string& config_source);
+
+/// How the CAN log decoded.
+struct CanCounters {
+  std::uint64_t frames = 0;        ///< every frame line in the log
+  std::uint64_t speed_frames = 0;  ///< decoded speed samples handed to the pipeline
+  std::uint64_t other_id = 0;      ///< frames with another identifier (not an error)
+  std::uint64_t wrong_dlc = 0;     ///< the speed id with an unexpected length
+  std::uint64_t rtr = 0;           ///< remote frames with the speed id
+  std::uint64_t error_frames = 0;  ///< bus error frames
+};
+
+/// Receives the interleaved streams. Speed samples up to the end time of a block are delivered before
+/// the block; on_block_end() follows each block (poll windows there).
+class PipelineSink {
+ public:
+  virtual ~PipelineSink() = default;
+  virtual void on_speed(const dsp::SpeedSample& s) = 0;
+  virtual void on_samples(std::span<const float> block) = 0;
+  virtual void on_block_end() {}
+  /// End of both streams.
+  virtual void on_finish() = 0;
+};
+
+struct RunOptions {
+  std::size_t block_frames = 4096;
+  bool progress = true;        ///< progress bar when stderr is a terminal
+  std::string progress_label;  ///< e.g. "monitor run1"
+};
+
+/// Streams the recording into sink. Returns the CAN decode counters. Throws ptda::Error on unreadable
+/// or malformed input (WAV short/corrupt, malformed candump line with file:line).
+CanCounters run_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg, PipelineSink& sink,
+                          const RunOptions& options = {});
+
+// ---- the three uses ------------------------------------------------------------------------------
+
+/// Every valid window of a recording and the regions that ended (for training).
+struct CollectResult {
+  dsp::CollectedWindows data;
+  dsp::SlicerCounters slicer;
+  CanCounters can;
+  double fs_hz = 0.0;
+};
+[[nodiscard]] CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                                            double fs_hz, const RunOptions& options = {});
+
+/// Appends `more` to `all`, renumbering window and region sequence numbers so they stay unique
+/// (several training recordings: a region of one recording is never confused with another's).
+void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more);
+
+/// Keeps the windows [range.first(count), range.last(count)) in cut order and the regions they lie in.
+[[nodiscard]] dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const FractionRange& range);
+
+/// Monitoring results of one recording with one method.
+struct MonitorResult {
+  std::vector<dsp::WindowResult> windows;
+  dsp::SlicerCounters slicer;
+  CanCounters can;
+  double fs_hz = 0.0;
+};
+/// Called for each polled window while the engine still holds its buffers (engine.last_window(),
+/// engine.analyzer().deterministic()/residual()).
+using WindowObserver = std::function<void(const dsp::WindowResult&, const dsp::MonitorEngine&)>;
+
+/// Checks that baseline and configuration/recording agree (sample rate, window length); throws
+/// ptda::Error naming the baseline file and the disagreeing values.
+void check_baseline_matches(const dsp::Baseline& baseline, const std::string& baseline_source,
+                            const config::PipelineConfig& cfg, const std::string& config_source,
+                            double fs_hz, const std::string& recording_source);
+
+[[nodiscard]] MonitorResult monitor_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                                              const dsp::Baseline& baseline, dsp::Method method, double fs_hz,
+                                              const WindowObserver& observer = {},
+                                              const RunOptions& options = {});
+
+/// Recomputes the k-of-n alarm over a subset of the windows (after --windows selection) with a fresh
+/// debouncer, as if monitoring had started at the subset's first window.
+void redebounce(std::vector<dsp::WindowResult>& windows, const dsp::DecisionConfig& decision);
+
+}  // namespace ptda::cli

@@ -1,0 +1,232 @@
+// ptda monitor --recording DIR --config FILE --baseline BASELINE [--method M] [--jsonl OUT] [--windows F:T]
+#include <fstream>
+#include <iostream>
+#include <ostream>
+
+#include "ptda/cli/args.hpp"
+#include "ptda/cli/commands.hpp"
+#include "ptda/cli/jsonl.hpp"
+#include "ptda/cli/monitor_output.hpp"
+#include "ptda/cli/pipeline_runner.hpp"
+#include "ptda/cli/text.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/config/pipeline_config.hpp"
+#include "ptda/formats/baseline_file.hpp"
+
+namespace ptda::cli {
+
+namespace {
+
+std::string band_text(const dsp::Band& b) { return "[" + general(b.lo, 4) + ", " + general(b.hi, 4) + "]"; }
+
+// " > " above the band, " < " below, "   " inside (NaN is outside: shown as "?").
+std::string relation(double v, const dsp::Band& b) {
+  if (b.contains(v)) return "   ";
+  if (v > b.hi) return " > ";
+  if (v < b.lo) return " < ";
+  return " ? ";
+}
+
+}  // namespace
+
+std::string window_json(const dsp::WindowResult& w, dsp::Method method) {
+  JsonObject o;
+  o.add("n", static_cast<std::uint64_t>(w.ref.seq));
+  o.add("t_start", ns_to_seconds(w.ref.t_start_ns));
+  o.add("t_end", ns_to_seconds(w.ref.t_end_ns));
+  const bool scored = w.status == dsp::WindowStatus::kScored;
+  o.add_optional("segment", w.class_id >= 0 ? std::optional<std::int64_t>(w.class_id) : std::nullopt);
+  o.add("region", static_cast<std::uint64_t>(w.ref.region_seq));
+  o.add("speed_rad_s", w.ref.speed_rad_s);
+  o.add("status", scored ? "scored" : "no_class");
+  o.add("method", dsp::method_name(method));
+  if (scored) {
+    o.add("rms_res", w.features.rms_res);
+    o.add("entropy_res", w.features.entropy_res);
+    o.add_pair("rms_band", w.thresholds.rms.lo, w.thresholds.rms.hi);
+    o.add_pair("entropy_band", w.thresholds.entropy.lo, w.thresholds.entropy.hi);
+  } else {
+    o.add_null("rms_res").add_null("entropy_res").add_null("rms_band").add_null("entropy_band");
+  }
+  o.add("rms_out", scored && w.verdict.rms_out);
+  o.add("entropy_out", scored && w.verdict.entropy_out);
+  o.add("abnormal", scored && w.verdict.abnormal());
+  o.add("alarm", w.alarm);
+  o.add("abnormal_in_last_n", static_cast<std::uint64_t>(w.abnormal_in_last_n));
+  return o.str();
+}
+
+std::string window_table_header() {
+  return pad_left("n", 6) + pad_left("t [s]", 10) + pad_left("class", 7) + pad_left("speed", 10) + "  " +
+         pad_left("rms_res", 10) + "   " + pad_right("rms band", 20) + pad_left("entropy", 8) + "   " +
+         pad_right("entropy band", 18) + "verdict\n";
+}
+
+std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std::uint32_t decision_n) {
+  std::string s = pad_left(std::to_string(w.ref.seq), 6) +
+                  pad_left(fixed(ns_to_seconds(w.ref.t_start_ns - t0_ns), 3), 10);
+  if (w.status != dsp::WindowStatus::kScored) {
+    return s + pad_left("-", 7) + pad_left(fixed(w.ref.speed_rad_s, 3), 10) +
+           "  no segment class matches this speed: not scored\n";
+  }
+  s += pad_left(std::to_string(w.class_id), 7) + pad_left(fixed(w.ref.speed_rad_s, 3), 10) + "  " +
+       pad_left(general(w.features.rms_res, 5), 10) + relation(w.features.rms_res, w.thresholds.rms) +
+       pad_right(band_text(w.thresholds.rms), 20) + pad_left(fixed(w.features.entropy_res, 4), 8) +
+       relation(w.features.entropy_res, w.thresholds.entropy) + pad_right(band_text(w.thresholds.entropy), 18);
+  if (w.verdict.abnormal()) {
+    s += "ABNORMAL(";
+    s += w.verdict.rms_out ? (w.verdict.entropy_out ? "rms+entropy" : "rms") : "entropy";
+    s += ")";
+  } else {
+    s += "ok";
+  }
+  if (w.alarm) {
+    s += " ALARM (" + std::to_string(w.abnormal_in_last_n) + " of the last " + std::to_string(decision_n) + ")";
+  }
+  return s + "\n";
+}
+
+MonitorSummary summarize(const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns) {
+  MonitorSummary s;
+  s.windows = windows.size();
+  for (const auto& w : windows) {
+    if (w.status != dsp::WindowStatus::kScored) {
+      ++s.no_class;
+      continue;
+    }
+    ++s.scored;
+    s.rms_sum += w.features.rms_res;
+    s.entropy_sum += w.features.entropy_res;
+    if (w.verdict.abnormal()) {
+      ++s.abnormal;
+      if (w.verdict.rms_out) ++s.rms_out;
+      if (w.verdict.entropy_out) ++s.entropy_out;
+      if (!s.first_abnormal) s.first_abnormal = w;
+    }
+    if (w.alarm) {
+      ++s.alarm_windows;
+      if (!s.first_alarm) s.first_alarm = w;
+    }
+  }
+  s.t0_ns = t0_ns;
+  return s;
+}
+
+void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::SlicerCounters& slicer,
+                   const CanCounters& can, dsp::Method method) {
+  out << "summary (" << dsp::method_name(method) << "): " << s.windows << " windows, " << s.scored << " scored, "
+      << s.no_class << " without a matching class\n";
+  out << "  abnormal   " << s.abnormal << " (rms " << s.rms_out << ", entropy " << s.entropy_out << ")";
+  if (s.first_abnormal) {
+    out << ", first at " << fixed(ns_to_seconds(s.first_abnormal->ref.t_start_ns - s.t0_ns), 3) << " s (window "
+        << s.first_abnormal->ref.seq << ")";
+  }
+  out << "\n";
+  if (s.first_alarm) {
+    const double t = ns_to_seconds(s.first_alarm->ref.t_start_ns);
+    out << "  ALARM      first raised at " << fixed(ns_to_seconds(s.first_alarm->ref.t_start_ns - s.t0_ns), 3)
+        << " s (window " << s.first_alarm->ref.seq << ", " << utc_time(t) << "), active in " << s.alarm_windows
+        << " windows\n";
+  } else {
+    out << "  alarm      never raised\n";
+  }
+  if (s.scored > 0) {
+    out << "  mean       rms_res " << general(s.rms_sum / static_cast<double>(s.scored), 6) << ", entropy_res "
+        << fixed(s.entropy_sum / static_cast<double>(s.scored), 4) << "\n";
+  }
+  out << "  slicer     " << slicer.regions << " regions, " << slicer.windows_invalid << " invalid windows, "
+      << slicer.windows_lost << " lost and " << slicer.windows_overflow << " overflowed windows, "
+      << slicer.speed_gaps << " speed gaps, "
+      << slicer.speed_out_of_order << " out-of-order and " << slicer.speed_out_of_range
+      << " out-of-range speed samples, " << slicer.samples_nonfinite << " non-finite and " << slicer.samples_clipped
+      << " clipped samples\n";
+  out << "  CAN        " << can.frames << " frames: " << can.speed_frames << " speed, " << can.other_id
+      << " other ids, " << can.wrong_dlc << " wrong DLC, " << can.rtr << " remote, " << can.error_frames
+      << " error frames\n";
+}
+
+MonitorInputs load_monitor_inputs(const std::string& recording, const std::string& config_path,
+                                  const std::string& baseline_path) {
+  MonitorInputs in;
+  in.config_path = config_path;
+  in.baseline_path = baseline_path;
+  in.rec = open_recording(recording);
+  in.cfg = config::load_pipeline_config(config_path);
+  in.baseline = formats::read_baseline(baseline_path);
+  in.fs_hz = pipeline_fs_hz(in.rec, in.cfg, config_path);
+  check_baseline_matches(in.baseline, baseline_path, in.cfg, config_path, in.fs_hz, in.rec.wav_path.string());
+  return in;
+}
+
+int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
+  ArgParser parser(
+      "monitor",
+      "--recording DIR --config FILE --baseline BASELINE [--method ptda|tda|raw] [--jsonl OUT] [--windows F:T]",
+      "Replays a recording through the monitoring engine (the same one the daemon runs): constant-speed\n"
+      "windows, residual by the chosen method, RMS and spectral entropy against the class's bands, k-of-n\n"
+      "alarm. Prints a table of the windows and a summary; --jsonl writes one JSON object per window.");
+  parser.option("recording", "DIR", "recording directory", true)
+      .option("config", "FILE", "pipeline configuration TOML (the one used for training)", true)
+      .option("baseline", "BASELINE", "baseline file written by ptda train", true)
+      .option("method", "ptda|tda|raw", "how the deterministic part is removed (default: [monitor] method)")
+      .option("jsonl", "OUT", "write one JSON object per window to OUT ('-' = stdout, then no table)")
+      .option("windows", "FROM:TO", "report only this fraction of the windows (alarm recomputed over them)")
+      .flag("quiet", "print only the summary, not the table of windows");
+  const ParsedArgs a = parser.parse(args);
+  if (a.help()) {
+    out << parser.help_text();
+    return kExitOk;
+  }
+  std::optional<dsp::Method> method_opt;
+  if (a.has("method")) {
+    method_opt = dsp::parse_method(a.value("method"));
+    if (!method_opt) throw UsageError("--method: expected ptda, tda or raw, got '" + a.value("method") + "'");
+  }
+  FractionRange range;
+  if (a.has("windows")) range = parse_fraction_range(a.value("windows"), "windows");
+
+  MonitorInputs in = load_monitor_inputs(a.value("recording"), a.value("config"), a.value("baseline"));
+  const dsp::Method method = method_opt.value_or(in.cfg.method);
+
+  // Open the JSONL output before the long run so a bad path fails fast.
+  const std::string jsonl_path = a.value_or("jsonl", "");
+  std::ofstream jsonl_file;
+  std::ostream* jsonl = nullptr;
+  if (jsonl_path == "-") {
+    jsonl = &out;
+  } else if (!jsonl_path.empty()) {
+    jsonl_file.open(jsonl_path, std::ios::out | std::ios::trunc);
+    if (!jsonl_file) throw Error(jsonl_path + ": cannot open for writing");
+    jsonl = &jsonl_file;
+  }
+  const bool table = jsonl_path != "-" && !a.has("quiet");
+
+  RunOptions opts;
+  opts.progress_label = "monitor " + in.rec.dir.filename().string();
+  MonitorResult r = monitor_recording(in.rec, in.cfg, in.baseline, method, in.fs_hz, {}, opts);
+  if (!range.whole()) {
+    const auto first = static_cast<std::ptrdiff_t>(range.first(r.windows.size()));
+    const auto last = static_cast<std::ptrdiff_t>(range.last(r.windows.size()));
+    r.windows = std::vector<dsp::WindowResult>(r.windows.begin() + first, r.windows.begin() + last);
+    redebounce(r.windows, in.cfg.decision);
+  }
+
+  if (table) {
+    out << "monitor " << in.rec.dir.string() << " with " << dsp::method_name(method) << " against "
+        << in.baseline_path << " (" << in.baseline.classes.size() << " classes, N = " << in.baseline.window_len
+        << ", alarm " << in.cfg.decision.k << " of " << in.cfg.decision.n << ")\n";
+    if (!range.whole()) out << "windows " << a.value("windows") << ": " << r.windows.size() << " windows\n";
+    out << window_table_header();
+    for (const auto& w : r.windows) out << window_table_row(w, in.rec.t0_ns, in.cfg.decision.n);
+  }
+  if (jsonl != nullptr) {
+    for (const auto& w : r.windows) *jsonl << window_json(w, method) << "\n";
+    jsonl->flush();
+    if (!*jsonl) throw Error(jsonl_path + ": write failed");
+  }
+  if (jsonl_path != "-") print_summary(out, summarize(r.windows, in.rec.t0_ns), r.slicer, r.can, method);
+  return kExitOk;
+}
+
+}  // namespace ptda::cli

@@ -1,0 +1,116 @@
+// ptda train --recording DIR [--recording DIR ...] --config FILE --out BASELINE [--windows FROM:TO]
+#include <cmath>
+#include <ostream>
+
+#include "ptda/cli/args.hpp"
+#include "ptda/cli/commands.hpp"
+#include "ptda/cli/pipeline_runner.hpp"
+#include "ptda/cli/text.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/formats/baseline_file.hpp"
+
+namespace ptda::cli {
+
+namespace {
+
+std::string band_text(const dsp::Band& b) { return "[" + general(b.lo, 5) + ", " + general(b.hi, 5) + "]"; }
+
+std::string stats_text(const dsp::FeatureStats& s) {
+  return "mean " + general(s.mean, 5) + " sd " + general(s.stddev, 3) + " (n " + std::to_string(s.n) + ")";
+}
+
+}  // namespace
+
+int cmd_train(std::span<const std::string> args, std::ostream& out) {
+  ArgParser parser(
+      "train", "--recording DIR [--recording DIR ...] --config FILE --out BASELINE [--windows FROM:TO]",
+      "Cuts the constant-speed windows of healthy recordings exactly as `ptda monitor` does, groups the\n"
+      "regions into segment classes (direction, speed), averages the windows of each class (TDA mean,\n"
+      "PTDA mean magnitude) and sets the feature thresholds of every method from leave-one-cycle-out\n"
+      "healthy features. Writes the binary baseline file.");
+  parser.option("recording", "DIR", "healthy recording directory", true, true)
+      .option("config", "FILE", "pipeline configuration TOML (extraction, classes, thresholds)", true)
+      .option("out", "BASELINE", "baseline file to write (atomically)", true)
+      .option("windows", "FROM:TO",
+              "train on this fraction of the windows in cut order, e.g. 0:0.5 = the first half");
+  const ParsedArgs a = parser.parse(args);
+  if (a.help()) {
+    out << parser.help_text();
+    return kExitOk;
+  }
+  FractionRange range;
+  if (a.has("windows")) range = parse_fraction_range(a.value("windows"), "windows");
+  const std::string config_path = a.value("config");
+  const config::PipelineConfig cfg = config::load_pipeline_config(config_path);
+
+  dsp::CollectedWindows all;
+  double fs_hz = 0.0;
+  std::string first_recording;
+  std::string source = "ptda train";
+  for (const auto& dir : a.values("recording")) {
+    const RecordingInfo rec = open_recording(dir);
+    const double fs = pipeline_fs_hz(rec, cfg, config_path);
+    if (fs_hz == 0.0) {
+      fs_hz = fs;
+      first_recording = dir;
+    } else if (fs != fs_hz) {
+      throw Error(rec.wav_path.string() + ": sampled at " + general(fs, 10) + " Hz but " + first_recording +
+                  " at " + general(fs_hz, 10) + " Hz (all training recordings need one rate)");
+    }
+    RunOptions opts;
+    opts.progress_label = "train " + rec.dir.filename().string();
+    CollectResult c = collect_windows(rec, cfg, fs, opts);
+    out << "recording " << dir << ": " << fixed(rec.duration_s, 2) << " s at " << general(fs, 10) << " Hz, "
+        << c.data.regions.size() << " constant-speed regions, " << c.data.refs.size() << " windows\n";
+    out << "  slicer: " << c.slicer.windows_invalid << " invalid and " << c.slicer.windows_lost
+        << " lost windows (" << c.slicer.windows_overflow << " overflowed), " << c.slicer.speed_gaps << " speed gaps, " << c.slicer.speed_out_of_order
+        << " out-of-order speed samples; CAN: " << c.can.frames << " frames, " << c.can.speed_frames
+        << " speed, " << c.can.other_id << " other ids, " << c.can.wrong_dlc << " wrong DLC, "
+        << c.can.error_frames << " error frames\n";
+    source += " --recording " + dir;
+    append_collected(all, std::move(c.data));
+  }
+  source += " --config " + config_path;
+  if (!range.whole()) {
+    const std::uint64_t n = all.refs.size();
+    all = select_windows(all, range);
+    out << "windows " << a.value("windows") << ": kept " << all.refs.size() << " of " << n << " windows ("
+        << all.regions.size() << " regions)\n";
+    source += " --windows " + a.value("windows");
+  }
+  if (all.refs.empty()) {
+    throw Error("no constant-speed windows in the training recording(s): check [extraction] in " + config_path +
+                " (window_len " + std::to_string(cfg.extraction.window_len) + ", min_duration_s " +
+                general(cfg.extraction.min_duration_s) + ")");
+  }
+
+  dsp::Baseline baseline = dsp::train_baseline(all, cfg.classes, cfg.thresholds, fs_hz, cfg.gearbox);
+  baseline.source = source;
+  formats::write_baseline(a.value("out"), baseline);
+
+  out << "baseline " << a.value("out") << ": " << baseline.classes.size() << " segment class(es), N = "
+      << baseline.window_len << " samples (" << fixed(1000.0 * baseline.window_len / fs_hz, 1) << " ms) at "
+      << general(fs_hz, 10) << " Hz\n";
+  out << "  threshold policy: "
+      << (baseline.policy.kind == dsp::ThresholdPolicy::Kind::kGaussian ? "gaussian" : "quantile")
+      << ", false-alarm rate " << general(baseline.policy.false_alarm_rate) << " per window and feature, margin "
+      << general(baseline.policy.margin) << "\n";
+  for (const auto& c : baseline.classes) {
+    const auto& s = c.segment;
+    out << "class " << s.id << ": direction " << (s.direction < 0 ? "-" : "+") << ", speed "
+        << fixed(s.speed_rad_s, 4) << " +- " << fixed(s.speed_tol_rad_s, 4) << " rad/s, duration "
+        << fixed(s.duration_s, 3) << " s, " << s.regions << " regions, " << c.n_windows << " windows\n";
+    for (std::size_t m = 0; m < dsp::kMethodCount; ++m) {
+      const auto method = static_cast<dsp::Method>(m);
+      out << "  " << pad_right(std::string(dsp::method_name(method)), 4) << "  rms_res "
+          << pad_right(band_text(c.thresholds[m].rms), 22) << " " << stats_text(c.rms_stats[m])
+          << "\n        entropy " << pad_right(band_text(c.thresholds[m].entropy), 22) << " "
+          << stats_text(c.entropy_stats[m]) << "\n";
+    }
+  }
+  return kExitOk;
+}
+
+}  // namespace ptda::cli

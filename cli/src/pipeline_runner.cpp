@@ -1,0 +1,284 @@
+#include "ptda/cli/pipeline_runner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include "ptda/cli/progress.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/config/speed_codec.hpp"
+#include "ptda/dsp/decision.hpp"
+#include "ptda/dsp/window_slicer.hpp"
+#include "ptda/formats/candump.hpp"
+
+namespace ptda::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string num(double v) {
+  std::ostringstream s;
+  s.precision(10);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+RecordingInfo open_recording(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) throw Error(dir.string() + ": recording directory does not exist");
+  if (!fs::is_directory(dir, ec)) throw Error(dir.string() + ": not a directory (expected a recording directory)");
+  RecordingInfo rec;
+  rec.dir = dir;
+  rec.meta = formats::read_recording_meta(dir);
+  rec.wav_path = dir / rec.meta.vibration_file;
+  rec.can_path = dir / rec.meta.can_file;
+  {
+    formats::WavReader wav(rec.wav_path);
+    rec.wav = wav.info();
+  }
+  if (rec.meta.channel >= rec.wav.channels) {
+    throw Error((dir / "recording.toml").string() + ": channel " + std::to_string(rec.meta.channel) +
+                " but " + rec.wav_path.string() + " has " + std::to_string(rec.wav.channels) + " channel(s)");
+  }
+  if (rec.wav.sample_rate_hz == 0) throw Error(rec.wav_path.string() + ": sample rate is 0");
+  rec.t0_ns = seconds_to_ns(rec.meta.start_time_s);
+  rec.duration_s = static_cast<double>(rec.wav.frames) / static_cast<double>(rec.wav.sample_rate_hz);
+  return rec;
+}
+
+double pipeline_fs_hz(const RecordingInfo& rec, const config::PipelineConfig& cfg, const std::string& config_source) {
+  const double fs = static_cast<double>(rec.wav.sample_rate_hz);
+  if (cfg.fs_hz != 0.0 && std::abs(cfg.fs_hz - fs) > 1e-9 * fs) {
+    throw Error(config_source + ": [acquisition] fs_hz = " + num(cfg.fs_hz) + " Hz but recording " +
+                rec.wav_path.string() + " is sampled at " + num(fs) + " Hz");
+  }
+  return fs;
+}
+
+CanCounters run_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg, PipelineSink& sink,
+                          const RunOptions& options) {
+  formats::WavReader wav(rec.wav_path);
+  formats::CandumpReader can(rec.can_path);
+  CanCounters counters;
+  const double fs = static_cast<double>(wav.info().sample_rate_hz);
+  const std::int64_t latency_ns = seconds_to_ns(cfg.speed_latency_s);
+  const float scale = static_cast<float>(rec.meta.scale);
+  const bool scaled = rec.meta.scale != 1.0;
+
+  std::optional<dsp::SpeedSample> pending;
+  bool can_done = false;
+  formats::CandumpRecord record;
+  // Reads CAN frames until the next decoded speed sample (counting everything else).
+  auto fetch = [&]() {
+    while (!pending && !can_done) {
+      if (!can.next(record)) {
+        can_done = true;
+        return;
+      }
+      ++counters.frames;
+      config::DecodedSpeed decoded;
+      switch (config::decode_speed(record.frame, cfg.speed_frame, decoded)) {
+        case config::DecodeResult::kOk:
+          ++counters.speed_frames;
+          pending = dsp::SpeedSample{record.frame.t_ns - latency_ns, decoded.speed_rad_s, decoded.angle_rad,
+                                     decoded.has_angle};
+          break;
+        case config::DecodeResult::kOtherId: ++counters.other_id; break;
+        case config::DecodeResult::kWrongDlc: ++counters.wrong_dlc; break;
+        case config::DecodeResult::kRtr: ++counters.rtr; break;
+        case config::DecodeResult::kErrorFrame: ++counters.error_frames; break;
+      }
+    }
+  };
+
+  Progress progress(options.progress_label.empty() ? rec.dir.filename().string() : options.progress_label,
+                    rec.wav.frames, options.progress);
+  std::vector<float> block(std::max<std::size_t>(1, options.block_frames));
+  std::uint64_t pos = 0;
+  for (;;) {
+    const std::size_t n = wav.read(rec.meta.channel, block);
+    if (n == 0) break;
+    if (scaled) {
+      for (std::size_t i = 0; i < n; ++i) block[i] *= scale;
+    }
+    const std::int64_t t_end_ns =
+        rec.t0_ns + static_cast<std::int64_t>(std::llround(static_cast<double>(pos + n) * 1e9 / fs));
+    for (;;) {
+      fetch();
+      if (!pending || pending->t_ns >= t_end_ns) break;
+      sink.on_speed(*pending);
+      pending.reset();
+    }
+    sink.on_samples(std::span<const float>(block.data(), n));
+    pos += n;
+    sink.on_block_end();
+    progress.update(pos);
+  }
+  for (;;) {
+    fetch();
+    if (!pending) break;
+    sink.on_speed(*pending);
+    pending.reset();
+  }
+  sink.on_finish();
+  progress.done();
+  return counters;
+}
+
+namespace {
+
+class CollectSink final : public PipelineSink {
+ public:
+  CollectSink(const dsp::ExtractionConfig& cfg, double fs_hz, std::int64_t t0_ns)
+      : slicer_(cfg, fs_hz, t0_ns), buf_(cfg.window_len) {}
+
+  void on_speed(const dsp::SpeedSample& s) override { slicer_.push_speed(s); }
+  void on_samples(std::span<const float> block) override { slicer_.push_samples(block); }
+  void on_block_end() override { drain(); }
+  void on_finish() override {
+    slicer_.finish();
+    drain();
+  }
+
+  dsp::CollectedWindows data;
+  [[nodiscard]] const dsp::WindowSlicer& slicer() const noexcept { return slicer_; }
+
+ private:
+  void drain() {
+    dsp::WindowRef ref;
+    while (slicer_.pop(ref, buf_)) {
+      data.refs.push_back(ref);
+      data.windows.push_back(buf_);
+    }
+    dsp::RegionInfo region;
+    while (slicer_.pop_region(region)) data.regions.push_back(region);
+  }
+
+  dsp::WindowSlicer slicer_;
+  std::vector<float> buf_;
+};
+
+class MonitorSink final : public PipelineSink {
+ public:
+  MonitorSink(dsp::MonitorEngine& engine, std::vector<dsp::WindowResult>& out, const WindowObserver& observer)
+      : engine_(engine), out_(out), observer_(observer) {}
+
+  void on_speed(const dsp::SpeedSample& s) override { engine_.push_speed(s); }
+  void on_samples(std::span<const float> block) override { engine_.push_samples(block); }
+  void on_block_end() override { drain(); }
+  void on_finish() override {
+    engine_.finish();
+    drain();
+  }
+
+ private:
+  void drain() {
+    dsp::WindowResult r;
+    while (engine_.poll(r)) {
+      if (observer_) observer_(r, engine_);
+      out_.push_back(r);
+    }
+  }
+
+  dsp::MonitorEngine& engine_;
+  std::vector<dsp::WindowResult>& out_;
+  const WindowObserver& observer_;
+};
+
+}  // namespace
+
+CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg, double fs_hz,
+                              const RunOptions& options) {
+  CollectSink sink(cfg.extraction, fs_hz, rec.t0_ns);
+  CollectResult result;
+  result.can = run_recording(rec, cfg, sink, options);
+  result.slicer = sink.slicer().counters();
+  result.data = std::move(sink.data);
+  result.fs_hz = fs_hz;
+  return result;
+}
+
+void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
+  std::uint64_t region_offset = 0;
+  std::uint64_t window_offset = 0;
+  for (const auto& r : all.regions) region_offset = std::max(region_offset, r.seq + 1);
+  for (const auto& w : all.refs) {
+    region_offset = std::max(region_offset, w.region_seq + 1);
+    window_offset = std::max(window_offset, w.seq + 1);
+  }
+  for (auto& r : more.regions) {
+    r.seq += region_offset;
+    all.regions.push_back(r);
+  }
+  for (std::size_t i = 0; i < more.refs.size(); ++i) {
+    auto ref = more.refs[i];
+    ref.seq += window_offset;
+    ref.region_seq += region_offset;
+    all.refs.push_back(ref);
+    all.windows.push_back(std::move(more.windows[i]));
+  }
+}
+
+dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const FractionRange& range) {
+  const std::uint64_t count = all.refs.size();
+  const std::uint64_t first = range.first(count);
+  const std::uint64_t last = range.last(count);
+  dsp::CollectedWindows out;
+  std::set<std::uint64_t> regions_used;
+  for (std::uint64_t i = first; i < last; ++i) {
+    out.refs.push_back(all.refs[i]);
+    out.windows.push_back(all.windows[i]);
+    regions_used.insert(all.refs[i].region_seq);
+  }
+  for (const auto& r : all.regions) {
+    if (regions_used.count(r.seq) != 0) out.regions.push_back(r);
+  }
+  return out;
+}
+
+void check_baseline_matches(const dsp::Baseline& baseline, const std::string& baseline_source,
+                            const config::PipelineConfig& cfg, const std::string& config_source, double fs_hz,
+                            const std::string& recording_source) {
+  if (std::abs(baseline.fs_hz - fs_hz) > 1e-9 * fs_hz) {
+    throw Error(baseline_source + ": baseline was trained at " + num(baseline.fs_hz) + " Hz but recording " +
+                recording_source + " is sampled at " + num(fs_hz) + " Hz");
+  }
+  if (baseline.window_len != cfg.extraction.window_len) {
+    throw Error(baseline_source + ": baseline window length is " + std::to_string(baseline.window_len) +
+                " samples but " + config_source + " sets [extraction] window_len = " +
+                std::to_string(cfg.extraction.window_len));
+  }
+}
+
+MonitorResult monitor_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                                const dsp::Baseline& baseline, dsp::Method method, double fs_hz,
+                                const WindowObserver& observer, const RunOptions& options) {
+  dsp::MonitorEngine engine(baseline, cfg.extraction, cfg.decision, method, fs_hz, rec.t0_ns);
+  MonitorResult result;
+  MonitorSink sink(engine, result.windows, observer);
+  result.can = run_recording(rec, cfg, sink, options);
+  result.slicer = engine.slicer().counters();
+  result.fs_hz = fs_hz;
+  return result;
+}
+
+void redebounce(std::vector<dsp::WindowResult>& windows, const dsp::DecisionConfig& decision) {
+  dsp::KOfNDebouncer debouncer(decision.k, decision.n);
+  for (auto& w : windows) {
+    if (w.status == dsp::WindowStatus::kScored) {
+      w.alarm = debouncer.push(w.verdict.abnormal());
+    } else {
+      w.alarm = debouncer.active();
+    }
+    w.abnormal_in_last_n = debouncer.abnormal_in_window();
+  }
+}
+
+}  // namespace ptda::cli

@@ -1,0 +1,433 @@
+// TOML -> PipelineConfig: per-key checks while applying each file, cross-key checks once at the end
+// (so a drop-in may fix what the base file left inconsistent), every error located in its file.
+#include "ptda/config/pipeline_config.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <sstream>
+
+#include "ptda/common/error.hpp"
+#include "ptda/config/pipeline_config_builder.hpp"
+#include "ptda/config/toml_reader.hpp"
+#include "ptda/dsp/real_fft.hpp"
+
+namespace ptda::config {
+namespace {
+
+constexpr double kMaxFsHz = 200000.0;
+constexpr std::uint32_t kMaxWindowLen = 1U << 24;  // 16 Mi samples: ~11 min at 25.6 kHz
+constexpr std::uint32_t kMaxTeeth = 100000;
+constexpr std::uint32_t kMaxDecisionN = dsp::KOfNDebouncer::kMaxN;
+
+using GearKind = dsp::GearboxInfo::Kind;
+using ThresholdKind = dsp::ThresholdPolicy::Kind;
+
+// A float that must be strictly positive: read with lo = 0 and refuse the 0 itself.
+bool read_positive(TableReader& r, std::string_view key, double& out, double hi) {
+  double v = 0.0;
+  if (!r.read(key, v, 0.0, hi)) return false;
+  if (v <= 0.0) r.fail_value(key, "must be > 0");
+  out = v;
+  return true;
+}
+
+std::string shortest(double v) {
+  char buf[64];
+  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  std::string s(buf, res.ptr);
+  // TOML floats need a '.' or an exponent; "3" would read back as an integer (also accepted, but
+  // keep the type visible).
+  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";
+  return s;
+}
+
+std::string hex(std::uint32_t v) {
+  std::ostringstream os;
+  os << "0x" << std::hex << std::uppercase << v;
+  return os.str();
+}
+
+void format_signal(std::ostringstream& os, const char* name, const SignalSpec& s) {
+  os << "\n[can.speed_frame." << name << "]\n"
+     << "start_byte = " << static_cast<unsigned>(s.start_byte) << "\n"
+     << "length = " << static_cast<unsigned>(s.length) << "\n"
+     << "byte_order = \"" << (s.little_endian ? "little" : "big") << "\"\n"
+     << "signed = " << (s.is_signed ? "true" : "false") << "\n"
+     << "scale = " << shortest(s.scale) << "\n"
+     << "offset = " << shortest(s.offset) << "\n";
+}
+
+}  // namespace
+
+std::string_view threshold_kind_name(ThresholdKind kind) noexcept {
+  switch (kind) {
+    case ThresholdKind::kGaussian:
+      return "gaussian";
+    case ThresholdKind::kQuantile:
+      return "quantile";
+  }
+  return "?";
+}
+
+std::string_view gearbox_kind_name(GearKind kind) noexcept {
+  switch (kind) {
+    case GearKind::kCycloidal:
+      return "cycloidal";
+    case GearKind::kParallel:
+      return "parallel";
+    case GearKind::kUnknown:
+      return "unknown";
+  }
+  return "?";
+}
+
+PipelineConfigBuilder::PipelineConfigBuilder(std::vector<std::string> ignored_tables)
+    : ignored_(std::move(ignored_tables)) {}
+
+void PipelineConfigBuilder::note(const TableReader& reader, std::string_view key) {
+  set_at_[reader.qualified(key)] = reader.location(key);
+}
+
+void PipelineConfigBuilder::ignore_owned(TableReader& reader) const {
+  // "daemon" is a top-level table, "can.interface" a key of [can]: each reader skips its own entries.
+  const std::string prefix = reader.name().empty() ? std::string() : reader.name() + ".";
+  for (const auto& name : ignored_) {
+    if (name.size() > prefix.size() && name.compare(0, prefix.size(), prefix) == 0 &&
+        name.find('.', prefix.size()) == std::string::npos) {
+      reader.ignore(std::string_view(name).substr(prefix.size()));
+    }
+  }
+}
+
+void PipelineConfigBuilder::fail_key(const std::string& path, const std::string& what) const {
+  const auto it = set_at_.find(path);
+  fail_at(it != set_at_.end() ? it->second : main_source_, what);
+}
+
+void PipelineConfigBuilder::apply(const toml::table& root, const std::string& source) {
+  if (main_source_.source.empty()) main_source_ = SourceLocation{source, 0, 0};
+  TableReader top(root, "", source);
+  ignore_owned(top);
+
+  // Each read that found its key records where, for the cross-key checks in finish().
+  const auto get = [this](TableReader& r, std::string_view key, auto& out, auto... range) {
+    if (r.read(key, out, range...)) note(r, key);
+  };
+  const auto choice = [this](TableReader& r, std::string_view key, auto& out, auto choices) {
+    if (r.read_choice(key, out, choices)) note(r, key);
+  };
+
+  if (const toml::table* t = top.table("acquisition")) {
+    TableReader r(*t, "acquisition", source);
+    ignore_owned(r);
+    double fs_hz = 0.0;
+    if (r.read("fs_hz", fs_hz, 0.0, kMaxFsHz)) {
+      if (fs_hz > 0.0 && fs_hz < 1.0)
+        r.fail_value("fs_hz", "must be 0 (take the recording's rate) or 1..200000");
+      cfg_.fs_hz = fs_hz;
+      note(r, "fs_hz");
+    }
+    r.finish();
+  }
+
+  if (const toml::table* t = top.table("can")) {
+    TableReader r(*t, "can", source);
+    ignore_owned(r);
+    get(r, "speed_latency_s", cfg_.speed_latency_s, -1.0, 1.0);
+    if (const toml::table* f = r.table("speed_frame")) {
+      TableReader fr(*f, "can.speed_frame", source);
+      ignore_owned(fr);
+      SpeedFrameSpec& spec = cfg_.speed_frame;
+      get(fr, "id", spec.id, std::uint32_t{0}, std::uint32_t{0x1FFFFFFF});
+      get(fr, "extended", spec.extended);
+      get(fr, "dlc", spec.dlc, std::uint8_t{1}, std::uint8_t{8});
+      if (read_positive(fr, "period_s", spec.period_s, 10.0)) note(fr, "period_s");
+      get(fr, "has_angle", spec.has_angle);
+      const auto signal = [&](const char* name, SignalSpec& sig) {
+        const toml::table* st = fr.table(name);
+        if (st == nullptr) return;
+        TableReader sr(*st, std::string("can.speed_frame.") + name, source);
+        ignore_owned(sr);
+        get(sr, "start_byte", sig.start_byte, std::uint8_t{0}, std::uint8_t{7});
+        get(sr, "length", sig.length, std::uint8_t{1}, std::uint8_t{8});
+        choice(sr, "byte_order", sig.little_endian,
+               std::initializer_list<std::pair<std::string_view, bool>>{{"little", true}, {"big", false}});
+        get(sr, "signed", sig.is_signed);
+        double scale = 0.0;
+        if (sr.read("scale", scale, -1e12, 1e12)) {
+          if (scale == 0.0) sr.fail_value("scale", "must not be 0");
+          sig.scale = scale;
+          note(sr, "scale");
+        }
+        get(sr, "offset", sig.offset, -1e12, 1e12);
+        sr.finish();
+      };
+      signal("speed", spec.speed);
+      signal("angle", spec.angle);
+      fr.finish();
+    }
+    r.finish();
+  }
+
+  if (const toml::table* t = top.table("extraction")) {
+    TableReader r(*t, "extraction", source);
+    ignore_owned(r);
+    dsp::ExtractionConfig& e = cfg_.extraction;
+    std::uint32_t window_len = 0;
+    if (r.read("window_len", window_len, 4, kMaxWindowLen)) {
+      if (!dsp::RealFft::supported_length(window_len)) {
+        r.fail_value("window_len",
+                     "= " + std::to_string(window_len) +
+                         " is not an FFT length: it must be even with prime factors 2, 3 and 5 only "
+                         "(e.g. 3200, 4096, 10240, 12800)");
+      }
+      e.window_len = window_len;
+      note(r, "window_len");
+    }
+    get(r, "hop", e.hop, std::uint32_t{0}, kMaxWindowLen);
+    get(r, "speed_tol_rel", e.speed_tol_rel, 0.0, 1.0);
+    get(r, "speed_tol_abs_rad_s", e.speed_tol_abs_rad_s, 0.0, 100.0);
+    get(r, "min_speed_rad_s", e.min_speed_rad_s, 0.0, 1e9);
+    if (read_positive(r, "max_speed_rad_s", e.max_speed_rad_s, 1e9)) note(r, "max_speed_rad_s");
+    get(r, "min_duration_s", e.min_duration_s, 0.0, 3600.0);
+    get(r, "guard_s", e.guard_s, 0.0, 3600.0);
+    if (read_positive(r, "max_speed_gap_s", e.max_speed_gap_s, 3600.0)) note(r, "max_speed_gap_s");
+    get(r, "max_windows_per_region", e.max_windows_per_region, std::uint32_t{0}, std::uint32_t{1000000000});
+    get(r, "clip_abs", e.clip_abs, 0.0, 1e30);
+    r.finish();
+  }
+
+  if (const toml::table* t = top.table("classes")) {
+    TableReader r(*t, "classes", source);
+    ignore_owned(r);
+    get(r, "speed_tol_rel", cfg_.classes.speed_tol_rel, 0.0, 1.0);
+    get(r, "speed_tol_abs_rad_s", cfg_.classes.speed_tol_abs_rad_s, 0.0, 100.0);
+    get(r, "min_regions", cfg_.classes.min_regions, std::uint32_t{1}, std::uint32_t{1000000});
+    r.finish();
+  }
+
+  if (const toml::table* t = top.table("thresholds")) {
+    TableReader r(*t, "thresholds", source);
+    ignore_owned(r);
+    choice(r, "method", cfg_.thresholds.kind,
+           std::initializer_list<std::pair<std::string_view, ThresholdKind>>{
+               {"gaussian", ThresholdKind::kGaussian}, {"quantile", ThresholdKind::kQuantile}});
+    double rate = 0.0;
+    if (r.read("false_alarm_rate", rate, 0.0, 0.5)) {
+      if (rate <= 0.0 || rate >= 0.5) r.fail_value("false_alarm_rate", "must be > 0 and < 0.5");
+      cfg_.thresholds.false_alarm_rate = rate;
+      note(r, "false_alarm_rate");
+    }
+    get(r, "margin", cfg_.thresholds.margin, 0.0, 10.0);
+    r.finish();
+  }
+
+  if (const toml::table* t = top.table("decision")) {
+    TableReader r(*t, "decision", source);
+    ignore_owned(r);
+    get(r, "k", cfg_.decision.k, std::uint32_t{1}, kMaxDecisionN);
+    get(r, "n", cfg_.decision.n, std::uint32_t{1}, kMaxDecisionN);
+    r.finish();
+  }
+
+  if (const toml::table* t = top.table("monitor")) {
+    TableReader r(*t, "monitor", source);
+    ignore_owned(r);
+    choice(r, "method", cfg_.method,
+           std::initializer_list<std::pair<std::string_view, dsp::Method>>{
+               {"ptda", dsp::Method::kPtda}, {"tda", dsp::Method::kTda}, {"raw", dsp::Method::kRaw}});
+    r.finish();
+  }
+
+  if (const toml::table* t = top.table("gearbox")) {
+    TableReader r(*t, "gearbox", source);
+    ignore_owned(r);
+    dsp::GearboxInfo& g = cfg_.gearbox;
+    choice(r, "kind", g.kind,
+           std::initializer_list<std::pair<std::string_view, GearKind>>{{"cycloidal", GearKind::kCycloidal},
+                                                                        {"parallel", GearKind::kParallel},
+                                                                        {"unknown", GearKind::kUnknown}});
+    get(r, "z_in", g.z_in, std::uint32_t{0}, kMaxTeeth);
+    get(r, "z_spur", g.z_spur, std::uint32_t{0}, kMaxTeeth);
+    get(r, "z_pin", g.z_pin, std::uint32_t{0}, kMaxTeeth);
+    if (read_positive(r, "ratio", g.ratio, 1e6)) {
+      note(r, "ratio");
+      ratio_given_ = true;
+    }
+    r.finish();
+  }
+
+  top.finish();
+}
+
+PipelineConfig PipelineConfigBuilder::finish() const {
+  PipelineConfig cfg = cfg_;
+  const auto is_set = [this](const std::string& path) { return set_at_.count(path) != 0; };
+
+  const dsp::ExtractionConfig& e = cfg.extraction;
+  if (e.window_len == 0) {
+    fail_at(main_source_,
+            "[extraction] window_len is required: the window length in samples (only factors 2, 3, 5; it "
+            "must fit "
+            "inside the job's constant-speed plateau)");
+  }
+  if (e.speed_tol_rel == 0.0 && e.speed_tol_abs_rad_s == 0.0) {
+    fail_key(is_set("extraction.speed_tol_abs_rad_s") ? "extraction.speed_tol_abs_rad_s"
+                                                      : "extraction.speed_tol_rel",
+             "[extraction] speed_tol_rel and speed_tol_abs_rad_s are both 0: no speed would ever count as "
+             "constant");
+  }
+  if (e.min_speed_rad_s >= e.max_speed_rad_s) {
+    fail_key(
+        is_set("extraction.max_speed_rad_s") ? "extraction.max_speed_rad_s" : "extraction.min_speed_rad_s",
+        "[extraction] min_speed_rad_s (" + shortest(e.min_speed_rad_s) + ") must be below max_speed_rad_s (" +
+            shortest(e.max_speed_rad_s) + ")");
+  }
+  if (cfg.classes.speed_tol_rel == 0.0 && cfg.classes.speed_tol_abs_rad_s == 0.0) {
+    fail_key(
+        is_set("classes.speed_tol_abs_rad_s") ? "classes.speed_tol_abs_rad_s" : "classes.speed_tol_rel",
+        "[classes] speed_tol_rel and speed_tol_abs_rad_s are both 0: no two regions would share a class");
+  }
+  if (cfg.decision.k > cfg.decision.n) {
+    fail_key(is_set("decision.k") ? "decision.k" : "decision.n",
+             "[decision] k = " + std::to_string(cfg.decision.k) + " must not exceed n = " +
+                 std::to_string(cfg.decision.n) + " (alarm when k of the last n windows are abnormal)");
+  }
+
+  if (const auto problem = find_problem(cfg.speed_frame)) {
+    // Point at the key at fault when a file wrote it, else at the related key most likely changed.
+    std::string path = "can.speed_frame." + problem->key;
+    for (const auto& related : problem->related) {
+      if (is_set(path)) break;
+      path = "can.speed_frame." + related;
+    }
+    fail_key(path, "[can.speed_frame] " + problem->what);
+  }
+
+  dsp::GearboxInfo& g = cfg.gearbox;
+  double from_teeth = 0.0;
+  std::string teeth_text;
+  switch (g.kind) {
+    case GearKind::kCycloidal:
+      for (const auto& [name, z] : {std::pair<const char*, std::uint32_t>{"z_in", g.z_in},
+                                    {"z_spur", g.z_spur},
+                                    {"z_pin", g.z_pin}}) {
+        if (z == 0 && !ratio_given_) {
+          fail_key(is_set(std::string("gearbox.") + name) ? std::string("gearbox.") + name : "gearbox.kind",
+                   std::string("[gearbox] a cycloidal gearbox needs z_in, z_spur and z_pin > 0 (eq. 1) or an "
+                               "explicit ratio; ") +
+                       name + " is 0");
+        }
+      }
+      if (g.z_in > 0 && g.z_spur > 0 && g.z_pin > 0) {
+        from_teeth = cycloidal_ratio(g.z_in, g.z_spur, g.z_pin);
+        teeth_text = "1 + z_spur/z_in * z_pin = " + shortest(from_teeth);
+      }
+      break;
+    case GearKind::kParallel:
+      if (g.z_pin != 0)
+        fail_key("gearbox.z_pin", "[gearbox] z_pin must be 0 for a parallel gearbox (it has no pins)");
+      if ((g.z_in == 0) != (g.z_spur == 0)) {
+        fail_key(is_set("gearbox.z_in") ? "gearbox.z_in" : "gearbox.z_spur",
+                 "[gearbox] a parallel gearbox needs both z_in (driving) and z_spur (driven), or neither");
+      }
+      if (g.z_in > 0) {
+        from_teeth = static_cast<double>(g.z_spur) / static_cast<double>(g.z_in);
+        teeth_text = "z_spur/z_in = " + shortest(from_teeth);
+      }
+      break;
+    case GearKind::kUnknown:
+      for (const char* name : {"z_in", "z_spur", "z_pin"}) {
+        const std::string path = std::string("gearbox.") + name;
+        if (is_set(path)) {
+          fail_key(path, std::string("[gearbox] ") + name +
+                             " is given but kind is \"unknown\": set kind = \"cycloidal\" or \"parallel\"");
+        }
+      }
+      break;
+  }
+  if (ratio_given_) {
+    // An explicit ratio wins; with teeth too they must agree (0.1 %: the paper rounds R to 33.86).
+    if (from_teeth > 0.0 && std::abs(g.ratio - from_teeth) > 1e-3 * from_teeth) {
+      fail_key("gearbox.ratio", "[gearbox] ratio = " + shortest(g.ratio) +
+                                    " disagrees with the teeth: " + teeth_text + " (remove one of them)");
+    }
+  } else {
+    g.ratio = from_teeth;
+  }
+  return cfg;
+}
+
+PipelineConfig parse_pipeline_config(std::string_view toml_text, const std::string& source) {
+  return parse_pipeline_config(toml_text, source, {});
+}
+
+PipelineConfig parse_pipeline_config(std::string_view toml_text, const std::string& source,
+                                     const std::vector<std::string>& ignored_tables) {
+  PipelineConfigBuilder builder(ignored_tables);
+  builder.apply(parse_toml(toml_text, source), source);
+  return builder.finish();
+}
+
+PipelineConfig load_pipeline_config(const std::filesystem::path& path,
+                                    const std::vector<std::filesystem::path>& dropins) {
+  return load_pipeline_config(path, dropins, {});
+}
+
+PipelineConfig load_pipeline_config(const std::filesystem::path& path,
+                                    const std::vector<std::filesystem::path>& dropins,
+                                    const std::vector<std::string>& ignored_tables) {
+  PipelineConfigBuilder builder(ignored_tables);
+  builder.apply(read_toml_file(path), path.string());
+  for (const auto& dropin : dropins) builder.apply(read_toml_file(dropin), dropin.string());
+  return builder.finish();
+}
+
+std::string format_pipeline_config(const PipelineConfig& cfg) {
+  std::ostringstream os;
+  const auto& f = cfg.speed_frame;
+  const auto& e = cfg.extraction;
+  os << "[acquisition]\nfs_hz = " << shortest(cfg.fs_hz) << "\n"
+     << "\n[can]\nspeed_latency_s = " << shortest(cfg.speed_latency_s) << "\n"
+     << "\n[can.speed_frame]\n"
+     << "id = " << hex(f.id) << "\n"
+     << "extended = " << (f.extended ? "true" : "false") << "\n"
+     << "dlc = " << static_cast<unsigned>(f.dlc) << "\n"
+     << "period_s = " << shortest(f.period_s) << "\n"
+     << "has_angle = " << (f.has_angle ? "true" : "false") << "\n";
+  format_signal(os, "speed", f.speed);
+  format_signal(os, "angle", f.angle);
+  os << "\n[extraction]\n"
+     << "window_len = " << e.window_len << "\n"
+     << "hop = " << e.hop << "\n"
+     << "speed_tol_rel = " << shortest(e.speed_tol_rel) << "\n"
+     << "speed_tol_abs_rad_s = " << shortest(e.speed_tol_abs_rad_s) << "\n"
+     << "min_speed_rad_s = " << shortest(e.min_speed_rad_s) << "\n"
+     << "max_speed_rad_s = " << shortest(e.max_speed_rad_s) << "\n"
+     << "min_duration_s = " << shortest(e.min_duration_s) << "\n"
+     << "guard_s = " << shortest(e.guard_s) << "\n"
+     << "max_speed_gap_s = " << shortest(e.max_speed_gap_s) << "\n"
+     << "max_windows_per_region = " << e.max_windows_per_region << "\n"
+     << "clip_abs = " << shortest(e.clip_abs) << "\n"
+     << "\n[classes]\n"
+     << "speed_tol_rel = " << shortest(cfg.classes.speed_tol_rel) << "\n"
+     << "speed_tol_abs_rad_s = " << shortest(cfg.classes.speed_tol_abs_rad_s) << "\n"
+     << "min_regions = " << cfg.classes.min_regions << "\n"
+     << "\n[thresholds]\n"
+     << "method = \"" << threshold_kind_name(cfg.thresholds.kind) << "\"\n"
+     << "false_alarm_rate = " << shortest(cfg.thresholds.false_alarm_rate) << "\n"
+     << "margin = " << shortest(cfg.thresholds.margin) << "\n"
+     << "\n[decision]\nk = " << cfg.decision.k << "\nn = " << cfg.decision.n << "\n"
+     << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
+     << "\n[gearbox]\n"
+     << "kind = \"" << gearbox_kind_name(cfg.gearbox.kind) << "\"\n";
+  // Teeth only for a known kind, ratio only when known: exactly what parses back to this config.
+  if (cfg.gearbox.kind != GearKind::kUnknown) {
+    os << "z_in = " << cfg.gearbox.z_in << "\nz_spur = " << cfg.gearbox.z_spur
+       << "\nz_pin = " << cfg.gearbox.z_pin << "\n";
+  }
+  if (cfg.gearbox.ratio > 0.0) os << "ratio = " << shortest(cfg.gearbox.ratio) << "\n";
+  return os.str();
+}
+
+}  // namespace ptda::config

@@ -1,0 +1,264 @@
+// MonitorEngine (slicer -> class match -> analyzer -> thresholds -> k-of-n) and the training glue
+// (segment classes from regions, baseline from collected windows). See docs/windows.md.
+#include "ptda/dsp/monitor_engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/training.hpp"
+
+namespace ptda::dsp {
+namespace {
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// Checked before anything is built from the baseline, so a mismatch names the real cause.
+const Baseline& checked(const Baseline& b, const ExtractionConfig& cfg, double fs_hz) {
+  if (!(std::isfinite(fs_hz) && fs_hz > 0.0) || !(std::fabs(b.fs_hz - fs_hz) <= 1e-6 * fs_hz)) {
+    throw Error("monitor: baseline was trained at fs_hz = " + num(b.fs_hz) + " Hz but the input runs at " +
+                num(fs_hz) + " Hz (must agree within 1e-6 relative)");
+  }
+  if (b.window_len != cfg.window_len) {
+    throw Error("monitor: baseline window_len = " + std::to_string(b.window_len) +
+                " but extraction.window_len = " + std::to_string(cfg.window_len));
+  }
+  if (b.classes.empty()) throw Error("monitor: baseline has no segment classes");
+  const std::size_t bins = b.window_len / 2 + 1;
+  for (std::size_t i = 0; i < b.classes.size(); ++i) {
+    const ClassBaseline& c = b.classes[i];
+    if (c.mean_magnitude.size() != bins || c.tda_mean.size() != b.window_len) {
+      throw Error("monitor: baseline class " + std::to_string(i) + " has " +
+                  std::to_string(c.mean_magnitude.size()) + " magnitude bins and " +
+                  std::to_string(c.tda_mean.size()) + " mean samples, expected " + std::to_string(bins) +
+                  " and " + std::to_string(b.window_len));
+    }
+  }
+  return b;
+}
+
+}  // namespace
+
+MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& cfg,
+                             const DecisionConfig& decision, Method method, double fs_hz, std::int64_t t0_ns)
+    : baseline_(checked(baseline, cfg, fs_hz)),
+      method_(method),
+      slicer_(cfg, fs_hz, t0_ns),
+      analyzer_(cfg.window_len),
+      debouncer_(decision.k, decision.n),
+      window_(cfg.window_len, 0.0F) {}
+
+void MonitorEngine::push_speed(const SpeedSample& s) noexcept {
+  slicer_.push_speed(s);
+}
+void MonitorEngine::push_samples(std::span<const float> block) noexcept {
+  slicer_.push_samples(block);
+}
+void MonitorEngine::mark_gap(std::uint64_t count) noexcept {
+  slicer_.mark_gap(count);
+}
+void MonitorEngine::finish() noexcept {
+  slicer_.finish();
+}
+
+bool MonitorEngine::poll(WindowResult& out) noexcept {
+  WindowRef ref;
+  if (!slicer_.pop(ref, window_)) return false;
+  // The slicer's completed regions are for training and reports; the engine does not keep them.
+  RegionInfo region;
+  while (slicer_.pop_region(region)) {
+  }
+  out = WindowResult{};
+  out.ref = ref;
+  const ClassBaseline* cls = baseline_.match(ref.speed_rad_s);
+  if (cls == nullptr) {
+    // Not comparable with any healthy reference: reported, but neither judged nor debounced.
+    out.status = WindowStatus::kNoClass;
+    out.alarm = debouncer_.active();
+    out.abnormal_in_last_n = debouncer_.abnormal_in_window();
+    return true;
+  }
+  out.status = WindowStatus::kScored;
+  out.class_id = static_cast<std::int32_t>(cls->segment.id);
+  out.features = analyzer_.analyze(window_, *cls, method_);
+  out.thresholds = cls->thresholds[static_cast<std::size_t>(method_)];
+  out.verdict = judge(out.features, out.thresholds);
+  out.alarm = debouncer_.push(out.verdict.abnormal());
+  out.abnormal_in_last_n = debouncer_.abnormal_in_window();
+  return true;
+}
+
+// --- training glue ---------------------------------------------------------------------------------
+
+std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& regions,
+                                                const ClassLearningConfig& cfg) {
+  if (!(std::isfinite(cfg.speed_tol_rel) && cfg.speed_tol_rel >= 0.0)) {
+    throw Error("classes.speed_tol_rel: must be finite and >= 0, got " + num(cfg.speed_tol_rel));
+  }
+  if (!(std::isfinite(cfg.speed_tol_abs_rad_s) && cfg.speed_tol_abs_rad_s >= 0.0)) {
+    throw Error("classes.speed_tol_abs_rad_s: must be finite and >= 0, got " + num(cfg.speed_tol_abs_rad_s));
+  }
+  if (cfg.min_regions == 0) throw Error("classes.min_regions: must be >= 1");
+  const auto tol_at = [&](double speed) {
+    return std::max(cfg.speed_tol_rel * speed, cfg.speed_tol_abs_rad_s);
+  };
+
+  struct Item {
+    double speed;  // |mean speed|
+    double duration_s;
+  };
+  std::vector<SegmentClass> out;
+  for (const std::int8_t dir : {std::int8_t{1}, std::int8_t{-1}}) {  // forward classes first
+    std::vector<Item> items;
+    for (const RegionInfo& r : regions) {
+      if ((r.direction < 0 ? -1 : 1) != dir) continue;
+      if (!std::isfinite(r.mean_speed_rad_s))
+        throw Error("learn_segment_classes: region " + std::to_string(r.seq) +
+                    " has a non-finite mean speed");
+      items.push_back(
+          Item{std::fabs(r.mean_speed_rad_s), static_cast<double>(r.t_end_ns - r.t_begin_ns) * 1e-9});
+    }
+    std::stable_sort(items.begin(), items.end(),
+                     [](const Item& a, const Item& b) { return a.speed < b.speed; });
+    // Greedy: a group is anchored at its slowest region and takes every region within the anchor's
+    // tolerance. Every member is then within the class tolerance of the class mean (the mean is at
+    // or above the anchor, so its tolerance is at least the anchor's), so training regions always
+    // match their own class.
+    std::size_t i = 0;
+    while (i < items.size()) {
+      const double anchor = items[i].speed;
+      std::size_t j = i;
+      double sum = 0.0;
+      std::vector<double> durations;
+      while (j < items.size() && items[j].speed - anchor <= tol_at(anchor)) {
+        sum += items[j].speed;
+        durations.push_back(items[j].duration_s);
+        ++j;
+      }
+      if (durations.size() >= cfg.min_regions) {
+        std::sort(durations.begin(), durations.end());
+        const std::size_t m = durations.size();
+        SegmentClass c;
+        c.direction = dir;
+        c.speed_rad_s = sum / static_cast<double>(m);
+        c.speed_tol_rad_s = tol_at(c.speed_rad_s);
+        c.duration_s = m % 2 == 1 ? durations[m / 2] : 0.5 * (durations[m / 2 - 1] + durations[m / 2]);
+        c.regions = static_cast<std::uint32_t>(m);
+        out.push_back(c);
+      }
+      i = j;
+    }
+  }
+  for (std::size_t k = 0; k < out.size(); ++k) out[k].id = static_cast<std::uint32_t>(k);
+  return out;
+}
+
+Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig& classes,
+                        const ThresholdPolicy& policy, double fs_hz, const GearboxInfo& gearbox) {
+  if (data.refs.size() != data.windows.size()) {
+    throw Error("train_baseline: " + std::to_string(data.refs.size()) + " window refs but " +
+                std::to_string(data.windows.size()) + " windows");
+  }
+  if (data.windows.empty()) {
+    throw Error("train_baseline: no constant-speed windows in the training data (" +
+                std::to_string(data.regions.size()) + " regions found)");
+  }
+  const std::size_t n = data.windows.front().size();
+  for (std::size_t i = 0; i < data.windows.size(); ++i) {
+    if (data.windows[i].size() != n) {
+      throw Error("train_baseline: window " + std::to_string(i) + " has " +
+                  std::to_string(data.windows[i].size()) + " samples, the first has " + std::to_string(n));
+    }
+  }
+
+  Baseline candidates;
+  for (const SegmentClass& c : learn_segment_classes(data.regions, classes)) {
+    ClassBaseline cb;
+    cb.segment = c;
+    candidates.classes.push_back(std::move(cb));
+  }
+
+  // Overlap groups: windows of one region whose sample ranges overlap (directly or through a chain)
+  // share a group, so leave-one-group-out never scores a window against a mean containing its own
+  // samples; disjoint windows of one long region are separate groups.
+  std::vector<std::uint64_t> group(data.refs.size(), 0);
+  {
+    std::vector<std::size_t> order(data.refs.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      const WindowRef& p = data.refs[a];
+      const WindowRef& q = data.refs[b];
+      return p.region_seq != q.region_seq ? p.region_seq < q.region_seq : p.first_sample < q.first_sample;
+    });
+    std::uint64_t next_group = 0;
+    std::int64_t reach = 0;  // end (exclusive) of the current group's samples
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      const WindowRef& r = data.refs[order[k]];
+      const bool same_region = k > 0 && data.refs[order[k - 1]].region_seq == r.region_seq;
+      if (!(same_region && r.first_sample < reach)) {
+        ++next_group;
+        reach = r.first_sample;
+      }
+      reach = std::max(reach, r.first_sample + static_cast<std::int64_t>(n));
+      group[order[k]] = next_group - 1;
+    }
+  }
+
+  struct Members {
+    std::vector<std::size_t> windows;
+    std::vector<std::uint64_t> groups;
+  };
+  std::vector<Members> members(candidates.classes.size());
+  std::size_t unmatched = 0;
+  for (std::size_t i = 0; i < data.refs.size(); ++i) {
+    const ClassBaseline* c = candidates.match(data.refs[i].speed_rad_s);
+    if (c == nullptr) {
+      ++unmatched;
+      continue;
+    }
+    Members& m = members[static_cast<std::size_t>(c - candidates.classes.data())];
+    m.windows.push_back(i);
+    m.groups.push_back(group[i]);
+  }
+
+  Baseline out;
+  out.fs_hz = fs_hz;
+  out.window_len = static_cast<std::uint32_t>(n);
+  out.gearbox = gearbox;
+  out.policy = policy;
+  std::string summary;
+  for (std::size_t k = 0; k < candidates.classes.size(); ++k) {
+    const SegmentClass& seg = candidates.classes[k].segment;
+    std::vector<std::uint64_t> distinct = members[k].groups;
+    std::sort(distinct.begin(), distinct.end());
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    summary += "; class " + std::to_string(seg.id) + " (" + (seg.direction < 0 ? "-" : "+") +
+               num(seg.speed_rad_s) + " rad/s): " + std::to_string(seg.regions) + " regions, " +
+               std::to_string(members[k].windows.size()) + " windows in " + std::to_string(distinct.size()) +
+               " non-overlapping groups";
+    if (distinct.size() < 3) continue;
+    std::vector<std::vector<float>> windows;
+    windows.reserve(members[k].windows.size());
+    for (const std::size_t i : members[k].windows) windows.push_back(data.windows[i]);
+    SegmentClass renumbered = seg;
+    renumbered.id = static_cast<std::uint32_t>(out.classes.size());
+    out.classes.push_back(build_class_baseline(renumbered, windows, members[k].groups, policy));
+  }
+  if (out.classes.empty()) {
+    throw Error("train_baseline: no segment class has enough training data (needs >= " +
+                std::to_string(classes.min_regions) + " regions and >= 3 non-overlapping window groups): " +
+                std::to_string(data.regions.size()) + " regions, " + std::to_string(data.windows.size()) +
+                " windows, " + std::to_string(unmatched) + " windows matching no class" +
+                (candidates.classes.empty() ? std::string("; no class learned") : summary));
+  }
+  return out;
+}
+
+}  // namespace ptda::dsp

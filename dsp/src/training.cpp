@@ -1,0 +1,216 @@
+// Learning a class baseline from healthy windows: mean magnitude / mean waveform over all windows,
+// thresholds from leave-one-group-out features. Offline code: allocates and throws ptda::Error.
+#include "ptda/dsp/training.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <string>
+
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/real_fft.hpp"
+
+namespace ptda::dsp {
+
+double inverse_normal_cdf(double p) {
+  if (!(p > 0.0 && p < 1.0)) {
+    throw Error("inverse_normal_cdf: probability " + std::to_string(p) + " is not in (0, 1)");
+  }
+  // Work in the lower tail, where erfc keeps full relative precision; the upper tail by symmetry.
+  if (p > 0.5) return -inverse_normal_cdf(1.0 - p);
+  // Starting point: Abramowitz & Stegun 26.2.23 (|error| < 4.5e-4).
+  const double t = std::sqrt(-2.0 * std::log(p));
+  double x = -(t - (2.515517 + t * (0.802853 + t * 0.010328)) /
+                       (1.0 + t * (1.432788 + t * (0.189269 + t * 0.001308))));
+  // Halley steps on Phi(x) - p (cubic convergence: two steps already reach double precision).
+  for (int i = 0; i < 6; ++i) {
+    const double e = 0.5 * std::erfc(-x / std::numbers::sqrt2) - p;
+    const double u = e * std::sqrt(2.0 * std::numbers::pi) * std::exp(0.5 * x * x);
+    const double step = u / (1.0 + 0.5 * x * u);
+    x -= step;
+    if (std::abs(step) <= 1e-15 * std::max(1.0, std::abs(x))) break;
+  }
+  return x;
+}
+
+FeatureStats feature_stats(std::span<const double> values) {
+  FeatureStats s;
+  s.n = static_cast<std::uint32_t>(values.size());
+  if (values.empty()) return s;
+  double sum = 0.0;
+  s.min = values[0];
+  s.max = values[0];
+  for (const double v : values) {
+    sum += v;
+    s.min = std::min(s.min, v);
+    s.max = std::max(s.max, v);
+  }
+  s.mean = sum / static_cast<double>(values.size());
+  if (values.size() > 1) {
+    double ss = 0.0;
+    for (const double v : values) ss += (v - s.mean) * (v - s.mean);
+    s.stddev = std::sqrt(ss / static_cast<double>(values.size() - 1));
+  }
+  return s;
+}
+
+namespace {
+
+// Linear interpolation between order statistics (the "type 7" sample quantile): h = (n-1) q.
+double sorted_quantile(const std::vector<double>& sorted, double q) {
+  const double h = static_cast<double>(sorted.size() - 1) * q;
+  const auto lo = static_cast<std::size_t>(std::floor(h));
+  const std::size_t hi = std::min(lo + 1, sorted.size() - 1);
+  return sorted[lo] + (h - static_cast<double>(lo)) * (sorted[hi] - sorted[lo]);
+}
+
+}  // namespace
+
+Band fit_band(std::span<const double> values, const ThresholdPolicy& policy) {
+  if (values.size() < 2) {
+    throw Error("fit_band: needs at least 2 feature values, got " + std::to_string(values.size()));
+  }
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (!std::isfinite(values[i])) {
+      throw Error("fit_band: feature value " + std::to_string(i) + " is not finite");
+    }
+  }
+  const double alpha = policy.false_alarm_rate;
+  if (!(alpha > 0.0 && alpha < 1.0)) {
+    throw Error("fit_band: false_alarm_rate " + std::to_string(alpha) + " is not in (0, 1)");
+  }
+  if (!(policy.margin >= 0.0 && std::isfinite(policy.margin))) {
+    throw Error("fit_band: margin " + std::to_string(policy.margin) + " must be finite and >= 0");
+  }
+  Band b;
+  switch (policy.kind) {
+    case ThresholdPolicy::Kind::kGaussian: {
+      const FeatureStats s = feature_stats(values);
+      const double z = -inverse_normal_cdf(0.5 * alpha);  // two-sided: alpha/2 in each tail
+      b = Band{s.mean - z * s.stddev, s.mean + z * s.stddev};
+      break;
+    }
+    case ThresholdPolicy::Kind::kQuantile: {
+      std::vector<double> sorted(values.begin(), values.end());
+      std::sort(sorted.begin(), sorted.end());
+      b = Band{sorted_quantile(sorted, 0.5 * alpha), sorted_quantile(sorted, 1.0 - 0.5 * alpha)};
+      break;
+    }
+    default:
+      throw Error("fit_band: unknown threshold policy kind " + std::to_string(static_cast<int>(policy.kind)));
+  }
+  const double widen = policy.margin * (b.hi - b.lo);
+  b.lo -= widen;
+  b.hi += widen;
+  return b;
+}
+
+ClassBaseline build_class_baseline(const SegmentClass& segment,
+                                   const std::vector<std::vector<float>>& windows,
+                                   std::span<const std::uint64_t> groups, const ThresholdPolicy& policy) {
+  const std::string where = "class " + std::to_string(segment.id);
+  if (windows.empty()) throw Error(where + ": no training windows");
+  const std::size_t m = windows.size();
+  const std::size_t n = windows[0].size();
+  if (!RealFft::supported_length(n)) {
+    throw Error(where + ": window length " + std::to_string(n) +
+                " is not supported (even, >= 4, prime factors 2, 3, 5 only)");
+  }
+  for (std::size_t i = 0; i < m; ++i) {
+    if (windows[i].size() != n) {
+      throw Error(where + ": window " + std::to_string(i) + " has " + std::to_string(windows[i].size()) +
+                  " samples, expected " + std::to_string(n));
+    }
+    for (std::size_t j = 0; j < n; ++j) {
+      if (!std::isfinite(windows[i][j])) {
+        throw Error(where + ": window " + std::to_string(i) + " sample " + std::to_string(j) +
+                    " is not finite");
+      }
+    }
+  }
+  if (!groups.empty() && groups.size() != m) {
+    throw Error(where + ": " + std::to_string(groups.size()) + " group ids for " + std::to_string(m) +
+                " windows");
+  }
+  // Window indices per group (ordered map: deterministic processing order).
+  std::map<std::uint64_t, std::vector<std::size_t>> members;
+  for (std::size_t i = 0; i < m; ++i) members[groups.empty() ? i : groups[i]].push_back(i);
+  if (members.size() < 3) {
+    throw Error(where +
+                ": leave-one-group-out training needs windows from at least 3 groups (regions), got " +
+                std::to_string(members.size()));
+  }
+
+  const std::size_t bins = n / 2 + 1;
+  WindowAnalyzer analyzer(n);
+  std::vector<float> mag(bins);
+  // Sums over all windows, in double so subtracting one group's share loses nothing.
+  std::vector<double> total_mag(bins, 0.0);
+  std::vector<double> total_x(n, 0.0);
+  for (const auto& w : windows) {
+    analyzer.magnitude(w, mag);
+    for (std::size_t k = 0; k < bins; ++k) total_mag[k] += mag[k];
+    for (std::size_t j = 0; j < n; ++j) total_x[j] += w[j];
+  }
+
+  ClassBaseline cls;
+  cls.segment = segment;
+  cls.n_windows = static_cast<std::uint32_t>(m);
+  cls.mean_magnitude.resize(bins);
+  cls.tda_mean.resize(n);
+  for (std::size_t k = 0; k < bins; ++k)
+    cls.mean_magnitude[k] = static_cast<float>(total_mag[k] / static_cast<double>(m));
+  for (std::size_t j = 0; j < n; ++j)
+    cls.tda_mean[j] = static_cast<float>(total_x[j] / static_cast<double>(m));
+
+  // Leave-one-group-out: each window is scored against the means of the windows of the other groups.
+  // One group's sums are formed at a time (O(M) FFTs overall, O(N) extra memory).
+  std::array<std::vector<double>, kMethodCount> rms_values;
+  std::array<std::vector<double>, kMethodCount> entropy_values;
+  for (auto& v : rms_values) v.reserve(m);
+  for (auto& v : entropy_values) v.reserve(m);
+  std::vector<double> group_mag(bins);
+  std::vector<double> group_x(n);
+  std::vector<float> loo_mag(bins);
+  std::vector<float> loo_x(n);
+  for (const auto& [group, idx] : members) {
+    std::fill(group_mag.begin(), group_mag.end(), 0.0);
+    std::fill(group_x.begin(), group_x.end(), 0.0);
+    for (const std::size_t i : idx) {
+      analyzer.magnitude(windows[i], mag);
+      for (std::size_t k = 0; k < bins; ++k) group_mag[k] += mag[k];
+      for (std::size_t j = 0; j < n; ++j) group_x[j] += windows[i][j];
+    }
+    const auto others = static_cast<double>(m - idx.size());
+    for (std::size_t k = 0; k < bins; ++k)
+      loo_mag[k] = static_cast<float>((total_mag[k] - group_mag[k]) / others);
+    for (std::size_t j = 0; j < n; ++j) loo_x[j] = static_cast<float>((total_x[j] - group_x[j]) / others);
+    for (const std::size_t i : idx) {
+      for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
+        const Features f = analyzer.analyze_with(windows[i], loo_mag, loo_x, static_cast<Method>(mi));
+        rms_values[mi].push_back(f.rms_res);
+        entropy_values[mi].push_back(f.entropy_res);
+      }
+    }
+  }
+
+  for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
+    const std::string what = where + ", method " + std::string(method_name(static_cast<Method>(mi)));
+    try {
+      cls.thresholds[mi].rms = fit_band(rms_values[mi], policy);
+      cls.thresholds[mi].entropy = fit_band(entropy_values[mi], policy);
+    } catch (const Error& e) {
+      throw Error(what + ": " + e.what());
+    }
+    // Both features are >= 0 by construction: a negative lower bound only makes reports confusing.
+    cls.thresholds[mi].rms.lo = std::max(0.0, cls.thresholds[mi].rms.lo);
+    cls.thresholds[mi].entropy.lo = std::max(0.0, cls.thresholds[mi].entropy.lo);
+    cls.rms_stats[mi] = feature_stats(rms_values[mi]);
+    cls.entropy_stats[mi] = feature_stats(entropy_values[mi]);
+  }
+  return cls;
+}
+
+}  // namespace ptda::dsp

@@ -1,0 +1,371 @@
+// The binary baseline store. Every field is serialised explicitly as little-endian (never a struct
+// dump), so files move between x86 and ARM gateways unchanged. Layout: docs/recording-format.md.
+#include "ptda/formats/baseline_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include "ptda/common/error.hpp"
+
+namespace ptda::formats {
+namespace {
+
+constexpr std::array<char, 8> kMagic = {'P', 'T', 'D', 'A', 'B', 'A', 'S', 'E'};
+// magic 8 + version 4 + file size 8
+constexpr std::size_t kPreambleBytes = 20;
+constexpr std::size_t kCrcBytes = 4;
+// Smallest possible class record (window_len 1: one magnitude and one mean sample); bounds n_classes
+// before anything is allocated for it.
+// id, direction, 3 speeds/duration, regions, n_windows, 2 x (count + one float), thresholds, stats.
+constexpr std::size_t kMinClassBytes =
+    4 + 1 + 8 * 3 + 4 + 4 + 2 * (4 + 4) + dsp::kMethodCount * (4 * 8) + 2 * dsp::kMethodCount * (4 * 8 + 4);
+
+constexpr std::array<std::uint32_t, 256> make_crc_table() noexcept {
+  std::array<std::uint32_t, 256> t{};
+  for (std::uint32_t i = 0; i < 256; ++i) {
+    std::uint32_t c = i;
+    for (int k = 0; k < 8; ++k) c = (c & 1U) != 0 ? 0xEDB88320U ^ (c >> 1) : c >> 1;
+    t[i] = c;
+  }
+  return t;
+}
+constexpr std::array<std::uint32_t, 256> kCrcTable = make_crc_table();
+
+class Writer {
+ public:
+  void u8(std::uint8_t v) { b_.push_back(v); }
+  void u32(std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) b_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void u64(std::uint64_t v) {
+    for (int i = 0; i < 8; ++i) b_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void f32(float v) { u32(std::bit_cast<std::uint32_t>(v)); }
+  void f64(double v) { u64(std::bit_cast<std::uint64_t>(v)); }
+  void bytes(const void* p, std::size_t n) {
+    const auto* c = static_cast<const std::uint8_t*>(p);
+    b_.insert(b_.end(), c, c + n);
+  }
+  void patch_u64(std::size_t at, std::uint64_t v) {
+    for (int i = 0; i < 8; ++i) b_[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+  }
+  std::vector<std::uint8_t>& buf() { return b_; }
+
+ private:
+  std::vector<std::uint8_t> b_;
+};
+
+class Reader {
+ public:
+  Reader(std::span<const std::uint8_t> b, const std::string& source) : b_(b), source_(source) {}
+  [[noreturn]] void fail(const std::string& what) const {
+    throw Error(source_ + ": inconsistent baseline at byte " + std::to_string(pos_) + ": " + what);
+  }
+  void need(std::size_t n) const {
+    if (b_.size() - pos_ < n) fail("record runs past the end of the data");
+  }
+  std::uint8_t u8() {
+    need(1);
+    return b_[pos_++];
+  }
+  std::uint32_t u32() {
+    need(4);
+    std::uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= static_cast<std::uint32_t>(b_[pos_ + static_cast<std::size_t>(i)]) << (8 * i);
+    pos_ += 4;
+    return v;
+  }
+  std::uint64_t u64() {
+    need(8);
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(b_[pos_ + static_cast<std::size_t>(i)]) << (8 * i);
+    pos_ += 8;
+    return v;
+  }
+  float f32() { return std::bit_cast<float>(u32()); }
+  double f64() { return std::bit_cast<double>(u64()); }
+  [[nodiscard]] std::size_t pos() const noexcept { return pos_; }
+  [[nodiscard]] std::size_t left() const noexcept { return b_.size() - pos_; }
+  void skip(std::size_t n) { pos_ += n; }
+
+ private:
+  std::span<const std::uint8_t> b_;
+  const std::string& source_;
+  std::size_t pos_ = 0;
+};
+
+std::string hex32(std::uint32_t v) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%08X", v);
+  return buf;
+}
+
+// Checks shared by writer and reader so a file that was written can always be read back.
+void check_baseline(const dsp::Baseline& b, const std::string& where) {
+  if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0)) throw Error(where + ": fs_hz must be finite and positive");
+  if (b.window_len == 0) throw Error(where + ": window_len must be positive");
+  if (static_cast<std::uint8_t>(b.gearbox.kind) > static_cast<std::uint8_t>(dsp::GearboxInfo::Kind::kUnknown))
+    throw Error(where + ": unknown gearbox kind " + std::to_string(static_cast<int>(b.gearbox.kind)));
+  if (static_cast<std::uint8_t>(b.policy.kind) > static_cast<std::uint8_t>(dsp::ThresholdPolicy::Kind::kQuantile))
+    throw Error(where + ": unknown threshold policy kind " + std::to_string(static_cast<int>(b.policy.kind)));
+  const std::size_t n_mag = b.window_len / 2 + 1;
+  for (std::size_t i = 0; i < b.classes.size(); ++i) {
+    const auto& c = b.classes[i];
+    const std::string cls = where + ": class " + std::to_string(i) + " (id " + std::to_string(c.segment.id) + ")";
+    if (c.segment.direction != 1 && c.segment.direction != -1)
+      throw Error(cls + ": direction must be +1 or -1, got " + std::to_string(c.segment.direction));
+    if (c.mean_magnitude.size() != n_mag)
+      throw Error(cls + ": mean_magnitude has " + std::to_string(c.mean_magnitude.size()) + " values, window_len " +
+                  std::to_string(b.window_len) + " needs N/2+1 = " + std::to_string(n_mag));
+    if (c.tda_mean.size() != b.window_len)
+      throw Error(cls + ": tda_mean has " + std::to_string(c.tda_mean.size()) + " values, window_len is " +
+                  std::to_string(b.window_len));
+  }
+  if (b.source.size() > 0xFFFFFFFFULL) throw Error(where + ": source text too long");
+}
+
+void put_stats(Writer& w, const dsp::FeatureStats& s) {
+  w.f64(s.mean);
+  w.f64(s.stddev);
+  w.f64(s.min);
+  w.f64(s.max);
+  w.u32(s.n);
+}
+dsp::FeatureStats get_stats(Reader& r) {
+  dsp::FeatureStats s;
+  s.mean = r.f64();
+  s.stddev = r.f64();
+  s.min = r.f64();
+  s.max = r.f64();
+  s.n = r.u32();
+  return s;
+}
+
+// Writes all of buf to fd, retrying short writes and EINTR.
+bool write_all(int fd, const std::uint8_t* p, std::size_t n) {
+  while (n > 0) {
+    const ssize_t k = ::write(fd, p, n);
+    if (k < 0) {
+      if (errno == EINTR) continue;
+      return false;
+    }
+    p += k;
+    n -= static_cast<std::size_t>(k);
+  }
+  return true;
+}
+
+}  // namespace
+
+std::uint32_t crc32(const void* data, std::size_t len, std::uint32_t crc) noexcept {
+  const auto* p = static_cast<const std::uint8_t*>(data);
+  std::uint32_t c = ~crc;
+  for (std::size_t i = 0; i < len; ++i) c = kCrcTable[(c ^ p[i]) & 0xFFU] ^ (c >> 8);
+  return ~c;
+}
+
+std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
+  check_baseline(b, "baseline");
+  Writer w;
+  w.bytes(kMagic.data(), kMagic.size());
+  w.u32(kBaselineFormatVersion);
+  w.u64(0);  // total size, patched below
+  w.f64(b.fs_hz);
+  w.u32(b.window_len);
+  w.u8(static_cast<std::uint8_t>(b.gearbox.kind));
+  w.u32(b.gearbox.z_in);
+  w.u32(b.gearbox.z_spur);
+  w.u32(b.gearbox.z_pin);
+  w.f64(b.gearbox.ratio);
+  w.u8(static_cast<std::uint8_t>(b.policy.kind));
+  w.f64(b.policy.false_alarm_rate);
+  w.f64(b.policy.margin);
+  w.u32(static_cast<std::uint32_t>(b.classes.size()));
+  for (const auto& c : b.classes) {
+    w.u32(c.segment.id);
+    w.u8(static_cast<std::uint8_t>(c.segment.direction));
+    w.f64(c.segment.speed_rad_s);
+    w.f64(c.segment.speed_tol_rad_s);
+    w.f64(c.segment.duration_s);
+    w.u32(c.segment.regions);
+    w.u32(c.n_windows);
+    w.u32(static_cast<std::uint32_t>(c.mean_magnitude.size()));
+    for (const float v : c.mean_magnitude) w.f32(v);
+    w.u32(static_cast<std::uint32_t>(c.tda_mean.size()));
+    for (const float v : c.tda_mean) w.f32(v);
+    for (const auto& t : c.thresholds) {
+      w.f64(t.rms.lo);
+      w.f64(t.rms.hi);
+      w.f64(t.entropy.lo);
+      w.f64(t.entropy.hi);
+    }
+    for (const auto& s : c.rms_stats) put_stats(w, s);
+    for (const auto& s : c.entropy_stats) put_stats(w, s);
+  }
+  w.u32(static_cast<std::uint32_t>(b.source.size()));
+  w.bytes(b.source.data(), b.source.size());
+  w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
+  w.u32(crc32(w.buf().data(), w.buf().size()));
+  return std::move(w.buf());
+}
+
+dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::string& source) {
+  const std::size_t size = bytes.size();
+  const std::size_t magic_seen = std::min(size, kMagic.size());
+  // size is tested first: memcmp must not see the null data() of an empty span.
+  if (size == 0 || std::memcmp(bytes.data(), kMagic.data(), magic_seen) != 0)
+    throw Error(source + ": not a ptda baseline (bad magic, expected \"PTDABASE\")");
+  if (size < kPreambleBytes + kCrcBytes)
+    throw Error(source + ": truncated: " + std::to_string(size) + " bytes, shorter than the header");
+  Reader r(bytes, source);
+  r.skip(kMagic.size());
+  const std::uint32_t version = r.u32();
+  if (version != kBaselineFormatVersion)
+    throw Error(source + ": unsupported baseline format version " + std::to_string(version) + " (this build reads " +
+                std::to_string(kBaselineFormatVersion) + ")");
+  const std::uint64_t declared = r.u64();
+  if (declared > size)
+    throw Error(source + ": truncated: header says " + std::to_string(declared) + " bytes, file has " +
+                std::to_string(size));
+  if (declared < size)
+    throw Error(source + ": corrupt: header says " + std::to_string(declared) + " bytes, file has " +
+                std::to_string(size) + " (trailing bytes)");
+  std::uint32_t stored = 0;
+  for (std::size_t i = 0; i < 4; ++i) stored |= static_cast<std::uint32_t>(bytes[size - 4 + i]) << (8 * i);
+  const std::uint32_t computed = crc32(bytes.data(), size - kCrcBytes);
+  if (stored != computed)
+    throw Error(source + ": corrupt: CRC-32 mismatch (stored " + hex32(stored) + ", computed " + hex32(computed) + ")");
+
+  // From here the bytes are what the writer produced; the checks catch writer bugs and hand-made files.
+  Reader body(bytes.first(size - kCrcBytes), source);
+  body.skip(kPreambleBytes);
+  dsp::Baseline b;
+  b.fs_hz = body.f64();
+  b.window_len = body.u32();
+  const std::uint8_t gk = body.u8();
+  if (gk > static_cast<std::uint8_t>(dsp::GearboxInfo::Kind::kUnknown)) body.fail("unknown gearbox kind " + std::to_string(gk));
+  b.gearbox.kind = static_cast<dsp::GearboxInfo::Kind>(gk);
+  b.gearbox.z_in = body.u32();
+  b.gearbox.z_spur = body.u32();
+  b.gearbox.z_pin = body.u32();
+  b.gearbox.ratio = body.f64();
+  const std::uint8_t pk = body.u8();
+  if (pk > static_cast<std::uint8_t>(dsp::ThresholdPolicy::Kind::kQuantile))
+    body.fail("unknown threshold policy kind " + std::to_string(pk));
+  b.policy.kind = static_cast<dsp::ThresholdPolicy::Kind>(pk);
+  b.policy.false_alarm_rate = body.f64();
+  b.policy.margin = body.f64();
+  const std::uint32_t n_classes = body.u32();
+  if (n_classes > body.left() / kMinClassBytes)
+    body.fail(std::to_string(n_classes) + " classes cannot fit in the remaining " + std::to_string(body.left()) + " bytes");
+  const std::size_t n_mag = b.window_len / 2 + 1;
+  b.classes.resize(n_classes);
+  for (std::uint32_t i = 0; i < n_classes; ++i) {
+    auto& c = b.classes[i];
+    const std::string cls = "class " + std::to_string(i) + ": ";
+    c.segment.id = body.u32();
+    c.segment.direction = static_cast<std::int8_t>(body.u8());
+    if (c.segment.direction != 1 && c.segment.direction != -1)
+      body.fail(cls + "direction must be +1 or -1, got " + std::to_string(c.segment.direction));
+    c.segment.speed_rad_s = body.f64();
+    c.segment.speed_tol_rad_s = body.f64();
+    c.segment.duration_s = body.f64();
+    c.segment.regions = body.u32();
+    c.n_windows = body.u32();
+    const std::uint32_t n_m = body.u32();
+    if (n_m != n_mag)
+      body.fail(cls + "mean_magnitude has " + std::to_string(n_m) + " values, window_len " +
+                std::to_string(b.window_len) + " needs N/2+1 = " + std::to_string(n_mag));
+    body.need(std::size_t{4} * n_m);
+    c.mean_magnitude.resize(n_m);
+    for (auto& v : c.mean_magnitude) v = body.f32();
+    const std::uint32_t n_t = body.u32();
+    if (n_t != b.window_len)
+      body.fail(cls + "tda_mean has " + std::to_string(n_t) + " values, window_len is " + std::to_string(b.window_len));
+    body.need(std::size_t{4} * n_t);
+    c.tda_mean.resize(n_t);
+    for (auto& v : c.tda_mean) v = body.f32();
+    for (auto& t : c.thresholds) {
+      t.rms.lo = body.f64();
+      t.rms.hi = body.f64();
+      t.entropy.lo = body.f64();
+      t.entropy.hi = body.f64();
+    }
+    for (auto& s : c.rms_stats) s = get_stats(body);
+    for (auto& s : c.entropy_stats) s = get_stats(body);
+  }
+  const std::uint32_t n_src = body.u32();
+  body.need(n_src);
+  b.source.assign(reinterpret_cast<const char*>(bytes.data() + body.pos()), n_src);
+  body.skip(n_src);
+  if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
+  if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0)) throw Error(source + ": inconsistent baseline: fs_hz must be positive");
+  if (b.window_len == 0) throw Error(source + ": inconsistent baseline: window_len is 0");
+  return b;
+}
+
+dsp::Baseline read_baseline(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw Error(name + ": baseline file not found");
+  if (std::filesystem::is_directory(path, ec)) throw Error(name + ": is a directory, not a baseline file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(name + ": cannot open baseline: " + std::strerror(errno));
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw Error(name + ": read error");
+  return parse_baseline(bytes, name);
+}
+
+void write_baseline(const std::filesystem::path& path, const dsp::Baseline& baseline) {
+  const std::string name = path.string();
+  std::vector<std::uint8_t> bytes;
+  try {
+    bytes = serialize_baseline(baseline);
+  } catch (const Error& e) {
+    throw Error(name + ": not written: " + e.what());
+  }
+  std::filesystem::path dir = path.parent_path();
+  if (dir.empty()) dir = ".";
+  // Same directory as the target so rename() is atomic (same filesystem).
+  const std::string tmp = name + ".tmp." + std::to_string(::getpid());
+  const auto fail = [&](const char* step, int err, bool remove_tmp) {
+    if (remove_tmp) ::unlink(tmp.c_str());
+    throw Error(name + ": writing baseline failed at " + step + ": " + std::strerror(err));
+  };
+
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) fail("open of the temporary file", errno, false);
+  if (!write_all(fd, bytes.data(), bytes.size())) {
+    const int err = errno;
+    ::close(fd);
+    fail("write", err, true);
+  }
+  if (::fsync(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    fail("fsync", err, true);
+  }
+  if (::close(fd) != 0) fail("close", errno, true);
+  if (::rename(tmp.c_str(), name.c_str()) != 0) fail("rename", errno, true);
+  // Make the rename itself durable.
+  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd < 0) fail("open of the directory for fsync", errno, false);
+  if (::fsync(dfd) != 0) {
+    const int err = errno;
+    ::close(dfd);
+    fail("fsync of the directory", err, false);
+  }
+  ::close(dfd);
+}
+
+}  // namespace ptda::formats

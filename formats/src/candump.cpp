@@ -1,0 +1,372 @@
+// Strict parser and writer for `candump -l` logs (can-utils "compact" frame syntax).
+#include "ptda/formats/candump.hpp"
+
+#include <cerrno>
+#include <charconv>
+#include <cstring>
+#include <limits>
+#include <memory>
+
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+
+namespace ptda::formats {
+namespace {
+
+constexpr std::uint32_t kCanErrFlag = 0x20000000U;
+constexpr std::uint32_t kCanEffMask = 0x1FFFFFFFU;
+constexpr std::uint32_t kCanSffMask = 0x7FFU;
+constexpr std::size_t kClassicMaxLen = 8;
+constexpr std::size_t kFdMaxLen = 64;
+constexpr std::size_t kXlMaxLen = 2048;
+// Longest sensible line: a CAN XL frame with 2048 bytes and separators is about 6200 characters.
+constexpr std::size_t kMaxLineChars = 16384;
+
+int hex_val(char c) noexcept {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  return -1;
+}
+bool is_space(char c) noexcept { return c == ' ' || c == '\t'; }
+
+// Carries where the line came from so each check can throw "<source>:<line>: <what>".
+struct LineContext {
+  const std::string& source;
+  long line_no;
+  [[noreturn]] void fail(const std::string& what) const { throw Error(source, line_no, 0, what); }
+};
+
+std::string show_text(std::string_view s) {
+  constexpr std::size_t kMaxShown = 40;
+  std::string q = "'";
+  q.append(s.substr(0, kMaxShown));
+  if (s.size() > kMaxShown) q += "...";
+  q += "'";
+  return q;
+}
+
+// Hex string of at most 8 digits to a number; fails on any non-hex character.
+std::uint32_t parse_hex_u32(std::string_view s, const LineContext& ctx, const char* what) {
+  std::uint32_t v = 0;
+  for (const char c : s) {
+    const int h = hex_val(c);
+    if (h < 0) ctx.fail(std::string(what) + " " + show_text(s) + " is not hexadecimal");
+    v = (v << 4) | static_cast<std::uint32_t>(h);
+  }
+  return v;
+}
+
+// Hex bytes with optional single '.' separators (before, between or after bytes), stopping at the end
+// or at '_' when `stop_at_underscore`. Writes into dst when not null. Returns the bytes parsed and sets
+// `used` to the characters consumed.
+std::size_t parse_data(std::string_view s, std::uint8_t* dst, std::size_t max_len, bool stop_at_underscore,
+                       const char* kind, const LineContext& ctx, std::size_t& used) {
+  std::size_t n = 0;
+  std::size_t i = 0;
+  bool sep_ok = true;
+  while (i < s.size()) {
+    const char c = s[i];
+    if (c == '.') {
+      if (!sep_ok) ctx.fail(std::string("empty byte between '.' separators in ") + kind + " data");
+      sep_ok = false;
+      ++i;
+      continue;
+    }
+    if (c == '_' && stop_at_underscore) break;
+    const int hi = hex_val(c);
+    if (hi < 0) ctx.fail(std::string("bad character '") + c + "' in " + kind + " data");
+    if (i + 1 >= s.size() || hex_val(s[i + 1]) < 0)
+      ctx.fail(std::string("odd number of hex digits in ") + kind + " data");
+    if (n == max_len)
+      ctx.fail(std::string(kind) + " data longer than " + std::to_string(max_len) + " bytes");
+    if (dst != nullptr) dst[n] = static_cast<std::uint8_t>((hi << 4) | hex_val(s[i + 1]));
+    ++n;
+    i += 2;
+    sep_ok = true;
+  }
+  used = i;
+  return n;
+}
+
+// Newer can-utils append "_<dlc>" (9..F) after 8 data bytes to carry len8_dlc; we accept and ignore it.
+void parse_len8_suffix(std::string_view rest, std::size_t len, const LineContext& ctx) {
+  if (rest.empty()) return;
+  if (rest[0] != '_') ctx.fail("unexpected " + show_text(rest) + " after the frame data");
+  if (len != kClassicMaxLen) ctx.fail("'_<dlc>' suffix is only valid after 8 data bytes");
+  if (rest.size() != 2 || hex_val(rest[1]) < 9) ctx.fail("bad '_<dlc>' suffix " + show_text(rest) + " (expected _9.._F)");
+}
+
+// CAN XL: <vcid:2hex><prio:3hex>#<flags:2hex>:<sdt:2hex>:<af:8hex>#<data>. Validated, then ignored.
+void check_xl(std::string_view rest, const LineContext& ctx) {
+  const auto hex_field = [&](std::size_t pos, std::size_t n) {
+    if (rest.size() < pos + n) return false;
+    for (std::size_t k = pos; k < pos + n; ++k) {
+      if (hex_val(rest[k]) < 0) return false;
+    }
+    return true;
+  };
+  if (!hex_field(0, 2) || rest.size() < 3 || rest[2] != ':' || !hex_field(3, 2) || rest.size() < 6 ||
+      rest[5] != ':' || !hex_field(6, 8) || rest.size() < 15 || rest[14] != '#')
+    ctx.fail("malformed CAN XL frame (expected <vcid><prio>#<flags>:<sdt>:<af>#<data>)");
+  std::size_t used = 0;
+  parse_data(rest.substr(15), nullptr, kXlMaxLen, false, "CAN XL", ctx, used);
+}
+
+// Parses the frame token into out.frame (t_ns untouched). Returns false for an ignored CAN XL frame.
+bool parse_frame(std::string_view tok, CanFrame& f, const LineContext& ctx) {
+  const std::size_t hash = tok.find('#');
+  if (hash == std::string_view::npos) ctx.fail("frame " + show_text(tok) + " has no '#'");
+  const std::string_view id_str = tok.substr(0, hash);
+  std::string_view rest = tok.substr(hash + 1);
+  if (id_str.size() == 5 && rest.find(':') != std::string_view::npos) {
+    parse_hex_u32(id_str, ctx, "CAN XL priority/VCID");
+    check_xl(rest, ctx);
+    return false;
+  }
+  f.flags = 0;
+  f.len = 0;
+  f.data.fill(0);  // bytes past len are zero, so frames compare equal however the record was reused
+  bool is_err = false;
+  if (id_str.size() == 3) {
+    f.id = parse_hex_u32(id_str, ctx, "CAN id");
+    // Three hex digits can reach 0xFFF; only 11 bits are a standard id.
+    if (f.id > kCanSffMask) ctx.fail("standard CAN id " + show_text(id_str) + " exceeds 11 bits (max 7FF)");
+  } else if (id_str.size() == 8) {
+    const std::uint32_t v = parse_hex_u32(id_str, ctx, "CAN id");
+    if ((v & kCanErrFlag) != 0) {
+      if ((v & ~(kCanErrFlag | kCanEffMask)) != 0)
+        ctx.fail("error frame id " + show_text(id_str) + " has bits above CAN_ERR_FLAG set");
+      is_err = true;
+      f.id = v & kCanEffMask;
+      f.flags = kCanError;
+    } else {
+      if (v > kCanEffMask) ctx.fail("extended CAN id " + show_text(id_str) + " exceeds 29 bits (max 1FFFFFFF)");
+      f.id = v;
+      f.flags = kCanExtended;
+    }
+  } else {
+    ctx.fail("bad CAN id length " + std::to_string(id_str.size()) + " in " + show_text(tok) +
+             " (expected 3 or 8 hex digits)");
+  }
+
+  std::size_t used = 0;
+  if (!rest.empty() && rest[0] == '#') {
+    if (is_err) ctx.fail("error frames cannot be CAN FD frames");
+    rest.remove_prefix(1);
+    if (rest.empty()) ctx.fail("CAN FD frame without the flags nibble after '##'");
+    const int fl = hex_val(rest[0]);
+    if (fl < 0) ctx.fail(std::string("bad CAN FD flags nibble '") + rest[0] + "'");
+    f.flags |= kCanFd;
+    if ((fl & 1) != 0) f.flags |= kCanFdBrs;
+    if ((fl & 2) != 0) f.flags |= kCanFdEsi;
+    rest.remove_prefix(1);
+    f.len = static_cast<std::uint8_t>(parse_data(rest, f.data.data(), kFdMaxLen, false, "CAN FD", ctx, used));
+    return true;
+  }
+  if (!rest.empty() && rest[0] == 'R') {
+    if (is_err) ctx.fail("error frames cannot be remote frames");
+    f.flags |= kCanRtr;
+    rest.remove_prefix(1);
+    if (!rest.empty() && rest[0] != '_') {
+      const int dlc = hex_val(rest[0]);
+      if (dlc < 0) ctx.fail("bad remote frame DLC " + show_text(rest));
+      if (dlc > static_cast<int>(kClassicMaxLen)) ctx.fail("remote frame DLC " + std::to_string(dlc) + " exceeds 8");
+      f.len = static_cast<std::uint8_t>(dlc);
+      rest.remove_prefix(1);
+    }
+    parse_len8_suffix(rest, f.len, ctx);
+    return true;
+  }
+  f.len = static_cast<std::uint8_t>(parse_data(rest, f.data.data(), kClassicMaxLen, true, "classic CAN", ctx, used));
+  parse_len8_suffix(rest.substr(used), f.len, ctx);
+  return true;
+}
+
+std::string_view next_token(std::string_view line, std::size_t& i) {
+  const std::size_t start = i;
+  while (i < line.size() && !is_space(line[i])) ++i;
+  return line.substr(start, i - start);
+}
+bool skip_spaces(std::string_view line, std::size_t& i) {
+  const std::size_t start = i;
+  while (i < line.size() && is_space(line[i])) ++i;
+  return i > start;
+}
+
+struct FileCloser {
+  void operator()(std::FILE* f) const noexcept {
+    if (f != nullptr) std::fclose(f);
+  }
+};
+
+}  // namespace
+
+bool parse_candump_line_into(std::string_view line, const std::string& source, long line_no, CandumpRecord& out) {
+  while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.remove_suffix(1);
+  if (line.empty() || line.front() != '(') return false;
+  const LineContext ctx{source, line_no};
+
+  // Timestamp "(<seconds>.<fraction>)", converted with integer arithmetic so no precision is lost.
+  std::size_t i = 1;
+  const std::size_t sec_start = i;
+  while (i < line.size() && line[i] >= '0' && line[i] <= '9') ++i;
+  if (i == sec_start) ctx.fail("timestamp: expected seconds digits after '('");
+  std::uint64_t sec = 0;
+  const auto r = std::from_chars(line.data() + sec_start, line.data() + i, sec);
+  constexpr std::uint64_t kMaxSec = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max() / kNsPerS) - 1;
+  if (r.ec != std::errc{} || sec > kMaxSec) ctx.fail("timestamp: seconds out of range");
+  if (i >= line.size() || line[i] != '.') ctx.fail("timestamp: expected '.' after the seconds");
+  ++i;
+  const std::size_t frac_start = i;
+  std::int64_t frac_ns = 0;
+  while (i < line.size() && line[i] >= '0' && line[i] <= '9') {
+    if (i - frac_start == 9) ctx.fail("timestamp: more than 9 fraction digits");
+    frac_ns = frac_ns * 10 + (line[i] - '0');
+    ++i;
+  }
+  const std::size_t n_frac = i - frac_start;
+  if (n_frac == 0) ctx.fail("timestamp: expected fraction digits after '.'");
+  for (std::size_t k = n_frac; k < 9; ++k) frac_ns *= 10;
+  if (i >= line.size() || line[i] != ')') ctx.fail("timestamp: expected ')' after the fraction");
+  ++i;
+  out.frame.t_ns = static_cast<std::int64_t>(sec) * kNsPerS + frac_ns;
+
+  if (!skip_spaces(line, i)) ctx.fail("expected a space after the timestamp");
+  const std::string_view iface = next_token(line, i);
+  if (iface.empty()) ctx.fail("missing interface name");
+  skip_spaces(line, i);
+  const std::string_view frame = next_token(line, i);
+  if (frame.empty()) ctx.fail("missing frame after the interface name");
+  skip_spaces(line, i);
+  const std::string_view dir = next_token(line, i);
+  out.direction = 0;
+  if (!dir.empty()) {
+    if (dir.size() != 1 || (dir[0] != 'R' && dir[0] != 'T'))
+      ctx.fail("unexpected " + show_text(dir) + " after the frame (expected direction R or T)");
+    out.direction = dir[0];
+  }
+  skip_spaces(line, i);
+  if (i != line.size()) ctx.fail("unexpected trailing text " + show_text(line.substr(i)));
+
+  if (!parse_frame(frame, out.frame, ctx)) return false;
+  out.iface.assign(iface.data(), iface.size());
+  return true;
+}
+
+std::optional<CandumpRecord> parse_candump_line(std::string_view line, const std::string& source, long line_no) {
+  CandumpRecord rec;
+  if (!parse_candump_line_into(line, source, line_no, rec)) return std::nullopt;
+  return rec;
+}
+
+CandumpReader::CandumpReader(const std::filesystem::path& path) : path_(path), source_(path.string()) {
+  f_ = std::fopen(source_.c_str(), "rb");
+  if (f_ == nullptr) throw Error(source_ + ": cannot open candump log: " + std::strerror(errno));
+  line_.reserve(256);
+}
+
+CandumpReader::~CandumpReader() {
+  if (f_ != nullptr) std::fclose(f_);
+}
+
+bool CandumpReader::next(CandumpRecord& out) {
+  for (;;) {
+    line_.clear();
+    int c = 0;
+    bool any = false;
+    while ((c = std::getc(f_)) != EOF) {
+      any = true;
+      if (c == '\n') break;
+      if (line_.size() == kMaxLineChars)
+        throw Error(source_, line_no_ + 1, 0, "line longer than " + std::to_string(kMaxLineChars) + " characters");
+      line_.push_back(static_cast<char>(c));
+    }
+    if (std::ferror(f_) != 0) throw Error(source_, line_no_ + 1, 0, std::string("read error: ") + std::strerror(errno));
+    if (!any) return false;
+    ++line_no_;
+    if (parse_candump_line_into(line_, source_, line_no_, out)) return true;
+  }
+}
+
+std::vector<CandumpRecord> read_candump(const std::filesystem::path& path) {
+  CandumpReader reader(path);
+  std::vector<CandumpRecord> out;
+  CandumpRecord rec;
+  while (reader.next(rec)) out.push_back(rec);
+  return out;
+}
+
+std::string format_candump_line(const CandumpRecord& rec) {
+  const CanFrame& f = rec.frame;
+  if (f.t_ns < 0) throw Error("candump: cannot write a negative timestamp (" + std::to_string(f.t_ns) + " ns)");
+  if (rec.iface.empty() || rec.iface.find_first_of(" \t\r\n") != std::string::npos)
+    throw Error("candump: interface name " + show_text(rec.iface) + " is empty or contains whitespace");
+  if (rec.direction != 0 && rec.direction != 'R' && rec.direction != 'T')
+    throw Error(std::string("candump: bad direction '") + rec.direction + "' (R, T or none)");
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  char ts[48];
+  const int n = std::snprintf(ts, sizeof ts, "(%010lld.%06lld) ", static_cast<long long>(f.t_ns / kNsPerS),
+                              static_cast<long long>((f.t_ns % kNsPerS) / 1000));
+  std::string s(ts, static_cast<std::size_t>(n));
+  s += rec.iface;
+  s += ' ';
+  const auto put_id = [&s](std::uint32_t id, int digits) {
+    for (int k = digits - 1; k >= 0; --k) s += kHex[(id >> (4 * k)) & 0xFU];
+  };
+  if (f.error()) {
+    if (f.id > kCanEffMask) throw Error("candump: error frame class bits exceed 29 bits");
+    put_id(f.id | kCanErrFlag, 8);
+  } else if (f.extended()) {
+    if (f.id > kCanEffMask) throw Error("candump: extended id exceeds 29 bits");
+    put_id(f.id, 8);
+  } else {
+    if (f.id > kCanSffMask) throw Error("candump: standard id exceeds 11 bits (set kCanExtended?)");
+    put_id(f.id, 3);
+  }
+  s += '#';
+  if (f.fd()) {
+    if (f.rtr() || f.error()) throw Error("candump: a CAN FD frame cannot be a remote or error frame");
+    if (f.len > kFdMaxLen) throw Error("candump: CAN FD payload longer than 64 bytes");
+    s += '#';
+    s += kHex[((f.flags & kCanFdBrs) != 0 ? 1 : 0) | ((f.flags & kCanFdEsi) != 0 ? 2 : 0)];
+  } else if (f.rtr()) {
+    if (f.error()) throw Error("candump: an error frame cannot be a remote frame");
+    if (f.len > kClassicMaxLen) throw Error("candump: remote frame DLC exceeds 8");
+    s += 'R';
+    if (f.len > 0) s += kHex[f.len];
+  } else if (f.len > kClassicMaxLen) {
+    throw Error("candump: classic CAN payload longer than 8 bytes");
+  }
+  if (!f.rtr()) {
+    for (std::size_t k = 0; k < f.len; ++k) {
+      s += kHex[f.data[k] >> 4];
+      s += kHex[f.data[k] & 0xFU];
+    }
+  }
+  if (rec.direction != 0) {
+    s += ' ';
+    s += rec.direction;
+  }
+  return s;
+}
+
+void write_candump(const std::filesystem::path& path, const std::vector<CandumpRecord>& records) {
+  const std::string name = path.string();
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(name.c_str(), "wb"));
+  if (!f) throw Error(name + ": cannot create candump log: " + std::strerror(errno));
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    std::string line;
+    try {
+      line = format_candump_line(records[k]);
+    } catch (const Error& e) {
+      throw Error(name + ": record " + std::to_string(k) + ": " + e.what());
+    }
+    line += '\n';
+    if (std::fwrite(line.data(), 1, line.size(), f.get()) != line.size())
+      throw Error(name + ": write failed: " + std::strerror(errno));
+  }
+  if (std::fclose(f.release()) != 0) throw Error(name + ": close failed: " + std::strerror(errno));
+}
+
+}  // namespace ptda::formats

@@ -1,0 +1,251 @@
+// Joint + gearbox + sensor + CAN simulator: turns a scenario file into a recording directory
+// (recording.toml, vibration.wav, can.log) plus truth.toml (what was simulated; no analysis reads it).
+// Model and keys: docs/simulator.md; commented examples: config/scenarios/*.toml.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "ptda/config/speed_codec.hpp"
+#include "ptda/dsp/baseline.hpp"
+#include "ptda/formats/wav.hpp"
+
+namespace ptda::sim {
+
+// ------------------------------------------------------------------------------------------------
+// Scenario: everything a scenario file describes. Defaults are the documented defaults of the keys.
+
+/// [motion]: how joint 4 (or the input shaft of a parallel stage) moves.
+enum class MotionKind : std::uint8_t {
+  kLspb,      ///< via points joined by linear segments with parabolic blends, repeated as job cycles
+  kConstant,  ///< constant shaft speed for the whole recording (test rigs)
+};
+
+struct MotionSpec {
+  MotionKind kind = MotionKind::kLspb;
+  // --- kLspb ---
+  std::vector<double> via_points_rad;  ///< joint angles visited in order (>= 2)
+  // Exactly one of the next three sets the timing (Craig's LSPB with via points):
+  std::vector<double> segment_durations_s;   ///< via-to-via time of each segment (via_points - 1)
+  std::vector<double> segment_speeds_rad_s;  ///< cruise speed magnitude of each segment
+  double max_speed_rad_s = 0.0;              ///< one cruise speed for every segment
+  double accel_rad_s2 = 10.0;                ///< blend acceleration (magnitude)
+  double dwell_s = 0.5;                      ///< standstill at the end of each cycle
+  std::uint32_t cycles = 20;                 ///< job repetitions
+  double start_jitter_s = 0.05;              ///< uniform random extra dwell [0, jitter) before each cycle
+  double lead_in_s = 0.2;                    ///< standstill before the first cycle
+  // --- kConstant ---
+  double shaft_speed_hz = 0.0;  ///< input-shaft rotation frequency (kConstant; sign = direction)
+  double duration_s = 0.0;      ///< recording length (kConstant), split into `cycles` blocks
+};
+
+/// [gearbox]
+enum class GearboxKind : std::uint8_t {
+  kCycloidal,  ///< RV-type: spur (involute) stage Z_in -> Z_spur, then cycloid with Z_pin pins
+  kParallel,   ///< one parallel-axis stage: pinion (input) -> gear
+};
+
+struct GearboxSpec {
+  GearboxKind kind = GearboxKind::kCycloidal;
+  std::uint32_t z_in = 28;    ///< input pinion teeth (cycloidal) / pinion teeth (parallel)
+  std::uint32_t z_spur = 23;  ///< spur gear teeth (cycloidal) / driven gear teeth (parallel)
+  std::uint32_t z_pin = 40;   ///< ring pins (cycloidal only)
+};
+
+/// Reduction ratio input speed / output speed (0 when z_in is 0). Cycloidal: eq. 1, R = 1 + Z_spur/Z_in *
+/// Z_pin. Parallel: Z_gear / Z_pinion. Any thread; no allocation.
+[[nodiscard]] double reduction_ratio(const GearboxSpec& g) noexcept;
+/// Gear mesh frequency (eq. 3, Z_in * f_in) for an output (joint) speed. Any thread.
+[[nodiscard]] double gmf_hz(const GearboxSpec& g, double output_speed_rad_s) noexcept;
+/// Cycloid (pin) mesh frequency (eq. 4, Z_pin * f_out); 0 for a parallel stage. Any thread.
+[[nodiscard]] double dmf_hz(const GearboxSpec& g, double output_speed_rad_s) noexcept;
+
+/// [vibration]: the healthy signal at the sensor, in m/s^2.
+struct VibrationSpec {
+  std::vector<double> gmf_amplitudes;     ///< amplitude of GMF harmonic k = 1..n at reference speed
+  std::vector<double> gmf_phases_rad;     ///< phi_k (empty: all 0; else one per amplitude)
+  double reference_speed_rad_s = 1.0;     ///< output speed where the amplitudes apply
+  double amplitude_speed_exponent = 1.0;  ///< A_k(w) = A_k * (|w| / w_ref)^exponent
+  std::vector<double> dmf_amplitudes;     ///< cycloid mesh harmonics (small), same speed law
+  double noise_rms = 0.05;                ///< white Gaussian background
+};
+
+/// [[fault]]
+enum class FaultKind : std::uint8_t {
+  kSpurTooth,        ///< localised tooth defect on a spur gear: impulses once per spur rev + mesh AM
+  kDistributedWear,  ///< raises GMF harmonic amplitudes and the noise level
+};
+
+struct FaultSpec {
+  FaultKind kind = FaultKind::kSpurTooth;
+  double severity = 1.0;          ///< final severity 0..1
+  std::uint32_t onset_cycle = 0;  ///< first cycle (0-based) with the fault
+  std::uint32_t ramp_cycles = 0;  ///< severity grows linearly over this many cycles (0: step)
+  // kSpurTooth
+  double impulse_amplitude_ms2 = 2.0;  ///< ringing amplitude at severity 1 and reference speed
+  double resonance_hz = 3000.0;
+  double damping_ratio = 0.05;
+  double am_depth = 0.2;        ///< mesh amplitude modulation depth at severity 1
+  double spur_phase_rad = 0.0;  ///< spur-gear angle of the defect
+  // kDistributedWear
+  double harmonic_gain = 0.5;  ///< harmonic amplitudes * (1 + gain * severity)
+  double noise_gain = 0.5;     ///< noise rms * (1 + gain * severity)
+};
+
+/// [sensor]
+struct SensorSpec {
+  double fs_hz = 25600.0;
+  double sensitivity_v_per_ms2 = 0.0102;  ///< informational (100 mV/g)
+  double range_ms2 = 490.0;               ///< +-range: values beyond are clipped
+  formats::WavSampleFormat format = formats::WavSampleFormat::kPcm24;
+};
+
+/// [can]
+struct CanSpec {
+  config::SpeedFrameSpec speed_frame;    ///< [can.speed_frame]; its period_s is set from [can] period_s
+  double period_s = 0.004;               ///< controller clock period (nominal)
+  double clock_offset_s = 0.0013;        ///< controller clock phase relative to sample 0
+  double clock_drift_ppm = 0.0;          ///< controller clock rate error
+  double delay_s = 0.0005;               ///< transport delay added to the log timestamps
+  double jitter_s = 0.0001;              ///< uniform [0, jitter) added to each timestamp
+  std::uint32_t other_frames_per_s = 0;  ///< unrelated frames (ids 0x080..) on the bus
+  std::string iface = "can0";
+};
+
+struct Scenario {
+  std::string name;
+  std::string description;
+  std::uint64_t seed = 1;
+  double start_time_s = 1.7e9;  ///< UNIX seconds of sample 0
+  MotionSpec motion;
+  GearboxSpec gearbox;
+  VibrationSpec vibration;
+  std::vector<FaultSpec> faults;
+  SensorSpec sensor;
+  CanSpec can;
+  std::string source;  ///< where it was read from (for messages)
+};
+
+/// The gearbox as the analysis side describes it (for baselines/reports). Any thread; no allocation.
+[[nodiscard]] dsp::GearboxInfo to_gearbox_info(const GearboxSpec& g) noexcept;
+
+/// Parses scenario TOML. Unknown keys, wrong types and inconsistent values are errors:
+/// throws ptda::Error "<source>:<line>:<column>: <what>". Any thread; allocates.
+[[nodiscard]] Scenario parse_scenario(std::string_view toml_text, const std::string& source);
+/// Reads and parses a scenario file. Throws ptda::Error (naming the path). Any thread; allocates.
+[[nodiscard]] Scenario load_scenario(const std::filesystem::path& path);
+
+// ------------------------------------------------------------------------------------------------
+// In-memory pieces (used by simulate_to_directory and by tests).
+
+/// One constant-speed plateau of the joint profile (truth).
+struct Plateau {
+  std::uint32_t cycle = 0;
+  double t_start_s = 0.0;  ///< from sample 0
+  double t_end_s = 0.0;
+  double speed_rad_s = 0.0;  ///< signed output speed
+};
+
+/// A piece of constant acceleration of the output (joint) motion: exact, used for CAN sampling.
+struct MotionPiece {
+  double t0_s = 0.0;  ///< from sample 0
+  double t1_s = 0.0;
+  double angle0_rad = 0.0;    ///< output angle at t0_s
+  double speed0_rad_s = 0.0;  ///< output speed at t0_s
+  double accel_rad_s2 = 0.0;
+  std::uint32_t cycle = 0;
+};
+
+struct MotionState {
+  double angle_rad = 0.0;
+  double speed_rad_s = 0.0;
+  double accel_rad_s2 = 0.0;
+  std::uint32_t cycle = 0;
+};
+
+/// Output (joint) motion sampled on the ADC clock plus its plateaus.
+struct MotionProfile {
+  double fs_hz = 0.0;
+  std::vector<double> angle_rad;     ///< output angle per sample
+  std::vector<double> speed_rad_s;   ///< output speed per sample
+  std::vector<double> accel_rad_s2;  ///< output acceleration per sample
+  std::vector<std::uint32_t>
+      cycle;  ///< job cycle per sample (lead-in: 0; jitter wait and dwell: their cycle)
+  std::vector<double> cycle_start_s;  ///< start time of each cycle's motion
+  std::vector<Plateau> plateaus;
+  std::vector<MotionPiece> pieces;  ///< contiguous, covering [0, duration_s]
+  std::uint32_t cycles = 0;
+  double duration_s = 0.0;
+};
+
+/// Exact motion at t_s (clamped to [0, duration_s]). Any thread; no allocation.
+[[nodiscard]] MotionState motion_at(const MotionProfile& m, double t_s) noexcept;
+
+/// Builds the motion (analytic LSPB / constant speed) sampled at fs_hz. Jitter draws from seed.
+/// Throws ptda::Error when the motion is infeasible. Any thread; allocates.
+[[nodiscard]] MotionProfile build_motion(const Scenario& s, std::uint64_t seed);
+
+/// Severity of fault f in job cycle `cycle`: 0 before onset_cycle, then
+/// severity * min(1, (cycle - onset + 1) / ramp_cycles) (a step when ramp_cycles = 0). Any thread; no
+/// allocation.
+[[nodiscard]] double fault_severity(const FaultSpec& f, std::uint32_t cycle) noexcept;
+
+/// Synthesised vibration in m/s^2 (before clipping and quantisation).
+struct Vibration {
+  std::vector<double> accel_ms2;
+  std::uint32_t harmonics_above_nyquist = 0;   ///< GMF/DMF orders omitted (k * max mesh freq >= fs/2)
+  std::vector<double> impulse_times_s;         ///< spur-tooth impact times (truth), ascending
+  std::vector<double> impulse_amplitudes_ms2;  ///< matching ringing amplitudes
+};
+
+/// Synthesises the sensor signal for the profile. Deterministic from seed. Any thread; allocates.
+[[nodiscard]] Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::uint64_t seed);
+
+/// Stored codes for the configured format: round(clip(v)/lsb) with lsb = range / 2^(bits-1)
+/// (float32: clip(v) as is, scale 1); |v| > range counts as clipped (via `clipped`). Any thread; allocates.
+[[nodiscard]] std::vector<float> quantize(const SensorSpec& sensor, const std::vector<double>& accel_ms2,
+                                          std::uint64_t* clipped = nullptr);
+/// Scale (stored value * scale = m/s^2) for the sensor format. Any thread; no allocation.
+[[nodiscard]] double sensor_scale(const SensorSpec& sensor) noexcept;
+
+/// A CAN frame to be logged (the speed frames and the unrelated ones), in timestamp order.
+struct SimCanFrame {
+  CanFrame frame;            ///< frame.t_ns = log timestamp (UNIX ns)
+  double true_time_s = 0.0;  ///< sampling instant of the speed (from sample 0); NaN for other frames
+  bool is_speed = false;
+};
+
+/// Speed frames from the free-running controller clock (+ delay, jitter, other frames), sorted by log
+/// timestamp (rounded to microseconds, as candump logs). Deterministic from seed. Any thread; allocates.
+[[nodiscard]] std::vector<SimCanFrame> generate_can(const Scenario& s, const MotionProfile& m,
+                                                    std::uint64_t seed);
+
+// ------------------------------------------------------------------------------------------------
+
+struct SimulationSummary {
+  std::uint32_t cycles = 0;
+  double duration_s = 0.0;
+  std::uint64_t samples = 0;
+  std::uint64_t can_frames = 0;  ///< all frames written (speed + other)
+  std::uint64_t speed_frames = 0;
+  double fs_hz = 0.0;
+  std::vector<double> plateau_speeds_rad_s;  ///< distinct plateau speeds of one cycle, in order
+  std::vector<double> plateau_durations_s;   ///< matching durations
+  double gmf_hz_at_first_plateau = 0.0;
+  double ratio = 0.0;
+  std::uint32_t harmonics_above_nyquist = 0;
+  std::uint64_t clipped_samples = 0;
+  std::uint64_t seed = 0;
+  std::vector<double> severity_per_cycle;  ///< max fault severity in each cycle
+};
+
+/// Writes a recording directory (recording.toml, vibration.wav, can.log, truth.toml), creating it.
+/// `seed` overrides the scenario seed when set. Throws ptda::Error. Any thread; allocates; file I/O.
+SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
+                                        std::optional<std::uint64_t> seed = std::nullopt);
+
+}  // namespace ptda::sim

@@ -1,0 +1,277 @@
+// Gearbox kinematics (paper eqs. 1, 3, 4) and the joint motion: Craig's linear segments with parabolic
+// blends through via points (paper section 2.1), repeated as job cycles with dwell and start jitter.
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <string>
+
+#include "ptda/common/error.hpp"
+#include "ptda/sim/random.hpp"
+#include "ptda/sim/simulator.hpp"
+#include "sim_internal.hpp"
+
+namespace ptda::sim {
+
+double reduction_ratio(const GearboxSpec& g) noexcept {
+  if (g.z_in == 0) return 0.0;
+  const double z_in = g.z_in;
+  if (g.kind == GearboxKind::kParallel) return static_cast<double>(g.z_spur) / z_in;
+  return 1.0 + static_cast<double>(g.z_spur) / z_in * static_cast<double>(g.z_pin);  // eq. 1
+}
+
+double gmf_hz(const GearboxSpec& g, double output_speed_rad_s) noexcept {
+  const double f_in_hz = reduction_ratio(g) * std::fabs(output_speed_rad_s) / (2.0 * std::numbers::pi);
+  return static_cast<double>(g.z_in) * f_in_hz;  // eq. 3
+}
+
+double dmf_hz(const GearboxSpec& g, double output_speed_rad_s) noexcept {
+  if (g.kind != GearboxKind::kCycloidal) return 0.0;
+  return static_cast<double>(g.z_pin) * std::fabs(output_speed_rad_s) / (2.0 * std::numbers::pi);  // eq. 4
+}
+
+dsp::GearboxInfo to_gearbox_info(const GearboxSpec& g) noexcept {
+  dsp::GearboxInfo info;
+  info.kind = g.kind == GearboxKind::kCycloidal ? dsp::GearboxInfo::Kind::kCycloidal
+                                                : dsp::GearboxInfo::Kind::kParallel;
+  info.z_in = g.z_in;
+  info.z_spur = g.z_spur;
+  info.z_pin = g.kind == GearboxKind::kCycloidal ? g.z_pin : 0;
+  info.ratio = reduction_ratio(g);
+  return info;
+}
+
+double fault_severity(const FaultSpec& f, std::uint32_t cycle) noexcept {
+  if (cycle < f.onset_cycle) return 0.0;
+  if (f.ramp_cycles == 0) return f.severity;
+  const double grown = static_cast<double>(cycle - f.onset_cycle + 1) / static_cast<double>(f.ramp_cycles);
+  return f.severity * std::min(1.0, grown);
+}
+
+namespace {
+
+std::string fmt(double v) {
+  std::ostringstream ss;
+  ss.precision(6);
+  ss << v;
+  return ss.str();
+}
+
+// Per-segment via-to-via durations from whichever timing the scenario gave. For speeds, the first and
+// last segments need v/(2a) extra because they start/end at rest (Craig's end-segment formulas).
+std::vector<double> segment_durations(const MotionSpec& m) {
+  const std::size_t n = m.via_points_rad.size() - 1;
+  if (!m.segment_durations_s.empty()) return m.segment_durations_s;
+  std::vector<double> td(n);
+  const double a = m.accel_rad_s2;
+  for (std::size_t j = 0; j < n; ++j) {
+    const double v = m.segment_speeds_rad_s.empty() ? m.max_speed_rad_s : m.segment_speeds_rad_s[j];
+    const double d = std::fabs(m.via_points_rad[j + 1] - m.via_points_rad[j]);
+    if (d == 0.0) {
+      throw Error("segment " + std::to_string(j) +
+                  " has no travel (equal via points); use segment_durations_s "
+                  "to hold still");
+    }
+    double t = d / v;
+    if (n == 1) {
+      t += v / a;
+    } else if (j == 0 || j == n - 1) {
+      t += v / (2.0 * a);
+    }
+    td[j] = t;
+  }
+  return td;
+}
+
+}  // namespace
+
+CyclePlan plan_cycle(const MotionSpec& m) {
+  const auto& via = m.via_points_rad;
+  if (via.size() < 2) throw Error("needs at least 2 via points");
+  const std::size_t n = via.size() - 1;
+  const double a = m.accel_rad_s2;
+  const std::vector<double> td = segment_durations(m);
+  std::vector<double> d(n);
+  for (std::size_t j = 0; j < n; ++j) d[j] = via[j + 1] - via[j];
+
+  // Segment speeds v[j] and blend durations tau[k] at via point k (k = 0..n).
+  std::vector<double> v(n, 0.0);
+  std::vector<double> tau(n + 1, 0.0);
+  auto too_short = [&](std::size_t j, const std::string& why) {
+    return Error("segment " + std::to_string(j) + " (via " + std::to_string(j) + " -> " +
+                 std::to_string(j + 1) + ", " + fmt(d[j]) + " rad in " + fmt(td[j]) +
+                 " s) is too short for accel_rad_s2 = " + fmt(a) + ": " + why);
+  };
+  if (n == 1) {
+    // Single segment, rest to rest: symmetric trapezoid.
+    const double disc = a * a * td[0] * td[0] - 4.0 * a * std::fabs(d[0]);
+    if (disc < -1e-9 * a * a * td[0] * td[0]) throw too_short(0, "the blends would overlap");
+    const double tb = td[0] / 2.0 - std::sqrt(std::max(0.0, disc)) / (2.0 * a);
+    tau[0] = tb;
+    tau[1] = tb;
+    v[0] = d[0] == 0.0 ? 0.0 : d[0] / (td[0] - tb);
+  } else {
+    auto end_blend = [&](std::size_t j) {
+      if (d[j] == 0.0) return 0.0;
+      const double disc = td[j] * td[j] - 2.0 * std::fabs(d[j]) / a;
+      if (disc < -1e-12 * td[j] * td[j]) throw too_short(j, "it cannot start or stop in time");
+      return td[j] - std::sqrt(std::max(0.0, disc));
+    };
+    tau[0] = end_blend(0);
+    v[0] = d[0] / (td[0] - tau[0] / 2.0);
+    tau[n] = end_blend(n - 1);
+    v[n - 1] = d[n - 1] / (td[n - 1] - tau[n] / 2.0);
+    for (std::size_t j = 1; j + 1 < n; ++j) v[j] = d[j] / td[j];
+    for (std::size_t k = 1; k < n; ++k) tau[k] = std::fabs(v[k] - v[k - 1]) / a;
+  }
+
+  // A speed given by the scenario must be reached; Craig's formulas otherwise quietly return a lower one.
+  if (m.segment_durations_s.empty()) {
+    for (std::size_t j = 0; j < n; ++j) {
+      const double want = m.segment_speeds_rad_s.empty() ? m.max_speed_rad_s : m.segment_speeds_rad_s[j];
+      if (std::fabs(std::fabs(v[j]) - want) > 1e-9 * want) {
+        throw too_short(j, "it cannot reach " + fmt(want) + " rad/s (reaches " + fmt(std::fabs(v[j])) + ")");
+      }
+    }
+  }
+
+  // Linear (cruise) durations between the blends.
+  std::vector<double> lin(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    const double before = (j == 0) ? tau[0] : tau[j] / 2.0;
+    const double after = (j == n - 1) ? tau[n] : tau[j + 1] / 2.0;
+    lin[j] = td[j] - before - after;
+    if (lin[j] < -1e-9) {
+      throw too_short(
+          j, "the blends overlap by " + fmt(-lin[j]) + " s (lower the speed or raise the acceleration)");
+    }
+    lin[j] = std::max(0.0, lin[j]);
+  }
+
+  CyclePlan plan;
+  double t = 0.0;
+  double angle = 0.0;
+  double speed = 0.0;
+  auto push = [&](double dur, double accel) {
+    if (dur <= 0.0) return;
+    MotionPiece p;
+    p.t0_s = t;
+    p.t1_s = t + dur;
+    p.angle0_rad = angle;
+    p.speed0_rad_s = speed;
+    p.accel_rad_s2 = accel;
+    plan.pieces.push_back(p);
+    angle += speed * dur + 0.5 * accel * dur * dur;
+    speed += accel * dur;
+    t += dur;
+  };
+  // The blend accelerations are (v_after - v_before) / tau so the speed is exactly continuous; their
+  // magnitude is the configured limit up to rounding.
+  for (std::size_t j = 0; j < n; ++j) {
+    const double v_before = j == 0 ? 0.0 : v[j - 1];
+    const double blend = j == 0 ? tau[0] : tau[j];
+    if (blend > 0.0) push(blend, (v[j] - v_before) / blend);
+    speed = v[j];  // removes rounding left by the blend
+    if (lin[j] > 1e-9 && v[j] != 0.0) plan.plateaus.push_back(Plateau{0, t, t + lin[j], v[j]});
+    push(lin[j], 0.0);
+  }
+  if (tau[n] > 0.0) push(tau[n], -v[n - 1] / tau[n]);
+  plan.duration_s = t;
+  return plan;
+}
+
+MotionProfile build_motion(const Scenario& s, std::uint64_t seed) {
+  const MotionSpec& m = s.motion;
+  const std::string where = s.source.empty() ? std::string("scenario") : s.source;
+  MotionProfile prof;
+  prof.fs_hz = s.sensor.fs_hz;
+  prof.cycles = m.cycles;
+  if (m.cycles == 0) throw Error(where + ": [motion] cycles must be >= 1");
+
+  if (m.kind == MotionKind::kConstant) {
+    const double ratio = reduction_ratio(s.gearbox);
+    if (ratio <= 0.0) throw Error(where + ": [gearbox] tooth counts give no reduction ratio");
+    const double w_out = 2.0 * std::numbers::pi * m.shaft_speed_hz / ratio;
+    const double block_s = m.duration_s / m.cycles;
+    for (std::uint32_t c = 0; c < m.cycles; ++c) {
+      const double t0 = block_s * c;
+      const double t1 = c + 1 == m.cycles ? m.duration_s : block_s * (c + 1);
+      prof.pieces.push_back(MotionPiece{t0, t1, w_out * t0, w_out, 0.0, c});
+      prof.plateaus.push_back(Plateau{c, t0, t1, w_out});
+      prof.cycle_start_s.push_back(t0);
+    }
+    prof.duration_s = m.duration_s;
+  } else {
+    CyclePlan plan;
+    try {
+      plan = plan_cycle(m);
+    } catch (const Error& e) {
+      throw Error(where + ": [motion] " + e.what());
+    }
+    Rng rng(seed, kStreamJitter);
+    double t = 0.0;
+    double angle = m.via_points_rad.front();
+    auto hold = [&](double dur, std::uint32_t c) {
+      if (dur <= 0.0) return;
+      prof.pieces.push_back(MotionPiece{t, t + dur, angle, 0.0, 0.0, c});
+      t += dur;
+    };
+    hold(m.lead_in_s, 0);
+    for (std::uint32_t c = 0; c < m.cycles; ++c) {
+      hold(m.start_jitter_s * rng.uniform(), c);
+      const double t_cycle = t;
+      const double a_cycle = angle;
+      prof.cycle_start_s.push_back(t_cycle);
+      for (const MotionPiece& p : plan.pieces) {
+        prof.pieces.push_back(MotionPiece{t_cycle + p.t0_s, t_cycle + p.t1_s, a_cycle + p.angle0_rad,
+                                          p.speed0_rad_s, p.accel_rad_s2, c});
+      }
+      for (const Plateau& p : plan.plateaus) {
+        prof.plateaus.push_back(Plateau{c, t_cycle + p.t_start_s, t_cycle + p.t_end_s, p.speed_rad_s});
+      }
+      if (!plan.pieces.empty()) {
+        const MotionPiece& last = plan.pieces.back();
+        const double dur = last.t1_s - last.t0_s;
+        angle = a_cycle + last.angle0_rad + last.speed0_rad_s * dur + 0.5 * last.accel_rad_s2 * dur * dur;
+      }
+      t = t_cycle + plan.duration_s;
+      hold(m.dwell_s, c);
+    }
+    prof.duration_s = t;
+  }
+  if (prof.duration_s <= 0.0 || prof.pieces.empty()) throw Error(where + ": the motion has zero duration");
+  const double samples = std::round(prof.duration_s * prof.fs_hz);
+  if (samples > 2.0e9) throw Error(where + ": the recording would exceed 2e9 samples");
+
+  const auto n = static_cast<std::size_t>(samples);
+  prof.angle_rad.resize(n);
+  prof.speed_rad_s.resize(n);
+  prof.accel_rad_s2.resize(n);
+  prof.cycle.resize(n);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / prof.fs_hz;
+    while (k + 1 < prof.pieces.size() && t >= prof.pieces[k].t1_s) ++k;
+    const MotionPiece& p = prof.pieces[k];
+    const double tau = t - p.t0_s;
+    prof.angle_rad[i] = p.angle0_rad + p.speed0_rad_s * tau + 0.5 * p.accel_rad_s2 * tau * tau;
+    prof.speed_rad_s[i] = p.speed0_rad_s + p.accel_rad_s2 * tau;
+    prof.accel_rad_s2[i] = p.accel_rad_s2;
+    prof.cycle[i] = p.cycle;
+  }
+  return prof;
+}
+
+MotionState motion_at(const MotionProfile& m, double t_s) noexcept {
+  if (m.pieces.empty()) return {};
+  t_s = std::clamp(t_s, m.pieces.front().t0_s, m.pieces.back().t1_s);
+  auto it = std::upper_bound(m.pieces.begin(), m.pieces.end(), t_s,
+                             [](double t, const MotionPiece& p) { return t < p.t1_s; });
+  if (it == m.pieces.end()) --it;
+  const MotionPiece& p = *it;
+  const double tau = t_s - p.t0_s;
+  return MotionState{p.angle0_rad + p.speed0_rad_s * tau + 0.5 * p.accel_rad_s2 * tau * tau,
+                     p.speed0_rad_s + p.accel_rad_s2 * tau, p.accel_rad_s2, p.cycle};
+}
+
+}  // namespace ptda::sim

@@ -1,0 +1,443 @@
+// Scenario TOML parsing. Every key is checked: unknown keys, wrong types and impossible values are
+// errors naming file:line:column, so a typo never silently falls back to a default.
+#include <toml++/toml.h>
+
+#include <cmath>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include "ptda/common/error.hpp"
+#include "ptda/sim/simulator.hpp"
+#include "sim_internal.hpp"
+
+namespace ptda::sim {
+namespace {
+
+class Reader {
+ public:
+  Reader(const toml::table& t, std::string path, const std::string& source)
+      : t_(t), path_(std::move(path)), source_(source) {}
+
+  [[nodiscard]] Error error_at(const toml::source_region& r, const std::string& what) const {
+    return Error(source_, static_cast<long>(r.begin.line), static_cast<long>(r.begin.column), what);
+  }
+  [[nodiscard]] Error error(const std::string& key, const std::string& what) const {
+    const toml::node* n = t_.get(key);
+    return error_at(n != nullptr ? n->source() : t_.source(), full(key) + ": " + what);
+  }
+  [[nodiscard]] std::string full(const std::string& key) const {
+    return path_.empty() ? key : path_ + "." + key;
+  }
+  [[nodiscard]] bool has(const std::string& key) const { return t_.contains(key); }
+
+  const toml::node* node(const std::string& key) {
+    seen_.insert(key);
+    return t_.get(key);
+  }
+
+  double number(const std::string& key, double def) {
+    const toml::node* n = node(key);
+    if (n == nullptr) return def;
+    if (auto v = n->value<double>(); v && n->is_number()) return check_finite(key, *v);
+    throw error_at(n->source(), full(key) + ": expected a number");
+  }
+  double number_required(const std::string& key) {
+    if (!has(key)) throw error_at(t_.source(), "[" + path_ + "] needs " + key);
+    return number(key, 0.0);
+  }
+  std::int64_t integer(const std::string& key, std::int64_t def, std::int64_t lo, std::int64_t hi) {
+    const toml::node* n = node(key);
+    if (n == nullptr) return def;
+    if (!n->is_integer()) throw error_at(n->source(), full(key) + ": expected an integer");
+    const std::int64_t v = n->as_integer()->get();
+    if (v < lo || v > hi) {
+      throw error_at(n->source(), full(key) + ": " + std::to_string(v) + " is outside " + std::to_string(lo) +
+                                      ".." + std::to_string(hi));
+    }
+    return v;
+  }
+  std::uint64_t seed(const std::string& key, std::uint64_t def) {
+    const toml::node* n = node(key);
+    if (n == nullptr) return def;
+    if (!n->is_integer() || n->as_integer()->get() < 0) {
+      throw error_at(n->source(), full(key) + ": expected a non-negative integer");
+    }
+    return static_cast<std::uint64_t>(n->as_integer()->get());
+  }
+  bool boolean(const std::string& key, bool def) {
+    const toml::node* n = node(key);
+    if (n == nullptr) return def;
+    if (!n->is_boolean()) throw error_at(n->source(), full(key) + ": expected true or false");
+    return n->as_boolean()->get();
+  }
+  std::string string(const std::string& key, const std::string& def) {
+    const toml::node* n = node(key);
+    if (n == nullptr) return def;
+    if (!n->is_string()) throw error_at(n->source(), full(key) + ": expected a string");
+    return n->as_string()->get();
+  }
+  std::vector<double> numbers(const std::string& key) {
+    const toml::node* n = node(key);
+    if (n == nullptr) return {};
+    const toml::array* a = n->as_array();
+    if (a == nullptr) throw error_at(n->source(), full(key) + ": expected an array of numbers");
+    std::vector<double> out;
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const toml::node& e = *a->get(i);
+      auto v = e.value<double>();
+      if (!e.is_number() || !v) {
+        throw error_at(e.source(), full(key) + "[" + std::to_string(i) + "]: expected a number");
+      }
+      out.push_back(check_finite(key, *v));
+    }
+    return out;
+  }
+  const toml::table* table(const std::string& key) {
+    const toml::node* n = node(key);
+    if (n == nullptr) return nullptr;
+    if (!n->is_table()) throw error_at(n->source(), full(key) + ": expected a table [" + full(key) + "]");
+    return n->as_table();
+  }
+
+  /// Unknown keys are errors (a misspelt key must not silently keep its default). Checked first, so
+  /// the typo is reported rather than what its absence causes.
+  void known_keys(std::initializer_list<const char*> keys) const {
+    for (auto&& [k, v] : t_) {
+      const std::string name(k.str());
+      bool found = false;
+      for (const char* known : keys) found = found || name == known;
+      if (!found) throw error_at(k.source(), "unknown key '" + full(name) + "'");
+    }
+  }
+  /// Keys valid in the section but not read for this kind (e.g. shaft_speed_hz with kind = "lspb").
+  void finish() const {
+    for (auto&& [k, v] : t_) {
+      const std::string name(k.str());
+      if (seen_.count(name) == 0) {
+        throw error_at(k.source(), "key '" + full(name) + "' does not apply here (check `kind`)");
+      }
+    }
+  }
+
+  [[nodiscard]] const toml::table& raw() const { return t_; }
+  [[nodiscard]] const std::string& source() const { return source_; }
+
+ private:
+  double check_finite(const std::string& key, double v) const {
+    if (!std::isfinite(v)) throw error(key, "must be finite");
+    return v;
+  }
+
+  const toml::table& t_;
+  std::string path_;
+  const std::string& source_;
+  std::set<std::string> seen_;
+};
+
+void require(bool ok, const Reader& r, const std::string& key, const std::string& what) {
+  if (!ok) throw r.error(key, what);
+}
+
+void parse_motion(Reader& r, MotionSpec& m) {
+  r.known_keys({"kind", "cycles", "shaft_speed_hz", "duration_s", "via_points_rad", "segment_durations_s",
+                "segment_speeds_rad_s", "max_speed_rad_s", "accel_rad_s2", "dwell_s", "start_jitter_s",
+                "lead_in_s"});
+  const std::string kind = r.string("kind", "lspb");
+  if (kind == "lspb") {
+    m.kind = MotionKind::kLspb;
+  } else if (kind == "constant") {
+    m.kind = MotionKind::kConstant;
+  } else {
+    throw r.error("kind", "'" + kind + "' is not a motion kind (lspb, constant)");
+  }
+  m.cycles = static_cast<std::uint32_t>(r.integer("cycles", m.cycles, 1, 100000));
+  if (m.kind == MotionKind::kConstant) {
+    m.shaft_speed_hz = r.number_required("shaft_speed_hz");
+    m.duration_s = r.number_required("duration_s");
+    require(m.shaft_speed_hz != 0.0 && std::fabs(m.shaft_speed_hz) < 1000.0, r, "shaft_speed_hz",
+            "must be non-zero and below 1000 Hz");
+    require(m.duration_s > 0.0 && m.duration_s <= 3600.0, r, "duration_s", "must be in (0, 3600] s");
+    r.finish();
+    return;
+  }
+  m.via_points_rad = r.numbers("via_points_rad");
+  require(m.via_points_rad.size() >= 2, r, "via_points_rad", "needs at least 2 via points");
+  m.segment_durations_s = r.numbers("segment_durations_s");
+  m.segment_speeds_rad_s = r.numbers("segment_speeds_rad_s");
+  m.max_speed_rad_s = r.number("max_speed_rad_s", 0.0);
+  const int timing = static_cast<int>(!m.segment_durations_s.empty()) +
+                     static_cast<int>(!m.segment_speeds_rad_s.empty()) +
+                     static_cast<int>(r.has("max_speed_rad_s"));
+  if (timing != 1) {
+    throw r.error_at(
+        r.raw().source(),
+        "[motion] needs exactly one of segment_durations_s, segment_speeds_rad_s, max_speed_rad_s");
+  }
+  const std::size_t segs = m.via_points_rad.size() - 1;
+  if (!m.segment_durations_s.empty()) {
+    require(m.segment_durations_s.size() == segs, r, "segment_durations_s",
+            "needs one duration per segment (" + std::to_string(segs) + ")");
+    for (double d : m.segment_durations_s)
+      require(d > 0.0, r, "segment_durations_s", "durations must be > 0");
+  }
+  if (!m.segment_speeds_rad_s.empty()) {
+    require(m.segment_speeds_rad_s.size() == segs, r, "segment_speeds_rad_s",
+            "needs one speed per segment (" + std::to_string(segs) + ")");
+    for (double v : m.segment_speeds_rad_s) require(v > 0.0, r, "segment_speeds_rad_s", "speeds must be > 0");
+  }
+  if (r.has("max_speed_rad_s")) require(m.max_speed_rad_s > 0.0, r, "max_speed_rad_s", "must be > 0");
+  m.accel_rad_s2 = r.number("accel_rad_s2", m.accel_rad_s2);
+  require(m.accel_rad_s2 > 0.0, r, "accel_rad_s2", "must be > 0");
+  m.dwell_s = r.number("dwell_s", m.dwell_s);
+  require(m.dwell_s >= 0.0, r, "dwell_s", "must be >= 0");
+  m.start_jitter_s = r.number("start_jitter_s", m.start_jitter_s);
+  require(m.start_jitter_s >= 0.0, r, "start_jitter_s", "must be >= 0");
+  m.lead_in_s = r.number("lead_in_s", m.lead_in_s);
+  require(m.lead_in_s >= 0.0, r, "lead_in_s", "must be >= 0");
+  // Infeasible timing (segment too short for the acceleration) is reported at the via points.
+  try {
+    (void)plan_cycle(m);
+  } catch (const Error& e) {
+    throw r.error("via_points_rad", e.what());
+  }
+  r.finish();
+}
+
+void parse_gearbox(Reader& r, GearboxSpec& g) {
+  r.known_keys({"kind", "z_in", "z_spur", "z_pin", "z_pinion", "z_gear"});
+  const std::string kind = r.string("kind", "cycloidal");
+  if (kind == "cycloidal") {
+    g.kind = GearboxKind::kCycloidal;
+    g.z_in = static_cast<std::uint32_t>(r.integer("z_in", g.z_in, 1, 100000));
+    g.z_spur = static_cast<std::uint32_t>(r.integer("z_spur", g.z_spur, 1, 100000));
+    g.z_pin = static_cast<std::uint32_t>(r.integer("z_pin", g.z_pin, 1, 100000));
+  } else if (kind == "parallel") {
+    g.kind = GearboxKind::kParallel;
+    if (!r.has("z_pinion") || !r.has("z_gear")) {
+      throw r.error_at(r.raw().source(), "[gearbox] kind = \"parallel\" needs z_pinion and z_gear");
+    }
+    g.z_in = static_cast<std::uint32_t>(r.integer("z_pinion", 0, 1, 100000));
+    g.z_spur = static_cast<std::uint32_t>(r.integer("z_gear", 0, 1, 100000));
+    g.z_pin = 0;
+  } else {
+    throw r.error("kind", "'" + kind + "' is not a gearbox kind (cycloidal, parallel)");
+  }
+  r.finish();
+}
+
+void parse_vibration(Reader& r, VibrationSpec& v, const GearboxSpec& g) {
+  r.known_keys({"gmf_amplitudes", "gmf_phases_rad", "reference_speed_rad_s", "amplitude_speed_exponent",
+                "dmf_amplitudes", "noise_rms"});
+  v.gmf_amplitudes = r.numbers("gmf_amplitudes");
+  for (double a : v.gmf_amplitudes) require(a >= 0.0, r, "gmf_amplitudes", "amplitudes must be >= 0");
+  v.gmf_phases_rad = r.numbers("gmf_phases_rad");
+  require(v.gmf_phases_rad.empty() || v.gmf_phases_rad.size() == v.gmf_amplitudes.size(), r, "gmf_phases_rad",
+          "needs one phase per entry of gmf_amplitudes");
+  v.reference_speed_rad_s = r.number("reference_speed_rad_s", v.reference_speed_rad_s);
+  require(v.reference_speed_rad_s > 0.0, r, "reference_speed_rad_s", "must be > 0");
+  v.amplitude_speed_exponent = r.number("amplitude_speed_exponent", v.amplitude_speed_exponent);
+  require(v.amplitude_speed_exponent >= 0.0 && v.amplitude_speed_exponent <= 4.0, r,
+          "amplitude_speed_exponent", "must be in [0, 4]");
+  v.dmf_amplitudes = r.numbers("dmf_amplitudes");
+  for (double a : v.dmf_amplitudes) require(a >= 0.0, r, "dmf_amplitudes", "amplitudes must be >= 0");
+  require(v.dmf_amplitudes.empty() || g.kind == GearboxKind::kCycloidal, r, "dmf_amplitudes",
+          "only a cycloidal gearbox has a disk mesh");
+  v.noise_rms = r.number("noise_rms", v.noise_rms);
+  require(v.noise_rms >= 0.0, r, "noise_rms", "must be >= 0");
+  r.finish();
+}
+
+void parse_fault(Reader& r, FaultSpec& f, std::uint32_t cycles) {
+  r.known_keys({"kind", "severity", "onset_cycle", "ramp_cycles", "impulse_amplitude_ms2", "resonance_hz",
+                "damping_ratio", "am_depth", "spur_phase_rad", "harmonic_gain", "noise_gain"});
+  const std::string kind = r.string("kind", "");
+  if (kind == "spur_tooth") {
+    f.kind = FaultKind::kSpurTooth;
+  } else if (kind == "distributed_wear") {
+    f.kind = FaultKind::kDistributedWear;
+  } else {
+    throw r.error_at(r.has("kind") ? r.raw().get("kind")->source() : r.raw().source(),
+                     "[[fault]] kind must be \"spur_tooth\" or \"distributed_wear\"");
+  }
+  f.severity = r.number("severity", f.severity);
+  require(f.severity >= 0.0 && f.severity <= 1.0, r, "severity", "must be in [0, 1]");
+  f.onset_cycle = static_cast<std::uint32_t>(r.integer("onset_cycle", 0, 0, 100000));
+  require(f.onset_cycle < cycles, r, "onset_cycle",
+          "is beyond the last cycle (" + std::to_string(cycles - 1) + ", 0-based)");
+  f.ramp_cycles = static_cast<std::uint32_t>(r.integer("ramp_cycles", 0, 0, 100000));
+  if (f.kind == FaultKind::kSpurTooth) {
+    f.impulse_amplitude_ms2 = r.number("impulse_amplitude_ms2", f.impulse_amplitude_ms2);
+    require(f.impulse_amplitude_ms2 >= 0.0, r, "impulse_amplitude_ms2", "must be >= 0");
+    f.resonance_hz = r.number("resonance_hz", f.resonance_hz);
+    require(f.resonance_hz > 0.0, r, "resonance_hz", "must be > 0");
+    f.damping_ratio = r.number("damping_ratio", f.damping_ratio);
+    require(f.damping_ratio > 0.0 && f.damping_ratio < 1.0, r, "damping_ratio", "must be in (0, 1)");
+    f.am_depth = r.number("am_depth", f.am_depth);
+    require(f.am_depth >= 0.0 && f.am_depth <= 1.0, r, "am_depth", "must be in [0, 1]");
+    f.spur_phase_rad = r.number("spur_phase_rad", f.spur_phase_rad);
+  } else {
+    f.harmonic_gain = r.number("harmonic_gain", f.harmonic_gain);
+    require(f.harmonic_gain >= 0.0, r, "harmonic_gain", "must be >= 0");
+    f.noise_gain = r.number("noise_gain", f.noise_gain);
+    require(f.noise_gain >= 0.0, r, "noise_gain", "must be >= 0");
+  }
+  r.finish();
+}
+
+void parse_sensor(Reader& r, SensorSpec& s) {
+  r.known_keys({"fs_hz", "sensitivity_v_per_ms2", "range_ms2", "format"});
+  s.fs_hz = r.number("fs_hz", s.fs_hz);
+  require(s.fs_hz >= 1000.0 && s.fs_hz <= 200000.0 && s.fs_hz == std::floor(s.fs_hz), r, "fs_hz",
+          "must be a whole number of Hz in [1000, 200000] (the WAV header holds an integer rate)");
+  s.sensitivity_v_per_ms2 = r.number("sensitivity_v_per_ms2", s.sensitivity_v_per_ms2);
+  require(s.sensitivity_v_per_ms2 > 0.0, r, "sensitivity_v_per_ms2", "must be > 0");
+  s.range_ms2 = r.number("range_ms2", s.range_ms2);
+  require(s.range_ms2 > 0.0, r, "range_ms2", "must be > 0");
+  const std::string fmt = r.string("format", "pcm24");
+  if (fmt == "pcm16") {
+    s.format = formats::WavSampleFormat::kPcm16;
+  } else if (fmt == "pcm24") {
+    s.format = formats::WavSampleFormat::kPcm24;
+  } else if (fmt == "pcm32") {
+    s.format = formats::WavSampleFormat::kPcm32;
+  } else if (fmt == "float32") {
+    s.format = formats::WavSampleFormat::kFloat32;
+  } else {
+    throw r.error("format", "'" + fmt + "' is not a sample format (pcm16, pcm24, pcm32, float32)");
+  }
+  r.finish();
+}
+
+void parse_signal(Reader& r, config::SignalSpec& s) {
+  r.known_keys({"start_byte", "length", "little_endian", "signed", "scale", "offset"});
+  s.start_byte = static_cast<std::uint8_t>(r.integer("start_byte", s.start_byte, 0, 63));
+  s.length = static_cast<std::uint8_t>(r.integer("length", s.length, 1, 8));
+  s.little_endian = r.boolean("little_endian", s.little_endian);
+  s.is_signed = r.boolean("signed", s.is_signed);
+  s.scale = r.number("scale", s.scale);
+  s.offset = r.number("offset", s.offset);
+  r.finish();
+}
+
+void parse_can(Reader& r, CanSpec& c, const std::string& source) {
+  r.known_keys({"period_s", "clock_offset_s", "clock_drift_ppm", "delay_s", "jitter_s", "other_frames_per_s",
+                "iface", "speed_frame"});
+  c.period_s = r.number("period_s", c.period_s);
+  require(c.period_s >= 1e-4 && c.period_s <= 1.0, r, "period_s", "must be in [0.0001, 1] s");
+  c.clock_offset_s = r.number("clock_offset_s", c.clock_offset_s);
+  require(c.clock_offset_s >= 0.0 && c.clock_offset_s < c.period_s, r, "clock_offset_s",
+          "must be in [0, period_s)");
+  c.clock_drift_ppm = r.number("clock_drift_ppm", c.clock_drift_ppm);
+  require(std::fabs(c.clock_drift_ppm) <= 1000.0, r, "clock_drift_ppm", "must be within +-1000 ppm");
+  c.delay_s = r.number("delay_s", c.delay_s);
+  require(c.delay_s >= 0.0 && c.delay_s <= 1.0, r, "delay_s", "must be in [0, 1] s");
+  c.jitter_s = r.number("jitter_s", c.jitter_s);
+  require(c.jitter_s >= 0.0 && c.jitter_s < c.period_s, r, "jitter_s",
+          "must be in [0, period_s) so frames stay in order");
+  c.other_frames_per_s = static_cast<std::uint32_t>(r.integer("other_frames_per_s", 0, 0, 10000));
+  c.iface = r.string("iface", c.iface);
+  require(!c.iface.empty() && c.iface.find_first_of(" \t()#") == std::string::npos, r, "iface",
+          "must be a non-empty interface name without blanks");
+  if (const toml::table* sf = r.table("speed_frame")) {
+    Reader sr(*sf, "can.speed_frame", source);
+    sr.known_keys({"id", "extended", "dlc", "has_angle", "speed", "angle"});
+    auto& spec = c.speed_frame;
+    spec.extended = sr.boolean("extended", spec.extended);
+    spec.id = static_cast<std::uint32_t>(sr.integer("id", spec.id, 0, spec.extended ? 0x1FFFFFFF : 0x7FF));
+    spec.dlc = static_cast<std::uint8_t>(sr.integer("dlc", spec.dlc, 0, 8));
+    spec.has_angle = sr.boolean("has_angle", spec.has_angle);
+    if (const toml::table* t = sr.table("speed")) {
+      Reader x(*t, "can.speed_frame.speed", source);
+      parse_signal(x, spec.speed);
+    }
+    if (const toml::table* t = sr.table("angle")) {
+      Reader x(*t, "can.speed_frame.angle", source);
+      parse_signal(x, spec.angle);
+    }
+    sr.finish();
+    try {
+      config::validate(spec);
+    } catch (const Error& e) {
+      throw sr.error_at(sf->source(), std::string("[can.speed_frame]: ") + e.what());
+    }
+  }
+  c.speed_frame.period_s = c.period_s;
+  r.finish();
+}
+
+}  // namespace
+
+Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
+  toml::table root;
+  try {
+    root = toml::parse(toml_text, source);
+  } catch (const toml::parse_error& e) {
+    throw Error(source, static_cast<long>(e.source().begin.line), static_cast<long>(e.source().begin.column),
+                std::string(e.description()));
+  }
+  Scenario s;
+  s.source = source;
+  Reader r(root, "", source);
+  r.known_keys({"name", "description", "seed", "start_time_s", "motion", "gearbox", "vibration", "fault",
+                "sensor", "can"});
+  s.name = r.string("name", "");
+  s.description = r.string("description", "");
+  s.seed = r.seed("seed", s.seed);
+  s.start_time_s = r.number("start_time_s", s.start_time_s);
+  require(s.start_time_s >= 0.0 && s.start_time_s < 4.0e9, r, "start_time_s",
+          "must be UNIX seconds in [0, 4e9)");
+
+  // Sections are read in dependency order (faults need the cycle count, DMF needs the gearbox kind).
+  const toml::table* motion = r.table("motion");
+  if (motion == nullptr) throw Error(source, 0, 0, "missing [motion] table");
+  {
+    Reader mr(*motion, "motion", source);
+    parse_motion(mr, s.motion);
+  }
+  if (const toml::table* t = r.table("gearbox")) {
+    Reader x(*t, "gearbox", source);
+    parse_gearbox(x, s.gearbox);
+  }
+  if (const toml::table* t = r.table("vibration")) {
+    Reader x(*t, "vibration", source);
+    parse_vibration(x, s.vibration, s.gearbox);
+  }
+  if (const toml::node* n = r.node("fault")) {
+    const toml::array* a = n->as_array();
+    if (a == nullptr) throw r.error_at(n->source(), "fault: expected an array of tables [[fault]]");
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const toml::table* t = a->get(i)->as_table();
+      if (t == nullptr)
+        throw r.error_at(a->get(i)->source(), "fault[" + std::to_string(i) + "]: expected a table");
+      Reader x(*t, "fault[" + std::to_string(i) + "]", source);
+      FaultSpec f;
+      parse_fault(x, f, s.motion.cycles);
+      s.faults.push_back(f);
+    }
+  }
+  if (const toml::table* t = r.table("sensor")) {
+    Reader x(*t, "sensor", source);
+    parse_sensor(x, s.sensor);
+  }
+  if (const toml::table* t = r.table("can")) {
+    Reader x(*t, "can", source);
+    parse_can(x, s.can, source);
+  }
+  r.finish();
+  return s;
+}
+
+Scenario load_scenario(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path.string() + ": cannot open scenario file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw Error(path.string() + ": read error");
+  return parse_scenario(ss.str(), path.string());
+}
+
+}  // namespace ptda::sim

@@ -1,0 +1,233 @@
+// The shared recording feeder of train/monitor/report: CAN decode counters, latency, scale, time
+// interleaving; and the window selection / renumbering / re-debouncing helpers.
+#include "ptda/cli/pipeline_runner.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/config/speed_codec.hpp"
+#include "ptda/formats/candump.hpp"
+#include "ptda/formats/recording.hpp"
+#include "ptda/formats/wav.hpp"
+
+namespace ptda::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path scratch(const std::string& name) {
+  const char* env = std::getenv("PTDA_TEST_TMP");
+  const fs::path base = env != nullptr ? fs::path(env) : fs::temp_directory_path();
+  const fs::path dir = base / "cli_pipeline_runner" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+constexpr std::int64_t kT0Ns = 1'700'000'000'000'000'000LL;
+
+// 10000 samples at 1000 Hz (10 s), value i; scale 2; CAN: a speed frame every 0.1 s (101 frames,
+// 0..10 s) plus one frame of each kind that must be counted and not used.
+fs::path make_recording(const std::string& name) {
+  const fs::path dir = scratch(name);
+  std::vector<std::vector<float>> ch(1);
+  for (int i = 0; i < 10000; ++i) ch[0].push_back(static_cast<float>(i));
+  formats::write_wav(dir / "vibration.wav", 1000, formats::WavSampleFormat::kFloat32, ch);
+  const config::SpeedFrameSpec spec;
+  std::vector<formats::CandumpRecord> recs;
+  auto add = [&](const CanFrame& f) {
+    formats::CandumpRecord r;
+    r.frame = f;
+    r.iface = "can0";
+    recs.push_back(r);
+  };
+  for (int i = 0; i <= 100; ++i) {
+    add(config::encode_speed(spec, kT0Ns + i * 100'000'000LL, 1.5, 0.0));
+    if (i == 10) {
+      CanFrame other;
+      other.t_ns = kT0Ns + i * 100'000'000LL + 1'000'000;
+      other.id = 0x201;
+      other.len = 2;
+      add(other);
+      CanFrame short_frame = config::encode_speed(spec, other.t_ns + 1'000'000, 1.5, 0.0);
+      short_frame.len = 4;  // the speed id with DLC 4
+      add(short_frame);
+      CanFrame rtr;
+      rtr.t_ns = other.t_ns + 2'000'000;
+      rtr.id = 0x184;
+      rtr.flags = kCanRtr;
+      add(rtr);
+      CanFrame err;
+      err.t_ns = other.t_ns + 3'000'000;
+      err.id = 0x4;
+      err.len = 8;
+      err.flags = kCanError;
+      add(err);
+    }
+  }
+  formats::write_candump(dir / "can.log", recs);
+  formats::RecordingMeta meta;
+  meta.start_time_s = 1.7e9;
+  meta.scale = 2.0;
+  formats::write_recording_meta(dir, meta);
+  return dir;
+}
+
+struct Event {
+  bool speed = false;
+  std::int64_t t_ns = 0;  // speed: sample time; block: end time of the block
+  std::size_t n = 0;
+  float first = 0.0F;
+};
+
+class RecordingSink final : public PipelineSink {
+ public:
+  void on_speed(const dsp::SpeedSample& s) override {
+    events.push_back({true, s.t_ns, 0, 0.0F});
+    speeds.push_back(s.speed_rad_s);
+  }
+  void on_samples(std::span<const float> block) override {
+    samples += block.size();
+    const std::int64_t end = kT0Ns + static_cast<std::int64_t>(samples) * 1'000'000LL;
+    events.push_back({false, end, block.size(), block.front()});
+  }
+  void on_finish() override { finished = true; }
+  std::vector<Event> events;
+  std::vector<double> speeds;
+  std::size_t samples = 0;
+  bool finished = false;
+};
+
+TEST(RunRecording, CountsFramesAppliesLatencyAndScaleAndInterleavesByTime) {
+  const fs::path dir = make_recording("run");
+  const RecordingInfo rec = open_recording(dir);
+  EXPECT_EQ(rec.t0_ns, kT0Ns);
+  EXPECT_DOUBLE_EQ(rec.duration_s, 10.0);
+  config::PipelineConfig cfg;
+  cfg.speed_latency_s = 0.05;  // 50 ms subtracted from every CAN timestamp
+  RecordingSink sink;
+  RunOptions opts;
+  opts.block_frames = 1000;
+  opts.progress = false;
+  const CanCounters c = run_recording(rec, cfg, sink, opts);
+  EXPECT_EQ(c.frames, 105U);
+  EXPECT_EQ(c.speed_frames, 101U);
+  EXPECT_EQ(c.other_id, 1U);
+  EXPECT_EQ(c.wrong_dlc, 1U);
+  EXPECT_EQ(c.rtr, 1U);
+  EXPECT_EQ(c.error_frames, 1U);
+  EXPECT_TRUE(sink.finished);
+  EXPECT_EQ(sink.samples, 10000U);
+  ASSERT_EQ(sink.speeds.size(), 101U);
+  for (const double v : sink.speeds) EXPECT_NEAR(v, 1.5, 1e-12);
+
+  // Blocks of 1000 samples scaled by 2; the first speed sample comes at -50 ms, before any block.
+  std::int64_t last_block_end = kT0Ns;
+  std::size_t blocks = 0, speeds_seen = 0;
+  for (const Event& e : sink.events) {
+    if (e.speed) {
+      EXPECT_EQ(e.t_ns, kT0Ns + static_cast<std::int64_t>(speeds_seen) * 100'000'000LL - 50'000'000LL);
+      // A speed sample is delivered only once the previous block ended at or before its time...
+      if (blocks > 0) {
+        EXPECT_GE(e.t_ns, last_block_end);
+      }
+      ++speeds_seen;
+    } else {
+      EXPECT_EQ(e.n, 1000U);
+      EXPECT_EQ(e.first, 2.0F * static_cast<float>(blocks * 1000));
+      // ...and every speed sample earlier than the block's end came before the block.
+      const auto expected_before = std::min<std::size_t>(101, (blocks + 1) * 10 + 1);  // t < end + 50 ms
+      EXPECT_EQ(speeds_seen, expected_before) << "block " << blocks;
+      last_block_end = e.t_ns;
+      ++blocks;
+    }
+  }
+  EXPECT_EQ(blocks, 10U);
+}
+
+TEST(RunRecording, ConfiguredRateMustMatchTheRecording) {
+  const fs::path dir = make_recording("rate");
+  const RecordingInfo rec = open_recording(dir);
+  config::PipelineConfig cfg;
+  EXPECT_EQ(pipeline_fs_hz(rec, cfg, "cfg.toml"), 1000.0);
+  cfg.fs_hz = 2000.0;
+  try {
+    (void)pipeline_fs_hz(rec, cfg, "cfg.toml");
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "cfg.toml: [acquisition] fs_hz = 2000 Hz but recording " +
+                                         (dir / "vibration.wav").string() + " is sampled at 1000 Hz");
+  }
+  EXPECT_THROW((void)open_recording(dir / "missing"), Error);
+}
+
+dsp::CollectedWindows fake(std::size_t regions, std::size_t per_region) {
+  dsp::CollectedWindows c;
+  std::uint64_t seq = 0;
+  for (std::size_t r = 0; r < regions; ++r) {
+    dsp::RegionInfo info;
+    info.seq = r;
+    c.regions.push_back(info);
+    for (std::size_t k = 0; k < per_region; ++k) {
+      dsp::WindowRef ref;
+      ref.seq = seq;
+      ref.region_seq = r;
+      c.refs.push_back(ref);
+      c.windows.push_back(std::vector<float>{static_cast<float>(seq)});
+      ++seq;
+    }
+  }
+  return c;
+}
+
+TEST(CollectedWindows, AppendRenumbersAndSelectKeepsRegionsOfKeptWindows) {
+  dsp::CollectedWindows all = fake(3, 2);  // windows 0..5 in regions 0..2
+  append_collected(all, fake(2, 2));       // windows 6..9 in regions 3..4
+  ASSERT_EQ(all.refs.size(), 10U);
+  ASSERT_EQ(all.regions.size(), 5U);
+  EXPECT_EQ(all.refs[6].seq, 6U);
+  EXPECT_EQ(all.refs[6].region_seq, 3U);
+  EXPECT_EQ(all.refs[9].region_seq, 4U);
+  EXPECT_EQ(all.regions[4].seq, 4U);
+  EXPECT_EQ(all.windows[9][0], 3.0F);  // the appended recording's own window 3
+
+  const dsp::CollectedWindows first_half = select_windows(all, FractionRange{0.0, 0.5});
+  ASSERT_EQ(first_half.refs.size(), 5U);  // windows 0..4
+  EXPECT_EQ(first_half.refs.back().seq, 4U);
+  ASSERT_EQ(first_half.regions.size(), 3U);  // regions 0, 1, 2 (window 4 is in region 2)
+  EXPECT_EQ(first_half.regions.back().seq, 2U);
+  const dsp::CollectedWindows second_half = select_windows(all, FractionRange{0.5, 1.0});
+  ASSERT_EQ(second_half.refs.size(), 5U);
+  EXPECT_EQ(second_half.refs.front().seq, 5U);
+  ASSERT_EQ(second_half.regions.size(), 3U);  // regions 2, 3, 4
+  EXPECT_EQ(second_half.regions.front().seq, 2U);
+}
+
+TEST(Redebounce, RecomputesKOfNOverTheSubsetAndSkipsUnclassified) {
+  // k = 2 of n = 3; the alarm before the subset must not leak in.
+  const std::vector<int> pattern = {1, 0, 2, 1, 1, 0, 0, 0};  // 1 abnormal, 0 ok, 2 no class
+  std::vector<dsp::WindowResult> w(pattern.size());
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    w[i].status = pattern[i] == 2 ? dsp::WindowStatus::kNoClass : dsp::WindowStatus::kScored;
+    w[i].verdict.rms_out = pattern[i] == 1;
+    w[i].alarm = true;  // stale state from the full run
+  }
+  redebounce(w, dsp::DecisionConfig{2, 3});
+  // scored history: a, ok, (skip), a -> 2 of last 3 -> alarm; a -> ok,a,a alarm; ok -> a,a,ok alarm;
+  // ok -> a,ok,ok no; ok -> no
+  const std::vector<bool> expected = {false, false, false, true, true, true, false, false};
+  const std::vector<std::uint32_t> counts = {1, 1, 1, 2, 2, 2, 1, 0};
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    EXPECT_EQ(w[i].alarm, expected[i]) << i;
+    EXPECT_EQ(w[i].abnormal_in_last_n, counts[i]) << i;
+  }
+}
+
+}  // namespace
+}  // namespace ptda::cli

@@ -1,0 +1,184 @@
+#include "can/candump_replay_channel.hpp"
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "alloc_counter.hpp"
+#include "ptda/common/error.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ptda::drivers {
+namespace {
+
+// 0x184 speed frames every 4 ms on can0, a frame on can1, a transmitted (T) frame, an error-passive
+// error frame and a bus-off error frame.
+constexpr const char* kLog =
+    "# golden log: comment lines are ignored as by canplayer\n"
+    "(1000.000000) can0 184#1027000000000000 R\n"
+    "(1000.002000) can1 123#11 R\n"
+    "(1000.004000) can0 184#2027000000000000 R\n"
+    "(1000.005000) can0 3A0#0200FF0000000000 T\n"
+    "(1000.006000) can0 20000004#0010000000000000 R\n"
+    "(1000.008000) can0 184#3027000000000000 R\n"
+    "(1000.012000) can0 20000040#0000000000000000 R\n";
+
+class CandumpReplay : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const char* base = std::getenv("PTDA_TEST_TMP");
+    const fs::path root = base != nullptr ? fs::path(base) : fs::temp_directory_path();
+    dir_ = root / ("candump_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+                   "_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    log_ = dir_ / "can.log";
+    std::ofstream(log_) << kLog;
+    cfg_.path = log_;
+    cfg_.interface = "can0";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path dir_, log_;
+  CandumpReplayConfig cfg_;
+};
+
+TEST_F(CandumpReplay, AsFastAsPossibleMapsLogTimesOntoTheDaemonClock) {
+  cfg_.pace = ReplayPace::kAsFastAsPossible;
+  cfg_.timeline.origin_mono_ns = 7'000'000'000;
+  ManualClock clock(0);
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  EXPECT_EQ(ch.frame_count(), 5u);  // can1 and the 'T' frame skipped
+  ch.activate();
+  std::array<CanFrame, 3> out{};
+  std::size_t n = 0;
+  ASSERT_EQ(ch.receive(out, n, 0), CanStatus::kOk);
+  ASSERT_EQ(n, 3u);
+  EXPECT_EQ(out[0].id, 0x184u);
+  EXPECT_EQ(out[0].t_ns, 7'000'000'000);
+  EXPECT_EQ(out[1].t_ns, 7'004'000'000);
+  EXPECT_EQ(out[1].data[0], 0x20);
+  EXPECT_TRUE(out[2].error());
+  EXPECT_EQ(ch.bus_state(), CanBusState::kErrorPassive);
+  ASSERT_EQ(ch.receive(out, n, 0), CanStatus::kOk);
+  ASSERT_EQ(n, 2u);
+  EXPECT_EQ(out[1].t_ns, 7'012'000'000);
+  EXPECT_EQ(ch.bus_state(), CanBusState::kBusOff);
+  EXPECT_EQ(ch.receive(out, n, 0), CanStatus::kEndOfStream);
+  EXPECT_EQ(n, 0u);
+  EXPECT_EQ(clock.now_ns(), 0);
+
+  const CanCounters c = ch.counters();
+  EXPECT_EQ(c.rx_frames, 5u);
+  EXPECT_EQ(c.rx_error_frames, 2u);
+  EXPECT_EQ(c.error_passive, 1u);
+  EXPECT_EQ(c.bus_off, 1u);
+}
+
+TEST_F(CandumpReplay, RealTimeReleasesFramesWhenTheClockReachesThem) {
+  ManualClock clock(100'000'000);
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  ch.activate();  // first frame (log 1000.000) at the clock's 0.1 s
+  std::array<CanFrame, 8> out{};
+  std::size_t n = 0;
+  ASSERT_EQ(ch.receive(out, n, 0), CanStatus::kOk);
+  ASSERT_EQ(n, 1u);
+  EXPECT_EQ(out[0].t_ns, 100'000'000);
+  // Next is due 4 ms later: a 1 ms timeout sleeps 1 ms and returns empty-handed.
+  EXPECT_EQ(ch.receive(out, n, 1'000'000), CanStatus::kTimeout);
+  EXPECT_EQ(n, 0u);
+  EXPECT_EQ(clock.now_ns(), 101'000'000);
+  ASSERT_EQ(ch.receive(out, n, 50'000'000), CanStatus::kOk);
+  EXPECT_EQ(clock.now_ns(), 104'000'000);  // woke when due, released only what was due
+  ASSERT_EQ(n, 1u);
+  EXPECT_EQ(out[0].t_ns, 104'000'000);
+  clock.set_ns(110'000'000);  // the reader fell behind: everything due comes at once
+  ASSERT_EQ(ch.receive(out, n, 0), CanStatus::kOk);
+  EXPECT_EQ(n, 2u);
+  EXPECT_EQ(ch.position(), 4u);
+}
+
+TEST_F(CandumpReplay, SharedTimelineAndAllInterfaces) {
+  cfg_.interface.clear();
+  cfg_.skip_transmitted = false;
+  cfg_.pace = ReplayPace::kAsFastAsPossible;
+  cfg_.timeline.origin_unix_ns = 999'000'000'000;  // e.g. the WAV's start, 1 s before the log
+  cfg_.timeline.origin_mono_ns = 0;
+  ManualClock clock(0);
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  EXPECT_EQ(ch.frame_count(), 7u);
+  ch.activate();
+  std::array<CanFrame, 2> out{};
+  std::size_t n = 0;
+  ASSERT_EQ(ch.receive(out, n, 0), CanStatus::kOk);
+  EXPECT_EQ(out[0].t_ns, 1'000'000'000);
+  EXPECT_EQ(out[1].id, 0x123u);
+  EXPECT_EQ(out[1].t_ns, 1'002'000'000);
+}
+
+TEST_F(CandumpReplay, SentFramesAreKeptUpToTheCapacity) {
+  cfg_.tx_capacity = 2;
+  ManualClock clock(5);
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  CanFrame f;
+  f.id = 0x3A0;
+  EXPECT_EQ(ch.send(f), CanStatus::kNotActive);
+  ch.activate();
+  EXPECT_EQ(ch.send(f), CanStatus::kOk);
+  f.data[0] = 2;
+  EXPECT_EQ(ch.send(f), CanStatus::kOk);
+  EXPECT_EQ(ch.send(f), CanStatus::kTxFull);
+  ASSERT_EQ(ch.sent_frames().size(), 2u);
+  EXPECT_EQ(ch.sent_frames()[1].data[0], 2);
+  EXPECT_EQ(ch.sent_frames()[1].t_ns, 5);
+  EXPECT_EQ(ch.counters().tx_frames, 2u);
+  EXPECT_EQ(ch.counters().tx_full, 1u);
+}
+
+TEST_F(CandumpReplay, ConfigureErrors) {
+  ManualClock clock(0);
+  cfg_.max_frames = 3;
+  CandumpReplayChannel too_long(cfg_, clock);
+  try {
+    too_long.configure();
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("max_frames = 3"), std::string::npos) << e.what();
+  }
+  cfg_.max_frames = 100;
+  std::ofstream(log_, std::ios::app) << "(1000.020000) can0 184#ZZ\n";
+  CandumpReplayChannel malformed(cfg_, clock);
+  EXPECT_THROW(malformed.configure(), Error);
+  CandumpReplayChannel not_configured(cfg_, clock);
+  EXPECT_THROW(not_configured.activate(), Error);
+  cfg_.path = dir_ / "missing.log";
+  CandumpReplayChannel missing(cfg_, clock);
+  EXPECT_THROW(missing.configure(), Error);
+}
+
+TEST_F(CandumpReplay, ReceiveNeverAllocates) {
+  ManualClock clock(0);
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  ch.activate();
+  std::array<CanFrame, 2> out{};
+  std::size_t n = 0, total = 0;
+  test::AllocScope scope;
+  while (ch.receive(out, n, 1'000'000'000) == CanStatus::kOk) total += n;
+  EXPECT_EQ(scope.count(), 0u);
+  EXPECT_EQ(total, 5u);
+}
+
+}  // namespace
+}  // namespace ptda::drivers

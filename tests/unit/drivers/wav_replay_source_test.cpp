@@ -1,0 +1,163 @@
+#include "adc/wav_replay_source.hpp"
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "alloc_counter.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/formats/wav.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ptda::drivers {
+namespace {
+
+class WavReplay : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const char* base = std::getenv("PTDA_TEST_TMP");
+    const fs::path root = base != nullptr ? fs::path(base) : fs::temp_directory_path();
+    dir_ = root / ("wavreplay_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+                   "_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    // 1000 samples at 1 kHz, two channels: ch0 = i, ch1 = -i (PCM16 codes).
+    std::vector<float> a(1000), b(1000);
+    for (int i = 0; i < 1000; ++i) {
+      a[static_cast<std::size_t>(i)] = static_cast<float>(i);
+      b[static_cast<std::size_t>(i)] = static_cast<float>(-i);
+    }
+    wav_ = dir_ / "vibration.wav";
+    formats::write_wav(wav_, 1000, formats::WavSampleFormat::kPcm16, {a, b});
+    cfg_.path = wav_;
+    cfg_.block_len = 256;
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path dir_, wav_;
+  WavReplayConfig cfg_;
+};
+
+TEST_F(WavReplay, AsFastAsPossibleDeliversEverySampleWithSyntheticTimes) {
+  cfg_.pace = ReplayPace::kAsFastAsPossible;
+  cfg_.channel = 1;
+  cfg_.scale = 0.5F;
+  cfg_.timeline.origin_mono_ns = 1'000'000'000;
+  ManualClock clock(0);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  EXPECT_DOUBLE_EQ(src.fs_hz(), 1000.0);
+  EXPECT_EQ(src.total_samples(), 1000u);
+  src.activate();
+  auto b = std::make_unique<SampleBlock>();
+  const std::uint32_t expected_counts[] = {256, 256, 256, 232};
+  for (int k = 0; k < 4; ++k) {
+    ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk) << k;
+    EXPECT_EQ(b->count, expected_counts[k]);
+    EXPECT_EQ(b->first_index, 256u * static_cast<unsigned>(k));
+    EXPECT_EQ(b->t_mono_ns, 1'000'000'000 + 256'000'000LL * k);
+    EXPECT_EQ(b->flags, 0u);
+    EXPECT_FLOAT_EQ(b->samples[1], -0.5F * static_cast<float>(256 * k + 1));
+  }
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kEndOfStream);
+  EXPECT_EQ(clock.now_ns(), 0);  // never waited
+  EXPECT_EQ(src.counters().samples, 1000u);
+  // activate() rewinds.
+  src.activate();
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->first_index, 0u);
+  EXPECT_FLOAT_EQ(b->samples[255], -127.5F);
+}
+
+TEST_F(WavReplay, RealTimeReleasesABlockWhenItsLastSampleIsDue) {
+  ManualClock clock(50'000'000'000);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  src.activate();  // sample 0 at the clock's 50 s
+  auto b = std::make_unique<SampleBlock>();
+  // The first block's last sample (255) is due at 50.255 s: a 10 ms timeout is not enough.
+  EXPECT_EQ(src.read(*b, 10'000'000), SourceStatus::kTimeout);
+  EXPECT_EQ(clock.now_ns(), 50'010'000'000);  // slept the whole timeout
+  ASSERT_EQ(src.read(*b, 1'000'000'000), SourceStatus::kOk);
+  EXPECT_EQ(clock.now_ns(), 50'255'000'000);  // woke exactly when due
+  EXPECT_EQ(b->t_mono_ns, 50'000'000'000);
+  EXPECT_EQ(b->count, 256u);
+  ASSERT_EQ(src.read(*b, 1'000'000'000), SourceStatus::kOk);
+  EXPECT_EQ(clock.now_ns(), 50'511'000'000);
+  EXPECT_EQ(b->t_mono_ns, 50'256'000'000);
+  EXPECT_EQ(src.counters().timeouts, 1u);
+}
+
+TEST_F(WavReplay, TimelineAlignsSampleZeroWithTheRecordingStart) {
+  cfg_.pace = ReplayPace::kAsFastAsPossible;
+  cfg_.start_unix_ns = 1'700'000'010'000'000'000;   // WAV starts 10 s after ...
+  cfg_.timeline.origin_unix_ns = 1'700'000'000'000'000'000;  // ... the shared origin (e.g. the CAN log's)
+  cfg_.timeline.origin_mono_ns = 3'000'000'000;
+  ManualClock clock(0);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  src.activate();
+  SampleBlock b;
+  ASSERT_EQ(src.read(b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b.t_mono_ns, 13'000'000'000);
+  EXPECT_EQ(src.sample_time_ns(1000), 14'000'000'000);
+}
+
+TEST_F(WavReplay, SampleTimesStayExactOverHours) {
+  std::vector<float> x(25600, 0.0F);
+  formats::write_wav(dir_ / "fast.wav", 25600, formats::WavSampleFormat::kFloat32, {x});
+  cfg_.path = dir_ / "fast.wav";
+  cfg_.timeline.origin_mono_ns = 0;
+  ManualClock clock(0);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  src.activate();
+  EXPECT_EQ(src.sample_time_ns(25600ULL * 3600), 3600LL * 1'000'000'000);
+  EXPECT_EQ(src.sample_time_ns(25600ULL * 3600 + 1), 3600LL * 1'000'000'000 + 39063);  // 39062.5 rounded
+}
+
+TEST_F(WavReplay, ConfigureErrorsNameTheFile) {
+  ManualClock clock(0);
+  cfg_.channel = 2;
+  WavReplaySource bad_channel(cfg_, clock);
+  EXPECT_THROW(bad_channel.configure(), Error);
+  cfg_.channel = 0;
+  cfg_.block_len = kMaxBlock + 1;
+  WavReplaySource bad_block(cfg_, clock);
+  EXPECT_THROW(bad_block.configure(), Error);
+  cfg_.block_len = 16;
+  cfg_.path = dir_ / "missing.wav";
+  WavReplaySource missing(cfg_, clock);
+  try {
+    missing.configure();
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.wav"), std::string::npos) << e.what();
+  }
+  SampleBlock b;
+  EXPECT_EQ(missing.read(b, 0), SourceStatus::kNotActive);
+}
+
+TEST_F(WavReplay, ReadNeverAllocates) {
+  cfg_.pace = ReplayPace::kAsFastAsPossible;
+  ManualClock clock(0);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  src.activate();
+  auto b = std::make_unique<SampleBlock>();
+  std::uint64_t n = 0;
+  test::AllocScope scope;
+  while (src.read(*b, 0) == SourceStatus::kOk) n += b->count;
+  EXPECT_EQ(scope.count(), 0u);
+  EXPECT_EQ(n, 1000u);
+}
+
+}  // namespace
+}  // namespace ptda::drivers

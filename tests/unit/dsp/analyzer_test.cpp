@@ -1,0 +1,266 @@
+// WindowAnalyzer against closed forms: bin-centred tones with a random phase per window.
+#include "ptda/dsp/analyzer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "alloc_counter.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/features.hpp"
+#include "ptda/dsp/real_fft.hpp"
+
+namespace ptda::dsp {
+namespace {
+
+constexpr std::size_t kN = 3200;
+constexpr std::size_t kBins = kN / 2 + 1;
+const std::vector<std::size_t> kToneBins = {40, 97, 250, 801};
+const std::vector<double> kToneAmps = {1.0, 0.5, 2.0, 0.7};
+
+struct Draw {
+  std::vector<std::vector<double>> phase;  // [window][tone], radians
+  std::vector<std::vector<float>> x;       // [window][sample]
+};
+
+// Windows of the same bin-centred tones, each tone with a fresh uniform phase per window, plus white
+// Gaussian noise of stddev noise_sd.
+Draw draw_windows(std::size_t m, double noise_sd, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.0, 2.0 * std::numbers::pi);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Draw d;
+  for (std::size_t i = 0; i < m; ++i) {
+    std::vector<double> ph(kToneBins.size());
+    for (double& p : ph) p = u(rng);
+    std::vector<float> x(kN);
+    for (std::size_t t = 0; t < kN; ++t) {
+      double v = noise_sd * g(rng);
+      for (std::size_t h = 0; h < kToneBins.size(); ++h) {
+        v += kToneAmps[h] *
+             std::cos(2.0 * std::numbers::pi * static_cast<double>((kToneBins[h] * t) % kN) / kN + ph[h]);
+      }
+      x[t] = static_cast<float>(v);
+    }
+    d.phase.push_back(ph);
+    d.x.push_back(x);
+  }
+  return d;
+}
+
+// mean |X_i| and mean x_i, computed directly (eqs. 5 and 7).
+ClassBaseline means_of(const std::vector<std::vector<float>>& xs) {
+  WindowAnalyzer a(kN);
+  ClassBaseline cls;
+  std::vector<double> mag_sum(kBins, 0.0), x_sum(kN, 0.0);
+  std::vector<float> mag(kBins);
+  for (const auto& x : xs) {
+    a.magnitude(x, mag);
+    for (std::size_t k = 0; k < kBins; ++k) mag_sum[k] += mag[k];
+    for (std::size_t t = 0; t < kN; ++t) x_sum[t] += x[t];
+  }
+  const auto m = static_cast<double>(xs.size());
+  for (const double v : mag_sum) cls.mean_magnitude.push_back(static_cast<float>(v / m));
+  for (const double v : x_sum) cls.tda_mean.push_back(static_cast<float>(v / m));
+  cls.n_windows = static_cast<std::uint32_t>(xs.size());
+  return cls;
+}
+
+// Amplitude of the bin-centred tone at bin k of a real signal: |X[k]| / (N/2).
+double tone_amplitude(std::span<const float> x, std::size_t k) {
+  RealFft fft(x.size());
+  std::vector<std::complex<float>> X(fft.bins());
+  fft.forward(x, X);
+  return std::abs(X[k]) / (static_cast<double>(x.size()) / 2.0);
+}
+
+TEST(WindowAnalyzer, TdaKeepsTheMeanPhasorPtdaKeepsTheWholeAmplitude) {
+  std::mt19937 rng(20240501);
+  const std::size_t m = 10;
+  const Draw d = draw_windows(m, 0.0, rng);
+  const ClassBaseline cls = means_of(d.x);
+  WindowAnalyzer a(kN);
+
+  (void)a.analyze(d.x[0], cls, Method::kTda);
+  const std::vector<float> tda_d(a.deterministic().begin(), a.deterministic().end());
+  for (std::size_t h = 0; h < kToneBins.size(); ++h) {
+    std::complex<double> phasor = 0.0;
+    for (std::size_t i = 0; i < m; ++i) phasor += std::polar(1.0, d.phase[i][h]);
+    const double kept = std::abs(phasor) / static_cast<double>(m);  // |mean_i e^{j phi_i}|
+    // Float round-off only (no noise): 1e-5 absolute on amplitudes of order 1.
+    EXPECT_NEAR(tone_amplitude(tda_d, kToneBins[h]), kToneAmps[h] * kept, 1e-5) << "tone " << h;
+    EXPECT_LT(kept, 0.8) << "the drawn phases must actually differ for this test to mean anything";
+  }
+
+  for (std::size_t i = 0; i < m; ++i) {
+    const Features f = a.analyze(d.x[i], cls, Method::kPtda);
+    for (std::size_t h = 0; h < kToneBins.size(); ++h) {
+      EXPECT_NEAR(tone_amplitude(a.deterministic(), kToneBins[h]), kToneAmps[h], 1e-5) << "window " << i;
+    }
+    // Without noise |D_avg| == |X_i| at the tones, so d_i is x_i itself and nothing is left over.
+    double max_diff = 0.0;
+    for (std::size_t t = 0; t < kN; ++t)
+      max_diff = std::max(max_diff, std::abs(static_cast<double>(a.deterministic()[t] - d.x[i][t])));
+    EXPECT_LT(max_diff, 1e-5) << "window " << i;
+    EXPECT_LT(f.rms_res, 1e-5) << "window " << i;
+  }
+}
+
+// A healthy window scored against a baseline of M other windows of the same tones + noise (stddev s).
+// PTDA replaces |X[k]| by the baseline's mean magnitude, so at noise-only bins the residual is
+// (|X| - mean|X_j|) e^{j theta}: with Rayleigh |X|, E|R|^2 = Var|X| (1 + 1/M) = s_k^2 (1 - pi/4)(1 + 1/M).
+// Hence RMS_res(PTDA) = s sqrt((1 - pi/4)(1 + 1/M)) ~= 0.47 s: close to (below) the noise RMS, with
+// no tone left. TDA leaves A_h^2/2 |e^{j phi} - mean_j e^{j phi_j}|^2 of every tone in the residual.
+TEST(WindowAnalyzer, HealthyResidualPtdaIsNoiseTdaKeepsTheTones) {
+  std::mt19937 rng(77);
+  const std::size_t m = 30;
+  const double s = 0.5;
+  const Draw base = draw_windows(m, s, rng);
+  const ClassBaseline cls = means_of(base.x);
+  const Draw test = draw_windows(8, s, rng);
+  WindowAnalyzer a(kN);
+
+  double ptda_rms_sum = 0.0;
+  const double ptda_expected = s * std::sqrt((1.0 - std::numbers::pi / 4.0) * (1.0 + 1.0 / m));
+  for (std::size_t i = 0; i < test.x.size(); ++i) {
+    const Features f = a.analyze(test.x[i], cls, Method::kPtda);
+    ptda_rms_sum += f.rms_res;
+    // No tone survives in the PTDA residual: what is left at a tone bin is noise-sized (s sqrt(N/2) ~= 20).
+    for (const std::size_t k : kToneBins) {
+      EXPECT_LT(std::abs(a.residual_spectrum()[k]), 5.0 * s * std::sqrt(kN / 2.0)) << "bin " << k;
+    }
+
+    const Features ft = a.analyze(test.x[i], cls, Method::kTda);
+    double tone_power = 0.0;
+    for (std::size_t h = 0; h < kToneBins.size(); ++h) {
+      std::complex<double> mean_phasor = 0.0;
+      for (std::size_t j = 0; j < m; ++j) mean_phasor += std::polar(1.0, base.phase[j][h]);
+      mean_phasor /= static_cast<double>(m);
+      const double left = kToneAmps[h] * std::abs(std::polar(1.0, test.phase[i][h]) - mean_phasor);
+      tone_power += 0.5 * left * left;
+      // The tone's remainder in the TDA residual spectrum, +- 5 noise standard deviations of one bin.
+      EXPECT_NEAR(std::abs(a.residual_spectrum()[kToneBins[h]]) / (kN / 2.0), left,
+                  5.0 * s * std::sqrt((1.0 + 1.0 / m) / (kN / 2.0)))
+          << "window " << i << " tone " << h;
+    }
+    const double tda_expected = std::sqrt(s * s * (1.0 + 1.0 / m) + tone_power);
+    // RMS over 3200 samples: relative spread ~ 1/sqrt(N) ~= 2 %; 6 % is 3 spreads.
+    EXPECT_NEAR(ft.rms_res / tda_expected, 1.0, 0.06) << "window " << i;
+    EXPECT_GT(ft.rms_res, 2.0 * f.rms_res) << "window " << i;
+  }
+  // Mean over 8 windows of an RMS whose per-window spread is ~2.5 % (|R|^2 at 1600 bins, each with
+  // relative spread ~1): ~1 % for the mean; 4 % is 4 spreads.
+  const double ratio = ptda_rms_sum / test.x.size() / ptda_expected;
+  std::printf("PTDA healthy RMS_res / (s sqrt((1 - pi/4)(1 + 1/M))) = %.4f\n", ratio);
+  EXPECT_NEAR(ratio, 1.0, 0.04);
+}
+
+TEST(WindowAnalyzer, RawResidualIsTheWindow) {
+  std::mt19937 rng(5);
+  const Draw d = draw_windows(1, 0.3, rng);
+  WindowAnalyzer a(kN);
+  const Features f = a.analyze_with(d.x[0], {}, {}, Method::kRaw);
+  for (std::size_t t = 0; t < kN; ++t) {
+    ASSERT_EQ(a.residual()[t], d.x[0][t]);
+    ASSERT_EQ(a.deterministic()[t], 0.0F);
+  }
+  EXPECT_DOUBLE_EQ(f.rms_res, rms(d.x[0]));
+  RealFft fft(kN);
+  std::vector<std::complex<float>> X(kBins);
+  fft.forward(d.x[0], X);
+  EXPECT_DOUBLE_EQ(f.entropy_res, spectral_entropy(X));
+}
+
+// A zero-magnitude bin has no phase; the rule is phase 0, so D[k] = |D_avg[k]| (real, positive).
+TEST(WindowAnalyzer, ZeroBinsTakePhaseZero) {
+  const std::vector<float> x(kN, 0.0F);
+  std::vector<float> mean_mag(kBins, 0.0F);
+  mean_mag[0] = 3.0F;
+  mean_mag[5] = 1.0F;
+  WindowAnalyzer a(kN);
+  const Features f = a.analyze_with(x, mean_mag, {}, Method::kPtda);
+  for (std::size_t t = 0; t < kN; ++t) {
+    // d = IDFT: 3/N from DC, (2/N) cos(2 pi 5 t / N) from bin 5 and its mirror.
+    const double expected =
+        3.0 / kN + 2.0 / kN * std::cos(2.0 * std::numbers::pi * static_cast<double>((5 * t) % kN) / kN);
+    ASSERT_NEAR(a.deterministic()[t], expected, 1e-9) << t;
+    ASSERT_EQ(a.residual()[t], -a.deterministic()[t]);
+  }
+  EXPECT_NEAR(f.rms_res, std::sqrt(9.0 / kN / kN + 2.0 / kN / kN), 1e-9);
+}
+
+// A fault tone the baseline never saw passes through PTDA untouched (|D_avg| ~ 0 there).
+TEST(WindowAnalyzer, PtdaKeepsAnUnseenFaultTone) {
+  std::mt19937 rng(9);
+  const Draw base = draw_windows(10, 0.0, rng);
+  const ClassBaseline cls = means_of(base.x);
+  const Draw test = draw_windows(1, 0.0, rng);
+  std::vector<float> x = test.x[0];
+  for (std::size_t t = 0; t < kN; ++t) {
+    x[t] += static_cast<float>(0.8 *
+                               std::sin(2.0 * std::numbers::pi * static_cast<double>((1200 * t) % kN) / kN));
+  }
+  WindowAnalyzer a(kN);
+  const Features f = a.analyze(x, cls, Method::kPtda);
+  EXPECT_NEAR(f.rms_res, 0.8 / std::numbers::sqrt2, 1e-4);
+  EXPECT_NEAR(std::abs(a.residual_spectrum()[1200]) / (kN / 2.0), 0.8, 1e-4);
+  EXPECT_LT(f.entropy_res, 1e-3);  // one tone: entropy ~ 0
+}
+
+TEST(WindowAnalyzer, SizeMismatchGivesNaNNotUb) {
+  WindowAnalyzer a(kN);
+  const std::vector<float> x(kN, 1.0F), short_x(kN - 2, 1.0F), mag(kBins, 1.0F), mean(kN, 0.5F);
+  auto is_nan = [](const Features& f) { return std::isnan(f.rms_res) && std::isnan(f.entropy_res); };
+  EXPECT_TRUE(is_nan(a.analyze_with(short_x, mag, mean, Method::kPtda)));
+  EXPECT_TRUE(is_nan(a.analyze_with(short_x, mag, mean, Method::kRaw)));
+  EXPECT_TRUE(is_nan(a.analyze_with(x, std::span<const float>(mag).first(kBins - 1), mean, Method::kPtda)));
+  EXPECT_TRUE(is_nan(a.analyze_with(x, mag, std::span<const float>(mean).first(kN - 1), Method::kTda)));
+  // Each method only checks what it uses.
+  EXPECT_FALSE(is_nan(a.analyze_with(x, {}, mean, Method::kTda)));
+  EXPECT_FALSE(is_nan(a.analyze_with(x, mag, {}, Method::kPtda)));
+  std::vector<float> out(kBins - 1, 0.0F);
+  a.magnitude(x, out);
+  EXPECT_TRUE(std::isnan(out[0]));
+}
+
+TEST(WindowAnalyzer, AnalyzeDoesNotAllocate) {
+  std::mt19937 rng(3);
+  const Draw d = draw_windows(4, 0.2, rng);
+  const ClassBaseline cls = means_of(d.x);
+  WindowAnalyzer a(kN);
+  std::vector<float> mag(kBins);
+  double sink = 0.0;
+  test::AllocScope scope;
+  for (const Method m : {Method::kRaw, Method::kTda, Method::kPtda}) {
+    const Features f = a.analyze(d.x[1], cls, m);
+    sink += f.rms_res + f.entropy_res;
+  }
+  a.magnitude(d.x[2], mag);
+  EXPECT_EQ(scope.count(), 0U);
+  EXPECT_TRUE(std::isfinite(sink));
+}
+
+TEST(WindowAnalyzer, MagnitudeIsAbsOfTheDft) {
+  std::mt19937 rng(4);
+  const Draw d = draw_windows(1, 0.2, rng);
+  WindowAnalyzer a(kN);
+  std::vector<float> mag(kBins);
+  a.magnitude(d.x[0], mag);
+  RealFft fft(kN);
+  std::vector<std::complex<float>> X(kBins);
+  fft.forward(d.x[0], X);
+  for (std::size_t k = 0; k < kBins; ++k) ASSERT_NEAR(mag[k], std::abs(X[k]), 1e-5 * (1.0 + std::abs(X[k])));
+}
+
+TEST(WindowAnalyzer, UnsupportedLengthThrows) {
+  EXPECT_THROW(WindowAnalyzer a(3201), Error);
+  EXPECT_THROW(WindowAnalyzer a(14), Error);
+}
+
+}  // namespace
+}  // namespace ptda::dsp

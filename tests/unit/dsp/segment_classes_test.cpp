@@ -1,0 +1,271 @@
+// Segment classes from regions (learn_segment_classes) and the training glue (train_baseline):
+// class grouping, ids, durations, leave-out groups from window overlap, and the errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/training.hpp"
+
+namespace ptda::dsp {
+namespace {
+
+constexpr std::int64_t kS = 1'000'000'000;
+
+RegionInfo region(std::uint64_t seq, double speed, double duration_s, std::int64_t t_begin_ns = 0) {
+  RegionInfo r;
+  r.seq = seq;
+  r.t_begin_ns = t_begin_ns;
+  r.t_end_ns = t_begin_ns + static_cast<std::int64_t>(std::llround(duration_s * 1e9));
+  r.mean_speed_rad_s = speed;
+  r.direction = speed < 0 ? -1 : 1;
+  return r;
+}
+
+TEST(LearnSegmentClasses, TwoDirectionsTwoSpeedsEach) {
+  // A reciprocating job: +1.0 and +2.0 rad/s forwards, -1.0 and -2.0 backwards, with cycle-to-cycle
+  // speed jitter well inside the tolerance; one stray +3.0 region is too rare for a class.
+  std::vector<RegionInfo> regions;
+  std::uint64_t seq = 0;
+  const double fwd1[] = {1.00, 1.01, 0.99, 1.005};
+  const double fwd2[] = {2.02, 1.98, 2.00, 2.01, 1.99};
+  const double bwd1[] = {-1.0, -1.0, -1.02};
+  const double bwd2[] = {-2.0, -2.05, -1.97, -2.0};
+  const double dur_fwd1[] = {0.50, 0.70, 0.60, 0.40};  // median (0.5 + 0.6) / 2 = 0.55
+  for (int c = 0; c < 5; ++c) {                        // interleaved as in a real recording
+    if (c < 4) regions.push_back(region(seq++, fwd1[c], dur_fwd1[c]));
+    regions.push_back(region(seq++, fwd2[c], 1.0 + 0.1 * c));  // median 1.2
+    if (c < 3) regions.push_back(region(seq++, bwd1[c], 0.3));
+    if (c < 4) regions.push_back(region(seq++, bwd2[c], 0.8 + 0.1 * c));  // median (0.9 + 1.0) / 2
+  }
+  regions.push_back(region(seq++, 3.0, 1.0));
+
+  ClassLearningConfig cfg;  // rel 0.05, abs 0.02, min 3 regions
+  const auto classes = learn_segment_classes(regions, cfg);
+  ASSERT_EQ(classes.size(), 4U);
+  // Order: forward classes by speed, then backward classes by speed.
+  EXPECT_EQ(classes[0].id, 0U);
+  EXPECT_EQ(classes[0].direction, 1);
+  EXPECT_DOUBLE_EQ(classes[0].speed_rad_s, (1.00 + 1.01 + 0.99 + 1.005) / 4);
+  EXPECT_DOUBLE_EQ(classes[0].speed_tol_rad_s, std::max(0.05 * classes[0].speed_rad_s, 0.02));
+  EXPECT_NEAR(classes[0].duration_s, 0.55, 1e-9);
+  EXPECT_EQ(classes[0].regions, 4U);
+
+  EXPECT_EQ(classes[1].id, 1U);
+  EXPECT_EQ(classes[1].direction, 1);
+  EXPECT_DOUBLE_EQ(classes[1].speed_rad_s, (2.02 + 1.98 + 2.00 + 2.01 + 1.99) / 5);
+  EXPECT_DOUBLE_EQ(classes[1].speed_tol_rad_s, 0.05 * classes[1].speed_rad_s);
+  EXPECT_NEAR(classes[1].duration_s, 1.2, 1e-9);
+  EXPECT_EQ(classes[1].regions, 5U);
+
+  EXPECT_EQ(classes[2].id, 2U);
+  EXPECT_EQ(classes[2].direction, -1);
+  EXPECT_DOUBLE_EQ(classes[2].speed_rad_s, (1.0 + 1.0 + 1.02) / 3);
+  EXPECT_NEAR(classes[2].duration_s, 0.3, 1e-9);
+  EXPECT_EQ(classes[2].regions, 3U);
+
+  EXPECT_EQ(classes[3].id, 3U);
+  EXPECT_EQ(classes[3].direction, -1);
+  EXPECT_DOUBLE_EQ(classes[3].speed_rad_s, (2.0 + 2.05 + 1.97 + 2.0) / 4);
+  EXPECT_NEAR(classes[3].duration_s, 0.95, 1e-9);
+  EXPECT_EQ(classes[3].regions, 4U);
+
+  // Every training region of a kept class matches its own class through Baseline::match.
+  Baseline b;
+  for (const auto& c : classes) b.classes.push_back(ClassBaseline{c, 0, {}, {}, {}, {}, {}});
+  for (const RegionInfo& r : regions) {
+    const ClassBaseline* m = b.match(r.mean_speed_rad_s);
+    if (r.mean_speed_rad_s == 3.0) {
+      EXPECT_EQ(m, nullptr);
+      continue;
+    }
+    ASSERT_NE(m, nullptr) << r.mean_speed_rad_s;
+    EXPECT_EQ(m->segment.direction, r.direction);
+    EXPECT_LE(std::fabs(std::fabs(r.mean_speed_rad_s) - m->segment.speed_rad_s), m->segment.speed_tol_rad_s);
+  }
+}
+
+TEST(LearnSegmentClasses, GreedyGroupsAreAnchoredAtTheSlowestRegion) {
+  // rel 0.05, abs 0.02: anchor 1.00 takes up to 1.05 -> {1.00, 1.04}; anchor 1.06 takes up to 1.113
+  // -> {1.06}; then {1.12}. A chain 1.00 -> 1.04 -> 1.06 -> 1.12 would otherwise drift.
+  const std::vector<RegionInfo> regions = {region(0, 1.12, 1), region(1, 1.00, 1), region(2, 1.06, 1),
+                                           region(3, 1.04, 1)};
+  ClassLearningConfig cfg;
+  cfg.min_regions = 1;
+  const auto classes = learn_segment_classes(regions, cfg);
+  ASSERT_EQ(classes.size(), 3U);
+  EXPECT_DOUBLE_EQ(classes[0].speed_rad_s, 1.02);
+  EXPECT_EQ(classes[0].regions, 2U);
+  EXPECT_DOUBLE_EQ(classes[1].speed_rad_s, 1.06);
+  EXPECT_DOUBLE_EQ(classes[2].speed_rad_s, 1.12);
+  // Low speeds use the absolute tolerance: 0.10 and 0.115 share a class (0.05 * 0.1 < 0.02).
+  const auto slow =
+      learn_segment_classes({region(0, 0.10, 1), region(1, 0.115, 1), region(2, 0.125, 1)}, cfg);
+  ASSERT_EQ(slow.size(), 2U);
+  EXPECT_EQ(slow[0].regions, 2U);
+  EXPECT_DOUBLE_EQ(slow[0].speed_tol_rad_s, 0.02);
+}
+
+TEST(LearnSegmentClasses, EmptyInputAndBadConfig) {
+  EXPECT_TRUE(learn_segment_classes({}, ClassLearningConfig{}).empty());
+  ClassLearningConfig bad;
+  bad.speed_tol_rel = -0.1;
+  EXPECT_THROW((void)learn_segment_classes({region(0, 1.0, 1)}, bad), Error);
+  bad = ClassLearningConfig{};
+  bad.min_regions = 0;
+  try {
+    (void)learn_segment_classes({region(0, 1.0, 1)}, bad);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("classes.min_regions"), std::string::npos) << e.what();
+  }
+}
+
+// --- train_baseline ----------------------------------------------------------------------------
+
+constexpr std::size_t kN = 64;
+
+std::vector<float> tone_window(std::mt19937& rng, double cycles_per_window) {
+  std::uniform_real_distribution<double> phase(0.0, 2.0 * std::numbers::pi);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  const double p = phase(rng);
+  std::vector<float> w(kN);
+  for (std::size_t i = 0; i < kN; ++i) {
+    w[i] = static_cast<float>(
+        std::sin(2.0 * std::numbers::pi * cycles_per_window * static_cast<double>(i) / kN + p) + noise(rng));
+  }
+  return w;
+}
+
+/// Adds one region with `count` windows at `hop` samples spacing.
+void add_region(CollectedWindows& d, std::mt19937& rng, std::uint64_t region_seq, double speed,
+                std::size_t count, std::int64_t hop, std::int64_t first0) {
+  d.regions.push_back(region(region_seq, speed, 0.5, static_cast<std::int64_t>(region_seq) * 10 * kS));
+  for (std::size_t j = 0; j < count; ++j) {
+    WindowRef r;
+    r.seq = d.refs.size();
+    r.region_seq = region_seq;
+    r.index_in_region = static_cast<std::uint32_t>(j);
+    r.first_sample = first0 + static_cast<std::int64_t>(j) * hop;
+    r.speed_rad_s = speed;
+    d.refs.push_back(r);
+    d.windows.push_back(tone_window(rng, 8.0));
+  }
+}
+
+bool same_thresholds(const ClassBaseline& a, const ClassBaseline& b) {
+  for (std::size_t m = 0; m < kMethodCount; ++m) {
+    if (a.thresholds[m].rms.lo != b.thresholds[m].rms.lo ||
+        a.thresholds[m].rms.hi != b.thresholds[m].rms.hi ||
+        a.thresholds[m].entropy.lo != b.thresholds[m].entropy.lo ||
+        a.thresholds[m].entropy.hi != b.thresholds[m].entropy.hi) {
+      return false;
+    }
+  }
+  return true;
+}
+
+TEST(TrainBaseline, OverlappingWindowsOfARegionShareAGroup) {
+  std::mt19937 rng(3);
+  CollectedWindows d;
+  // Class +1.0: 4 regions of 3 windows with hop N/2 (each region is one overlap chain -> 4 groups).
+  for (std::uint64_t r = 0; r < 4; ++r)
+    add_region(d, rng, 2 * r, 1.0, 3, kN / 2, 1000 * static_cast<std::int64_t>(r));
+  // Class -2.0: 3 regions (enough for a class), but the windows of each region overlap and one
+  // region has no windows at all: 2 groups < 3, so the class is left out.
+  add_region(d, rng, 1, -2.0, 2, kN / 2, 50'000);
+  add_region(d, rng, 3, -2.0, 2, kN / 2, 60'000);
+  d.regions.push_back(region(5, -2.0, 0.2));
+  GearboxInfo gb;
+  gb.kind = GearboxInfo::Kind::kCycloidal;
+  gb.z_in = 10;
+  gb.ratio = 33.86;
+  ThresholdPolicy policy;
+  policy.kind = ThresholdPolicy::Kind::kQuantile;
+  policy.false_alarm_rate = 0.01;
+
+  const Baseline b = train_baseline(d, ClassLearningConfig{}, policy, 2000.0, gb);
+  EXPECT_EQ(b.fs_hz, 2000.0);
+  EXPECT_EQ(b.window_len, kN);
+  EXPECT_EQ(b.gearbox.ratio, 33.86);
+  EXPECT_EQ(b.gearbox.z_in, 10U);
+  EXPECT_EQ(b.policy.kind, ThresholdPolicy::Kind::kQuantile);
+  ASSERT_EQ(b.classes.size(), 1U);
+  const ClassBaseline& c = b.classes[0];
+  EXPECT_EQ(c.segment.id, 0U);
+  EXPECT_EQ(c.segment.direction, 1);
+  EXPECT_EQ(c.segment.regions, 4U);
+  EXPECT_EQ(c.n_windows, 12U);
+
+  // Same as building the class directly with one group per region ...
+  std::vector<std::vector<float>> w(d.windows.begin(), d.windows.begin() + 12);
+  const std::vector<std::uint64_t> per_region = {0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3};
+  const ClassBaseline direct = build_class_baseline(c.segment, w, per_region, policy);
+  EXPECT_TRUE(same_thresholds(c, direct));
+  EXPECT_EQ(c.mean_magnitude, direct.mean_magnitude);
+  // ... and not the same as treating every window as its own group (so the grouping is observable).
+  const ClassBaseline per_window = build_class_baseline(c.segment, w, {}, policy);
+  EXPECT_FALSE(same_thresholds(c, per_window));
+}
+
+TEST(TrainBaseline, OneLongConstantSpeedRegionGivesManyGroupsWhenWindowsAreDisjoint) {
+  std::mt19937 rng(4);
+  ClassLearningConfig cls;
+  cls.min_regions = 1;
+  CollectedWindows disjoint;
+  add_region(disjoint, rng, 0, 1.5, 6, kN, 0);  // hop = N: windows touch but do not overlap
+  const Baseline b = train_baseline(disjoint, cls, ThresholdPolicy{}, 2000.0, GearboxInfo{});
+  ASSERT_EQ(b.classes.size(), 1U);
+  EXPECT_EQ(b.classes[0].n_windows, 6U);
+  std::vector<std::uint64_t> each = {0, 1, 2, 3, 4, 5};
+  EXPECT_TRUE(same_thresholds(
+      b.classes[0], build_class_baseline(b.classes[0].segment, disjoint.windows, each, ThresholdPolicy{})));
+
+  // Hop N - 1: one overlap chain, one group: not trainable; the error says what was found.
+  CollectedWindows chained;
+  add_region(chained, rng, 0, 1.5, 6, kN - 1, 0);
+  try {
+    (void)train_baseline(chained, cls, ThresholdPolicy{}, 2000.0, GearboxInfo{});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("1 regions, 6 windows"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("6 windows in 1 non-overlapping groups"), std::string::npos) << msg;
+  }
+}
+
+TEST(TrainBaseline, ErrorsNameTheProblem) {
+  std::mt19937 rng(5);
+  CollectedWindows none;
+  none.regions.push_back(region(0, 1.0, 1.0));
+  try {
+    (void)train_baseline(none, ClassLearningConfig{}, ThresholdPolicy{}, 2000.0, GearboxInfo{});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no constant-speed windows"), std::string::npos) << e.what();
+  }
+  CollectedWindows few;  // 2 regions: no class reaches min_regions = 3
+  add_region(few, rng, 0, 1.0, 3, kN, 0);
+  add_region(few, rng, 1, 1.0, 3, kN, 0);
+  try {
+    (void)train_baseline(few, ClassLearningConfig{}, ThresholdPolicy{}, 2000.0, GearboxInfo{});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("2 regions, 6 windows, 6 windows matching no class; no class learned"),
+              std::string::npos)
+        << msg;
+  }
+  CollectedWindows mismatch = few;
+  mismatch.windows.pop_back();
+  EXPECT_THROW(
+      (void)train_baseline(mismatch, ClassLearningConfig{}, ThresholdPolicy{}, 2000.0, GearboxInfo{}), Error);
+}
+
+}  // namespace
+}  // namespace ptda::dsp

@@ -1,0 +1,360 @@
+// Baseline store: CRC-32 against known vectors and zlib, exact round trip, the byte layout, every
+// corruption case with its message, and atomic writes that never damage the previous file.
+#include "ptda/formats/baseline_file.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "ptda/common/error.hpp"
+
+namespace fs = std::filesystem;
+using ptda::Error;
+using ptda::dsp::Baseline;
+using ptda::formats::crc32;
+using ptda::formats::parse_baseline;
+using ptda::formats::read_baseline;
+using ptda::formats::serialize_baseline;
+using ptda::formats::write_baseline;
+using Bytes = std::vector<std::uint8_t>;
+
+namespace {
+
+fs::path temp_dir(const std::string& name) {
+  const char* env = std::getenv("PTDA_TEST_TMP");
+  fs::path d = (env != nullptr ? fs::path(env) : fs::temp_directory_path()) /
+               ("formats_baseline_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-10.0, 10.0);
+  Baseline b;
+  b.fs_hz = 25600.0;
+  b.window_len = n;
+  b.gearbox = {ptda::dsp::GearboxInfo::Kind::kCycloidal, 10, 40, 41, 164.0};
+  b.policy = {ptda::dsp::ThresholdPolicy::Kind::kQuantile, 1e-3, 0.1};
+  for (std::uint32_t k = 0; k < 3; ++k) {
+    ptda::dsp::ClassBaseline c;
+    c.segment = {k + 7, static_cast<std::int8_t>(k % 2 == 0 ? 1 : -1), 0.5 + k, 0.05, 1.25, 12 + k};
+    c.n_windows = 40 + k;
+    c.mean_magnitude.resize(n / 2 + 1);
+    c.tda_mean.resize(n);
+    for (auto& v : c.mean_magnitude) v = static_cast<float>(u(rng));
+    for (auto& v : c.tda_mean) v = static_cast<float>(u(rng));
+    for (std::size_t m = 0; m < ptda::dsp::kMethodCount; ++m) {
+      c.thresholds[m] = {{u(rng), u(rng)}, {u(rng), u(rng)}};
+      c.rms_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
+      c.entropy_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
+    }
+    b.classes.push_back(c);
+  }
+  // Infinite bands and a NaN stat must survive bit for bit.
+  b.classes[0].thresholds[0].rms.hi = std::numeric_limits<double>::infinity();
+  b.classes[1].rms_stats[2].stddev = std::numeric_limits<double>::quiet_NaN();
+  b.source = "trained on rec/healthy-01 by ptda 0.1.0";
+  return b;
+}
+
+template <typename T>
+bool same_bits(T a, T b) {
+  return std::memcmp(&a, &b, sizeof(T)) == 0;
+}
+
+void expect_equal(const Baseline& a, const Baseline& b) {
+  EXPECT_EQ(a.fs_hz, b.fs_hz);
+  EXPECT_EQ(a.window_len, b.window_len);
+  EXPECT_EQ(a.gearbox.kind, b.gearbox.kind);
+  EXPECT_EQ(a.gearbox.z_in, b.gearbox.z_in);
+  EXPECT_EQ(a.gearbox.z_spur, b.gearbox.z_spur);
+  EXPECT_EQ(a.gearbox.z_pin, b.gearbox.z_pin);
+  EXPECT_EQ(a.gearbox.ratio, b.gearbox.ratio);
+  EXPECT_EQ(a.policy.kind, b.policy.kind);
+  EXPECT_EQ(a.policy.false_alarm_rate, b.policy.false_alarm_rate);
+  EXPECT_EQ(a.policy.margin, b.policy.margin);
+  EXPECT_EQ(a.source, b.source);
+  ASSERT_EQ(a.classes.size(), b.classes.size());
+  for (std::size_t i = 0; i < a.classes.size(); ++i) {
+    const auto& x = a.classes[i];
+    const auto& y = b.classes[i];
+    EXPECT_EQ(x.segment.id, y.segment.id);
+    EXPECT_EQ(x.segment.direction, y.segment.direction);
+    EXPECT_EQ(x.segment.speed_rad_s, y.segment.speed_rad_s);
+    EXPECT_EQ(x.segment.speed_tol_rad_s, y.segment.speed_tol_rad_s);
+    EXPECT_EQ(x.segment.duration_s, y.segment.duration_s);
+    EXPECT_EQ(x.segment.regions, y.segment.regions);
+    EXPECT_EQ(x.n_windows, y.n_windows);
+    EXPECT_EQ(x.mean_magnitude, y.mean_magnitude);
+    EXPECT_EQ(x.tda_mean, y.tda_mean);
+    for (std::size_t m = 0; m < ptda::dsp::kMethodCount; ++m) {
+      EXPECT_TRUE(same_bits(x.thresholds[m].rms.lo, y.thresholds[m].rms.lo));
+      EXPECT_TRUE(same_bits(x.thresholds[m].rms.hi, y.thresholds[m].rms.hi));
+      EXPECT_TRUE(same_bits(x.thresholds[m].entropy.lo, y.thresholds[m].entropy.lo));
+      EXPECT_TRUE(same_bits(x.thresholds[m].entropy.hi, y.thresholds[m].entropy.hi));
+      for (const auto* pair : {&x.rms_stats, &x.entropy_stats}) {
+        const auto& other = pair == &x.rms_stats ? y.rms_stats : y.entropy_stats;
+        EXPECT_TRUE(same_bits((*pair)[m].mean, other[m].mean));
+        EXPECT_TRUE(same_bits((*pair)[m].stddev, other[m].stddev));
+        EXPECT_TRUE(same_bits((*pair)[m].min, other[m].min));
+        EXPECT_TRUE(same_bits((*pair)[m].max, other[m].max));
+        EXPECT_EQ((*pair)[m].n, other[m].n);
+      }
+    }
+  }
+}
+
+std::string message_of(const Bytes& bytes) {
+  try {
+    (void)parse_baseline(bytes, "b.bin");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+void put_u32(Bytes& b, std::size_t at, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+// Recomputes the trailing CRC so a deliberately inconsistent body reaches the structural checks.
+void fix_crc(Bytes& b) { put_u32(b, b.size() - 4, crc32(b.data(), b.size() - 4)); }
+
+void write_file(const fs::path& p, const Bytes& b) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+}
+Bytes read_file(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return Bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// Offsets from the layout table in docs/recording-format.md.
+constexpr std::size_t kOffWindowLen = 28;
+constexpr std::size_t kOffClasses = 74;
+
+}  // namespace
+
+TEST(Crc32, KnownVectors) {
+  const char* check = "123456789";
+  EXPECT_EQ(crc32(check, 9), 0xCBF43926U);  // the standard CRC-32/ISO-HDLC check value
+  EXPECT_EQ(crc32(nullptr, 0), 0U);
+  EXPECT_EQ(crc32("a", 1), 0xE8B7BE43U);
+  // Continuing over pieces equals one pass.
+  EXPECT_EQ(crc32(check + 4, 5, crc32(check, 4)), 0xCBF43926U);
+}
+
+TEST(Crc32, MatchesZlib) {
+  std::mt19937 rng(7);
+  for (std::size_t len : {1U, 2U, 3U, 7U, 8U, 15U, 64U, 255U, 1000U, 65537U}) {
+    Bytes b(len);
+    for (auto& v : b) v = static_cast<std::uint8_t>(rng());
+    const auto z = static_cast<std::uint32_t>(::crc32(0L, b.data(), static_cast<uInt>(b.size())));
+    EXPECT_EQ(crc32(b.data(), b.size()), z) << len;
+    const std::size_t half = len / 2;
+    EXPECT_EQ(crc32(b.data() + half, len - half, crc32(b.data(), half)), z) << len;
+  }
+}
+
+TEST(BaselineFile, RoundTripIsExact) {
+  const fs::path dir = temp_dir("roundtrip");
+  for (const std::uint32_t n : {1U, 2U, 7U, 256U, 4096U}) {
+    const Baseline b = make_baseline(n, n);
+    write_baseline(dir / "b.bin", b);
+    expect_equal(read_baseline(dir / "b.bin"), b);
+  }
+  Baseline empty;
+  empty.fs_hz = 1.0;
+  empty.window_len = 16;
+  write_baseline(dir / "e.bin", empty);
+  expect_equal(read_baseline(dir / "e.bin"), empty);
+  // No temporary file is left behind.
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << e.path();
+    ++files;
+  }
+  EXPECT_EQ(files, 2U);
+  fs::remove_all(dir);
+}
+
+TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
+  const Baseline b = make_baseline(16, 1);
+  const Bytes bytes = serialize_baseline(b);
+  // Header 74 + per class (41 + 4*9 + 4 + 4*16 + 96 + 216) + source length 4 + text + CRC 4.
+  const std::size_t per_class = 41 + 4 * 9 + 4 + 4 * 16 + 96 + 216;
+  ASSERT_EQ(bytes.size(), 74 + 3 * per_class + 4 + b.source.size() + 4);
+  EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 8), "PTDABASE");
+  EXPECT_EQ(bytes[8], 1);  // version 1, little-endian
+  EXPECT_EQ(bytes[9] | bytes[10] | bytes[11], 0);
+  std::uint64_t size = 0;
+  for (int i = 0; i < 8; ++i) size |= static_cast<std::uint64_t>(bytes[12 + static_cast<std::size_t>(i)]) << (8 * i);
+  EXPECT_EQ(size, bytes.size());
+  std::uint64_t fs_bits = 0;
+  for (int i = 0; i < 8; ++i) fs_bits |= static_cast<std::uint64_t>(bytes[20 + static_cast<std::size_t>(i)]) << (8 * i);
+  EXPECT_EQ(std::bit_cast<double>(fs_bits), 25600.0);
+  EXPECT_EQ(bytes[kOffWindowLen], 16);
+  EXPECT_EQ(bytes[32], 0);   // gearbox kind cycloidal
+  EXPECT_EQ(bytes[33], 10);  // z_in
+  EXPECT_EQ(bytes[53], 1);   // policy kind quantile
+  EXPECT_EQ(bytes[70], 3);   // class count
+  EXPECT_EQ(bytes[kOffClasses], 7);  // first class id
+  EXPECT_EQ(bytes[kOffClasses + 4], 1);  // direction +1
+  EXPECT_EQ(bytes[kOffClasses + 37], 9);  // mean_magnitude count N/2+1
+  // Second class has direction -1, stored as the byte 0xFF.
+  EXPECT_EQ(bytes[kOffClasses + per_class + 4], 0xFF);
+  std::uint32_t crc = 0;
+  for (int i = 0; i < 4; ++i) crc |= static_cast<std::uint32_t>(bytes[bytes.size() - 4 + static_cast<std::size_t>(i)]) << (8 * i);
+  EXPECT_EQ(crc, static_cast<std::uint32_t>(::crc32(0L, bytes.data(), static_cast<uInt>(bytes.size() - 4))));
+}
+
+TEST(BaselineFile, EveryCorruptionIsReported) {
+  const Bytes good = serialize_baseline(make_baseline(8, 2));
+  const std::string n = std::to_string(good.size());
+
+  EXPECT_EQ(message_of({}), "b.bin: not a ptda baseline (bad magic, expected \"PTDABASE\")");
+  Bytes magic = good;
+  magic[3] = 'X';
+  EXPECT_EQ(message_of(magic), "b.bin: not a ptda baseline (bad magic, expected \"PTDABASE\")");
+  EXPECT_EQ(message_of(Bytes(good.begin(), good.begin() + 12)), "b.bin: truncated: 12 bytes, shorter than the header");
+  EXPECT_EQ(message_of(Bytes(good.begin(), good.end() - 10)),
+            "b.bin: truncated: header says " + n + " bytes, file has " + std::to_string(good.size() - 10));
+  Bytes longer = good;
+  longer.push_back(0);
+  EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
+                                    std::to_string(good.size() + 1) + " (trailing bytes)");
+  Bytes version = good;
+  version[8] = 2;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 2 (this build reads 1)");
+  Bytes flipped = good;
+  flipped[good.size() / 2] ^= 0x01;
+  const std::string crc_msg = message_of(flipped);
+  EXPECT_EQ(crc_msg.rfind("b.bin: corrupt: CRC-32 mismatch (stored 0x", 0), 0U) << crc_msg;
+
+  // Structural errors behind a valid CRC (a buggy writer or a hand-made file).
+  Bytes wrong_n = good;
+  put_u32(wrong_n, kOffWindowLen, 10);  // N = 10 needs 6 magnitudes; the file has 5
+  fix_crc(wrong_n);
+  EXPECT_EQ(message_of(wrong_n),
+            "b.bin: inconsistent baseline at byte " + std::to_string(kOffClasses + 41) +
+                ": class 0: mean_magnitude has 5 values, window_len 10 needs N/2+1 = 6");
+  Bytes dir = good;
+  dir[kOffClasses + 4] = 0;
+  fix_crc(dir);
+  EXPECT_EQ(message_of(dir), "b.bin: inconsistent baseline at byte " + std::to_string(kOffClasses + 5) +
+                                 ": class 0: direction must be +1 or -1, got 0");
+  Bytes classes = good;
+  put_u32(classes, 70, 1000000);
+  fix_crc(classes);
+  EXPECT_EQ(message_of(classes).rfind("b.bin: inconsistent baseline at byte 74: 1000000 classes cannot fit", 0), 0U);
+  Bytes policy = good;
+  policy[53] = 9;
+  fix_crc(policy);
+  EXPECT_EQ(message_of(policy), "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9");
+  Bytes src = good;
+  put_u32(src, good.size() - 4 - 4 - make_baseline(8, 2).source.size(), 5);  // source shorter than stored
+  fix_crc(src);
+  EXPECT_EQ(message_of(src).find("unexpected bytes before the CRC") != std::string::npos, true) << message_of(src);
+
+  // The same checks through the file API name the path.
+  const fs::path d = temp_dir("corrupt");
+  write_file(d / "c.bin", flipped);
+  try {
+    (void)read_baseline(d / "c.bin");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind((d / "c.bin").string() + ": corrupt: CRC-32 mismatch", 0), 0U) << e.what();
+  }
+  try {
+    (void)read_baseline(d / "missing.bin");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), (d / "missing.bin").string() + ": baseline file not found");
+  }
+  try {
+    (void)read_baseline(d);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), d.string() + ": is a directory, not a baseline file");
+  }
+  fs::remove_all(d);
+}
+
+TEST(BaselineFile, InconsistentBaselineIsNotWritten) {
+  const fs::path dir = temp_dir("inconsistent");
+  Baseline b = make_baseline(8, 3);
+  b.classes[1].tda_mean.pop_back();
+  try {
+    write_baseline(dir / "b.bin", b);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "b.bin").string() +
+                                         ": not written: baseline: class 1 (id 8): tda_mean has 7 values, window_len is 8");
+  }
+  EXPECT_FALSE(fs::exists(dir / "b.bin"));
+  b = make_baseline(8, 3);
+  b.window_len = 0;
+  EXPECT_THROW(write_baseline(dir / "b.bin", b), Error);
+  b = make_baseline(8, 3);
+  b.classes[2].segment.direction = 0;
+  EXPECT_THROW(write_baseline(dir / "b.bin", b), Error);
+  EXPECT_TRUE(fs::is_empty(dir));
+  fs::remove_all(dir);
+}
+
+TEST(BaselineFile, FailedWriteLeavesPreviousFileIntact) {
+  const fs::path dir = temp_dir("atomic");
+  const Baseline a = make_baseline(32, 10);
+  const Baseline b = make_baseline(64, 11);
+  const fs::path p = dir / "baseline.bin";
+  write_baseline(p, a);
+  const Bytes before = read_file(p);
+
+  // 1. The target path is a directory: rename fails, the temporary file is removed.
+  const fs::path as_dir = dir / "sub";
+  fs::create_directories(as_dir / "keep");
+  try {
+    write_baseline(as_dir, b);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(as_dir.string() + ": writing baseline failed at rename: ", 0), 0U) << e.what();
+  }
+  EXPECT_TRUE(fs::is_directory(as_dir / "keep"));
+
+  // 2. The parent "directory" is a regular file: the temporary file cannot be created.
+  try {
+    write_baseline(p / "x.bin", b);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              (p / "x.bin").string() + ": writing baseline failed at open of the temporary file: Not a directory");
+  }
+
+  // 3. A read-only directory (only meaningful when not root: root ignores the permission bits).
+  if (::geteuid() != 0) {
+    fs::permissions(dir, fs::perms::owner_read | fs::perms::owner_exec);
+    EXPECT_THROW(write_baseline(p, b), Error);
+    fs::permissions(dir, fs::perms::owner_all);
+  }
+
+  EXPECT_EQ(read_file(p), before);
+  expect_equal(read_baseline(p), a);
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+
+  // A successful write replaces the file as a whole.
+  write_baseline(p, b);
+  expect_equal(read_baseline(p), b);
+  fs::remove_all(dir);
+}

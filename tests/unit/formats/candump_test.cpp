@@ -1,0 +1,359 @@
+// candump -l parser and writer: every frame kind, exact timestamps, malformed lines, round trips,
+// no allocation per line, and a garbled-input robustness run.
+#include "ptda/formats/candump.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "alloc_counter.hpp"
+#include "ptda/common/error.hpp"
+
+namespace fs = std::filesystem;
+using ptda::CanFrame;
+using ptda::Error;
+using ptda::formats::CandumpRecord;
+using ptda::formats::format_candump_line;
+using ptda::formats::parse_candump_line;
+
+namespace {
+
+const fs::path kData = fs::path(PTDA_SOURCE_DIR) / "tests" / "data" / "formats";
+
+fs::path temp_dir(const std::string& name) {
+  const char* env = std::getenv("PTDA_TEST_TMP");
+  fs::path d = (env != nullptr ? fs::path(env) : fs::temp_directory_path()) /
+               ("formats_candump_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// Expects a ptda::Error whose message is exactly "x.log:7: <what>".
+void expect_line_error(const std::string& line, const std::string& what) {
+  try {
+    (void)parse_candump_line(line, "x.log", 7);
+    ADD_FAILURE() << "no error for: " << line;
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "x.log:7: " + what) << "line: " << line;
+  }
+}
+
+CandumpRecord parse_ok(const std::string& line) {
+  auto r = parse_candump_line(line, "x.log", 1);
+  EXPECT_TRUE(r.has_value()) << line;
+  return r.value_or(CandumpRecord{});
+}
+
+}  // namespace
+
+TEST(Candump, ParsesEveryFrameKindFromHandWrittenLog) {
+  const auto recs = ptda::formats::read_candump(kData / "candump_all_kinds.log");
+  // 14 frame lines minus the CAN XL line, which is accepted and skipped.
+  ASSERT_EQ(recs.size(), 13U);
+  constexpr std::int64_t kT0 = 1436509052'000000000;
+
+  // (1436509052.249713) vcan0 044#2A366C2BBA: standard id, 5 bytes (the can-utils example line).
+  EXPECT_EQ(recs[0].frame.t_ns, kT0 + 249713000);
+  EXPECT_EQ(recs[0].iface, "vcan0");
+  EXPECT_EQ(recs[0].frame.id, 0x044U);
+  EXPECT_EQ(recs[0].frame.flags, 0);
+  ASSERT_EQ(recs[0].frame.len, 5);
+  EXPECT_EQ(recs[0].frame.data[0], 0x2A);
+  EXPECT_EQ(recs[0].frame.data[4], 0xBA);
+  EXPECT_EQ(recs[0].direction, 0);
+
+  EXPECT_EQ(recs[1].frame.len, 0);  // 123#: empty data frame
+  EXPECT_EQ(recs[1].frame.flags, 0);
+
+  EXPECT_EQ(recs[2].frame.id, 0x12345678U);  // extended, direction R
+  EXPECT_EQ(recs[2].frame.flags, ptda::kCanExtended);
+  EXPECT_EQ(recs[2].frame.len, 4);
+  EXPECT_EQ(recs[2].frame.data[3], 0xEF);
+  EXPECT_EQ(recs[2].direction, 'R');
+
+  EXPECT_EQ(recs[3].frame.id, 0x7FFU);  // 7FF#R
+  EXPECT_EQ(recs[3].frame.flags, ptda::kCanRtr);
+  EXPECT_EQ(recs[3].frame.len, 0);
+
+  EXPECT_EQ(recs[4].frame.flags, ptda::kCanRtr);  // 123#R7 T
+  EXPECT_EQ(recs[4].frame.len, 7);
+  EXPECT_EQ(recs[4].direction, 'T');
+
+  EXPECT_EQ(recs[5].frame.flags, ptda::kCanError);  // 20000080#...: class bits without CAN_ERR_FLAG
+  EXPECT_EQ(recs[5].frame.id, 0x80U);
+  EXPECT_EQ(recs[5].frame.len, 8);
+
+  EXPECT_EQ(recs[6].frame.flags, ptda::kCanFd | ptda::kCanFdBrs);  // 123##1112233
+  EXPECT_EQ(recs[6].frame.len, 3);
+  EXPECT_EQ(recs[6].frame.data[0], 0x11);
+  EXPECT_EQ(recs[6].frame.data[2], 0x33);
+
+  EXPECT_EQ(recs[7].frame.flags, ptda::kCanFd | ptda::kCanFdBrs | ptda::kCanFdEsi | ptda::kCanExtended);
+  EXPECT_EQ(recs[7].frame.id, 0x1FFFFFFFU);
+  EXPECT_EQ(recs[7].frame.len, 0);
+
+  EXPECT_EQ(recs[8].frame.len, 4);  // '.' separators
+  EXPECT_EQ(recs[8].frame.data[3], 0x44);
+
+  EXPECT_EQ(recs[9].frame.len, 8);  // _E len8_dlc suffix ignored
+  EXPECT_EQ(recs[9].frame.data[7], 0x88);
+  EXPECT_EQ(recs[9].frame.t_ns, kT0 + 250008000);
+
+  EXPECT_EQ(recs[10].frame.flags, ptda::kCanRtr);  // 123#R8_9
+  EXPECT_EQ(recs[10].frame.len, 8);
+
+  // The XL line (…250010) is skipped: the next record is the 64-byte FD frame.
+  EXPECT_EQ(recs[11].frame.t_ns, kT0 + 250011000);
+  EXPECT_EQ(recs[11].iface, "vcan10");
+  ASSERT_EQ(recs[11].frame.len, 64);
+  for (int i = 0; i < 64; ++i) EXPECT_EQ(recs[11].frame.data[static_cast<std::size_t>(i)], i);
+  EXPECT_EQ(recs[11].frame.flags, ptda::kCanFd);
+
+  EXPECT_EQ(recs[12].frame.t_ns, 0);  // extra spaces between fields are accepted
+  EXPECT_EQ(recs[12].iface, "can0");
+  EXPECT_EQ(recs[12].frame.len, 1);
+}
+
+TEST(Candump, TimestampsAreExactIntegerNanoseconds) {
+  // A double cannot hold 1436509052.249713 exactly; integer parsing must give the exact ns value.
+  EXPECT_EQ(parse_ok("(1436509052.249713) c 123#").frame.t_ns, 1436509052249713000LL);
+  // Largest accepted second: 9223372035 s plus a fraction still fits int64 ns.
+  EXPECT_EQ(parse_ok("(9223372035.999999999) c 123#").frame.t_ns, 9223372035999999999LL);
+  expect_line_error("(9223372036.0) c 123#", "timestamp: seconds out of range");
+  EXPECT_EQ(parse_ok("(1.5) c 123#").frame.t_ns, 1500000000LL);
+  EXPECT_EQ(parse_ok("(1.123456789) c 123#").frame.t_ns, 1123456789LL);
+  EXPECT_EQ(parse_ok("(0.000001) c 123#").frame.t_ns, 1000LL);
+}
+
+TEST(Candump, CommentsBlankAndXlLinesAreSkipped) {
+  EXPECT_FALSE(parse_candump_line("", "x", 1).has_value());
+  EXPECT_FALSE(parse_candump_line("# comment (1.0) can0 123#", "x", 1).has_value());
+  EXPECT_FALSE(parse_candump_line(" (1.0) can0 123#", "x", 1).has_value());  // canplayer: must start with '('
+  EXPECT_FALSE(parse_candump_line("(1.000000) can0 45123#81:00:12345678#11223344.556677", "x", 1).has_value());
+}
+
+TEST(Candump, CrLfLineEndingsAccepted) {
+  const auto recs = ptda::formats::read_candump(kData / "candump_crlf.log");
+  ASSERT_EQ(recs.size(), 2U);
+  EXPECT_EQ(recs[1].frame.id, 0x12345678U);
+  EXPECT_EQ(recs[1].frame.len, 2);
+}
+
+TEST(Candump, MalformedLinesNameFileLineAndProblem) {
+  expect_line_error("(1436509052.249713) can0 044#2A3", "odd number of hex digits in classic CAN data");
+  expect_line_error("(1.0) can0 123#112233445566778899", "classic CAN data longer than 8 bytes");
+  expect_line_error("(1.0) can0 1234#11", "bad CAN id length 4 in '1234#11' (expected 3 or 8 hex digits)");
+  expect_line_error("(1.0) can0 12#11", "bad CAN id length 2 in '12#11' (expected 3 or 8 hex digits)");
+  expect_line_error("(1.0) can0 800#11", "standard CAN id '800' exceeds 11 bits (max 7FF)");
+  expect_line_error("(1.0) can0 C0000000#11", "extended CAN id 'C0000000' exceeds 29 bits (max 1FFFFFFF)");
+  expect_line_error("(1.0) can0 E0000001#11", "error frame id 'E0000001' has bits above CAN_ERR_FLAG set");
+  expect_line_error("(1.0) can0 12G#11", "CAN id '12G' is not hexadecimal");
+  expect_line_error("(1.0) can0 123", "frame '123' has no '#'");
+  expect_line_error("(1.0) can0", "missing frame after the interface name");
+  expect_line_error("(1.0)", "expected a space after the timestamp");
+  expect_line_error("(1.0) ", "missing interface name");
+  expect_line_error("()", "timestamp: expected seconds digits after '('");
+  expect_line_error("(12 can0 123#", "timestamp: expected '.' after the seconds");
+  expect_line_error("(12.) can0 123#", "timestamp: expected fraction digits after '.'");
+  expect_line_error("(12.1234567890) can0 123#", "timestamp: more than 9 fraction digits");
+  expect_line_error("(12.5 can0 123#", "timestamp: expected ')' after the fraction");
+  expect_line_error("(99999999999999999999.0) can0 123#", "timestamp: seconds out of range");
+  expect_line_error("(1.0)can0 123#", "expected a space after the timestamp");
+  expect_line_error("(1.0) can0 123#11 X", "unexpected 'X' after the frame (expected direction R or T)");
+  expect_line_error("(1.0) can0 123#11 R extra", "unexpected trailing text 'extra'");
+  expect_line_error("(1.0) can0 123#1Z", "odd number of hex digits in classic CAN data");
+  expect_line_error("(1.0) can0 123#ZZ", "bad character 'Z' in classic CAN data");
+  expect_line_error("(1.0) can0 123#11..22", "empty byte between '.' separators in classic CAN data");
+  expect_line_error("(1.0) can0 123#R9", "remote frame DLC 9 exceeds 8");
+  expect_line_error("(1.0) can0 123#RX", "bad remote frame DLC 'X'");
+  expect_line_error("(1.0) can0 123#R77", "unexpected '7' after the frame data");
+  expect_line_error("(1.0) can0 123#1122_9", "'_<dlc>' suffix is only valid after 8 data bytes");
+  expect_line_error("(1.0) can0 123#1122334455667788_8", "bad '_<dlc>' suffix '_8' (expected _9.._F)");
+  expect_line_error("(1.0) can0 123##", "CAN FD frame without the flags nibble after '##'");
+  expect_line_error("(1.0) can0 123##X11", "bad CAN FD flags nibble 'X'");
+  expect_line_error("(1.0) can0 123##0" + std::string(130, 'A'), "CAN FD data longer than 64 bytes");
+  expect_line_error("(1.0) can0 20000004##011", "error frames cannot be CAN FD frames");
+  expect_line_error("(1.0) can0 20000004#R", "error frames cannot be remote frames");
+  expect_line_error("(1.0) can0 45123#81:00:1234#11",
+                    "malformed CAN XL frame (expected <vcid><prio>#<flags>:<sdt>:<af>#<data>)");
+}
+
+TEST(Candump, ReaderReportsFileAndLineOfBadLine) {
+  const fs::path p = kData / "candump_bad_line4.log";
+  ptda::formats::CandumpReader reader(p);
+  CandumpRecord rec;
+  ASSERT_TRUE(reader.next(rec));
+  ASSERT_TRUE(reader.next(rec));
+  EXPECT_EQ(reader.line_no(), 3);
+  try {
+    (void)reader.next(rec);
+    FAIL() << "line 4 is malformed";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), p.string() + ":4: odd number of hex digits in classic CAN data");
+  }
+}
+
+TEST(Candump, MissingFileIsAnError) {
+  try {
+    (void)ptda::formats::read_candump(kData / "no_such.log");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no_such.log: cannot open candump log"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Candump, FormatsExactlyLikeCandumpL) {
+  CandumpRecord r;
+  r.iface = "can0";
+  r.frame.t_ns = 12'000345'999;  // truncated to whole microseconds, as the kernel's timeval is
+  r.frame.id = 0x123;
+  r.frame.flags = ptda::kCanRtr;
+  r.frame.len = 7;
+  EXPECT_EQ(format_candump_line(r), "(0000000012.000345) can0 123#R7");
+  r.frame.len = 0;
+  EXPECT_EQ(format_candump_line(r), "(0000000012.000345) can0 123#R");
+
+  r.frame.flags = ptda::kCanExtended;
+  r.frame.id = 0x1ABCDEF;
+  r.frame.len = 2;
+  r.frame.data[0] = 0x0A;
+  r.frame.data[1] = 0xF0;
+  r.direction = 'T';
+  EXPECT_EQ(format_candump_line(r), "(0000000012.000345) can0 01ABCDEF#0AF0 T");
+
+  r.direction = 0;
+  r.frame.flags = ptda::kCanError;
+  r.frame.id = 0x80;
+  r.frame.len = 0;
+  EXPECT_EQ(format_candump_line(r), "(0000000012.000345) can0 20000080#");
+
+  r.frame.flags = ptda::kCanFd | ptda::kCanFdEsi;
+  r.frame.id = 0x7;
+  r.frame.len = 1;
+  r.frame.data[0] = 0x5;
+  EXPECT_EQ(format_candump_line(r), "(0000000012.000345) can0 007##205");
+
+  r.frame.flags = 0;
+  r.frame.id = 0x800;
+  EXPECT_THROW((void)format_candump_line(r), Error);
+  r.frame.id = 1;
+  r.frame.len = 9;
+  EXPECT_THROW((void)format_candump_line(r), Error);
+  r.frame.len = 1;
+  r.frame.t_ns = -1;
+  EXPECT_THROW((void)format_candump_line(r), Error);
+}
+
+TEST(Candump, RoundTripOfEveryFrameKind) {
+  std::vector<CandumpRecord> recs;
+  std::mt19937 rng(42);
+  auto add = [&](std::uint32_t id, std::uint8_t flags, std::uint8_t len, char dir, const char* iface) {
+    CandumpRecord r;
+    r.iface = iface;
+    r.direction = dir;
+    r.frame.t_ns = 1700000000'000000000 + static_cast<std::int64_t>(recs.size()) * 1'234'000;
+    r.frame.id = id;
+    r.frame.flags = flags;
+    r.frame.len = len;
+    if ((flags & ptda::kCanRtr) == 0) {
+      for (std::size_t i = 0; i < len; ++i) r.frame.data[i] = static_cast<std::uint8_t>(rng());
+    }
+    recs.push_back(r);
+  };
+  for (std::uint8_t len = 0; len <= 8; ++len) add(0x100U + len, 0, len, 0, "can0");
+  add(0x7FF, 0, 8, 'R', "can0");
+  add(0x000, 0, 0, 'T', "can1");
+  add(0x1FFFFFFF, ptda::kCanExtended, 8, 0, "can0");
+  add(0x0, ptda::kCanExtended, 3, 0, "can0");
+  for (std::uint8_t len = 0; len <= 8; ++len) add(0x321, ptda::kCanRtr, len, 0, "can0");
+  add(0x12345, ptda::kCanRtr | ptda::kCanExtended, 2, 0, "can0");
+  add(0x80, ptda::kCanError, 8, 0, "can0");
+  add(0x1FFFFFFF, ptda::kCanError, 0, 0, "can0");
+  for (std::uint8_t len : {0, 1, 8, 12, 16, 20, 24, 32, 48, 64}) add(0x2A, ptda::kCanFd, len, 0, "vcan0");
+  add(0x2A, ptda::kCanFd | ptda::kCanFdBrs, 64, 0, "vcan0");
+  add(0xABCDE, ptda::kCanFd | ptda::kCanFdEsi | ptda::kCanExtended, 5, 'R', "vcan0");
+  add(0x2A, ptda::kCanFd | ptda::kCanFdBrs | ptda::kCanFdEsi, 2, 0, "vcan0");
+
+  const fs::path dir = temp_dir("roundtrip");
+  ptda::formats::write_candump(dir / "x.log", recs);
+  const auto back = ptda::formats::read_candump(dir / "x.log");
+  ASSERT_EQ(back.size(), recs.size());
+  for (std::size_t i = 0; i < recs.size(); ++i) {
+    SCOPED_TRACE(format_candump_line(recs[i]));
+    EXPECT_EQ(back[i].iface, recs[i].iface);
+    EXPECT_EQ(back[i].direction, recs[i].direction);
+    EXPECT_EQ(back[i].frame.t_ns, recs[i].frame.t_ns);
+    EXPECT_EQ(back[i].frame.id, recs[i].frame.id);
+    EXPECT_EQ(back[i].frame.flags, recs[i].frame.flags);
+    EXPECT_EQ(back[i].frame.len, recs[i].frame.len);
+    EXPECT_EQ(back[i].frame.data, recs[i].frame.data);
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Candump, ReaderDoesNotAllocatePerLine) {
+  const fs::path dir = temp_dir("alloc");
+  {
+    std::ofstream out(dir / "a.log");
+    for (int i = 0; i < 500; ++i) out << "(1700000000." << 100000 + i << ") can0 12345678##1" << std::string(128, 'A') << "\n";
+  }
+  ptda::formats::CandumpReader reader(dir / "a.log");
+  CandumpRecord rec;
+  ASSERT_TRUE(reader.next(rec));  // warm-up: line buffer and iface grow once
+  int n = 1;
+  ptda::test::AllocScope scope;
+  while (reader.next(rec)) ++n;
+  EXPECT_EQ(scope.count(), 0U);
+  EXPECT_EQ(n, 500);
+  EXPECT_EQ(rec.frame.t_ns, 1700000000'100499000);
+  fs::remove_all(dir);
+}
+
+// Random and mutated lines must either parse or throw ptda::Error: never crash, never another exception.
+TEST(Candump, GarbledLinesOnlyThrowPtdaError) {
+  const std::vector<std::string> seeds = {
+      "(1436509052.249713) vcan0 044#2A366C2BBA", "(1.000001) can0 12345678#DEADBEEF R",
+      "(1.0) can0 123#R7 T",                      "(1.0) can0 20000080#0000000000000000",
+      "(1.0) can0 123##1112233",                  "(1.0) can0 123#1122334455667788_E",
+      "(1.0) can0 45123#81:00:12345678#11223344.556677"};
+  const std::string alphabet = "0123456789ABCDEFabcdefRT#._:() \t\r-xZ";
+  std::mt19937 rng(1234);
+  int parsed = 0;
+  int errors = 0;
+  for (int iter = 0; iter < 40000; ++iter) {
+    std::string line;
+    if (iter % 4 == 0) {
+      const std::size_t n = rng() % 80;
+      line = "(";
+      for (std::size_t i = 0; i < n; ++i) line += alphabet[rng() % alphabet.size()];
+    } else {
+      line = seeds[rng() % seeds.size()];
+      const int edits = 1 + static_cast<int>(rng() % 4);
+      for (int e = 0; e < edits && !line.empty(); ++e) {
+        const std::size_t pos = rng() % line.size();
+        switch (rng() % 4) {
+          case 0: line[pos] = alphabet[rng() % alphabet.size()]; break;
+          case 1: line.insert(pos, 1, alphabet[rng() % alphabet.size()]); break;
+          case 2: line.erase(pos, 1); break;
+          default: line[pos] = static_cast<char>(rng() % 256); break;
+        }
+      }
+    }
+    try {
+      if (parse_candump_line(line, "fuzz", iter)) ++parsed;
+    } catch (const Error&) {
+      ++errors;
+    } catch (...) {
+      ADD_FAILURE() << "non-ptda exception for line: " << line;
+    }
+  }
+  // Both outcomes must occur, otherwise the generator is not exercising the parser.
+  EXPECT_GT(parsed, 100);
+  EXPECT_GT(errors, 100);
+}
