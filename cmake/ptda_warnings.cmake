@@ -13,12 +13,18 @@ endif()
 
 # ptda_add_test(NAME name SOURCES a.cpp b.cpp LIBS lib...) builds one gtest binary and registers its tests.
 function(ptda_add_test)
-  cmake_parse_arguments(T "" "NAME" "SOURCES;LIBS" ${ARGN})
+  cmake_parse_arguments(T "" "NAME;LABEL" "SOURCES;LIBS" ${ARGN})
   add_executable(${T_NAME} ${T_SOURCES})
   target_link_libraries(${T_NAME} PRIVATE ${T_LIBS} ptda_options GTest::gtest GTest::gtest_main)
   target_compile_definitions(${T_NAME} PRIVATE
     PTDA_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
     PTDA_SHARED_DIR="${PROJECT_SOURCE_DIR}/../shared")
   gtest_discover_tests(${T_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 60
-    PROPERTIES ENVIRONMENT "PTDA_TEST_TMP=${CMAKE_BINARY_DIR}/test-tmp")
+    PROPERTIES ENVIRONMENT "PTDA_TEST_TMP=${CMAKE_BINARY_DIR}/test-tmp" LABELS "${T_LABEL}")
+  if(T_LABEL)
+    if(NOT TARGET tests_${T_LABEL})
+      add_custom_target(tests_${T_LABEL})
+    endif()
+    add_dependencies(tests_${T_LABEL} ${T_NAME})
+  endif()
 endfunction()

@@ -23,6 +23,9 @@ constexpr Command kCommands[] = {
     {"train", "learn the healthy baseline (segment classes, averages, thresholds)", &cmd_train},
     {"monitor", "score every window of a recording against a baseline (table + JSONL)", &cmd_monitor},
     {"report", "compare raw, TDA and PTDA over recordings in one HTML report", &cmd_report},
+    {"evaluate", "separation of healthy and faulty windows: ratios and ROC AUC per feature", &cmd_evaluate},
+    {"gap", "diagnose where and why a simulator departs from a measured recording", &cmd_gap},
+    {"gap-bench", "score the gap diagnosis on simulated cases with withheld effects", &cmd_gap_bench},
 };
 
 }  // namespace
