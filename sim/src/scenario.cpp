@@ -369,6 +369,49 @@ void parse_can(Reader& r, CanSpec& c, const std::string& source) {
   r.finish();
 }
 
+void parse_effect(Reader& r, EffectSpec& e, const Scenario& s) {
+  const toml::node* kn = r.raw().get("kind");
+  const std::string kind = r.string("kind", "");
+  const std::optional<EffectKind> k = effect_kind_from_name(kind);
+  if (!k) {
+    std::string names;
+    for (const EffectInfo& info : effect_catalog()) names += std::string(names.empty() ? "" : ", ") + info.name;
+    throw r.error_at(kn != nullptr ? kn->source() : r.raw().source(),
+                     "[[effects]] kind must be one of " + names + (kind.empty() ? "" : " (got '" + kind + "')"));
+  }
+  const EffectInfo& info = effect_info(*k);
+  e = EffectSpec::with_defaults(*k);
+  for (auto&& [key, v] : r.raw()) {
+    const std::string name(key.str());
+    if (name == "kind") continue;
+    bool found = false;
+    for (const EffectParamInfo& p : info.params) found = found || name == p.name;
+    if (!found) {
+      std::string names;
+      for (const EffectParamInfo& p : info.params) names += std::string(names.empty() ? "" : ", ") + p.name;
+      throw r.error_at(key.source(), "unknown key '" + r.full(name) + "' (" + info.name + " has " + names + ")");
+    }
+  }
+  for (std::size_t i = 0; i < info.params.size(); ++i) {
+    const EffectParamInfo& p = info.params[i];
+    e.params[i] = r.number(p.name, p.default_value);
+    require(e.params[i] >= p.min_value && e.params[i] <= p.max_value, r, p.name,
+            "must be in [" + std::to_string(p.min_value) + ", " + std::to_string(p.max_value) + "]");
+  }
+  const double nyquist = s.sensor.fs_hz / 2.0;
+  if (*k == EffectKind::kTransferPath) {
+    require(e.get("frequency_hz") < 0.49 * s.sensor.fs_hz, r, "frequency_hz", "must be below 0.49 fs_hz");
+  } else if (*k == EffectKind::kImpacts) {
+    require(e.get("resonance_hz") < nyquist, r, "resonance_hz", "must be below fs_hz / 2");
+  } else if (*k == EffectKind::kElectricalInterference) {
+    require(e.get("frequency_hz") < nyquist, r, "frequency_hz", "must be below fs_hz / 2");
+  } else if (*k == EffectKind::kSpeedLatency) {
+    require(e.get("jitter_s") + s.can.jitter_s < s.can.period_s, r, "jitter_s",
+            "plus [can] jitter_s must stay below [can] period_s (frames of one sender keep their order)");
+  }
+  r.finish();
+}
+
 }  // namespace
 
 Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
@@ -383,7 +426,7 @@ Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
   s.source = source;
   Reader r(root, "", source);
   r.known_keys({"name", "description", "seed", "start_time_s", "motion", "gearbox", "vibration", "fault",
-                "sensor", "can"});
+                "sensor", "can", "effects"});
   s.name = r.string("name", "");
   s.description = r.string("description", "");
   s.seed = r.seed("seed", s.seed);
@@ -426,6 +469,20 @@ Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
   if (const toml::table* t = r.table("can")) {
     Reader x(*t, "can", source);
     parse_can(x, s.can, source);
+  }
+  // Effects last: their ranges depend on the sensor rate and the CAN timing.
+  if (const toml::node* n = r.node("effects")) {
+    const toml::array* a = n->as_array();
+    if (a == nullptr) throw r.error_at(n->source(), "effects: expected an array of tables [[effects]]");
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const toml::table* t = a->get(i)->as_table();
+      if (t == nullptr)
+        throw r.error_at(a->get(i)->source(), "effects[" + std::to_string(i) + "]: expected a table");
+      Reader x(*t, "effects[" + std::to_string(i) + "]", source);
+      EffectSpec e;
+      parse_effect(x, e, s);
+      s.effects.push_back(std::move(e));
+    }
   }
   r.finish();
   return s;

@@ -24,5 +24,29 @@ inline constexpr std::uint64_t kStreamJitter = 1;
 inline constexpr std::uint64_t kStreamNoise = 2;
 inline constexpr std::uint64_t kStreamCan = 3;
 inline constexpr std::uint64_t kStreamOtherFrames = 4;
+/// Effect i of the scenario draws from stream kStreamEffectBase + i.
+inline constexpr std::uint64_t kStreamEffectBase = 100;
+
+// ---- effects (sim/src/effects_apply.cpp) ------------------------------------------------------
+
+/// Per-sample changes of the GMF mesh by speed_ripple, mesh_modulation and load_dependence. Empty
+/// vectors when no such effect is on (the mesh is then computed exactly as without effects).
+struct MeshPerturbation {
+  std::vector<double> theta_in_offset_rad;  ///< added to the input angle the GMF harmonics follow
+  std::vector<double> gain;                 ///< multiplies the GMF part of the mesh
+};
+[[nodiscard]] MeshPerturbation mesh_perturbation(const Scenario& s, const MotionProfile& m, std::uint64_t seed);
+
+/// Adds impacts, other_axis and noise_color, then applies transfer_path, then adds
+/// electrical_interference, then clamps for adc_clipping (in scenario order within each step).
+void apply_signal_effects(const Scenario& s, const MotionProfile& m, std::uint64_t seed, Vibration& v);
+
+/// Sample-clock and CAN-latency effects act on the scenario: `for_motion` has the ADC's true rate (motion
+/// and vibration are generated on the true sample grid), `for_can` the extra CAN delay/jitter.
+void timing_scenarios(const Scenario& s, Scenario& for_motion, Scenario& for_can);
+
+/// Adds a damped ringing A e^{-zeta wn tau} sin(wd tau) starting at t_imp_s (vibration.cpp).
+void add_ringing(std::vector<double>& x, double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
+                 double damping_ratio);
 
 }  // namespace ptda::sim

@@ -13,6 +13,7 @@
 #include "ptda/formats/recording.hpp"
 #include "ptda/formats/wav.hpp"
 #include "ptda/sim/simulator.hpp"
+#include "sim_internal.hpp"
 
 namespace ptda::sim {
 namespace {
@@ -123,6 +124,20 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
     faults.push_back(std::move(t));
   }
   root.insert("fault", std::move(faults));
+
+  toml::array effects;
+  for (const EffectSpec& e : s.effects) {
+    const EffectInfo& info = effect_info(e.kind);
+    toml::table t;
+    t.insert("kind", info.name);
+    for (std::size_t i = 0; i < info.params.size() && i < e.params.size(); ++i) t.insert(info.params[i].name, e.params[i]);
+    effects.push_back(std::move(t));
+  }
+  if (!s.effects.empty()) {  // without effects truth.toml stays as it was before the effects library
+    root.insert("effect", std::move(effects));
+    root.insert("effect_impacts", static_cast<std::int64_t>(vib.effect_impacts));
+    root.insert("effect_clipped_samples", static_cast<std::int64_t>(vib.effect_clipped_samples));
+  }
   root.insert("impulses", static_cast<std::int64_t>(vib.impulse_times_s.size()));
 
   toml::table se;
@@ -151,23 +166,44 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
 
 }  // namespace
 
+SimulatedSignals simulate_signals(const Scenario& s, std::uint64_t seed) {
+  SimulatedSignals out;
+  out.seed = seed;
+  out.fs_nominal_hz = s.sensor.fs_hz;
+  if (s.effects.empty()) {
+    out.motion = build_motion(s, seed);
+    out.vibration = synthesize_vibration(s, out.motion, seed);
+    out.can = generate_can(s, out.motion, seed);
+  } else {
+    Scenario for_motion;
+    Scenario for_can;
+    timing_scenarios(s, for_motion, for_can);
+    out.motion = build_motion(for_motion, seed);
+    out.vibration = synthesize_vibration(for_motion, out.motion, seed);
+    out.can = generate_can(for_can, out.motion, seed);
+  }
+  out.codes = quantize(s.sensor, out.vibration.accel_ms2, &out.clipped_samples);
+  return out;
+}
+
 SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
                                         std::optional<std::uint64_t> seed) {
   SimulationSummary sum;
   sum.seed = seed.value_or(s.seed);
-  const MotionProfile m = build_motion(s, sum.seed);
-  const Vibration vib = synthesize_vibration(s, m, sum.seed);
-  std::uint64_t clipped = 0;
+  SimulatedSignals sig = simulate_signals(s, sum.seed);
+  const MotionProfile& m = sig.motion;
+  const Vibration& vib = sig.vibration;
+  const std::uint64_t clipped = sig.clipped_samples + vib.effect_clipped_samples;
   std::vector<std::vector<float>> channels(1);
-  channels[0] = quantize(s.sensor, vib.accel_ms2, &clipped);
-  const std::vector<SimCanFrame> can = generate_can(s, m, sum.seed);
+  channels[0] = std::move(sig.codes);
+  const std::vector<SimCanFrame>& can = sig.can;
 
   sum.cycles = m.cycles;
   sum.duration_s = m.duration_s;
   sum.samples = m.angle_rad.size();
   sum.can_frames = can.size();
   for (const SimCanFrame& f : can) sum.speed_frames += f.is_speed ? 1U : 0U;
-  sum.fs_hz = m.fs_hz;
+  sum.fs_hz = sig.fs_nominal_hz;
   for (const Plateau& p : m.plateaus) {
     if (p.cycle != 0) break;
     sum.plateau_speeds_rad_s.push_back(p.speed_rad_s);
@@ -191,7 +227,7 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
   meta.start_time_s = s.start_time_s;
   meta.scale = sensor_scale(s.sensor);
   meta.unit = "m/s^2";
-  formats::write_wav(out_dir / meta.vibration_file, static_cast<std::uint32_t>(m.fs_hz), s.sensor.format,
+  formats::write_wav(out_dir / meta.vibration_file, static_cast<std::uint32_t>(sig.fs_nominal_hz), s.sensor.format,
                      channels);
 
   std::vector<formats::CandumpRecord> records;

@@ -24,13 +24,18 @@ struct Harmonic {
 
 double speed_factor(const VibrationSpec& v, double speed_rad_s) {
   if (v.amplitude_speed_exponent == 0.0) return 1.0;
+  // pow(x, 1) is exactly x: skip the call in the common linear case (same result, much faster).
+  if (v.amplitude_speed_exponent == 1.0) return std::fabs(speed_rad_s) / v.reference_speed_rad_s;
   return std::pow(std::fabs(speed_rad_s) / v.reference_speed_rad_s, v.amplitude_speed_exponent);
 }
 
-void add_ringing(std::vector<double>& x, double fs_hz, double t_imp_s, double amplitude, const FaultSpec& f) {
-  const double wn = kTwoPi * f.resonance_hz;
-  const double sigma = f.damping_ratio * wn;
-  const double wd = wn * std::sqrt(1.0 - f.damping_ratio * f.damping_ratio);
+}  // namespace
+
+void add_ringing(std::vector<double>& x, double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
+                 double damping_ratio) {
+  const double wn = kTwoPi * resonance_hz;
+  const double sigma = damping_ratio * wn;
+  const double wd = wn * std::sqrt(1.0 - damping_ratio * damping_ratio);
   const double t_end = t_imp_s + kRingDecay / sigma;
   auto n = static_cast<std::size_t>(std::ceil(t_imp_s * fs_hz));
   for (; n < x.size(); ++n) {
@@ -40,8 +45,6 @@ void add_ringing(std::vector<double>& x, double fs_hz, double t_imp_s, double am
     x[n] += amplitude * std::exp(-sigma * tau) * std::sin(wd * tau);
   }
 }
-
-}  // namespace
 
 Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::uint64_t seed) {
   const VibrationSpec& vs = s.vibration;
@@ -96,18 +99,22 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
 
   const double z_in = g.z_in;
   const double spur_per_in = z_in / static_cast<double>(g.z_spur);  // spur turns per input turn
+  const MeshPerturbation pert = mesh_perturbation(s, m, seed);
+  const bool perturbed = !pert.gain.empty();
   Rng rng(seed, kStreamNoise);
   for (std::size_t i = 0; i < n; ++i) {
     const double theta_out = m.angle_rad[i];
     const double theta_in = ratio * theta_out;
+    const double theta_mesh = perturbed ? theta_in + pert.theta_in_offset_rad[i] : theta_in;
     const std::uint32_t c = std::min(m.cycle[i], cycles - 1);
     const double sf = speed_factor(vs, m.speed_rad_s[i]);
     double mesh = 0.0;
     if (sf != 0.0) {
       // phase_k = k * Z_in * theta_in + phi_k: follows the integrated input angle, so speed changes
       // and cycle-to-cycle start differences move the phase exactly as a real mesh does.
-      for (const Harmonic& h : gmf) mesh += h.amplitude * std::sin(h.order * z_in * theta_in + h.phase_rad);
+      for (const Harmonic& h : gmf) mesh += h.amplitude * std::sin(h.order * z_in * theta_mesh + h.phase_rad);
       mesh *= harmonic_gain[c];
+      if (perturbed) mesh *= pert.gain[i];
       for (const FaultSpec* f : tooth) {
         const double depth = f->am_depth * fault_severity(*f, c);
         if (depth > 0.0) mesh *= 1.0 + depth * std::cos(spur_per_in * theta_in + f->spur_phase_rad);
@@ -136,7 +143,7 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
           const double sev = fault_severity(*f, std::min(m.cycle[i], cycles - 1));
           const double amp = f->impulse_amplitude_ms2 * sev * speed_factor(vs, m.speed_rad_s[i]);
           if (amp <= 0.0) continue;
-          add_ringing(out.accel_ms2, fs, t_imp, amp, *f);
+          add_ringing(out.accel_ms2, fs, t_imp, amp, f->resonance_hz, f->damping_ratio);
           out.impulse_times_s.push_back(t_imp);
           out.impulse_amplitudes_ms2.push_back(amp);
         }
@@ -158,6 +165,7 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
     out.impulse_times_s = std::move(t);
     out.impulse_amplitudes_ms2 = std::move(a);
   }
+  if (!s.effects.empty()) apply_signal_effects(s, m, seed, out);
   return out;
 }
 

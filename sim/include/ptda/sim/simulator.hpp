@@ -13,6 +13,7 @@
 #include "ptda/config/speed_codec.hpp"
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/formats/wav.hpp"
+#include "ptda/sim/effects.hpp"
 
 namespace ptda::sim {
 
@@ -125,6 +126,7 @@ struct Scenario {
   GearboxSpec gearbox;
   VibrationSpec vibration;
   std::vector<FaultSpec> faults;
+  std::vector<EffectSpec> effects;  ///< [[effects]]: sim-to-real additions (sim/include/ptda/sim/effects.hpp)
   SensorSpec sensor;
   CanSpec can;
   std::string source;  ///< where it was read from (for messages)
@@ -200,6 +202,8 @@ struct Vibration {
   std::uint32_t harmonics_above_nyquist = 0;   ///< GMF/DMF orders omitted (k * max mesh freq >= fs/2)
   std::vector<double> impulse_times_s;         ///< spur-tooth impact times (truth), ascending
   std::vector<double> impulse_amplitudes_ms2;  ///< matching ringing amplitudes
+  std::uint64_t effect_clipped_samples = 0;    ///< samples clamped by an adc_clipping effect
+  std::uint64_t effect_impacts = 0;            ///< knocks added by impacts effects
 };
 
 /// Synthesises the sensor signal for the profile. Deterministic from seed. Any thread; allocates.
@@ -223,6 +227,21 @@ struct SimCanFrame {
 /// timestamp (rounded to microseconds, as candump logs). Deterministic from seed. Any thread; allocates.
 [[nodiscard]] std::vector<SimCanFrame> generate_can(const Scenario& s, const MotionProfile& m,
                                                     std::uint64_t seed);
+
+/// Everything a simulation produces, in memory (what simulate_to_directory writes, plus the truth).
+struct SimulatedSignals {
+  MotionProfile motion;  ///< on the ADC's true sample grid (differs from nominal with sample_clock_error)
+  Vibration vibration;   ///< m/s^2 before quantisation (effects included)
+  std::vector<float> codes;  ///< stored sample values (quantize()); codes * sensor_scale = m/s^2
+  std::uint64_t clipped_samples = 0;  ///< by the sensor range
+  std::vector<SimCanFrame> can;
+  double fs_nominal_hz = 0.0;  ///< the rate the WAV header states
+  std::uint64_t seed = 0;
+};
+
+/// Motion, vibration (with effects), quantisation and CAN for scenario `s` with `seed`. Deterministic.
+/// Throws ptda::Error like build_motion. Any thread; allocates.
+[[nodiscard]] SimulatedSignals simulate_signals(const Scenario& s, std::uint64_t seed);
 
 // ------------------------------------------------------------------------------------------------
 

@@ -1,0 +1,171 @@
+// From scored windows to the published verdict: warning level, minimum hold, latching, operator
+// clear, and the "monitoring not possible" fault state (docs/drivers.md, alarm outputs).
+//
+// Levels (drivers::AlarmLevel), highest priority first:
+//   kAlarm   - the k-of-n condition (dsp::WindowResult::alarm) held at some window and the alarm is
+//              still active: it stays for at least min_hold_s after it was raised, and then
+//                - unlatched: until a scored window arrives with the condition off;
+//                - latched: until a clear request is accepted (request_clear / post_clear_request).
+//              An accepted clear needs: the hold time over, and the condition off at the last scored
+//              window. Otherwise the clear is refused (and counted) and the alarm stays.
+//   kFault   - no alarm active and the monitor cannot judge: fault causes set with set_faults()
+//              (sensor, speed, baseline, internal). A fault never raises, holds or latches kAlarm; a
+//              latched alarm stays kAlarm through a fault (the receiver keeps the confirmed verdict) and
+//              the report's causes then carry the fault bits as well.
+//   kWarning - warning enabled and at least warning_k of the debouncer's last n windows were abnormal
+//              (warning_k = 1: any abnormal window), kept for at least warning_hold_s.
+//   kNormal  - otherwise.
+// Only scored windows (WindowStatus::kScored) are judged; kNoClass windows are counted and ignored.
+//
+// Threads: every member function except post_clear_request() and counters() belongs to one owner
+// thread (the daemon's decision/alarm thread). All are noexcept and allocation-free after
+// construction; time is injected (t_mono_ns on the daemon's monotonic clock), so tests are
+// deterministic.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+
+#include "ptda/drivers/alarm_output.hpp"
+#include "ptda/drivers/counter.hpp"
+#include "ptda/dsp/monitor_engine.hpp"
+
+namespace ptda::daemon {
+
+struct AlarmManagerConfig {
+  bool warning_enabled = true;  ///< publish kWarning before k-of-n confirms
+  std::uint32_t warning_k = 1;  ///< abnormal windows among the debouncer's last n that warn (>= 1)
+  double warning_hold_s = 0.0;  ///< a warning stays at least this long
+  double min_hold_s = 10.0;     ///< an alarm stays at least this long after it was raised
+  bool latch = true;            ///< an alarm needs an accepted clear request to end
+};
+
+/// Mask of the AlarmCause bits that mean "monitoring not possible".
+inline constexpr std::uint8_t kFaultCauseMask =
+    drivers::kCauseSensor | drivers::kCauseSpeed | drivers::kCauseBaseline | drivers::kCauseInternal;
+/// Mask of the AlarmCause bits a window's verdict can set.
+inline constexpr std::uint8_t kFeatureCauseMask = drivers::kCauseRms | drivers::kCauseEntropy;
+
+enum class ClearSource : std::uint8_t { kCan = 0, kLocal = 1 };
+
+enum class ClearResult : std::uint8_t {
+  kCleared = 0,           ///< the latched alarm ended
+  kNothingToClear = 1,    ///< no alarm active (or not latched and already ending by itself)
+  kRefusedCondition = 2,  ///< the k-of-n condition still holds at the last scored window
+  kRefusedHold = 3,       ///< min_hold_s has not passed since the alarm was raised
+};
+
+/// What tripped: copied from the scored window that raised the alarm (or the warning).
+struct TripInfo {
+  std::int64_t t_ns = 0;  ///< the window's t_end_ns
+  std::int32_t class_id = -1;
+  std::uint8_t causes = 0;  ///< kCauseRms / kCauseEntropy of that window
+  std::uint32_t abnormal_in_last_n = 0;
+  double rms_res = 0.0;
+  double entropy_res = 0.0;
+  dsp::FeatureThresholds thresholds;
+};
+
+/// The manager's state, trivially copyable (the owner may hand copies to the status writer).
+struct AlarmState {
+  drivers::AlarmLevel level = drivers::AlarmLevel::kFault;
+  std::int64_t since_ns = 0;         ///< when `level` was entered
+  bool alarm_active = false;         ///< an alarm is raised (held, latched or condition on)
+  bool latched = false;              ///< alarm active and waiting for an accepted clear
+  bool condition = false;            ///< k-of-n state at the last scored window
+  std::int64_t alarm_raised_ns = 0;  ///< when the active alarm was raised (valid if alarm_active)
+  std::uint8_t fault_causes = 0;     ///< set_faults() mask
+  std::uint8_t feature_causes = 0;   ///< rms/entropy bits of the abnormal windows since the debouncer
+                                     ///< last held none (kept while a warning/alarm is active)
+  TripInfo trip;                     ///< the window that raised the alarm, else the one that warned
+  bool have_window = false;          ///< a scored window was seen
+  std::int64_t last_window_t_ns = 0;
+  std::int32_t last_class_id = -1;
+  double last_rms_res = 0.0;
+  double last_entropy_res = 0.0;
+  std::uint32_t last_abnormal_in_last_n = 0;
+  bool last_abnormal = false;
+  std::int64_t last_clear_ns = 0;  ///< time of the last applied clear request (0 = none)
+  ClearSource last_clear_source = ClearSource::kLocal;
+};
+
+/// Thread-safe event counters (writer: the owner thread; readers: any).
+struct AlarmCounters {
+  std::uint64_t windows_scored = 0;
+  std::uint64_t windows_abnormal = 0;
+  std::uint64_t windows_unclassified = 0;
+  std::uint64_t alarms_raised = 0;
+  std::uint64_t warnings_raised = 0;
+  std::uint64_t faults_entered = 0;  ///< transitions of the fault mask from 0 to non-zero
+  std::uint64_t clears_accepted = 0;
+  std::uint64_t clears_refused = 0;
+  std::uint64_t clears_nothing = 0;
+  std::uint64_t level_changes = 0;
+};
+
+class AlarmManager {
+ public:
+  /// Starts in kFault with no causes ("not judged yet", as drivers' activate()) until the first
+  /// set_faults() or scored window. Throws ptda::Error ("alarm: ...", naming the key) when
+  /// warning_k is 0, or a hold time is negative or not finite. Thread: any (setup). Never allocates
+  /// except for the exception.
+  AlarmManager(const AlarmManagerConfig& cfg, std::int64_t t_start_ns);
+
+  /// One processed window from dsp::MonitorEngine::poll(). Scored windows update the condition, the
+  /// warning and the alarm; kNoClass windows are only counted. Returns the current level.
+  /// Thread: the owner. Never allocates, blocks or throws.
+  drivers::AlarmLevel on_window(const dsp::WindowResult& w, std::int64_t t_mono_ns) noexcept;
+
+  /// Replaces the fault mask (AlarmCause bits within kFaultCauseMask; other bits are ignored). 0 means
+  /// monitoring is possible. Thread: the owner. Never allocates, blocks or throws.
+  drivers::AlarmLevel set_faults(std::uint8_t fault_causes, std::int64_t t_mono_ns) noexcept;
+
+  /// Time passes: ends holds that expired, applies posted clear requests. Call at least every few
+  /// hundred ms (and before report()). Thread: the owner. Never allocates, blocks or throws.
+  drivers::AlarmLevel tick(std::int64_t t_mono_ns) noexcept;
+
+  /// An operator clear of a latched alarm (see the header comment for the rules). Warnings are never
+  /// latched and need no clear. Thread: the owner. Never allocates, blocks or throws.
+  ClearResult request_clear(ClearSource source, std::int64_t t_mono_ns) noexcept;
+
+  /// Queues a clear request from another thread (the CAN receive thread, the supervisor's local
+  /// command); the owner applies it at its next tick()/on_window()/set_faults() with that call's time.
+  /// The last applied result is last_clear_result(). Thread: any. Lock-free, never allocates.
+  void post_clear_request(ClearSource source) noexcept;
+
+  /// The verdict for drivers::AlarmOutput::set(): level; causes = feature_causes while a warning or
+  /// alarm is active (kept through a fault), | the fault bits; class, rms, entropy and abnormal count of the
+  /// last scored window (kNoSegmentClass / 0 before one). Thread: the owner. Never allocates.
+  [[nodiscard]] drivers::AlarmReport report() const noexcept;
+
+  [[nodiscard]] drivers::AlarmLevel level() const noexcept { return state_.level; }
+  /// Thread: the owner (copy it to publish elsewhere). Never allocates.
+  [[nodiscard]] const AlarmState& state() const noexcept { return state_; }
+  [[nodiscard]] const AlarmManagerConfig& config() const noexcept { return cfg_; }
+  /// Result of the last applied clear request (kNothingToClear before any). Thread: the owner.
+  [[nodiscard]] ClearResult last_clear_result() const noexcept { return last_clear_; }
+  /// Thread: any. Never allocates or blocks.
+  [[nodiscard]] AlarmCounters counters() const noexcept;
+
+ private:
+  void apply_posted_clears(std::int64_t t_ns) noexcept;
+  void evaluate(std::int64_t t_ns) noexcept;
+  void set_level(drivers::AlarmLevel level, std::int64_t t_ns) noexcept;
+  ClearResult clear_now(std::int64_t t_ns) noexcept;
+
+  AlarmManagerConfig cfg_;
+  std::int64_t min_hold_ns_ = 0;
+  std::int64_t warning_hold_ns_ = 0;
+  AlarmState state_;
+  bool warning_condition_ = false;
+  bool warning_active_ = false;
+  std::int64_t warning_raised_ns_ = 0;
+  bool faults_known_ = false;
+  ClearResult last_clear_ = ClearResult::kNothingToClear;
+  std::atomic<std::uint32_t> posted_clears_{0};
+  std::atomic<std::uint8_t> posted_source_{0};
+  drivers::Counter windows_scored_, windows_abnormal_, windows_unclassified_, alarms_raised_,
+      warnings_raised_, faults_entered_, clears_accepted_, clears_refused_, clears_nothing_, level_changes_;
+};
+
+}  // namespace ptda::daemon

@@ -1,0 +1,601 @@
+#include "core/daemon.hpp"
+
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <sys/eventfd.h>
+#include <sys/signalfd.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <system_error>
+
+#include "core/logging.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+
+namespace ptda::daemon {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::int64_t wall_time_ns() noexcept {
+  timespec ts{};
+  ::clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * kNsPerS + ts.tv_nsec;
+}
+
+DaemonState state_of(Phase phase) noexcept {
+  switch (phase) {
+    case Phase::kRefused: return DaemonState::kRefused;
+    case Phase::kTraining: return DaemonState::kTraining;
+    case Phase::kPausedSpeed:
+    case Phase::kPausedSensor:
+    case Phase::kEnded: return DaemonState::kPaused;
+    case Phase::kStarting:
+    case Phase::kMonitoring: return DaemonState::kRunning;
+  }
+  return DaemonState::kRunning;
+}
+
+/// Appends " name +delta" to a fixed buffer when a counter moved. Never allocates.
+class DeltaLine {
+ public:
+  void add(const char* name, std::uint64_t now, std::uint64_t before) noexcept {
+    if (now == before || len_ >= sizeof(buf_) - 1) return;
+    const int n = std::snprintf(buf_ + len_, sizeof(buf_) - len_, "%s%s +%llu (%llu)", len_ == 0 ? "" : ", ", name,
+                                static_cast<unsigned long long>(now - before), static_cast<unsigned long long>(now));
+    if (n > 0) len_ = std::min(sizeof(buf_) - 1, len_ + static_cast<std::size_t>(n));
+  }
+  [[nodiscard]] bool empty() const noexcept { return len_ == 0; }
+  [[nodiscard]] std::string_view view() const noexcept { return {buf_, len_}; }
+
+ private:
+  char buf_[480] = {};
+  std::size_t len_ = 0;
+};
+
+}  // namespace
+
+Daemon::Daemon(DaemonOptions options, drivers::Clock& clock) : options_(std::move(options)), clock_(clock) {}
+
+Daemon::~Daemon() {
+  deactivate();
+  if (signal_fd_ >= 0) ::close(signal_fd_);
+  if (event_fd_ >= 0) ::close(event_fd_);
+}
+
+DaemonConfig Daemon::load_config() const {
+  const fs::path dir = options_.config_dir ? *options_.config_dir : options_.config_file.parent_path() / "conf.d";
+  DaemonConfig cfg = load_daemon_config(options_.config_file, list_dropins(dir));
+  if (!options_.status_dir.empty()) cfg.daemon.status_dir = options_.status_dir;
+  return cfg;
+}
+
+void Daemon::build_status_writer() {
+  StatusWriterConfig wc;
+  if (!cfg_.daemon.status_dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(cfg_.daemon.status_dir, ec);
+    if (ec) {
+      throw Error("[daemon] status_dir " + cfg_.daemon.status_dir.string() + ": cannot create: " + ec.message());
+    }
+    wc.json_path = cfg_.daemon.status_dir / "status.json";
+  }
+  if (!cfg_.daemon.metrics_path.empty()) {
+    std::error_code ec;
+    fs::create_directories(cfg_.daemon.metrics_path.parent_path(), ec);
+    wc.prom_path = cfg_.daemon.metrics_path;
+  }
+  writer_.reset();
+  if (!wc.json_path.empty() || !wc.prom_path.empty()) writer_ = std::make_unique<StatusWriter>(wc);
+}
+
+void Daemon::configure() {
+  // Signals are read through a signalfd: block them here, before any thread exists, so every thread
+  // inherits the mask and a signal is never delivered asynchronously.
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGHUP);
+  if (pthread_sigmask(SIG_BLOCK, &set, nullptr) != 0) throw Error("ptdad: pthread_sigmask failed");
+  if (signal_fd_ < 0) {
+    signal_fd_ = ::signalfd(-1, &set, SFD_NONBLOCK | SFD_CLOEXEC);
+    if (signal_fd_ < 0) throw Error(std::string("ptdad: signalfd: ") + std::strerror(errno));
+  }
+  if (event_fd_ < 0) {
+    event_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    if (event_fd_ < 0) throw Error(std::string("ptdad: eventfd: ") + std::strerror(errno));
+  }
+
+  cfg_ = load_config();
+  set_log_level(cfg_.daemon.log_level);
+  notifier_ = SdNotifier(options_.notify_socket);
+  mode_ = options_.train ? PipelineMode::kTrain : PipelineMode::kMonitor;
+  build_status_writer();
+
+  auto p = std::make_unique<Pipeline>(cfg_, mode_, clock_);
+  p->set_window_sink(sink_);
+  p->configure();
+  spdlog::info("configured from {} file(s) ({}{}); inputs: {}; fs {} Hz, window {} samples, method {}",
+               cfg_.files.size(), cfg_.files.front().string(), cfg_.files.size() > 1 ? " + drop-ins" : "",
+               p->inputs_text(), p->fs_hz(), cfg_.pipeline.extraction.window_len,
+               dsp::method_name(cfg_.pipeline.method));
+  if (p->refused()) {
+    spdlog::error("monitoring refused: {}", p->refusal());
+  } else if (p->baseline() != nullptr) {
+    spdlog::info("baseline {}: {} segment class(es), trained at {} Hz", cfg_.daemon.baseline.string(),
+                 p->baseline()->classes.size(), p->baseline()->fs_hz);
+  }
+  std::lock_guard lock(pipeline_mutex_);
+  pipeline_ = std::move(p);
+}
+
+void Daemon::activate() {
+  if (!pipeline_) throw Error("ptdad: activate() before configure()");
+  pipeline_->activate();
+  active_ = true;
+  started_ns_ = clock_.now_ns();
+  training_started_ns_ = started_ns_;
+  for (auto& t : beat_changed_ns_) t = started_ns_;
+  last_ping_beats_ = pipeline_->heartbeats();
+  last_seen_beats_ = last_ping_beats_;
+  update_state_and_reason(started_ns_);
+  notifier_.ready();
+  std::snprintf(status_text_, sizeof status_text_, "%s: %s", daemon_state_name(state_.load()).data(),
+                mode_ == PipelineMode::kTrain ? "field training" : (pipeline_->refused() ? "no usable baseline" : "monitoring"));
+  notifier_.status(status_text_);
+  spdlog::info("running ({}); watchdog {}", mode_ == PipelineMode::kTrain ? "field training" : "monitoring",
+               options_.watchdog.enabled ? "on" : "off");
+}
+
+void Daemon::deactivate() noexcept {
+  {
+    std::lock_guard lock(pipeline_mutex_);
+    if (pipeline_) pipeline_->deactivate();
+  }
+  active_ = false;
+}
+
+void Daemon::request_stop() noexcept {
+  stop_requested_.store(true, std::memory_order_release);
+  if (event_fd_ >= 0) {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] const auto n = ::write(event_fd_, &one, sizeof one);
+  }
+}
+
+void Daemon::request_reload() noexcept {
+  reload_requested_.store(true, std::memory_order_release);
+  if (event_fd_ >= 0) {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] const auto n = ::write(event_fd_, &one, sizeof one);
+  }
+}
+
+void Daemon::set_processing_stall(bool stall) noexcept {
+  stall_.store(stall, std::memory_order_relaxed);
+  std::lock_guard lock(pipeline_mutex_);
+  if (pipeline_) pipeline_->set_processing_stall(stall);
+}
+
+DaemonView Daemon::view() const noexcept {
+  DaemonView v;
+  {
+    std::lock_guard lock(pipeline_mutex_);
+    if (pipeline_) {
+      v.pipeline = pipeline_->status();
+      v.counters = pipeline_->counters();
+      v.heartbeats = pipeline_->heartbeats();
+      v.window_len = pipeline_->config().pipeline.extraction.window_len;
+      v.min_hold_s = pipeline_->config().alarm.min_hold_s;
+    }
+  }
+  v.phase = v.pipeline.phase;
+  v.state = state_.load(std::memory_order_acquire);
+  {
+    std::lock_guard lock(reason_mutex_);
+    v.reason = reason_;
+  }
+  v.reloads = reloads_.load();
+  v.reload_failures = reload_failures_.load();
+  v.watchdog_pings = pings_.load();
+  v.watchdog_skipped = pings_skipped_.load();
+  v.status_writes = status_writes_.load();
+  return v;
+}
+
+void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
+  auto fresh = std::make_unique<Pipeline>(cfg, mode, clock_);
+  fresh->set_window_sink(sink_);
+  {
+    // Stop the old pipeline first: a device (IIO buffer, GPIO line) has one user at a time.
+    std::lock_guard lock(pipeline_mutex_);
+    if (pipeline_) pipeline_->deactivate();
+    pipeline_.reset();
+  }
+  fresh->configure();
+  fresh->activate();
+  if (stall_.load(std::memory_order_relaxed)) fresh->set_processing_stall(true);
+  if (fresh->refused()) spdlog::error("monitoring refused: {}", fresh->refusal());
+  std::lock_guard lock(pipeline_mutex_);
+  pipeline_ = std::move(fresh);
+  last_ping_beats_ = StageHeartbeats{};
+  last_seen_beats_ = StageHeartbeats{};
+  last_counters_ = PipelineCounters{};
+  last_source_ = drivers::SampleSourceCounters{};
+}
+
+void Daemon::reload() {
+  notifier_.reloading();
+  spdlog::info("reload requested: reading {}", options_.config_file.string());
+  DaemonConfig next;
+  try {
+    next = load_config();
+  } catch (const Error& e) {
+    reload_failures_.fetch_add(1);
+    last_reload_error_.assign(e.what());
+    spdlog::error("reload rejected, keeping the previous configuration: {}", e.what());
+    notifier_.ready();
+    return;
+  }
+  try {
+    restart_pipeline(next, mode_);
+    cfg_ = std::move(next);
+    set_log_level(cfg_.daemon.log_level);
+    try {
+      build_status_writer();
+    } catch (const Error& e) {
+      spdlog::error("reload: status files disabled: {}", e.what());
+      writer_.reset();
+    }
+    reloads_.fetch_add(1);
+    spdlog::info("reload: new configuration active ({})", pipeline_->inputs_text());
+  } catch (const Error& e) {
+    reload_failures_.fetch_add(1);
+    last_reload_error_.assign(e.what());
+    spdlog::error("reload failed, restarting with the previous configuration: {}", e.what());
+    try {
+      restart_pipeline(cfg_, mode_);
+    } catch (const Error& e2) {
+      spdlog::critical("the previous configuration no longer starts either: {}; exiting", e2.what());
+      exit_code_ = 1;
+      stop_requested_.store(true);
+    }
+  }
+  notifier_.ready();
+}
+
+void Daemon::check_watchdog(std::int64_t now) noexcept {
+  std::lock_guard lock(pipeline_mutex_);
+  if (!pipeline_) return;
+  const StageHeartbeats b = pipeline_->heartbeats();
+  const bool advanced = b.acquisition != last_ping_beats_.acquisition && b.can != last_ping_beats_.can &&
+                        b.processing != last_ping_beats_.processing;
+  if (advanced) {
+    notifier_.watchdog();
+    pings_.fetch_add(1, std::memory_order_relaxed);
+    last_ping_beats_ = b;
+  } else {
+    pings_skipped_.fetch_add(1, std::memory_order_relaxed);
+    spdlog::warn("watchdog ping withheld: heartbeats acquisition {} can {} processing {} did not all advance",
+                 b.acquisition, b.can, b.processing);
+  }
+  (void)now;
+}
+
+void Daemon::update_state_and_reason(std::int64_t now) noexcept {
+  Pipeline* p = pipeline_.get();
+  if (p == nullptr) return;
+  const PipelineStatus ps = p->status();
+  const StageHeartbeats b = p->heartbeats();
+  const std::uint64_t beats[3] = {b.acquisition, b.can, b.processing};
+  const std::uint64_t last[3] = {last_seen_beats_.acquisition, last_seen_beats_.can, last_seen_beats_.processing};
+  static constexpr const char* kStage[3] = {"acquisition", "can", "processing"};
+  int stalled = -1;
+  for (int i = 0; i < 3; ++i) {
+    if (beats[i] != last[i]) beat_changed_ns_[i] = now;
+    if (now - beat_changed_ns_[i] > seconds_to_ns(cfg_.daemon.stage_stall_s)) stalled = i;
+  }
+  last_seen_beats_ = b;
+
+  DaemonState state = state_of(ps.phase);
+  char reason[kStatusTextBytes] = {};
+  switch (ps.phase) {
+    case Phase::kRefused: std::snprintf(reason, sizeof reason, "%s", p->refusal().c_str()); break;
+    case Phase::kPausedSpeed:
+      std::snprintf(reason, sizeof reason, "no joint speed (CAN id 0x%X) for more than %.3g s%s",
+                    static_cast<unsigned>(cfg_.pipeline.speed_frame.id),
+                    cfg_.daemon.speed_stale_periods * cfg_.pipeline.speed_frame.period_s,
+                    p->can_bus_state() == drivers::CanBusState::kBusOff ? " (bus-off)" : "");
+      break;
+    case Phase::kPausedSensor:
+      std::snprintf(reason, sizeof reason, "no vibration data for more than %.3g s", cfg_.daemon.sensor_stale_s);
+      break;
+    case Phase::kEnded: std::snprintf(reason, sizeof reason, "replay ended; %llu windows processed",
+                                      static_cast<unsigned long long>(ps.windows)); break;
+    case Phase::kStarting: std::snprintf(reason, sizeof reason, "waiting for the first vibration block"); break;
+    case Phase::kTraining:
+    case Phase::kMonitoring: break;
+  }
+  if (stalled >= 0) {
+    std::snprintf(reason, sizeof reason, "stage %s made no progress for more than %.3g s", kStage[stalled],
+                  cfg_.daemon.stage_stall_s);
+    if (!stalled_logged_) spdlog::error("{}", reason);
+    stalled_logged_ = true;
+  } else {
+    stalled_logged_ = false;
+  }
+  if (stop_requested_.load(std::memory_order_relaxed)) state = DaemonState::kStopping;
+  {
+    std::lock_guard lock(reason_mutex_);
+    reason_.assign(reason);
+  }
+  state_.store(state, std::memory_order_release);
+  if (ps.phase != last_phase_ || state != last_state_) {
+    if (ps.phase == Phase::kRefused || ps.phase == Phase::kPausedSpeed || ps.phase == Phase::kPausedSensor) {
+      spdlog::warn("state {} ({}): {}", daemon_state_name(state), phase_name(ps.phase), reason);
+    } else {
+      spdlog::info("state {} ({}){}{}", daemon_state_name(state), phase_name(ps.phase), reason[0] ? ": " : "", reason);
+    }
+    last_phase_ = ps.phase;
+    last_state_ = state;
+  }
+}
+
+void Daemon::fill_snapshot(std::int64_t now) noexcept {
+  Pipeline* p = pipeline_.get();
+  StatusSnapshot& s = snapshot_;
+  s.state = state_.load();
+  {
+    std::lock_guard lock(reason_mutex_);
+    s.reason = reason_;
+  }
+  s.method.assign(dsp::method_name(cfg_.pipeline.method));
+  s.uptime_s = ns_to_seconds(now - started_ns_);
+  s.wall_time_unix_ns = wall_time_ns();
+  if (p == nullptr) return;
+  const dsp::Baseline* b = p->baseline();
+  s.baseline_loaded = b != nullptr;
+  s.baseline_path.assign(cfg_.daemon.baseline.native());
+  const auto m = static_cast<std::size_t>(cfg_.pipeline.method);
+  if (b != nullptr) {
+    s.baseline_source.assign(b->source);
+    s.baseline_fs_hz = b->fs_hz;
+    s.baseline_window_len = b->window_len;
+    s.class_count = static_cast<std::uint32_t>(b->classes.size());
+    s.classes_listed = static_cast<std::uint32_t>(std::min(b->classes.size(), kStatusMaxClasses));
+    for (std::uint32_t i = 0; i < s.classes_listed; ++i) {
+      const dsp::ClassBaseline& c = b->classes[i];
+      StatusClass& sc = s.classes[i];
+      sc.id = c.segment.id;
+      sc.direction = c.segment.direction;
+      sc.speed_rad_s = c.segment.speed_rad_s;
+      sc.duration_s = c.segment.duration_s;
+      sc.regions = c.segment.regions;
+      sc.n_windows = c.n_windows;
+      sc.rms_lo = c.thresholds[m].rms.lo;
+      sc.rms_hi = c.thresholds[m].rms.hi;
+      sc.entropy_lo = c.thresholds[m].entropy.lo;
+      sc.entropy_hi = c.thresholds[m].entropy.hi;
+    }
+  } else {
+    s.baseline_source.assign("");
+    s.class_count = 0;
+    s.classes_listed = 0;
+  }
+  const PipelineStatus ps = p->status();
+  s.have_window = ps.have_window;
+  if (ps.have_window) {
+    const dsp::WindowResult& w = ps.last_window;
+    s.window_t_s = ns_to_seconds(w.ref.t_end_ns);
+    s.window_class = w.class_id;
+    s.window_speed_rad_s = w.ref.speed_rad_s;
+    s.window_rms = w.features.rms_res;
+    s.window_entropy = w.features.entropy_res;
+    s.window_rms_lo = w.thresholds.rms.lo;
+    s.window_rms_hi = w.thresholds.rms.hi;
+    s.window_entropy_lo = w.thresholds.entropy.lo;
+    s.window_entropy_hi = w.thresholds.entropy.hi;
+    s.window_rms_out = w.verdict.rms_out;
+    s.window_entropy_out = w.verdict.entropy_out;
+    s.window_abnormal_in_last_n = w.abnormal_in_last_n;
+  }
+  s.alarm_level = ps.report.level;
+  s.alarm_since_s = ns_to_seconds(ps.alarm.since_ns);
+  s.alarm_latched = ps.alarm.latched;
+  s.alarm_causes = ps.report.causes;
+  s.trip_class = ps.alarm.alarm_active ? ps.alarm.trip.class_id : -1;
+  s.trip_rms = ps.alarm.trip.rms_res;
+  s.trip_entropy = ps.alarm.trip.entropy_res;
+  s.trip_t_s = ns_to_seconds(ps.alarm.trip.t_ns);
+
+  const drivers::SampleSourceCounters a = p->source_counters();
+  const PipelineCounters c = p->counters();
+  const drivers::CanCounters cc = p->can_counters();
+  s.acq_blocks = a.blocks;
+  s.acq_samples = a.samples;
+  s.acq_gaps = a.gaps;
+  s.acq_lost_samples = a.lost_samples + c.acq_ring_full_samples;
+  s.acq_short_reads = a.short_reads;
+  s.acq_time_back = a.time_back;
+  s.acq_timeouts = a.timeouts;
+  s.acq_read_errors = a.read_errors;
+  s.can_frames = c.can_frames;
+  s.can_speed_frames = c.can_speed;
+  s.can_other_ids = c.can_other_id;
+  s.can_wrong_dlc = c.can_wrong_dlc;
+  s.can_error_frames = c.can_error_frames;
+  s.can_rx_overflow_drops = cc.rx_overflow_drops;
+  s.can_bus_off = cc.bus_off;
+  s.can_bus_state = p->can_bus_state();
+  s.slicer_regions = ps.slicer.regions;
+  s.slicer_windows = ps.slicer.windows;
+  s.slicer_windows_invalid = ps.slicer.windows_invalid;
+  s.slicer_windows_lost = ps.slicer.windows_lost;
+  s.ring_overflows = c.acq_ring_full_blocks + c.can_ring_full;
+  s.windows_scored = ps.scored;
+  s.windows_abnormal = ps.abnormal;
+  s.alarms_raised = ps.alarm_counters.alarms_raised;
+  s.watchdog_pings = pings_.load(std::memory_order_relaxed);
+}
+
+void Daemon::log_counter_changes() noexcept {
+  Pipeline* p = pipeline_.get();
+  if (p == nullptr) return;
+  const PipelineCounters c = p->counters();
+  const drivers::SampleSourceCounters a = p->source_counters();
+  DeltaLine line;
+  line.add("sample ring overruns", c.acq_ring_full_blocks, last_counters_.acq_ring_full_blocks);
+  line.add("adc read errors", c.acq_read_errors, last_counters_.acq_read_errors);
+  line.add("adc gaps", a.gaps, last_source_.gaps);
+  line.add("adc short reads", a.short_reads, last_source_.short_reads);
+  line.add("adc time back", a.time_back, last_source_.time_back);
+  line.add("speed ring overruns", c.can_ring_full, last_counters_.can_ring_full);
+  line.add("CAN wrong DLC", c.can_wrong_dlc, last_counters_.can_wrong_dlc);
+  line.add("CAN remote", c.can_rtr, last_counters_.can_rtr);
+  line.add("CAN error frames", c.can_error_frames, last_counters_.can_error_frames);
+  line.add("CAN receive errors", c.can_receive_errors, last_counters_.can_receive_errors);
+  line.add("CAN clear frames", c.can_clear_frames, last_counters_.can_clear_frames);
+  line.add("alarm output errors", c.output_errors, last_counters_.output_errors);
+  if (!line.empty()) spdlog::warn("counters: {}", line.view());
+  if (c.acq_end && !last_counters_.acq_end) spdlog::info("vibration source: end of stream");
+  if (c.can_end && !last_counters_.can_end) spdlog::info("CAN source: end of stream");
+  last_counters_ = c;
+  last_source_ = a;
+}
+
+void Daemon::check_training(std::int64_t now) {
+  if (mode_ != PipelineMode::kTrain || !pipeline_ || pipeline_->trainer() == nullptr) return;
+  const FieldTrainer& trainer = *pipeline_->trainer();
+  const TrainingProgress progress = trainer.progress();  // allocates: training mode only
+  snapshot_.training_windows = progress.windows;
+  snapshot_.training_capacity = progress.window_capacity;
+  snapshot_.training_regions = progress.regions;
+  snapshot_.training_classes = static_cast<std::uint32_t>(progress.classes.size());
+  snapshot_.training_classes_complete = progress.classes_complete;
+  snapshot_.training_target_cycles = progress.target_cycles;
+  snapshot_.training_dropped = progress.windows_dropped + progress.regions_dropped;
+  const bool timed_out = now - training_started_ns_ > seconds_to_ns(cfg_.training.max_duration_s);
+  const bool ended = pipeline_->status().ended;
+  if (!progress.ready && !((timed_out || ended) && progress.can_finish)) return;
+  const fs::path out = cfg_.training.output.empty() ? cfg_.daemon.baseline : cfg_.training.output;
+  try {
+    const dsp::Baseline b =
+        trainer.finish(out, progress.ready ? FinishMode::kRequireReady : FinishMode::kWhatIsThere);
+    spdlog::info("field training: baseline written to {} ({} segment class(es), {} windows); monitoring starts",
+                 out.string(), b.classes.size(), progress.windows);
+    mode_ = PipelineMode::kMonitor;
+    DaemonConfig next = cfg_;
+    next.daemon.baseline = out;
+    restart_pipeline(next, mode_);
+    cfg_ = std::move(next);
+  } catch (const Error& e) {
+    spdlog::error("field training: {}", e.what());
+    training_started_ns_ = now;  // try again after another max_duration_s
+  }
+}
+
+void Daemon::supervise(std::int64_t now) noexcept {
+  update_state_and_reason(now);
+  try {
+    check_training(now);
+  } catch (const std::exception& e) {
+    spdlog::error("field training: {}", e.what());
+  }
+  fill_snapshot(now);
+  if (writer_) {
+    if (writer_->write(snapshot_) == StatusWriteResult::kOk) status_writes_.fetch_add(1, std::memory_order_relaxed);
+  }
+  Pipeline* p = pipeline_.get();
+  if (p != nullptr) {
+    const PipelineStatus ps = p->status();
+    std::snprintf(status_text_, sizeof status_text_, "%s (%s): %llu windows, %llu abnormal, alarm %s%s%s",
+                  daemon_state_name(snapshot_.state).data(), phase_name(ps.phase),
+                  static_cast<unsigned long long>(ps.windows), static_cast<unsigned long long>(ps.abnormal),
+                  drivers::alarm_level_name(ps.report.level).data(), snapshot_.reason.len > 0 ? "; " : "",
+                  snapshot_.reason.text.data());
+    notifier_.status(status_text_);
+    if (options_.exit_at_end && ps.ended) {
+      spdlog::info("replay ended: {} windows processed, stopping (--exit-at-end)", ps.windows);
+      stop_requested_.store(true);
+    }
+    if (options_.exit_after_windows > 0 && ps.windows >= options_.exit_after_windows) {
+      spdlog::info("{} windows processed, stopping (--exit-after-windows)", ps.windows);
+      stop_requested_.store(true);
+    }
+    if (options_.stall_processing_after_s >= 0.0 && now - started_ns_ >= seconds_to_ns(options_.stall_processing_after_s) &&
+        !stall_.load(std::memory_order_relaxed)) {
+      spdlog::warn("test hook: stalling the processing thread");
+      stall_.store(true);
+      p->set_processing_stall(true);
+    }
+  }
+  log_counter_changes();
+}
+
+int Daemon::run() {
+  const std::int64_t status_period = seconds_to_ns(cfg_.daemon.status_period_s);
+  const std::int64_t ping_period = options_.watchdog.enabled ? options_.watchdog.ping_period_ns : 0;
+  std::int64_t now = clock_.now_ns();
+  std::int64_t next_status = now + status_period;
+  std::int64_t next_ping = ping_period > 0 ? now + ping_period : INT64_MAX;
+  while (!stop_requested_.load(std::memory_order_acquire)) {
+    now = clock_.now_ns();
+    const std::int64_t wait_ns = std::max<std::int64_t>(0, std::min(next_status, next_ping) - now);
+    pollfd fds[2] = {{signal_fd_, POLLIN, 0}, {event_fd_, POLLIN, 0}};
+    const int rc = ::poll(fds, 2, static_cast<int>((wait_ns + 999'999) / 1'000'000));
+    if (rc > 0 && (fds[0].revents & POLLIN) != 0) {
+      signalfd_siginfo si{};
+      while (::read(signal_fd_, &si, sizeof si) == static_cast<ssize_t>(sizeof si)) {
+        if (si.ssi_signo == SIGHUP) {
+          reload_requested_.store(true);
+        } else {
+          spdlog::info("{} received: stopping", si.ssi_signo == SIGTERM ? "SIGTERM" : "SIGINT");
+          stop_requested_.store(true);
+        }
+      }
+    }
+    if (rc > 0 && (fds[1].revents & POLLIN) != 0) {
+      std::uint64_t v = 0;
+      [[maybe_unused]] const auto n = ::read(event_fd_, &v, sizeof v);
+    }
+    if (stop_requested_.load(std::memory_order_acquire)) break;
+    if (reload_requested_.exchange(false)) {
+      reload();
+      now = clock_.now_ns();
+      next_status = now;
+      if (ping_period > 0) next_ping = std::min(next_ping, now + ping_period);
+    }
+    now = clock_.now_ns();
+    if (now >= next_ping) {
+      check_watchdog(now);
+      next_ping = std::max(next_ping + ping_period, now + ping_period / 2);
+    }
+    if (now >= next_status) {
+      supervise(now);
+      next_status = std::max(next_status + status_period, now + status_period / 2);
+    }
+  }
+  notifier_.stopping();
+  state_.store(DaemonState::kStopping);
+  spdlog::info("stopping");
+  deactivate();
+  now = clock_.now_ns();
+  update_state_and_reason(now);
+  state_.store(DaemonState::kStopping);
+  fill_snapshot(now);
+  if (writer_) writer_->write(snapshot_);
+  spdlog::info("stopped");
+  return exit_code_;
+}
+
+}  // namespace ptda::daemon

@@ -1,0 +1,156 @@
+// ptdad's lifecycle and supervisor (the main thread).
+//
+//   constructed ──configure()──▶ configured ──activate()──▶ running ──(SIGTERM/SIGINT, request_stop)──▶
+//   stopping ──deactivate()──▶ deactivated
+//
+//   configured  the configuration files were read and validated, the Pipeline was configured (devices
+//               opened, baseline read: a bad baseline means "refused", not an error), the status
+//               writer and the sd_notify socket exist, SIGTERM/SIGINT/SIGHUP are blocked in this
+//               thread (and so in every thread started later) and read through a signalfd.
+//   running     the pipeline threads run; run() is the supervisor: it waits in poll() on the signalfd
+//               and an eventfd, and every [daemon] status_period_s writes status.json/metrics, sends
+//               STATUS=, logs state and counter changes; every WatchdogSec/2 it sends WATCHDOG=1 only
+//               when every stage's heartbeat advanced since the previous ping. READY=1 is sent by
+//               activate(). SIGHUP reloads (see reload()). In the running state the supervisor does
+//               not allocate (fixed buffers; spdlog formats short lines in place), except while
+//               reloading or in training mode (progress and the final training allocate).
+//   stopping    STOPPING=1 was sent; deactivate() joins the threads (they re-check their stop flag
+//               every kStageWaitNs) and drives the outputs fail-safe.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include "core/daemon_config.hpp"
+#include "core/pipeline.hpp"
+#include "ptda/drivers/clock.hpp"
+#include "rt/sd_notify.hpp"
+#include "status/status_writer.hpp"
+
+namespace ptda::daemon {
+
+struct DaemonOptions {
+  std::filesystem::path config_file = "/etc/ptda/ptda.toml";
+  /// Drop-in directory; unset = "<directory of config_file>/conf.d"; an empty path = none.
+  std::optional<std::filesystem::path> config_dir;
+  bool train = false;                        ///< field training mode (--train)
+  std::filesystem::path status_dir;          ///< non-empty: overrides [daemon] status_dir
+  std::string notify_socket;                 ///< $NOTIFY_SOCKET ("" = not under systemd)
+  WatchdogSettings watchdog;                 ///< from $WATCHDOG_USEC / $WATCHDOG_PID
+  bool exit_at_end = false;                  ///< stop (exit 0) once a replay ended and was processed
+  // Test-only hooks (documented as such in docs/daemon.md and `ptdad --help`).
+  std::uint64_t exit_after_windows = 0;      ///< stop after this many processed windows (0 = never)
+  double stall_processing_after_s = -1.0;    ///< stall the processing thread after this long (< 0 = never)
+};
+
+/// What tests and tools can observe from another thread. Fixed size; copying never allocates.
+struct DaemonView {
+  DaemonState state = DaemonState::kConfigured;
+  Phase phase = Phase::kStarting;
+  FixedString<kStatusTextBytes> reason;
+  PipelineStatus pipeline;
+  PipelineCounters counters;
+  StageHeartbeats heartbeats;
+  std::uint64_t reloads = 0;           ///< successful reloads
+  std::uint64_t reload_failures = 0;   ///< rejected reloads (old configuration kept)
+  std::uint64_t watchdog_pings = 0;
+  std::uint64_t watchdog_skipped = 0;  ///< pings withheld because a stage made no progress
+  std::uint64_t status_writes = 0;
+  std::uint32_t window_len = 0;        ///< of the configuration in use
+  double min_hold_s = 0.0;             ///< of the configuration in use
+};
+
+class Daemon {
+ public:
+  /// `clock` must outlive the daemon (MonotonicClock in ptdad). Thread: main. Allocates.
+  Daemon(DaemonOptions options, drivers::Clock& clock);
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  /// Reads the configuration and configures everything (see the header comment). Throws ptda::Error
+  /// "<file>:<line>:<column>: <what>" or "<device>: <what>". Thread: main. Blocks and allocates.
+  void configure();
+  /// Starts the pipeline threads, sends READY=1 and a first STATUS=. Throws ptda::Error.
+  /// Thread: the thread that called configure().
+  void activate();
+  /// The supervisor loop until a stop (signal, request_stop, exit hooks). Returns the exit code:
+  /// 0 after a requested stop, 1 when a reload left no working pipeline. Sends STOPPING=1 and
+  /// deactivates before returning. Thread: the thread that called configure(). Blocks.
+  int run();
+  /// Stops the pipeline (idempotent). Thread: main. Never throws.
+  void deactivate() noexcept;
+
+  /// Thread: any (signal-safe: one atomic store and one write()). Never blocks or allocates.
+  void request_stop() noexcept;
+  /// Asks the supervisor to reload the configuration (as SIGHUP). Thread: any. Never blocks.
+  void request_reload() noexcept;
+
+  /// Test hook: receives every processed window of this and every later pipeline (processing thread).
+  /// Set before configure(). Thread: main.
+  void set_window_sink(WindowSink* sink) noexcept { sink_ = sink; }
+  /// Test-only fault injection (see Pipeline::set_processing_stall). Thread: any.
+  void set_processing_stall(bool stall) noexcept;
+
+  /// A consistent-enough snapshot for tests and tools. Thread: any. Never allocates; takes a mutex
+  /// only to pin the current pipeline against a concurrent reload.
+  [[nodiscard]] DaemonView view() const noexcept;
+  /// The configuration in use. Thread: main (the supervisor), or any while run() is not running.
+  [[nodiscard]] const DaemonConfig& config() const noexcept { return cfg_; }
+
+ private:
+  [[nodiscard]] DaemonConfig load_config() const;
+  void build_status_writer();
+  void reload();
+  void supervise(std::int64_t now) noexcept;
+  void check_watchdog(std::int64_t now) noexcept;
+  void check_training(std::int64_t now);
+  void fill_snapshot(std::int64_t now) noexcept;
+  void update_state_and_reason(std::int64_t now) noexcept;
+  void log_counter_changes() noexcept;
+  void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);
+
+  DaemonOptions options_;
+  drivers::Clock& clock_;
+  DaemonConfig cfg_;
+  WindowSink* sink_ = nullptr;
+  PipelineMode mode_ = PipelineMode::kMonitor;
+
+  mutable std::mutex pipeline_mutex_;  ///< guards the pipeline_ pointer (swapped by reloads)
+  std::unique_ptr<Pipeline> pipeline_;
+  std::unique_ptr<StatusWriter> writer_;
+  SdNotifier notifier_;
+  int signal_fd_ = -1;
+  int event_fd_ = -1;
+  std::atomic<bool> stop_requested_{false};
+  std::atomic<bool> reload_requested_{false};
+  std::atomic<bool> stall_{false};
+  bool active_ = false;
+  int exit_code_ = 0;
+
+  // Supervisor state (main thread).
+  std::int64_t started_ns_ = 0;
+  StageHeartbeats last_ping_beats_{};
+  StageHeartbeats last_seen_beats_{};
+  std::int64_t beat_changed_ns_[3] = {0, 0, 0};
+  bool stalled_logged_ = false;
+  std::int64_t training_started_ns_ = 0;
+  StatusSnapshot snapshot_;
+  PipelineCounters last_counters_{};
+  drivers::SampleSourceCounters last_source_{};
+  Phase last_phase_ = Phase::kStarting;
+  DaemonState last_state_ = DaemonState::kConfigured;
+  FixedString<kStatusTextBytes> reason_;
+  FixedString<kStatusTextBytes> last_reload_error_;
+  std::atomic<DaemonState> state_{DaemonState::kConfigured};
+  std::atomic<std::uint64_t> reloads_{0}, reload_failures_{0}, pings_{0}, pings_skipped_{0}, status_writes_{0};
+  mutable std::mutex reason_mutex_;  ///< guards reason_ for view()
+  char status_text_[256] = {};
+};
+
+}  // namespace ptda::daemon

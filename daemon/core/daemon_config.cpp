@@ -1,0 +1,333 @@
+#include "core/daemon_config.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <map>
+#include <system_error>
+
+#include "ptda/common/error.hpp"
+#include "ptda/config/pipeline_config_builder.hpp"
+#include "ptda/config/toml_reader.hpp"
+#include "ptda/drivers/sample_source.hpp"
+
+namespace ptda::daemon {
+
+namespace fs = std::filesystem;
+using config::SourceLocation;
+using config::TableReader;
+
+const char* adc_backend_name(AdcBackend b) noexcept {
+  switch (b) {
+    case AdcBackend::kIio: return "iio";
+    case AdcBackend::kWav: return "wav";
+    case AdcBackend::kSim: return "sim";
+  }
+  return "?";
+}
+
+const char* can_backend_name(CanBackend b) noexcept {
+  switch (b) {
+    case CanBackend::kSocketCan: return "socketcan";
+    case CanBackend::kCandump: return "candump";
+    case CanBackend::kSim: return "sim";
+  }
+  return "?";
+}
+
+const char* pace_name(Pace p) noexcept { return p == Pace::kFast ? "fast" : "realtime"; }
+
+std::vector<std::string> daemon_owned_tables() {
+  return {"daemon",         "adc",          "alarm",           "training",         "can.backend",
+          "can.interface",  "can.replay_file", "can.pace",     "can.bus_error_frames", "can.rcvbuf_bytes",
+          "can.clear_frame"};
+}
+
+std::vector<fs::path> list_dropins(const fs::path& conf_dir) {
+  std::vector<fs::path> out;
+  std::error_code ec;
+  if (conf_dir.empty() || !fs::exists(conf_dir, ec)) return out;
+  if (!fs::is_directory(conf_dir, ec)) throw Error(conf_dir.string() + ": drop-in path is not a directory");
+  fs::directory_iterator it(conf_dir, ec);
+  if (ec) throw Error(conf_dir.string() + ": cannot read drop-in directory: " + ec.message());
+  for (const auto& entry : it) {
+    const fs::path& p = entry.path();
+    if (p.extension() != ".toml") continue;
+    std::error_code ec2;
+    if (!entry.is_regular_file(ec2)) continue;
+    out.push_back(p);
+  }
+  // Lexical byte order of the file names, as systemd orders drop-ins.
+  std::sort(out.begin(), out.end(),
+            [](const fs::path& a, const fs::path& b) { return a.filename().string() < b.filename().string(); });
+  return out;
+}
+
+namespace {
+
+/// Applies the daemon's tables of one file after another, remembering where each key was set so the
+/// cross-key checks point at the line that made the combination invalid.
+class DaemonTablesBuilder {
+ public:
+  void apply(const toml::table& root, const std::string& source, const fs::path& base_dir) {
+    TableReader top(root, "", source);
+    base_dir_ = base_dir;
+    if (const toml::table* t = top.table("daemon")) apply_daemon(*t, source);
+    if (const toml::table* t = top.table("adc")) apply_adc(*t, source);
+    if (const toml::table* t = top.table("can")) apply_can(*t, source);
+    if (const toml::table* t = top.table("alarm")) apply_alarm(*t, source);
+    if (const toml::table* t = top.table("training")) apply_training(*t, source);
+  }
+
+  void finish(DaemonConfig& out) const {
+    out.daemon = daemon_;
+    out.adc = adc_;
+    out.can = can_;
+    out.alarm = alarm_;
+    out.training = training_;
+    const double fs = out.pipeline.fs_hz;
+    if (adc_.backend == AdcBackend::kIio && fs == 0.0) {
+      fail_key("adc.backend", "adc.backend = \"iio\" needs [acquisition] fs_hz (the ADC's sample rate)");
+    }
+    if (adc_.backend == AdcBackend::kWav && adc_.recording.empty()) {
+      fail_key("adc.backend", "adc.backend = \"wav\" needs adc.recording (a recording directory)");
+    }
+    if (adc_.backend == AdcBackend::kSim && adc_.scenario.empty()) {
+      fail_key("adc.backend", "adc.backend = \"sim\" needs adc.scenario (a simulator scenario file)");
+    }
+    if (can_.backend == CanBackend::kSim && adc_.backend != AdcBackend::kSim) {
+      fail_key("can.backend", "can.backend = \"sim\" serves the simulator's speed frames and needs "
+                              "adc.backend = \"sim\" (now \"" + std::string(adc_backend_name(adc_.backend)) + "\")");
+    }
+    if (adc_.backend == AdcBackend::kSim && can_.backend != CanBackend::kSim) {
+      fail_key("adc.backend", "adc.backend = \"sim\" needs can.backend = \"sim\" (the simulated joint "
+                              "speed belongs to the simulated vibration; now \"" +
+                                  std::string(can_backend_name(can_.backend)) + "\")");
+    }
+    if (can_.backend == CanBackend::kCandump && can_.replay_file.empty() && adc_.backend != AdcBackend::kWav) {
+      fail_key("can.backend", "can.backend = \"candump\" needs can.replay_file (or adc.backend = \"wav\", "
+                              "whose recording's can.log is then replayed)");
+    }
+    if (alarm_.can_enabled && can_.backend == CanBackend::kSim) {
+      // The simulator channel records sent frames like the candump replay does: allowed.
+    }
+    if (training_.target_cycles < 3) {
+      fail_key("training.target_cycles", "training.target_cycles must be at least 3 (leave-one-out thresholds)");
+    }
+  }
+
+ private:
+  void note(const TableReader& r, std::string_view key) { set_at_[r.qualified(key)] = r.location(key); }
+
+  template <typename T, typename... Range>
+  void get(TableReader& r, std::string_view key, T& out, Range... range) {
+    if (r.read(key, out, range...)) note(r, key);
+  }
+
+  void get_path(TableReader& r, std::string_view key, fs::path& out) {
+    std::string text;
+    if (!r.read(key, text)) return;
+    note(r, key);
+    if (text.empty()) {
+      out.clear();
+      return;
+    }
+    fs::path p(text);
+    out = p.is_relative() && !base_dir_.empty() ? (base_dir_ / p).lexically_normal() : p;
+  }
+
+  void get_pace(TableReader& r, std::string_view key, Pace& out) {
+    if (r.read_choice(key, out, {{"realtime", Pace::kRealTime}, {"fast", Pace::kFast}})) note(r, key);
+  }
+
+  [[noreturn]] void fail_key(const std::string& key, const std::string& what) const {
+    const auto it = set_at_.find(key);
+    config::fail_at(it != set_at_.end() ? it->second : SourceLocation{first_source_, 0, 0}, what);
+  }
+
+  void apply_daemon(const toml::table& t, const std::string& source) {
+    remember_source(source);
+    TableReader r(t, "daemon", source);
+    get_path(r, "baseline", daemon_.baseline);
+    get_path(r, "status_dir", daemon_.status_dir);
+    get_path(r, "metrics_path", daemon_.metrics_path);
+    if (r.read_choice(
+            "log_level", daemon_.log_level,
+            {std::pair<std::string_view, std::string>{"trace", "trace"}, {"debug", "debug"}, {"info", "info"},
+             {"warn", "warn"}, {"error", "error"}})) {
+      note(r, "log_level");
+    }
+    get(r, "status_period_s", daemon_.status_period_s, 0.05, 60.0);
+    get(r, "speed_stale_periods", daemon_.speed_stale_periods, 2.0, 100000.0);
+    get(r, "sensor_stale_s", daemon_.sensor_stale_s, 0.01, 3600.0);
+    get(r, "stage_stall_s", daemon_.stage_stall_s, 0.1, 3600.0);
+    if (!daemon_.metrics_path.empty() && daemon_.metrics_path.extension() != ".prom") {
+      r.fail_value("metrics_path", "must end in \".prom\" (the node_exporter textfile collector reads only *.prom)");
+    }
+    r.finish();
+  }
+
+  void apply_adc(const toml::table& t, const std::string& source) {
+    remember_source(source);
+    TableReader r(t, "adc", source);
+    if (r.read_choice("backend", adc_.backend,
+                      {{"iio", AdcBackend::kIio}, {"wav", AdcBackend::kWav}, {"sim", AdcBackend::kSim}})) {
+      note(r, "backend");
+    }
+    get(r, "block_len", adc_.block_len, std::uint32_t{1}, static_cast<std::uint32_t>(drivers::kMaxBlock));
+    double scale = adc_.scale;
+    if (r.read("scale", scale, -1e12, 1e12)) {
+      if (scale == 0.0) r.fail_value("scale", "must not be 0");
+      adc_.scale = static_cast<float>(scale);
+      note(r, "scale");
+    }
+    get_path(r, "sysfs_dir", adc_.sysfs_dir);
+    get_path(r, "device", adc_.device);
+    get(r, "channel", adc_.channel);
+    get(r, "trigger", adc_.trigger);
+    get(r, "buffer_length", adc_.buffer_length, std::uint32_t{0}, std::uint32_t{1} << 24);
+    get(r, "watermark", adc_.watermark, std::uint32_t{0}, std::uint32_t{1} << 24);
+    get(r, "timestamp", adc_.timestamp);
+    get_path(r, "recording", adc_.recording);
+    get_path(r, "scenario", adc_.scenario);
+    get(r, "seed", adc_.seed, std::uint32_t{0}, std::uint32_t{0xFFFFFFFF});
+    get_pace(r, "pace", adc_.pace);
+    get(r, "loop", adc_.loop);
+    if (adc_.channel.empty()) r.fail_value("channel", "must not be empty");
+    r.finish();
+  }
+
+  void apply_can(const toml::table& t, const std::string& source) {
+    remember_source(source);
+    TableReader r(t, "can", source);
+    r.ignore("speed_latency_s");  // the pipeline's
+    r.ignore("speed_frame");
+    if (r.read_choice("backend", can_.backend,
+                      {{"socketcan", CanBackend::kSocketCan}, {"candump", CanBackend::kCandump},
+                       {"sim", CanBackend::kSim}})) {
+      note(r, "backend");
+    }
+    get(r, "interface", can_.interface);
+    get_path(r, "replay_file", can_.replay_file);
+    get_pace(r, "pace", can_.pace);
+    get(r, "bus_error_frames", can_.bus_error_frames);
+    get(r, "rcvbuf_bytes", can_.rcvbuf_bytes, std::uint32_t{0}, std::uint32_t{1} << 30);
+    if (can_.interface.empty() || can_.interface.size() >= 16) {
+      r.fail_value("interface", "must be a network interface name of 1..15 characters");
+    }
+    if (const toml::table* c = r.table("clear_frame")) {
+      TableReader cr(*c, "can.clear_frame", source);
+      ClearFrameSpec& spec = can_.clear_frame;
+      get(cr, "enabled", spec.enabled);
+      get(cr, "id", spec.id, std::uint32_t{0}, std::uint32_t{0x1FFFFFFF});
+      get(cr, "extended", spec.extended);
+      std::string hex;
+      if (cr.read("data", hex)) {
+        note(cr, "data");
+        if (hex.empty() || hex.size() % 2 != 0 || hex.size() > 16) {
+          cr.fail_value("data", "must be 1..8 bytes as an even number of hex digits (e.g. \"C1\"), not \"" + hex + "\"");
+        }
+        for (std::size_t i = 0; i < hex.size(); i += 2) {
+          const auto nibble = [&](char ch) -> int {
+            if (std::isxdigit(static_cast<unsigned char>(ch)) == 0) {
+              cr.fail_value("data", "must be hex digits, not \"" + hex + "\"");
+            }
+            return std::isdigit(static_cast<unsigned char>(ch)) != 0 ? ch - '0'
+                                                                      : (std::tolower(static_cast<unsigned char>(ch)) - 'a' + 10);
+          };
+          spec.data[i / 2] = static_cast<std::uint8_t>(nibble(hex[i]) * 16 + nibble(hex[i + 1]));
+        }
+        spec.len = static_cast<std::uint8_t>(hex.size() / 2);
+      }
+      if (!spec.extended && spec.id > 0x7FF) cr.fail_value("id", "is above 0x7FF: set extended = true for a 29-bit id");
+      cr.finish();
+    }
+    r.finish();
+  }
+
+  void apply_alarm(const toml::table& t, const std::string& source) {
+    remember_source(source);
+    TableReader r(t, "alarm", source);
+    get(r, "min_hold_s", alarm_.min_hold_s, 0.0, 86400.0);
+    get(r, "latch", alarm_.latch);
+    get(r, "warning", alarm_.warning);
+    get(r, "warning_k", alarm_.warning_k, std::uint32_t{1}, std::uint32_t{64});
+    get(r, "warning_hold_s", alarm_.warning_hold_s, 0.0, 86400.0);
+    if (const toml::table* g = r.table("gpio")) {
+      TableReader gr(*g, "alarm.gpio", source);
+      get(gr, "enabled", alarm_.gpio_enabled);
+      get(gr, "chip", alarm_.gpio_chip);
+      get(gr, "line", alarm_.gpio_line, std::uint32_t{0}, std::uint32_t{4095});
+      get(gr, "active_low", alarm_.gpio_active_low);
+      gr.finish();
+    }
+    if (const toml::table* c = r.table("can")) {
+      TableReader cr(*c, "alarm.can", source);
+      get(cr, "enabled", alarm_.can_enabled);
+      get(cr, "id", alarm_.can_id, std::uint32_t{0}, std::uint32_t{0x1FFFFFFF});
+      get(cr, "extended", alarm_.can_extended);
+      get(cr, "period_s", alarm_.can_period_s, 0.01, 60.0);
+      if (!alarm_.can_extended && alarm_.can_id > 0x7FF) {
+        cr.fail_value("id", "is above 0x7FF: set extended = true for a 29-bit id");
+      }
+      cr.finish();
+    }
+    r.finish();
+  }
+
+  void apply_training(const toml::table& t, const std::string& source) {
+    remember_source(source);
+    TableReader r(t, "training", source);
+    get(r, "target_cycles", training_.target_cycles, std::uint32_t{1}, std::uint32_t{100000});
+    get(r, "max_duration_s", training_.max_duration_s, 1.0, 1e7);
+    get_path(r, "output", training_.output);
+    get(r, "max_windows", training_.max_windows, std::uint32_t{16}, std::uint32_t{1000000});
+    get(r, "max_regions", training_.max_regions, std::uint32_t{16}, std::uint32_t{1000000});
+    r.finish();
+  }
+
+  void remember_source(const std::string& source) {
+    if (first_source_.empty()) first_source_ = source;
+  }
+
+  DaemonSection daemon_;
+  AdcSection adc_;
+  CanSection can_;
+  AlarmSection alarm_;
+  TrainingSection training_;
+  fs::path base_dir_;
+  std::string first_source_;
+  std::map<std::string, SourceLocation, std::less<>> set_at_;
+};
+
+}  // namespace
+
+DaemonConfig load_daemon_config(const fs::path& main_file, const std::vector<fs::path>& dropins) {
+  DaemonConfig out;
+  config::PipelineConfigBuilder pipeline(daemon_owned_tables());
+  DaemonTablesBuilder tables;
+  std::vector<fs::path> files{main_file};
+  files.insert(files.end(), dropins.begin(), dropins.end());
+  for (const auto& file : files) {
+    const toml::table root = config::read_toml_file(file);
+    pipeline.apply(root, file.string());
+    tables.apply(root, file.string(), file.parent_path());
+    out.files.push_back(file);
+  }
+  out.pipeline = pipeline.finish();
+  tables.finish(out);
+  return out;
+}
+
+DaemonConfig parse_daemon_config(std::string_view toml_text, const std::string& source) {
+  DaemonConfig out;
+  config::PipelineConfigBuilder pipeline(daemon_owned_tables());
+  DaemonTablesBuilder tables;
+  const toml::table root = config::parse_toml(toml_text, source);
+  pipeline.apply(root, source);
+  tables.apply(root, source, fs::path());
+  out.pipeline = pipeline.finish();
+  tables.finish(out);
+  return out;
+}
+
+}  // namespace ptda::daemon

@@ -1,0 +1,681 @@
+#include "core/pipeline.hpp"
+
+#include <pthread.h>
+#include <time.h>
+
+#include <algorithm>
+#include <cmath>
+#include <span>
+
+#include "adc/iio_sample_source.hpp"
+#include "adc/wav_replay_source.hpp"
+#include "alarm/can_alarm_output.hpp"
+#include "alarm/gpiod_output.hpp"
+#include "can/candump_replay_channel.hpp"
+#include "can/socketcan_channel.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/config/speed_codec.hpp"
+#include "ptda/formats/baseline_file.hpp"
+#include "ptda/formats/recording.hpp"
+
+namespace ptda::daemon {
+
+namespace fs = std::filesystem;
+using drivers::AlarmLevel;
+using drivers::CanStatus;
+using drivers::SourceStatus;
+
+const char* phase_name(Phase p) noexcept {
+  switch (p) {
+    case Phase::kStarting: return "starting";
+    case Phase::kMonitoring: return "monitoring";
+    case Phase::kPausedSpeed: return "paused: no joint speed";
+    case Phase::kPausedSensor: return "paused: no vibration data";
+    case Phase::kRefused: return "refused";
+    case Phase::kTraining: return "training";
+    case Phase::kEnded: return "replay ended";
+  }
+  return "?";
+}
+
+namespace {
+
+/// The one idle wait of a stage. Thread: any. Never allocates.
+void sleep_ns(std::int64_t ns) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(ns / kNsPerS);
+  ts.tv_nsec = static_cast<long>(ns % kNsPerS);
+  ::clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, nullptr);
+}
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+bool same_rate(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
+
+bool matches_clear(const CanFrame& f, const ClearFrameSpec& spec) noexcept {
+  if (!spec.enabled || f.error() || f.rtr() || f.id != spec.id || f.extended() != spec.extended) return false;
+  if (f.len != spec.len) return false;
+  for (std::uint8_t i = 0; i < spec.len; ++i) {
+    if (f.data[i] != spec.data[i]) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+Pipeline::Pipeline(const DaemonConfig& cfg, PipelineMode mode, drivers::Clock& clock)
+    : cfg_(cfg), mode_(mode), clock_(clock) {}
+
+Pipeline::~Pipeline() { deactivate(); }
+
+void Pipeline::configure() {
+  const config::PipelineConfig& pc = cfg_.pipeline;
+  const std::int64_t origin_mono = clock_.now_ns();
+
+  // ---- vibration source
+  std::optional<std::int64_t> recording_start_unix;
+  fs::path recording_can;
+  switch (cfg_.adc.backend) {
+    case AdcBackend::kSim: {
+      sim_ = make_sim_recording(cfg_.adc.scenario, cfg_.adc.seed);
+      SimSourceConfig sc;
+      sc.block_len = cfg_.adc.block_len;
+      sc.fast = cfg_.adc.pace == Pace::kFast;
+      sc.loop = cfg_.adc.loop;
+      source_ = std::make_unique<SimSampleSource>(sim_, sim_anchor_, clock_, sc);
+      source_fast_ = sc.fast;
+      inputs_text_ = "adc sim (" + cfg_.adc.scenario.string() + ", seed " + std::to_string(sim_->seed) + ", " +
+                     pace_name(cfg_.adc.pace) + (sc.loop ? ", looping" : "") + ")";
+      break;
+    }
+    case AdcBackend::kWav: {
+      const formats::RecordingMeta meta = formats::read_recording_meta(cfg_.adc.recording);
+      drivers::WavReplayConfig wc;
+      wc.path = cfg_.adc.recording / meta.vibration_file;
+      wc.channel = meta.channel;
+      wc.block_len = cfg_.adc.block_len;
+      wc.scale = static_cast<float>(meta.scale);
+      wc.pace = cfg_.adc.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible : drivers::ReplayPace::kRealTime;
+      wc.start_unix_ns = seconds_to_ns(meta.start_time_s);
+      wc.timeline.origin_unix_ns = wc.start_unix_ns;
+      wc.timeline.origin_mono_ns = origin_mono;
+      recording_start_unix = wc.start_unix_ns;
+      recording_can = cfg_.adc.recording / meta.can_file;
+      source_ = std::make_unique<drivers::WavReplaySource>(wc, clock_);
+      source_fast_ = cfg_.adc.pace == Pace::kFast;
+      inputs_text_ = "adc wav (" + cfg_.adc.recording.string() + ", " + pace_name(cfg_.adc.pace) + ")";
+      break;
+    }
+    case AdcBackend::kIio: {
+      drivers::IioSourceConfig ic;
+      ic.sysfs_dir = cfg_.adc.sysfs_dir;
+      ic.dev_path = cfg_.adc.device;
+      ic.channel = cfg_.adc.channel;
+      ic.timestamp = cfg_.adc.timestamp;
+      ic.fs_hz = pc.fs_hz;
+      ic.trigger = cfg_.adc.trigger;
+      ic.buffer_length = cfg_.adc.buffer_length;
+      ic.watermark = cfg_.adc.watermark;
+      ic.block_len = cfg_.adc.block_len;
+      ic.scale = cfg_.adc.scale;
+      source_ = std::make_unique<drivers::IioSampleSource>(ic, clock_);
+      source_fast_ = false;
+      inputs_text_ = "adc iio (" + cfg_.adc.device.string() + " " + cfg_.adc.channel + ")";
+      break;
+    }
+  }
+  source_->configure();
+  fs_hz_ = source_->fs_hz();
+  if (!(fs_hz_ >= 1.0 && fs_hz_ <= 1e6)) throw Error("adc: sample rate " + num(fs_hz_) + " Hz is outside 1..1e6");
+  if (pc.fs_hz != 0.0 && !same_rate(pc.fs_hz, fs_hz_)) {
+    throw Error(cfg_.files.empty() ? std::string("config") : cfg_.files.front().string(),
+                0, 0,
+                "[acquisition] fs_hz = " + num(pc.fs_hz) + " Hz but the " + adc_backend_name(cfg_.adc.backend) +
+                    " source delivers " + num(fs_hz_) + " Hz");
+  }
+  fs_mhz_ = std::llround(fs_hz_ * 1000.0);
+
+  // ---- CAN channel
+  switch (cfg_.can.backend) {
+    case CanBackend::kSim: {
+      SimCanConfig cc;
+      cc.fast = cfg_.can.pace == Pace::kFast;
+      cc.loop = cfg_.adc.loop;
+      channel_ = std::make_unique<SimCanChannel>(sim_, sim_anchor_, clock_, cc);
+      can_fast_ = cc.fast;
+      inputs_text_ += ", can sim (" + std::string(pace_name(cfg_.can.pace)) + ")";
+      break;
+    }
+    case CanBackend::kCandump: {
+      drivers::CandumpReplayConfig cc;
+      cc.path = cfg_.can.replay_file.empty() ? recording_can : cfg_.can.replay_file;
+      cc.pace = cfg_.can.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible : drivers::ReplayPace::kRealTime;
+      if (recording_start_unix) cc.timeline.origin_unix_ns = *recording_start_unix;
+      cc.timeline.origin_mono_ns = origin_mono;
+      channel_ = std::make_unique<drivers::CandumpReplayChannel>(cc, clock_);
+      can_fast_ = cfg_.can.pace == Pace::kFast;
+      inputs_text_ += ", can candump (" + cc.path.string() + ", " + pace_name(cfg_.can.pace) + ")";
+      break;
+    }
+    case CanBackend::kSocketCan: {
+      drivers::SocketCanConfig sc;
+      sc.interface = cfg_.can.interface;
+      sc.filters.push_back({pc.speed_frame.id, pc.speed_frame.extended, 0});
+      if (cfg_.can.clear_frame.enabled) {
+        sc.filters.push_back({cfg_.can.clear_frame.id, cfg_.can.clear_frame.extended, 0});
+      }
+      sc.bus_error_frames = cfg_.can.bus_error_frames;
+      sc.rcvbuf_bytes = static_cast<int>(cfg_.can.rcvbuf_bytes);
+      channel_ = std::make_unique<drivers::SocketCanChannel>(sc, clock_);
+      can_fast_ = false;
+      inputs_text_ += ", can socketcan (" + cfg_.can.interface + ")";
+      break;
+    }
+  }
+  channel_->configure();
+  fast_ = source_fast_ && can_fast_;
+
+  // ---- alarm outputs
+  if (cfg_.alarm.gpio_enabled) {
+    drivers::GpiodOutputConfig gc;
+    gc.chip = cfg_.alarm.gpio_chip;
+    gc.line = cfg_.alarm.gpio_line;
+    gc.active_low = cfg_.alarm.gpio_active_low;
+    outputs_.push_back(std::make_unique<drivers::GpiodOutput>(gc));
+  }
+  if (cfg_.alarm.can_enabled) {
+    drivers::CanAlarmConfig ac;
+    ac.id = cfg_.alarm.can_id;
+    ac.extended = cfg_.alarm.can_extended;
+    outputs_.push_back(std::make_unique<drivers::CanAlarmOutput>(ac, *channel_));
+  }
+  for (auto& o : outputs_) o->configure();
+
+  // ---- monitoring or training
+  const std::uint32_t window_len = pc.extraction.window_len;
+  if (mode_ == PipelineMode::kMonitor) {
+    const fs::path& path = cfg_.daemon.baseline;
+    try {
+      auto baseline = std::make_unique<dsp::Baseline>(formats::read_baseline(path));
+      if (!same_rate(baseline->fs_hz, fs_hz_)) {
+        throw Error(path.string() + ": baseline was trained at " + num(baseline->fs_hz) + " Hz but the " +
+                    adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
+      }
+      if (baseline->window_len != window_len) {
+        throw Error(path.string() + ": baseline window length is " + std::to_string(baseline->window_len) +
+                    " samples but the configuration sets [extraction] window_len = " + std::to_string(window_len));
+      }
+      engine_ = std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method, fs_hz_, 0);
+      baseline_ = std::move(baseline);
+    } catch (const Error& e) {
+      refusal_ = e.what();
+      engine_.reset();
+      baseline_.reset();
+    }
+  } else {
+    train_slicer_ = std::make_unique<dsp::WindowSlicer>(pc.extraction, fs_hz_, 0);
+    FieldTrainerConfig tc;
+    tc.fs_hz = fs_hz_;
+    tc.window_len = window_len;
+    tc.max_windows = cfg_.training.max_windows;
+    tc.max_regions = cfg_.training.max_regions;
+    tc.target_cycles = cfg_.training.target_cycles;
+    tc.classes = pc.classes;
+    tc.thresholds = pc.thresholds;
+    tc.gearbox = pc.gearbox;
+    trainer_ = std::make_unique<FieldTrainer>(tc);
+    train_window_.assign(window_len, 0.0F);
+  }
+  AlarmManagerConfig amc;
+  amc.warning_enabled = cfg_.alarm.warning;
+  amc.warning_k = cfg_.alarm.warning_k;
+  amc.warning_hold_s = cfg_.alarm.warning_hold_s;
+  amc.min_hold_s = cfg_.alarm.min_hold_s;
+  amc.latch = cfg_.alarm.latch;
+  alarm_time_ns_ = clock_.now_ns();
+  alarm_ = std::make_unique<AlarmManager>(amc, alarm_time_ns_);
+
+  // ---- rings, buffers, timing
+  sample_ring_ = std::make_unique<SampleRing>();
+  speed_ring_ = std::make_unique<SpeedRing>();
+  acq_block_ = std::make_unique<drivers::SampleBlock>();
+  held_block_ = std::make_unique<drivers::SampleBlock>();
+  latency_ns_ = seconds_to_ns(pc.speed_latency_s);
+  speed_stale_ns_ = seconds_to_ns(cfg_.daemon.speed_stale_periods * pc.speed_frame.period_s);
+  sensor_stale_ns_ = seconds_to_ns(cfg_.daemon.sensor_stale_s);
+  // A block waits for the speed sample that follows it at most this long (real-time sources).
+  hold_ns_ = std::min<std::int64_t>(std::max<std::int64_t>(seconds_to_ns(4 * pc.speed_frame.period_s), 50'000'000),
+                                    std::max<std::int64_t>(speed_stale_ns_ / 2, 1'000'000));
+  output_period_ns_ = seconds_to_ns(cfg_.alarm.can_period_s);
+  st_ = PipelineStatus{};
+  st_.phase = mode_ == PipelineMode::kMonitor && refused() ? Phase::kRefused : Phase::kStarting;
+  published_.store(st_);
+  configured_ = true;
+}
+
+void Pipeline::activate() {
+  if (!configured_) throw Error("pipeline: activate() before configure()");
+  if (active_) return;
+  std::size_t outputs_started = 0;
+  try {
+    source_->activate();
+    channel_->activate();
+    for (auto& o : outputs_) {
+      o->activate();
+      ++outputs_started;
+    }
+  } catch (...) {
+    for (std::size_t i = 0; i < outputs_started; ++i) outputs_[i]->deactivate();
+    channel_->deactivate();
+    source_->deactivate();
+    throw;
+  }
+  stop_.store(false, std::memory_order_relaxed);
+  last_block_arrival_ns_ = clock_.now_ns();
+  active_ = true;
+  acq_thread_ = std::thread([this] { acquisition_loop(); });
+  can_thread_ = std::thread([this] { can_loop(); });
+  proc_thread_ = std::thread([this] { processing_loop(); });
+  pthread_setname_np(acq_thread_.native_handle(), "ptdad-acq");
+  pthread_setname_np(can_thread_.native_handle(), "ptdad-can");
+  pthread_setname_np(proc_thread_.native_handle(), "ptdad-proc");
+}
+
+void Pipeline::deactivate() noexcept {
+  if (!active_) return;
+  stop_.store(true, std::memory_order_relaxed);
+  if (acq_thread_.joinable()) acq_thread_.join();
+  if (can_thread_.joinable()) can_thread_.join();
+  if (proc_thread_.joinable()) proc_thread_.join();
+  for (auto& o : outputs_) o->deactivate();
+  channel_->deactivate();
+  source_->deactivate();
+  active_ = false;
+}
+
+void Pipeline::post_clear() noexcept {
+  if (alarm_) alarm_->post_clear_request(ClearSource::kLocal);
+}
+
+StageHeartbeats Pipeline::heartbeats() const noexcept {
+  return {acq_beat_.load(std::memory_order_relaxed), can_beat_.load(std::memory_order_relaxed),
+          proc_beat_.load(std::memory_order_relaxed)};
+}
+
+PipelineCounters Pipeline::counters() const noexcept {
+  PipelineCounters c;
+  c.acq_ring_full_blocks = acq_ring_full_blocks_.get();
+  c.acq_ring_full_samples = acq_ring_full_samples_.get();
+  c.acq_read_errors = acq_read_errors_.get();
+  c.acq_end = acq_end_.load(std::memory_order_acquire);
+  c.can_frames = can_frames_n_.get();
+  c.can_speed = can_speed_.get();
+  c.can_other_id = can_other_id_.get();
+  c.can_wrong_dlc = can_wrong_dlc_.get();
+  c.can_rtr = can_rtr_.get();
+  c.can_error_frames = can_error_frames_.get();
+  c.can_ring_full = can_ring_full_.get();
+  c.can_clear_frames = can_clear_frames_.get();
+  c.can_receive_errors = can_receive_errors_.get();
+  c.can_end = can_end_.load(std::memory_order_acquire);
+  c.output_errors = output_errors_.get();
+  return c;
+}
+
+drivers::SampleSourceCounters Pipeline::source_counters() const noexcept {
+  return source_ ? source_->counters() : drivers::SampleSourceCounters{};
+}
+drivers::CanCounters Pipeline::can_counters() const noexcept {
+  return channel_ ? channel_->counters() : drivers::CanCounters{};
+}
+drivers::CanBusState Pipeline::can_bus_state() const noexcept {
+  return channel_ ? channel_->bus_state() : drivers::CanBusState::kErrorActive;
+}
+
+// ---- acquisition thread -------------------------------------------------------------------------
+
+void Pipeline::acquisition_loop() noexcept {
+  drivers::SampleBlock& block = *acq_block_;
+  while (!stop_.load(std::memory_order_relaxed)) {
+    acq_beat_.fetch_add(1, std::memory_order_relaxed);
+    if (acq_end_.load(std::memory_order_relaxed)) {
+      sleep_ns(kStageWaitNs);
+      continue;
+    }
+    switch (source_->read(block, kStageWaitNs)) {
+      case SourceStatus::kOk:
+        // A full ring is an overrun for a real-time source (the block is dropped and counted; the
+        // index jump becomes a gap downstream) and back-pressure for a fast replay.
+        while (!sample_ring_->try_push(block)) {
+          if (!source_fast_) {
+            acq_ring_full_blocks_.add();
+            acq_ring_full_samples_.add(block.count);
+            break;
+          }
+          if (stop_.load(std::memory_order_relaxed)) return;
+          acq_beat_.fetch_add(1, std::memory_order_relaxed);
+          sleep_ns(200'000);
+        }
+        break;
+      case SourceStatus::kTimeout: break;
+      case SourceStatus::kEndOfStream: acq_end_.store(true, std::memory_order_release); break;
+      case SourceStatus::kError:
+      case SourceStatus::kNotActive:
+        acq_read_errors_.add();
+        sleep_ns(10'000'000);
+        break;
+    }
+  }
+}
+
+// ---- CAN thread ---------------------------------------------------------------------------------
+
+void Pipeline::can_loop() noexcept {
+  const config::SpeedFrameSpec& spec = cfg_.pipeline.speed_frame;
+  const ClearFrameSpec& clear = cfg_.can.clear_frame;
+  while (!stop_.load(std::memory_order_relaxed)) {
+    can_beat_.fetch_add(1, std::memory_order_relaxed);
+    if (can_end_.load(std::memory_order_relaxed)) {
+      sleep_ns(kStageWaitNs);
+      continue;
+    }
+    std::size_t n = 0;
+    const CanStatus st = channel_->receive(std::span<CanFrame>(can_frames_), n, kStageWaitNs);
+    if (st == CanStatus::kEndOfStream) {
+      can_end_.store(true, std::memory_order_release);
+      continue;
+    }
+    if (st == CanStatus::kError || st == CanStatus::kNotActive) {
+      can_receive_errors_.add();
+      sleep_ns(10'000'000);
+      continue;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const CanFrame& f = can_frames_[i];
+      can_frames_n_.add();
+      config::DecodedSpeed d;
+      switch (config::decode_speed(f, spec, d)) {
+        case config::DecodeResult::kOk: {
+          can_speed_.add();
+          const dsp::SpeedSample s{f.t_ns - latency_ns_, d.speed_rad_s, d.angle_rad, d.has_angle};
+          while (!speed_ring_->try_push(s)) {
+            if (!can_fast_) {
+              can_ring_full_.add();
+              break;
+            }
+            if (stop_.load(std::memory_order_relaxed)) return;
+            can_beat_.fetch_add(1, std::memory_order_relaxed);
+            sleep_ns(200'000);
+          }
+          break;
+        }
+        case config::DecodeResult::kOtherId:
+          if (matches_clear(f, clear)) {
+            can_clear_frames_.add();
+            alarm_->post_clear_request(ClearSource::kCan);
+          } else {
+            can_other_id_.add();
+          }
+          break;
+        case config::DecodeResult::kWrongDlc: can_wrong_dlc_.add(); break;
+        case config::DecodeResult::kRtr: can_rtr_.add(); break;
+        case config::DecodeResult::kErrorFrame: can_error_frames_.add(); break;
+      }
+    }
+  }
+}
+
+// ---- processing thread --------------------------------------------------------------------------
+
+std::int64_t Pipeline::sample_time(std::uint64_t index) const noexcept {
+  // ceil(index * 1e12 / fs_mhz), exact (the slicer's convention for sample times).
+  const auto f = static_cast<std::uint64_t>(fs_mhz_);
+  const std::uint64_t whole = index / f;
+  __extension__ using U128 = unsigned __int128;
+  const U128 num = static_cast<U128>(index % f) * 1'000'000'000'000ULL;
+  return static_cast<std::int64_t>(whole * 1'000'000'000ULL + static_cast<std::uint64_t>((num + f - 1) / f));
+}
+
+void Pipeline::push_block(const drivers::SampleBlock& b) noexcept {
+  if (b.first_index < base_index_ + expected_index_) {
+    ++st_.index_back;
+    return;
+  }
+  const std::uint64_t index = b.first_index - base_index_;
+  if (index > expected_index_) {
+    const std::uint64_t gap = index - expected_index_;
+    if (engine_) engine_->mark_gap(gap);
+    if (train_slicer_) train_slicer_->mark_gap(gap);
+    st_.gap_samples += gap;
+  }
+  const std::span<const float> samples(b.samples, b.count);
+  if (engine_) engine_->push_samples(samples);
+  if (train_slicer_) train_slicer_->push_samples(samples);
+  expected_index_ = index + b.count;
+  ++st_.blocks;
+  st_.samples += b.count;
+  st_.data_time_ns = st_.t0_mono_ns + sample_time(expected_index_);
+  const std::int64_t dev = b.t_mono_ns - (st_.t0_mono_ns + sample_time(index));
+  st_.max_block_dev_ns = std::max(st_.max_block_dev_ns, dev < 0 ? -dev : dev);
+}
+
+void Pipeline::push_speed(const dsp::SpeedSample& s) noexcept {
+  dsp::SpeedSample shifted = s;
+  shifted.t_ns -= st_.t0_mono_ns;
+  if (!streams_finished_) {
+    if (engine_) engine_->push_speed(shifted);
+    if (train_slicer_) train_slicer_->push_speed(shifted);
+  }
+  ++st_.speeds;
+  st_.last_speed_ns = std::max(st_.last_speed_ns, s.t_ns);
+  have_any_speed_ = true;
+}
+
+void Pipeline::drain_windows(std::int64_t now) noexcept {
+  const std::int64_t t0 = st_.t0_mono_ns;
+  if (engine_) {
+    dsp::WindowResult r;
+    while (engine_->poll(r)) {
+      r.ref.t_start_ns += t0;
+      r.ref.t_end_ns += t0;
+      ++st_.windows;
+      if (r.status == dsp::WindowStatus::kScored) {
+        ++st_.scored;
+        if (r.verdict.abnormal()) ++st_.abnormal;
+        st_.have_window = true;
+        st_.last_window = r;
+      } else {
+        ++st_.no_class;
+      }
+      if (r.alarm) ++st_.alarm_windows;
+      alarm_->on_window(r, alarm_time(fast_ ? r.ref.t_end_ns : now));
+      if (sink_ != nullptr) sink_->on_window(r);
+    }
+  }
+  if (train_slicer_) {
+    dsp::WindowRef ref;
+    while (train_slicer_->pop(ref, std::span<float>(train_window_))) {
+      ++st_.windows;
+      trainer_->add_window(ref, train_window_);
+    }
+    dsp::RegionInfo region;
+    while (train_slicer_->pop_region(region)) trainer_->add_region(region);
+  }
+}
+
+bool Pipeline::process_step(std::int64_t now) noexcept {
+  bool work = false;
+  if (!have_block_ && sample_ring_->try_pop(*held_block_)) {
+    have_block_ = true;
+    last_block_arrival_ns_ = now;
+    if (!st_.have_t0) {
+      st_.have_t0 = true;
+      st_.t0_mono_ns = held_block_->t_mono_ns;
+      base_index_ = held_block_->first_index;
+      expected_index_ = 0;
+    }
+    work = true;
+  }
+  if (!st_.have_t0) {
+    // Speed samples wait in their ring for t0. A real-time source that never delivers must not stall
+    // the CAN thread: keep the newest half of the ring.
+    if (!fast_ && speed_ring_->size_approx() > kSpeedRingSamples / 2) {
+      dsp::SpeedSample dropped;
+      if (speed_ring_->try_pop(dropped)) ++st_.speeds_before_t0;
+    }
+    return work;
+  }
+  if (!have_speed_ && speed_ring_->try_pop(next_speed_)) {
+    have_speed_ = true;
+    work = true;
+  }
+  const bool can_end = can_end_.load(std::memory_order_acquire);
+  if (have_block_) {
+    const drivers::SampleBlock& b = *held_block_;
+    const std::uint64_t end_index = b.first_index >= base_index_ ? b.first_index - base_index_ + b.count : 0;
+    const std::int64_t block_end = st_.t0_mono_ns + sample_time(end_index);
+    // Speed samples before the block's end go first (as `ptda monitor` interleaves them).
+    while (have_speed_ && next_speed_.t_ns < block_end) {
+      push_speed(next_speed_);
+      have_speed_ = speed_ring_->try_pop(next_speed_);
+      work = true;
+    }
+    const bool release = have_speed_ || can_end ||
+                         (!fast_ && (now - block_end > hold_ns_ ||
+                                     sample_ring_->size_approx() > kSampleRingBlocks * 3 / 4));
+    if (release) {
+      push_block(b);
+      have_block_ = false;
+      work = true;
+      // Poll after every block, as `ptda monitor` does: the slicer's history holds a few windows, so
+      // windows must be taken out before many more blocks overwrite their samples.
+      drain_windows(now);
+    }
+  } else if (have_speed_) {
+    const bool acq_end = acq_end_.load(std::memory_order_acquire) && sample_ring_->size_approx() == 0;
+    if (acq_end || (!fast_ && speed_ring_->size_approx() > kSpeedRingSamples / 2)) {
+      push_speed(next_speed_);
+      have_speed_ = false;
+      work = true;
+    }
+  }
+  if (!streams_finished_ && !have_block_ && acq_end_.load(std::memory_order_acquire) &&
+      sample_ring_->size_approx() == 0) {
+    const bool can_live = cfg_.can.backend == CanBackend::kSocketCan;
+    if (can_live || (can_end && !have_speed_ && speed_ring_->size_approx() == 0)) {
+      finish_streams();
+      drain_windows(now);
+      work = true;
+    }
+  }
+  return work;
+}
+
+std::int64_t Pipeline::alarm_time(std::int64_t candidate) noexcept {
+  // Fast replays judge on data time, real-time sources on the clock; either way never backwards.
+  alarm_time_ns_ = std::max(alarm_time_ns_, candidate);
+  return alarm_time_ns_;
+}
+
+void Pipeline::finish_streams() noexcept {
+  if (engine_) engine_->finish();
+  if (train_slicer_) train_slicer_->finish();
+  streams_finished_ = true;
+  st_.ended = true;
+}
+
+void Pipeline::update_phase(std::int64_t now) noexcept {
+  Phase phase = Phase::kMonitoring;
+  std::uint8_t causes = 0;
+  const bool acq_end = acq_end_.load(std::memory_order_acquire);
+  if (mode_ == PipelineMode::kMonitor && !engine_) {
+    phase = Phase::kRefused;
+    causes = drivers::kCauseBaseline;
+  } else if (st_.ended) {
+    phase = Phase::kEnded;
+    causes = drivers::kCauseSensor;
+  } else {
+    const bool sensor_stale = !fast_ && (acq_end || now - last_block_arrival_ns_ > sensor_stale_ns_);
+    bool speed_stale = channel_->bus_state() == drivers::CanBusState::kBusOff;
+    if (st_.have_t0) {
+      const std::int64_t last = have_any_speed_ ? st_.last_speed_ns : st_.t0_mono_ns;
+      if (st_.data_time_ns - last > speed_stale_ns_) speed_stale = true;
+    }
+    if (sensor_stale) {
+      phase = Phase::kPausedSensor;
+      causes = drivers::kCauseSensor;
+    } else if (speed_stale) {
+      phase = Phase::kPausedSpeed;
+      causes = drivers::kCauseSpeed;
+    } else if (!st_.have_t0) {
+      phase = Phase::kStarting;
+    } else if (mode_ == PipelineMode::kTrain) {
+      phase = Phase::kTraining;
+    }
+    if (mode_ == PipelineMode::kTrain) causes |= drivers::kCauseBaseline;  // nothing is judged while training
+  }
+  if ((phase == Phase::kPausedSpeed || phase == Phase::kPausedSensor) && phase != st_.phase) ++st_.pauses;
+  st_.phase = phase;
+  if (causes != st_.fault_causes || !faults_applied_) {
+    alarm_->set_faults(causes, alarm_time(fast_ ? st_.data_time_ns : now));
+    st_.fault_causes = causes;
+    faults_applied_ = true;
+  }
+}
+
+void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
+  if (outputs_.empty()) return;
+  const drivers::AlarmReport report = alarm_->report();
+  const bool changed = report.level != last_output_level_ || report.causes != last_output_causes_;
+  if (!force && !changed && now - last_output_ns_ < output_period_ns_) return;
+  for (auto& o : outputs_) {
+    if (o->set(report) != drivers::OutputStatus::kOk) output_errors_.add();
+  }
+  last_output_level_ = report.level;
+  last_output_causes_ = report.causes;
+  last_output_ns_ = now;
+}
+
+void Pipeline::publish(std::int64_t now, bool force) noexcept {
+  if (!force && now - last_publish_ns_ < 20'000'000) return;
+  if (engine_) st_.slicer = engine_->slicer().counters();
+  if (train_slicer_) st_.slicer = train_slicer_->counters();
+  st_.alarm = alarm_->state();
+  st_.report = alarm_->report();
+  st_.alarm_counters = alarm_->counters();
+  published_.store(st_);
+  last_publish_ns_ = now;
+}
+
+void Pipeline::processing_loop() noexcept {
+  std::int64_t now = clock_.now_ns();
+  update_phase(now);
+  drive_outputs(now, true);
+  publish(now, true);
+  while (!stop_.load(std::memory_order_relaxed)) {
+    if (stall_.load(std::memory_order_relaxed)) {  // test-only fault injection: no work, no heartbeat
+      sleep_ns(5'000'000);
+      continue;
+    }
+    proc_beat_.fetch_add(1, std::memory_order_relaxed);
+    now = clock_.now_ns();
+    bool work = false;
+    for (int i = 0; i < 64; ++i) {
+      if (!process_step(now)) break;
+      work = true;
+    }
+    update_phase(now);
+    alarm_->tick(alarm_time(fast_ ? st_.data_time_ns : now));
+    drive_outputs(now, false);
+    publish(now, false);
+    if (!work) sleep_ns(1'000'000);
+  }
+  publish(clock_.now_ns(), true);
+}
+
+}  // namespace ptda::daemon

@@ -1,0 +1,257 @@
+// The run-time half of ptdad: three real-time threads joined by two SPSC rings, built from a
+// DaemonConfig.
+//
+//   acquisition ── SampleSource::read ──▶ SampleRing (kSampleRingBlocks blocks of ≤ 1024 samples) ──┐
+//   can ── CanChannel::receive ─ decode_speed ─ latency ──▶ SpeedRing (kSpeedRingSamples) ───────────┤
+//                                   └─ clear frame ─▶ AlarmManager::post_clear_request              │
+//   processing ◀───────────────────────────────────────────────────────────────────────────────────┘
+//      merges both streams by time ─▶ dsp::MonitorEngine (the code `ptda monitor` runs) ─▶ WindowResult
+//      ─▶ AlarmManager ─▶ AlarmOutputs (GPIO line, CAN frame); publishes PipelineStatus (seqlock)
+//
+// Lifecycle (what is true in each state):
+//   constructed  - holds a copy of the configuration; nothing opened or allocated.
+//   configured   - configure() opened every device/file, read and checked the baseline (a baseline that
+//                  is missing, corrupt or does not match puts the pipeline in "refused": it runs, judges
+//                  nothing and shows kFault with cause "baseline"), built the engine, allocated the rings
+//                  and every buffer. Throws ptda::Error for everything else (device, recording, scenario).
+//   active       - activate() started the devices and the three threads. From here on nothing
+//                  allocates, throws, logs or blocks except each thread's one wait.
+//   deactivated  - deactivate() stopped and joined the threads (each checks the stop flag at least every
+//                  kStageWaitNs), drove the outputs fail-safe and stopped the devices. Idempotent.
+//
+// Time: every timestamp is on the daemon clock (CLOCK_MONOTONIC ns). The first vibration block defines
+// t0 = t_mono_ns(first block) - first_index / fs ("stream time" 0). The engine runs on stream time
+// (t - t0) with sample i at ceil(i * 1e9 / fs): speed samples are shifted by -t0 before they are pushed,
+// results by +t0 after they are polled. CAN frames carry receive times on the same clock; the pipeline's
+// [can] speed_latency_s is subtracted from each. See docs/daemon.md, "Time alignment".
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "alarm/alarm_manager.hpp"
+#include "core/daemon_config.hpp"
+#include "core/seqlock.hpp"
+#include "core/sim_backends.hpp"
+#include "ptda/drivers/alarm_output.hpp"
+#include "ptda/drivers/can_channel.hpp"
+#include "ptda/drivers/clock.hpp"
+#include "ptda/drivers/counter.hpp"
+#include "ptda/drivers/sample_source.hpp"
+#include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/monitor_engine.hpp"
+#include "rt/spsc_ring.hpp"
+#include "training/field_trainer.hpp"
+
+namespace ptda::daemon {
+
+inline constexpr std::size_t kSampleRingBlocks = 64;   ///< 64 x 1024 samples: 2.56 s at 25.6 kHz
+inline constexpr std::size_t kSpeedRingSamples = 4096; ///< 16 s of 4 ms speed frames
+inline constexpr std::size_t kCanBatch = 64;           ///< frames per receive() call
+inline constexpr std::int64_t kStageWaitNs = 50'000'000;  ///< longest wait of a stage before it re-checks
+
+using SampleRing = SpscRing<drivers::SampleBlock, kSampleRingBlocks>;
+using SpeedRing = SpscRing<dsp::SpeedSample, kSpeedRingSamples>;
+
+/// What the processing stage is doing (the reason behind the daemon state).
+enum class Phase : std::uint8_t {
+  kStarting = 0,     ///< activated, no vibration block yet
+  kMonitoring = 1,   ///< windows are being judged
+  kPausedSpeed = 2,  ///< no speed sample for [daemon] speed_stale_periods frame periods, or bus-off
+  kPausedSensor = 3, ///< no vibration block for [daemon] sensor_stale_s (real-time sources)
+  kRefused = 4,      ///< no usable baseline: nothing is judged
+  kTraining = 5,     ///< field training: windows go to the FieldTrainer
+  kEnded = 6,        ///< a replay ended and every window was processed
+};
+[[nodiscard]] const char* phase_name(Phase p) noexcept;
+
+enum class PipelineMode : std::uint8_t { kMonitor = 0, kTrain = 1 };
+
+/// Receives every processed window (test and tool hook). Called on the processing thread: must not
+/// block, allocate or throw.
+class WindowSink {
+ public:
+  virtual ~WindowSink() = default;
+  virtual void on_window(const dsp::WindowResult& w) noexcept = 0;
+};
+
+/// Published by the processing thread (seqlock), read by the supervisor.
+struct PipelineStatus {
+  Phase phase = Phase::kStarting;
+  std::uint8_t fault_causes = 0;     ///< AlarmCause bits passed to the alarm manager
+  bool have_t0 = false;
+  bool ended = false;
+  std::int64_t t0_mono_ns = 0;       ///< daemon time of sample 0
+  std::int64_t data_time_ns = 0;     ///< end time of the newest vibration block pushed
+  std::int64_t last_speed_ns = 0;    ///< newest speed sample (latency applied)
+  std::uint64_t windows = 0, scored = 0, no_class = 0, abnormal = 0, alarm_windows = 0;
+  std::uint64_t blocks = 0, samples = 0, speeds = 0;
+  std::uint64_t gap_samples = 0;     ///< samples declared missing to the engine (index jumps)
+  std::uint64_t index_back = 0;      ///< blocks dropped because their index went backwards
+  std::uint64_t speeds_before_t0 = 0;
+  std::uint64_t pauses = 0;          ///< transitions into a paused phase
+  std::int64_t max_block_dev_ns = 0; ///< max |block stamp - (t0 + index / fs)|
+  dsp::SlicerCounters slicer;
+  bool have_window = false;
+  dsp::WindowResult last_window;     ///< last scored window (times on the daemon clock)
+  AlarmState alarm;
+  drivers::AlarmReport report;
+  AlarmCounters alarm_counters;
+};
+
+struct StageHeartbeats {
+  std::uint64_t acquisition = 0, can = 0, processing = 0;
+};
+
+/// Counters of the acquisition and CAN threads (single writer each; read by any thread).
+struct PipelineCounters {
+  std::uint64_t acq_ring_full_blocks = 0, acq_ring_full_samples = 0, acq_read_errors = 0;
+  bool acq_end = false;
+  std::uint64_t can_frames = 0, can_speed = 0, can_other_id = 0, can_wrong_dlc = 0, can_rtr = 0;
+  std::uint64_t can_error_frames = 0, can_ring_full = 0, can_clear_frames = 0, can_receive_errors = 0;
+  bool can_end = false;
+  std::uint64_t output_errors = 0;
+};
+
+class Pipeline {
+ public:
+  /// Copies the configuration. `clock` must outlive the pipeline. Thread: main. Allocates.
+  Pipeline(const DaemonConfig& cfg, PipelineMode mode, drivers::Clock& clock);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  /// See the lifecycle above. Throws ptda::Error "what: where". Thread: main. Blocks and allocates.
+  void configure();
+  /// Activates devices and outputs, starts the threads. Throws ptda::Error (nothing left running).
+  /// Thread: main. Spawns threads (allocates).
+  void activate();
+  /// Stops and joins the threads, outputs fail-safe, devices stopped. Thread: main. Blocks ≤ ~0.1 s.
+  void deactivate() noexcept;
+
+  /// Test/tool hook, set before activate(). Thread: main.
+  void set_window_sink(WindowSink* sink) noexcept { sink_ = sink; }
+  /// Test-only fault injection: while true the processing thread stops working and stops beating
+  /// (it still honours stop). Thread: any. Never blocks.
+  void set_processing_stall(bool stall) noexcept { stall_.store(stall, std::memory_order_relaxed); }
+  /// Posts an operator clear of a latched alarm. Thread: any. Never blocks or allocates.
+  void post_clear() noexcept;
+
+  /// Thread: any. Never blocks (retries a torn read) or allocates.
+  [[nodiscard]] PipelineStatus status() const noexcept { return published_.load(); }
+  [[nodiscard]] StageHeartbeats heartbeats() const noexcept;
+  [[nodiscard]] PipelineCounters counters() const noexcept;
+  [[nodiscard]] drivers::SampleSourceCounters source_counters() const noexcept;
+  [[nodiscard]] drivers::CanCounters can_counters() const noexcept;
+  [[nodiscard]] drivers::CanBusState can_bus_state() const noexcept;
+
+  /// After configure(). Thread: any.
+  [[nodiscard]] bool refused() const noexcept { return !refusal_.empty(); }
+  [[nodiscard]] const std::string& refusal() const noexcept { return refusal_; }
+  [[nodiscard]] const dsp::Baseline* baseline() const noexcept { return baseline_.get(); }
+  [[nodiscard]] double fs_hz() const noexcept { return fs_hz_; }
+  [[nodiscard]] bool fast() const noexcept { return fast_; }
+  [[nodiscard]] PipelineMode mode() const noexcept { return mode_; }
+  [[nodiscard]] const DaemonConfig& config() const noexcept { return cfg_; }
+  /// The field trainer (training mode), else nullptr. Thread: see FieldTrainer.
+  [[nodiscard]] const FieldTrainer* trainer() const noexcept { return trainer_.get(); }
+  /// A one-line description of the inputs, e.g. "adc sim (scenario ...), can sim". Thread: any.
+  [[nodiscard]] const std::string& inputs_text() const noexcept { return inputs_text_; }
+
+ private:
+  void acquisition_loop() noexcept;
+  void can_loop() noexcept;
+  void processing_loop() noexcept;
+
+  // Processing helpers (processing thread only).
+  bool process_step(std::int64_t now) noexcept;
+  void push_block(const drivers::SampleBlock& b) noexcept;
+  void push_speed(const dsp::SpeedSample& s) noexcept;
+  void drain_windows(std::int64_t now) noexcept;
+  void update_phase(std::int64_t now) noexcept;
+  void drive_outputs(std::int64_t now, bool force) noexcept;
+  void publish(std::int64_t now, bool force) noexcept;
+  void finish_streams() noexcept;
+  [[nodiscard]] std::int64_t alarm_time(std::int64_t candidate) noexcept;
+  [[nodiscard]] std::int64_t sample_time(std::uint64_t index) const noexcept;  ///< stream time of index
+
+  DaemonConfig cfg_;
+  PipelineMode mode_;
+  drivers::Clock& clock_;
+  std::string inputs_text_;
+
+  // Devices and outputs.
+  std::shared_ptr<const SimRecording> sim_;
+  SimAnchor sim_anchor_;
+  std::unique_ptr<drivers::SampleSource> source_;
+  std::unique_ptr<drivers::CanChannel> channel_;
+  std::vector<std::unique_ptr<drivers::AlarmOutput>> outputs_;
+  bool source_fast_ = false, can_fast_ = false, fast_ = false;
+  double fs_hz_ = 0.0;
+  std::int64_t fs_mhz_ = 0;
+
+  // Monitoring.
+  std::string refusal_;
+  std::unique_ptr<dsp::Baseline> baseline_;
+  std::unique_ptr<dsp::MonitorEngine> engine_;
+  std::unique_ptr<dsp::WindowSlicer> train_slicer_;
+  std::unique_ptr<FieldTrainer> trainer_;
+  std::vector<float> train_window_;
+  std::unique_ptr<AlarmManager> alarm_;
+  WindowSink* sink_ = nullptr;
+
+  // Rings (allocated at configure).
+  std::unique_ptr<SampleRing> sample_ring_;
+  std::unique_ptr<SpeedRing> speed_ring_;
+
+  // Acquisition thread state.
+  std::unique_ptr<drivers::SampleBlock> acq_block_;
+  std::atomic<bool> acq_end_{false};
+  drivers::Counter acq_ring_full_blocks_, acq_ring_full_samples_, acq_read_errors_;
+  std::atomic<std::uint64_t> acq_beat_{0};
+
+  // CAN thread state.
+  std::array<CanFrame, kCanBatch> can_frames_{};
+  std::atomic<bool> can_end_{false};
+  drivers::Counter can_frames_n_, can_speed_, can_other_id_, can_wrong_dlc_, can_rtr_, can_error_frames_,
+      can_ring_full_, can_clear_frames_, can_receive_errors_;
+  std::atomic<std::uint64_t> can_beat_{0};
+  std::int64_t latency_ns_ = 0;
+
+  // Processing thread state.
+  std::unique_ptr<drivers::SampleBlock> held_block_;
+  bool have_block_ = false;
+  dsp::SpeedSample next_speed_{};
+  bool have_speed_ = false;
+  bool streams_finished_ = false;
+  std::uint64_t base_index_ = 0;      ///< first_index of the first block (stream sample 0)
+  std::uint64_t expected_index_ = 0;  ///< stream index of the next sample
+  bool have_any_speed_ = false;
+  bool faults_applied_ = false;
+  std::int64_t alarm_time_ns_ = 0;    ///< monotone time base of the alarm manager
+  std::int64_t last_block_arrival_ns_ = 0;
+  std::int64_t hold_ns_ = 0;
+  std::int64_t speed_stale_ns_ = 0;
+  std::int64_t sensor_stale_ns_ = 0;
+  std::int64_t last_publish_ns_ = 0;
+  std::int64_t last_output_ns_ = 0;
+  std::int64_t output_period_ns_ = 0;
+  drivers::AlarmLevel last_output_level_ = drivers::AlarmLevel::kFault;
+  std::uint8_t last_output_causes_ = 0xFF;
+  PipelineStatus st_;  ///< the processing thread's working copy of what it publishes
+  drivers::Counter output_errors_;
+  std::atomic<std::uint64_t> proc_beat_{0};
+  std::atomic<bool> stall_{false};
+
+  Seqlock<PipelineStatus> published_;
+  std::atomic<bool> stop_{false};
+  std::thread acq_thread_, can_thread_, proc_thread_;
+  bool configured_ = false;
+  bool active_ = false;
+};
+
+}  // namespace ptda::daemon

@@ -1,0 +1,646 @@
+#include "status/status_writer.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+
+#include "ptda/common/error.hpp"
+
+namespace ptda::daemon {
+
+// ---------------------------------------------------------------------------------------------------
+// TextBuffer
+
+void TextBuffer::append(std::string_view s) noexcept {
+  if (overflow_) return;
+  if (s.size() > cap_ - len_) {
+    overflow_ = true;
+    return;
+  }
+  for (const char c : s) data_[len_++] = c;
+}
+
+void TextBuffer::append_char(char c) noexcept {
+  append(std::string_view(&c, 1));
+}
+
+void TextBuffer::append_u64(std::uint64_t v) noexcept {
+  char buf[24];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  append(std::string_view(buf, static_cast<std::size_t>(r.ptr - buf)));
+}
+
+void TextBuffer::append_i64(std::int64_t v) noexcept {
+  char buf[24];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  append(std::string_view(buf, static_cast<std::size_t>(r.ptr - buf)));
+}
+
+void TextBuffer::append_double(double v, std::string_view null_text) noexcept {
+  if (!std::isfinite(v)) {
+    if (!null_text.empty()) {
+      append(null_text);
+    } else if (std::isnan(v)) {
+      append("NaN");
+    } else {
+      append(v > 0 ? "+Inf" : "-Inf");
+    }
+    return;
+  }
+  char buf[40];
+  const int n = std::snprintf(buf, sizeof buf, "%.9g", v);
+  if (n <= 0 || static_cast<std::size_t>(n) >= sizeof buf) {
+    overflow_ = true;
+    return;
+  }
+  append(std::string_view(buf, static_cast<std::size_t>(n)));
+}
+
+void TextBuffer::append_json_string(std::string_view s) noexcept {
+  static constexpr char kHex[] = "0123456789abcdef";
+  append_char('"');
+  for (const char c : s) {
+    switch (c) {
+      case '"':
+        append("\\\"");
+        break;
+      case '\\':
+        append("\\\\");
+        break;
+      case '\b':
+        append("\\b");
+        break;
+      case '\f':
+        append("\\f");
+        break;
+      case '\n':
+        append("\\n");
+        break;
+      case '\r':
+        append("\\r");
+        break;
+      case '\t':
+        append("\\t");
+        break;
+      default: {
+        const auto u = static_cast<unsigned char>(c);
+        if (u < 0x20) {
+          const char esc[6] = {'\\', 'u', '0', '0', kHex[u >> 4], kHex[u & 0xF]};
+          append(std::string_view(esc, 6));
+        } else {
+          append_char(c);
+        }
+      }
+    }
+  }
+  append_char('"');
+}
+
+void TextBuffer::append_label_value(std::string_view s) noexcept {
+  for (const char c : s) {
+    switch (c) {
+      case '"':
+        append("\\\"");
+        break;
+      case '\\':
+        append("\\\\");
+        break;
+      case '\n':
+        append("\\n");
+        break;
+      default:
+        append_char(c);
+    }
+  }
+}
+
+namespace {
+
+using drivers::AlarmLevel;
+
+/// Seconds with millisecond resolution ("%.3f"); JSON null when not finite.
+void append_seconds(TextBuffer& b, double s) noexcept {
+  if (!std::isfinite(s)) {
+    b.append("null");
+    return;
+  }
+  char buf[48];
+  const int n = std::snprintf(buf, sizeof buf, "%.3f", s);
+  if (n <= 0 || static_cast<std::size_t>(n) >= sizeof buf) {
+    b.append("null");
+    return;
+  }
+  b.append(std::string_view(buf, static_cast<std::size_t>(n)));
+}
+
+constexpr std::array<std::pair<std::uint8_t, std::string_view>, 6> kCauseNames{{
+    {drivers::kCauseRms, "rms"},
+    {drivers::kCauseEntropy, "entropy"},
+    {drivers::kCauseSensor, "sensor"},
+    {drivers::kCauseSpeed, "speed"},
+    {drivers::kCauseBaseline, "baseline"},
+    {drivers::kCauseInternal, "internal"},
+}};
+
+// ----------------------------------------------------------------------------------------------- JSON
+class Json {
+ public:
+  explicit Json(TextBuffer& b) noexcept : b_(b) {}
+  void open(char c) noexcept {
+    b_.append_char(c);
+    first_ = true;
+  }
+  void close(char c) noexcept {
+    b_.append_char(c);
+    first_ = false;
+  }
+  void key(std::string_view k) noexcept {
+    if (!first_) b_.append_char(',');
+    first_ = false;
+    b_.append_json_string(k);
+    b_.append_char(':');
+  }
+  void item() noexcept {
+    if (!first_) b_.append_char(',');
+    first_ = false;
+  }
+  void str(std::string_view k, std::string_view v) noexcept {
+    key(k);
+    b_.append_json_string(v);
+  }
+  void u64(std::string_view k, std::uint64_t v) noexcept {
+    key(k);
+    b_.append_u64(v);
+  }
+  void i64(std::string_view k, std::int64_t v) noexcept {
+    key(k);
+    b_.append_i64(v);
+  }
+  void num(std::string_view k, double v) noexcept {
+    key(k);
+    b_.append_double(v, "null");
+  }
+  void secs(std::string_view k, double v) noexcept {
+    key(k);
+    append_seconds(b_, v);
+  }
+  void boolean(std::string_view k, bool v) noexcept {
+    key(k);
+    b_.append(v ? "true" : "false");
+  }
+  void band(std::string_view k, double lo, double hi) noexcept {
+    key(k);
+    b_.append_char('[');
+    b_.append_double(lo, "null");
+    b_.append_char(',');
+    b_.append_double(hi, "null");
+    b_.append_char(']');
+  }
+  void null(std::string_view k) noexcept {
+    key(k);
+    b_.append("null");
+  }
+
+ private:
+  TextBuffer& b_;
+  bool first_ = true;
+};
+
+void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
+  Json j(b);
+  j.open('{');
+  j.u64("version", 1);
+  j.str("state", daemon_state_name(s.state));
+  j.str("reason", s.reason.view());
+  j.secs("uptime_s", s.uptime_s);
+  j.secs("now_s", s.now_s);
+  j.i64("wall_time_unix_ns", s.wall_time_unix_ns);
+  j.str("method", s.method.view());
+
+  j.key("baseline");
+  j.open('{');
+  j.boolean("loaded", s.baseline_loaded);
+  j.str("path", s.baseline_path.view());
+  j.str("source", s.baseline_source.view());
+  j.num("fs_hz", s.baseline_fs_hz);
+  j.u64("window_len", s.baseline_window_len);
+  j.u64("class_count", s.class_count);
+  j.key("classes");
+  j.open('[');
+  const std::uint32_t listed = s.classes_listed < kStatusMaxClasses ? s.classes_listed : kStatusMaxClasses;
+  for (std::uint32_t i = 0; i < listed; ++i) {
+    const StatusClass& c = s.classes[i];
+    j.item();
+    j.open('{');
+    j.u64("id", c.id);
+    j.i64("direction", c.direction);
+    j.num("speed_rad_s", c.speed_rad_s);
+    j.num("duration_s", c.duration_s);
+    j.u64("regions", c.regions);
+    j.u64("n_windows", c.n_windows);
+    j.band("rms_band", c.rms_lo, c.rms_hi);
+    j.band("entropy_band", c.entropy_lo, c.entropy_hi);
+    j.close('}');
+  }
+  j.close(']');
+  j.close('}');
+
+  if (s.have_window) {
+    j.key("last_window");
+    j.open('{');
+    j.secs("t_s", s.window_t_s);
+    j.i64("class", s.window_class);
+    j.num("speed_rad_s", s.window_speed_rad_s);
+    j.num("rms", s.window_rms);
+    j.num("entropy", s.window_entropy);
+    j.band("rms_band", s.window_rms_lo, s.window_rms_hi);
+    j.band("entropy_band", s.window_entropy_lo, s.window_entropy_hi);
+    j.boolean("rms_out", s.window_rms_out);
+    j.boolean("entropy_out", s.window_entropy_out);
+    j.boolean("abnormal", s.window_rms_out || s.window_entropy_out);
+    j.u64("abnormal_in_last_n", s.window_abnormal_in_last_n);
+    j.close('}');
+  } else {
+    j.null("last_window");
+  }
+
+  j.key("alarm");
+  j.open('{');
+  j.str("level", drivers::alarm_level_name(s.alarm_level));
+  j.secs("since_s", s.alarm_since_s);
+  j.boolean("latched", s.alarm_latched);
+  j.key("causes");
+  j.open('[');
+  for (const auto& [bit, name] : kCauseNames) {
+    if ((s.alarm_causes & bit) == 0) continue;
+    j.item();
+    b.append_json_string(name);
+  }
+  j.close(']');
+  if (s.trip_class >= 0) {
+    j.key("trip");
+    j.open('{');
+    j.i64("class", s.trip_class);
+    j.secs("t_s", s.trip_t_s);
+    j.num("rms", s.trip_rms);
+    j.num("entropy", s.trip_entropy);
+    j.close('}');
+  } else {
+    j.null("trip");
+  }
+  j.close('}');
+
+  if (s.state == DaemonState::kTraining) {
+    j.key("training");
+    j.open('{');
+    j.u64("windows", s.training_windows);
+    j.u64("capacity", s.training_capacity);
+    j.u64("regions", s.training_regions);
+    j.u64("classes", s.training_classes);
+    j.u64("classes_complete", s.training_classes_complete);
+    j.u64("target_cycles", s.training_target_cycles);
+    j.u64("dropped", s.training_dropped);
+    j.close('}');
+  } else {
+    j.null("training");
+  }
+
+  j.key("acquisition");
+  j.open('{');
+  j.u64("blocks", s.acq_blocks);
+  j.u64("samples", s.acq_samples);
+  j.u64("gaps", s.acq_gaps);
+  j.u64("lost_samples", s.acq_lost_samples);
+  j.u64("short_reads", s.acq_short_reads);
+  j.u64("time_back", s.acq_time_back);
+  j.u64("timeouts", s.acq_timeouts);
+  j.u64("read_errors", s.acq_read_errors);
+  j.close('}');
+
+  j.key("can");
+  j.open('{');
+  j.u64("frames", s.can_frames);
+  j.u64("speed_frames", s.can_speed_frames);
+  j.u64("other_ids", s.can_other_ids);
+  j.u64("wrong_dlc", s.can_wrong_dlc);
+  j.u64("error_frames", s.can_error_frames);
+  j.u64("rx_overflow_drops", s.can_rx_overflow_drops);
+  j.u64("bus_off", s.can_bus_off);
+  j.str("bus_state", can_bus_state_name(s.can_bus_state));
+  j.close('}');
+
+  j.key("slicer");
+  j.open('{');
+  j.u64("regions", s.slicer_regions);
+  j.u64("windows", s.slicer_windows);
+  j.u64("windows_invalid", s.slicer_windows_invalid);
+  j.u64("windows_lost", s.slicer_windows_lost);
+  j.close('}');
+
+  j.key("pipeline");
+  j.open('{');
+  j.u64("ring_overflows", s.ring_overflows);
+  j.u64("windows_scored", s.windows_scored);
+  j.u64("windows_abnormal", s.windows_abnormal);
+  j.u64("alarms_raised", s.alarms_raised);
+  j.u64("watchdog_pings", s.watchdog_pings);
+  j.close('}');
+  j.close('}');
+  b.append_char('\n');
+}
+
+// ----------------------------------------------------------------------------------------- Prometheus
+class Prom {
+ public:
+  explicit Prom(TextBuffer& b) noexcept : b_(b) {}
+  /// "# HELP name help\n# TYPE name type\n"
+  void family(std::string_view name, std::string_view type, std::string_view help) noexcept {
+    b_.append("# HELP ");
+    b_.append(name);
+    b_.append_char(' ');
+    b_.append(help);
+    b_.append("\n# TYPE ");
+    b_.append(name);
+    b_.append_char(' ');
+    b_.append(type);
+    b_.append_char('\n');
+  }
+  /// `name{labels} ` - labels is a list of key/value pairs.
+  void begin(std::string_view name,
+             std::initializer_list<std::pair<std::string_view, std::string_view>> labels) noexcept {
+    b_.append(name);
+    if (labels.size() != 0) {
+      b_.append_char('{');
+      bool first = true;
+      for (const auto& [k, v] : labels) {
+        if (!first) b_.append_char(',');
+        first = false;
+        b_.append(k);
+        b_.append("=\"");
+        b_.append_label_value(v);
+        b_.append_char('"');
+      }
+      b_.append_char('}');
+    }
+    b_.append_char(' ');
+  }
+  void sample(std::string_view name,
+              std::initializer_list<std::pair<std::string_view, std::string_view>> labels,
+              double v) noexcept {
+    begin(name, labels);
+    b_.append_double(v, {});
+    b_.append_char('\n');
+  }
+  void sample_u64(std::string_view name,
+                  std::initializer_list<std::pair<std::string_view, std::string_view>> labels,
+                  std::uint64_t v) noexcept {
+    begin(name, labels);
+    b_.append_u64(v);
+    b_.append_char('\n');
+  }
+  void gauge(std::string_view name, std::string_view help, double v) noexcept {
+    family(name, "gauge", help);
+    sample(name, {}, v);
+  }
+  void counter(std::string_view name, std::string_view help, std::uint64_t v) noexcept {
+    family(name, "counter", help);
+    sample_u64(name, {}, v);
+  }
+
+ private:
+  TextBuffer& b_;
+};
+
+/// Decimal text of a small integer in a caller's buffer (label values).
+std::string_view small_int(char (&buf)[16], std::int64_t v) noexcept {
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return {buf, static_cast<std::size_t>(r.ptr - buf)};
+}
+
+void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
+  Prom p(b);
+  p.family("ptda_info", "gauge",
+           "Constant 1; labels: monitoring method, state reason, baseline path and source.");
+  p.sample("ptda_info",
+           {{"method", s.method.view()},
+            {"reason", s.reason.view()},
+            {"baseline_path", s.baseline_path.view()},
+            {"baseline_source", s.baseline_source.view()}},
+           1.0);
+  p.family("ptda_state", "gauge", "1 for the daemon's current state, 0 for the others.");
+  for (const DaemonState st : {DaemonState::kConfigured, DaemonState::kRunning, DaemonState::kPaused,
+                               DaemonState::kRefused, DaemonState::kTraining, DaemonState::kStopping}) {
+    p.sample("ptda_state", {{"state", daemon_state_name(st)}}, st == s.state ? 1.0 : 0.0);
+  }
+  p.gauge("ptda_uptime_seconds", "Seconds since the daemon started.", s.uptime_s);
+
+  p.gauge("ptda_baseline_loaded", "1 when a baseline is loaded and accepted.", s.baseline_loaded ? 1.0 : 0.0);
+  p.gauge("ptda_baseline_sample_rate_hertz", "Sample rate the baseline was trained at.", s.baseline_fs_hz);
+  p.gauge("ptda_baseline_window_samples", "Samples per window in the baseline.", s.baseline_window_len);
+  p.gauge("ptda_baseline_classes", "Segment classes in the baseline.", s.class_count);
+
+  const std::uint32_t listed = s.classes_listed < kStatusMaxClasses ? s.classes_listed : kStatusMaxClasses;
+  char idb[16];
+  p.family("ptda_class_speed_radians_per_second", "gauge", "Signed joint speed of each segment class.");
+  for (std::uint32_t i = 0; i < listed; ++i) {
+    const StatusClass& c = s.classes[i];
+    p.sample("ptda_class_speed_radians_per_second", {{"class", small_int(idb, c.id)}},
+             c.direction < 0 ? -c.speed_rad_s : c.speed_rad_s);
+  }
+  p.family("ptda_rms_threshold", "gauge",
+           "Band of rms_res per class for the method in use (recording unit).");
+  for (std::uint32_t i = 0; i < listed; ++i) {
+    const StatusClass& c = s.classes[i];
+    p.sample("ptda_rms_threshold", {{"class", small_int(idb, c.id)}, {"bound", "low"}}, c.rms_lo);
+    p.sample("ptda_rms_threshold", {{"class", small_int(idb, c.id)}, {"bound", "high"}}, c.rms_hi);
+  }
+  p.family("ptda_entropy_threshold", "gauge", "Band of entropy_res per class for the method in use.");
+  for (std::uint32_t i = 0; i < listed; ++i) {
+    const StatusClass& c = s.classes[i];
+    p.sample("ptda_entropy_threshold", {{"class", small_int(idb, c.id)}, {"bound", "low"}}, c.entropy_lo);
+    p.sample("ptda_entropy_threshold", {{"class", small_int(idb, c.id)}, {"bound", "high"}}, c.entropy_hi);
+  }
+
+  p.family("ptda_window_rms", "gauge", "rms_res of the last scored window (recording unit).");
+  if (s.have_window) p.sample("ptda_window_rms", {{"class", small_int(idb, s.window_class)}}, s.window_rms);
+  p.family("ptda_window_entropy", "gauge", "entropy_res of the last scored window, [0, 1].");
+  if (s.have_window) {
+    p.sample("ptda_window_entropy", {{"class", small_int(idb, s.window_class)}}, s.window_entropy);
+  }
+  p.family("ptda_window_abnormal", "gauge", "1 when the last scored window was outside a band.");
+  if (s.have_window) {
+    p.sample("ptda_window_abnormal", {{"class", small_int(idb, s.window_class)}},
+             s.window_rms_out || s.window_entropy_out ? 1.0 : 0.0);
+  }
+  p.family("ptda_window_age_seconds", "gauge", "Seconds since the end of the last scored window.");
+  if (s.have_window) p.sample("ptda_window_age_seconds", {}, s.now_s - s.window_t_s);
+  p.gauge("ptda_abnormal_windows", "Abnormal windows among the debouncer's last n.",
+          s.window_abnormal_in_last_n);
+
+  p.gauge("ptda_alarm_level", "Published level: 0 normal, 1 warning, 2 alarm, 3 fault.",
+          static_cast<double>(s.alarm_level));
+  p.family("ptda_alarm_cause", "gauge", "1 for each cause bit of the published verdict.");
+  for (const auto& [bit, name] : kCauseNames) {
+    p.sample("ptda_alarm_cause", {{"cause", name}}, (s.alarm_causes & bit) != 0 ? 1.0 : 0.0);
+  }
+  p.gauge("ptda_alarm_latched", "1 while an alarm waits for an accepted clear.", s.alarm_latched ? 1.0 : 0.0);
+  p.gauge("ptda_alarm_level_duration_seconds", "Seconds since the level was entered.",
+          s.now_s - s.alarm_since_s);
+
+  if (s.state == DaemonState::kTraining) {
+    p.gauge("ptda_training_windows", "Healthy windows collected by field training.", s.training_windows);
+    p.gauge("ptda_training_window_capacity", "Windows the training pool holds.", s.training_capacity);
+    p.gauge("ptda_training_regions", "Constant-speed cycles collected.", s.training_regions);
+    p.gauge("ptda_training_classes", "Segment classes seen so far.", s.training_classes);
+    p.gauge("ptda_training_classes_complete", "Classes with the target number of cycles.",
+            s.training_classes_complete);
+    p.gauge("ptda_training_target_cycles", "Cycles wanted per class.", s.training_target_cycles);
+    p.counter("ptda_training_dropped_total", "Windows and regions dropped because the pool was full.",
+              s.training_dropped);
+  }
+
+  p.counter("ptda_acquisition_blocks_total", "Sample blocks read.", s.acq_blocks);
+  p.counter("ptda_acquisition_samples_total", "Vibration samples read.", s.acq_samples);
+  p.counter("ptda_acquisition_gaps_total", "Discontinuities in the sample stream.", s.acq_gaps);
+  p.counter("ptda_acquisition_lost_samples_total", "Samples estimated lost in gaps.", s.acq_lost_samples);
+  p.counter("ptda_acquisition_short_reads_total", "Reads that ended inside a scan.", s.acq_short_reads);
+  p.counter("ptda_acquisition_time_back_total", "Device timestamps that went backwards.", s.acq_time_back);
+  p.counter("ptda_acquisition_timeouts_total", "Reads that timed out.", s.acq_timeouts);
+  p.counter("ptda_acquisition_read_errors_total", "Failed reads.", s.acq_read_errors);
+
+  p.counter("ptda_can_frames_total", "CAN frames received (error frames included).", s.can_frames);
+  p.counter("ptda_can_speed_frames_total", "Speed frames decoded.", s.can_speed_frames);
+  p.counter("ptda_can_other_id_frames_total", "Frames with another id.", s.can_other_ids);
+  p.counter("ptda_can_wrong_dlc_frames_total", "Speed frames with a wrong length.", s.can_wrong_dlc);
+  p.counter("ptda_can_error_frames_total", "CAN error frames.", s.can_error_frames);
+  p.counter("ptda_can_rx_overflow_drops_total", "Frames dropped by the kernel on a full socket queue.",
+            s.can_rx_overflow_drops);
+  p.counter("ptda_can_bus_off_total", "Transitions into bus-off.", s.can_bus_off);
+  p.family("ptda_can_bus_state", "gauge", "1 for the CAN controller's current state.");
+  for (const drivers::CanBusState st :
+       {drivers::CanBusState::kErrorActive, drivers::CanBusState::kErrorWarning,
+        drivers::CanBusState::kErrorPassive, drivers::CanBusState::kBusOff}) {
+    p.sample("ptda_can_bus_state", {{"state", can_bus_state_name(st)}}, st == s.can_bus_state ? 1.0 : 0.0);
+  }
+
+  p.counter("ptda_slicer_regions_total", "Constant-speed regions found.", s.slicer_regions);
+  p.counter("ptda_slicer_windows_total", "Windows cut.", s.slicer_windows);
+  p.counter("ptda_slicer_windows_invalid_total", "Windows discarded: invalid samples inside.",
+            s.slicer_windows_invalid);
+  p.counter("ptda_slicer_windows_lost_total", "Windows discarded: samples already overwritten.",
+            s.slicer_windows_lost);
+  p.counter("ptda_ring_overflows_total", "Items dropped on full inter-thread rings.", s.ring_overflows);
+  p.counter("ptda_windows_scored_total", "Windows judged against the baseline.", s.windows_scored);
+  p.counter("ptda_windows_abnormal_total", "Judged windows outside a band.", s.windows_abnormal);
+  p.counter("ptda_alarms_raised_total", "Alarms raised (k-of-n confirmed).", s.alarms_raised);
+  p.counter("ptda_watchdog_pings_total", "systemd watchdog pings sent.", s.watchdog_pings);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------
+// StatusWriter
+
+StatusWriter::StatusWriter(const StatusWriterConfig& cfg) {
+  if (cfg.json_path.empty() && cfg.prom_path.empty()) {
+    throw Error("status: neither a JSON path nor a Prometheus path is configured");
+  }
+  if (!cfg.prom_path.empty() && cfg.prom_path.extension() != ".prom") {
+    throw Error("status.prom_path: " + cfg.prom_path.string() +
+                ": must end in \".prom\" (the node_exporter textfile collector reads only *.prom)");
+  }
+  if (cfg.buffer_bytes < 1024) {
+    throw Error("status.buffer_bytes: must be >= 1024, got " + std::to_string(cfg.buffer_bytes));
+  }
+  json_buf_.assign(cfg.buffer_bytes, '\0');
+  prom_buf_.assign(cfg.buffer_bytes, '\0');
+  if (!cfg.json_path.empty()) {
+    json_path_ = cfg.json_path.string();
+    json_tmp_ = json_path_ + ".tmp";
+  }
+  if (!cfg.prom_path.empty()) {
+    prom_path_ = cfg.prom_path.string();
+    prom_tmp_ = prom_path_ + ".tmp";
+  }
+}
+
+std::string_view StatusWriter::render_json(const StatusSnapshot& s) noexcept {
+  TextBuffer b(json_buf_.data(), json_buf_.size());
+  render_json_into(b, s);
+  if (b.overflow()) {
+    ++counters_.overflows;
+    return {};
+  }
+  return b.view();
+}
+
+std::string_view StatusWriter::render_prometheus(const StatusSnapshot& s) noexcept {
+  TextBuffer b(prom_buf_.data(), prom_buf_.size());
+  render_prom_into(b, s);
+  if (b.overflow()) {
+    ++counters_.overflows;
+    return {};
+  }
+  return b.view();
+}
+
+StatusWriteResult StatusWriter::replace_file(const std::string& path, const std::string& tmp_path,
+                                             std::string_view text) noexcept {
+  const int fd = ::open(tmp_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    last_errno_ = errno;
+    ++counters_.io_errors;
+    return StatusWriteResult::kIoError;
+  }
+  // Readable by a node_exporter running as another user, whatever the service's UMask.
+  bool ok = ::fchmod(fd, 0644) == 0;
+  std::size_t done = 0;
+  while (ok && done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      ok = false;
+    } else {
+      done += static_cast<std::size_t>(n);
+    }
+  }
+  if (!ok) last_errno_ = errno;
+  if (::close(fd) != 0 && ok) {
+    ok = false;
+    last_errno_ = errno;
+  }
+  if (ok && ::rename(tmp_path.c_str(), path.c_str()) != 0) {
+    ok = false;
+    last_errno_ = errno;
+  }
+  if (!ok) {
+    ::unlink(tmp_path.c_str());
+    ++counters_.io_errors;
+    return StatusWriteResult::kIoError;
+  }
+  return StatusWriteResult::kOk;
+}
+
+StatusWriteResult StatusWriter::write(const StatusSnapshot& s) noexcept {
+  ++counters_.writes;
+  StatusWriteResult worst = StatusWriteResult::kOk;
+  const auto merge = [&worst](StatusWriteResult r) {
+    if (static_cast<int>(r) > static_cast<int>(worst)) worst = r;
+  };
+  if (!json_path_.empty()) {
+    const std::string_view text = render_json(s);
+    merge(text.empty() ? StatusWriteResult::kOverflow : replace_file(json_path_, json_tmp_, text));
+  }
+  if (!prom_path_.empty()) {
+    const std::string_view text = render_prometheus(s);
+    merge(text.empty() ? StatusWriteResult::kOverflow : replace_file(prom_path_, prom_tmp_, text));
+  }
+  return worst;
+}
+
+}  // namespace ptda::daemon

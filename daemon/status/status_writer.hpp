@@ -1,0 +1,251 @@
+// The daemon's externally visible state: a plain StatusSnapshot (filled by the supervisor from the
+// stages' counters) rendered as `status.json` and as a Prometheus text-format file for the
+// node_exporter textfile collector, into fixed buffers, and replaced atomically (temporary file in the
+// same directory + rename, so a reader never sees a partial file).
+//
+// JSON layout (keys in this order; times are seconds as decimals, feature values %.9g, strings escaped
+// per RFC 8259 with \" \\ \b \f \n \r \t and \u00XX for other control characters):
+//   {"version":1,"state":..,"reason":..,"uptime_s":..,"wall_time_unix_s":..,"method":..,
+//    "baseline":{"loaded":..,"path":..,"fs_hz":..,"window_len":..,"source":..,"classes":[{...}]},
+//    "last_window":{...}|null,"alarm":{...},"training":{...}|null,
+//    "acquisition":{...},"can":{...},"slicer":{...},"pipeline":{...}}
+// Prometheus (text exposition format 0.0.4): `# HELP` and `# TYPE` for every metric family, names
+// `ptda_*`, `_total` for counters, units in names (`_seconds`, `_hertz`, `_radians_per_second`),
+// label values escaped (\\ \" \n). docs/systemd.md ("Status files") lists every metric.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "ptda/drivers/alarm_output.hpp"
+#include "ptda/drivers/can_channel.hpp"
+
+namespace ptda::daemon {
+
+/// A NUL-terminated string in a fixed array; assign() truncates (at a byte boundary) instead of
+/// allocating. Trivially copyable.
+template <std::size_t N>
+struct FixedString {
+  static_assert(N >= 1);
+  std::array<char, N> text{};
+  std::uint32_t len = 0;
+  /// Thread: any. Never allocates.
+  void assign(std::string_view s) noexcept {
+    const std::size_t n = s.size() < N - 1 ? s.size() : N - 1;
+    for (std::size_t i = 0; i < n; ++i) text[i] = s[i];
+    text[n] = '\0';
+    len = static_cast<std::uint32_t>(n);
+  }
+  [[nodiscard]] std::string_view view() const noexcept { return {text.data(), len}; }
+};
+
+enum class DaemonState : std::uint8_t {
+  kConfigured = 0,  ///< configured, not yet running
+  kRunning = 1,     ///< monitoring
+  kPaused = 2,      ///< inputs held (e.g. robot in maintenance), outputs in fault
+  kRefused = 3,     ///< cannot monitor: baseline refused / missing, see reason
+  kTraining = 4,    ///< field training mode
+  kStopping = 5,
+};
+
+[[nodiscard]] constexpr std::string_view daemon_state_name(DaemonState s) noexcept {
+  switch (s) {
+    case DaemonState::kConfigured:
+      return "configured";
+    case DaemonState::kRunning:
+      return "running";
+    case DaemonState::kPaused:
+      return "paused";
+    case DaemonState::kRefused:
+      return "refused";
+    case DaemonState::kTraining:
+      return "training";
+    case DaemonState::kStopping:
+      return "stopping";
+  }
+  return "?";
+}
+
+[[nodiscard]] constexpr std::string_view can_bus_state_name(drivers::CanBusState s) noexcept {
+  switch (s) {
+    case drivers::CanBusState::kErrorActive:
+      return "error_active";
+    case drivers::CanBusState::kErrorWarning:
+      return "error_warning";
+    case drivers::CanBusState::kErrorPassive:
+      return "error_passive";
+    case drivers::CanBusState::kBusOff:
+      return "bus_off";
+  }
+  return "?";
+}
+
+inline constexpr std::size_t kStatusMaxClasses = 16;  ///< classes beyond this are not listed
+inline constexpr std::size_t kStatusTextBytes = 160;
+inline constexpr std::size_t kStatusPathBytes = 256;
+
+struct StatusClass {
+  std::uint32_t id = 0;
+  std::int8_t direction = 1;
+  double speed_rad_s = 0.0;
+  double duration_s = 0.0;
+  std::uint32_t regions = 0;
+  std::uint32_t n_windows = 0;
+  double rms_lo = 0.0, rms_hi = 0.0;  ///< band of the method in use
+  double entropy_lo = 0.0, entropy_hi = 0.0;
+};
+
+struct StatusSnapshot {
+  // Daemon.
+  DaemonState state = DaemonState::kConfigured;
+  FixedString<kStatusTextBytes> reason;  ///< why (refused: which check; paused: by whom); may be empty
+  FixedString<16> method;                ///< "ptda" / "tda" / "raw"
+  double uptime_s = 0.0;
+  double now_s = 0.0;                  ///< daemon monotonic seconds when the snapshot was taken
+  std::int64_t wall_time_unix_ns = 0;  ///< when the snapshot was taken (0 = unknown)
+
+  // Baseline.
+  bool baseline_loaded = false;
+  FixedString<kStatusPathBytes> baseline_path;
+  FixedString<kStatusTextBytes> baseline_source;
+  double baseline_fs_hz = 0.0;
+  std::uint32_t baseline_window_len = 0;
+  std::uint32_t class_count = 0;  ///< classes in the baseline (may exceed classes.size())
+  std::array<StatusClass, kStatusMaxClasses> classes{};
+  std::uint32_t classes_listed = 0;  ///< valid entries of `classes`
+
+  // Last scored window.
+  bool have_window = false;
+  double window_t_s = 0.0;  ///< its end, daemon monotonic seconds
+  std::int32_t window_class = -1;
+  double window_speed_rad_s = 0.0;
+  double window_rms = 0.0, window_entropy = 0.0;
+  double window_rms_lo = 0.0, window_rms_hi = 0.0;
+  double window_entropy_lo = 0.0, window_entropy_hi = 0.0;
+  bool window_rms_out = false, window_entropy_out = false;
+  std::uint32_t window_abnormal_in_last_n = 0;
+
+  // Alarm.
+  drivers::AlarmLevel alarm_level = drivers::AlarmLevel::kFault;
+  double alarm_since_s = 0.0;  ///< daemon monotonic seconds
+  bool alarm_latched = false;
+  std::uint8_t alarm_causes = 0;  ///< AlarmCause bits
+  std::int32_t trip_class = -1;   ///< the window that raised the alarm (-1: none)
+  double trip_rms = 0.0, trip_entropy = 0.0;
+  double trip_t_s = 0.0;
+
+  // Field training (state == kTraining).
+  std::uint64_t training_windows = 0;
+  std::uint64_t training_capacity = 0;
+  std::uint64_t training_regions = 0;
+  std::uint32_t training_classes = 0;
+  std::uint32_t training_classes_complete = 0;
+  std::uint32_t training_target_cycles = 0;
+  std::uint64_t training_dropped = 0;  ///< windows/regions beyond the pool
+
+  // Acquisition.
+  std::uint64_t acq_blocks = 0, acq_samples = 0, acq_gaps = 0, acq_lost_samples = 0;
+  std::uint64_t acq_short_reads = 0, acq_time_back = 0, acq_timeouts = 0, acq_read_errors = 0;
+  // CAN.
+  std::uint64_t can_frames = 0, can_speed_frames = 0, can_other_ids = 0, can_wrong_dlc = 0;
+  std::uint64_t can_error_frames = 0, can_rx_overflow_drops = 0, can_bus_off = 0;
+  drivers::CanBusState can_bus_state = drivers::CanBusState::kErrorActive;
+  // Slicer.
+  std::uint64_t slicer_regions = 0, slicer_windows = 0, slicer_windows_invalid = 0;
+  std::uint64_t slicer_windows_lost = 0;
+  // Pipeline.
+  std::uint64_t ring_overflows = 0;
+  std::uint64_t windows_scored = 0, windows_abnormal = 0;
+  std::uint64_t alarms_raised = 0;
+  std::uint64_t watchdog_pings = 0;
+};
+
+/// Appends text into a fixed char buffer; on overflow it stops writing and remembers it.
+class TextBuffer {
+ public:
+  TextBuffer(char* data, std::size_t capacity) noexcept : data_(data), cap_(capacity) {}
+  void append(std::string_view s) noexcept;
+  void append_char(char c) noexcept;
+  void append_u64(std::uint64_t v) noexcept;
+  void append_i64(std::int64_t v) noexcept;
+  /// %.9g; non-finite values are written as `null_text` (JSON: "null"; Prometheus: NaN/+Inf/-Inf when
+  /// null_text is empty).
+  void append_double(double v, std::string_view null_text) noexcept;
+  /// A JSON string literal with quotes (RFC 8259 escaping).
+  void append_json_string(std::string_view s) noexcept;
+  /// A Prometheus label value without quotes (escapes \\, \" and \n).
+  void append_label_value(std::string_view s) noexcept;
+  [[nodiscard]] bool overflow() const noexcept { return overflow_; }
+  [[nodiscard]] std::size_t size() const noexcept { return len_; }
+  [[nodiscard]] std::string_view view() const noexcept { return {data_, len_}; }
+  void clear() noexcept {
+    len_ = 0;
+    overflow_ = false;
+  }
+
+ private:
+  char* data_;
+  std::size_t cap_;
+  std::size_t len_ = 0;
+  bool overflow_ = false;
+};
+
+struct StatusWriterConfig {
+  std::filesystem::path json_path;       ///< empty = no JSON file (e.g. /run/ptda/status.json)
+  std::filesystem::path prom_path;       ///< empty = none; must end in ".prom" (e.g. .../ptda.prom)
+  std::size_t buffer_bytes = 64 * 1024;  ///< per format
+};
+
+enum class StatusWriteResult : std::uint8_t {
+  kOk = 0,
+  kOverflow = 1,  ///< a rendering did not fit its buffer: that file was not replaced
+  kIoError = 2,   ///< open/write/rename failed: that file was not replaced (errno in last_errno())
+};
+
+struct StatusWriterCounters {
+  std::uint64_t writes = 0;     ///< write() calls
+  std::uint64_t overflows = 0;  ///< renderings that did not fit
+  std::uint64_t io_errors = 0;
+};
+
+class StatusWriter {
+ public:
+  /// Allocates both buffers and the temporary-file names ("<path>.tmp": the textfile collector only
+  /// reads *.prom, so "x.prom.tmp" is never scraped). Throws ptda::Error ("status: ...") when a
+  /// prom path does not end in ".prom", the buffer is smaller than 1 KiB, or both paths are empty.
+  /// Does not touch the file system. Thread: any (setup). Allocates.
+  explicit StatusWriter(const StatusWriterConfig& cfg);
+
+  /// Renders into the fixed buffers; the returned view stays valid until the next render/write.
+  /// An overflow returns an empty view and is counted. Thread: the one writer thread (supervisor).
+  /// Never allocates or blocks.
+  std::string_view render_json(const StatusSnapshot& s) noexcept;
+  std::string_view render_prometheus(const StatusSnapshot& s) noexcept;
+
+  /// Renders both and replaces each configured file (write temp, rename; no fsync: the files live in
+  /// /run and are rewritten every few seconds). Returns the worst result. Thread: the supervisor.
+  /// Blocks on file I/O; never allocates.
+  StatusWriteResult write(const StatusSnapshot& s) noexcept;
+
+  [[nodiscard]] int last_errno() const noexcept { return last_errno_; }
+  /// Thread: the writer thread.
+  [[nodiscard]] StatusWriterCounters counters() const noexcept { return counters_; }
+
+ private:
+  StatusWriteResult replace_file(const std::string& path, const std::string& tmp_path,
+                                 std::string_view text) noexcept;
+
+  std::vector<char> json_buf_;
+  std::vector<char> prom_buf_;
+  std::string json_path_, json_tmp_, prom_path_, prom_tmp_;
+  StatusWriterCounters counters_;
+  int last_errno_ = 0;
+};
+
+}  // namespace ptda::daemon

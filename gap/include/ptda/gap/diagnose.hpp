@@ -1,0 +1,85 @@
+// Sim-to-real gap diagnosis (docs/gap.md): calibrate the nominal scenario's free parameters on the fit
+// cycles of a measured recording, fit each candidate effect's parameters on the fit cycles, and select
+// effects greedily while they shrink the gap on the held-out cycles significantly. Offline: any thread,
+// allocates, throws ptda::Error.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "ptda/gap/probes.hpp"
+#include "ptda/gap/signals.hpp"
+#include "ptda/sim/effects.hpp"
+#include "ptda/sim/simulator.hpp"
+
+namespace ptda::gap {
+
+struct DiagnoseOptions {
+  std::uint64_t sim_seed = 9001;       ///< seed of the model's simulations (common random numbers)
+  std::uint32_t max_effects = 2;       ///< greedy rounds
+  std::uint32_t full_fits = 4;         ///< candidates fitted fully per round (after a one-stage screen)
+  double min_gain_share = 0.15;        ///< accept an effect when it removes this share of the current gap...
+  double min_gain_noise = 2.0;         ///< ... and at least this many times the sim-vs-sim noise gap
+  double min_gap_noise = 3.0;          ///< no diagnosis when the gap is below this many noise gaps
+  std::vector<sim::EffectKind> candidates;  ///< empty: the whole catalog
+  std::function<void(const std::string&)> log;  ///< progress lines (optional)
+};
+
+struct CandidateResult {
+  sim::EffectSpec effect;
+  double gap_fit = 0.0;      ///< on the fit cycles, with the effect
+  double gap_heldout = 0.0;  ///< on the held-out cycles, with the effect
+  double shrink_pct = 0.0;   ///< held-out gap reduction against the round's starting point
+  bool fully_fitted = false;
+  std::uint32_t evaluations = 0;
+  std::string location;  ///< where the fitted effect acts ("resonance 3012 Hz", "sidebands every 1.25 x f_in")
+};
+
+struct SelectionRound {
+  double gap_before_heldout = 0.0;
+  std::vector<CandidateResult> ranked;  ///< by held-out gap (fully fitted first)
+  int accepted = -1;                    ///< index into ranked, -1: none significant
+};
+
+struct Diagnosis {
+  std::string scenario;
+  std::string real_source;
+  double fs_hz = 0.0;
+  std::uint32_t cycles = 0;
+  std::uint32_t fit_cycles = 0;
+  std::uint32_t heldout_cycles = 0;
+  std::size_t windows_fit = 0;
+  std::size_t windows_heldout = 0;
+  std::vector<double> class_speeds_rad_s;
+  std::vector<double> calibrated_gmf_amplitudes;
+  double calibrated_noise_rms = 0.0;
+  GapBreakdown nominal_heldout;  ///< calibrated nominal model vs held-out cycles
+  double noise_gap = 0.0;        ///< simulation vs an independent simulation (sampling noise level)
+  std::vector<SelectionRound> rounds;
+  std::vector<CandidateResult> chosen;
+  GapBreakdown final_heldout;
+  double total_shrink_pct = 0.0;
+  bool gap_significant = false;
+  std::string verdict;  ///< one plain sentence
+  double runtime_s = 0.0;
+  std::uint32_t simulations = 0;
+  // Spectra for plots (class 0 constant-speed windows, dB of amplitude^2): real held-out, nominal, final.
+  double spectrum_df_hz = 0.0;
+  std::vector<double> spectrum_real_db, spectrum_nominal_db, spectrum_final_db;
+};
+
+/// Runs the diagnosis of `real` against `nominal`. Throws ptda::Error when the recording has too few
+/// cycles or windows to split.
+[[nodiscard]] Diagnosis diagnose(const sim::Scenario& nominal, const GapRecording& real, const DiagnoseOptions& opt);
+
+/// JSON document (schema "ptda-gap" version 1, docs/gap.md).
+[[nodiscard]] std::string diagnosis_json(const Diagnosis& d);
+/// Self-contained HTML report with inline SVG plots.
+[[nodiscard]] std::string diagnosis_html(const Diagnosis& d);
+
+/// Where an effect with these parameters acts, in words (for reports and the bench's location check).
+[[nodiscard]] std::string effect_location(const sim::EffectSpec& e, const sim::Scenario& nominal);
+
+}  // namespace ptda::gap

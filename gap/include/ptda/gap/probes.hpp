@@ -1,0 +1,87 @@
+// Probes: documented comparisons of a measured and a simulated recording, each element normalised by a
+// fixed scale so that squared differences add up (docs/gap.md, "Probes"). Offline: any thread, allocates.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "ptda/gap/signals.hpp"
+#include "ptda/sim/simulator.hpp"
+
+namespace ptda::gap {
+
+enum class Stage : std::uint8_t { kRaw = 0, kResidual = 1, kAlarm = 2 };
+[[nodiscard]] const char* stage_name(Stage s) noexcept;
+
+struct ProbeElement {
+  std::string probe;  ///< harmonics, sidebands, coherence, noise_floor, lines, amplitude, residual, alarm, tracking
+  std::string key;    ///< unique within the probe, e.g. "c0.k5" or "constant.b12"
+  double value = 0.0;
+  double scale = 1.0;  ///< normalisation: z = (real - sim) / scale
+  double f_lo_hz = 0.0;  ///< frequency range the element describes (0, 0: not frequency-specific)
+  double f_hi_hz = 0.0;
+  SegmentType segment = SegmentType::kConstant;
+  Stage stage = Stage::kRaw;
+  int order = 0;  ///< harmonics: GMF order
+};
+
+/// Per constant-speed class reference for the alarm probe (from the simulated recording).
+struct ClassReference {
+  std::vector<float> mean_magnitude;  ///< |DFT| averaged over the class's windows (PTDA eq. 7)
+  double rms_mean = 0.0;              ///< leave-one-out residual rms over its windows
+  double rms_std = 0.0;
+};
+
+struct ProbeSet {
+  std::vector<ProbeElement> elements;
+  std::vector<ClassReference> classes;  ///< indexed like AnalysisPlan::speeds
+  std::size_t windows = 0;
+  // For calibration and effect initialisation (averaged spectra in power, amplitude^2 of a sine).
+  std::map<int, std::vector<double>> class_power;  ///< per constant class
+  std::vector<double> accel_power;
+  std::vector<double> still_power;
+  double max_abs_ms2 = 0.0;
+  double lag_s = 0.0;  ///< envelope-vs-CAN lag (NaN when the speed does not vary)
+};
+
+struct ProbeContext {
+  sim::GearboxSpec gearbox;
+  std::vector<int> nominal_orders;  ///< GMF orders with a non-zero nominal amplitude
+  AnalysisPlan plan;
+};
+
+/// Probes over the windows whose cycle is selected (`use_cycle` empty: all). With `reference` the alarm
+/// probe is computed against it (the measured recording judged by the simulation's baseline); without,
+/// against the set's own leave-one-out statistics.
+[[nodiscard]] ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& segs,
+                                      const std::vector<Window>& windows, const std::vector<char>& use_cycle,
+                                      const ProbeContext& ctx, const ProbeSet* reference = nullptr);
+
+/// Where a gap lies.
+struct GapBreakdown {
+  double total = 0.0;
+  std::map<std::string, double> by_probe;
+  std::map<std::string, double> by_band;  ///< octave bands "lo-hi Hz" by element centre; "broadband" otherwise
+  std::map<std::string, double> by_segment;
+  std::map<std::string, double> by_stage;
+  struct Top {
+    std::string probe;
+    std::string key;
+    double real = 0.0;
+    double sim = 0.0;
+    double z = 0.0;
+    double contribution = 0.0;
+  };
+  std::vector<Top> top;  ///< largest contributions, descending (at most 12)
+  std::vector<double> harmonic_offset_db;  ///< profiled-out per-order level offsets (real - sim), by order
+  double noise_offset_db = 0.0;            ///< profiled-out overall noise-floor offset
+};
+
+/// gap = sum over probes of mean z^2 over the probe's elements, after profiling out the nominal model's
+/// free parameters: per-order harmonic level offsets (mean over classes) and one noise-floor offset
+/// (median over constant-speed bands). Elements present on one side only are skipped.
+[[nodiscard]] GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim);
+
+}  // namespace ptda::gap

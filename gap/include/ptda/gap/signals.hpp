@@ -1,0 +1,78 @@
+// What the gap diagnosis sees of a recording: the vibration in m/s^2 and the decoded CAN speed, both on
+// the vibration's clock (seconds from sample 0), cut into segments (standstill / constant speed /
+// acceleration) and job cycles from the CAN speed alone. Offline: any thread, allocates, throws
+// ptda::Error naming the file.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "ptda/config/speed_codec.hpp"
+#include "ptda/sim/simulator.hpp"
+
+namespace ptda::gap {
+
+struct SpeedPoint {
+  double t_s = 0.0;  ///< seconds from vibration sample 0 (log time - start time - nominal CAN delay)
+  double speed_rad_s = 0.0;
+};
+
+struct GapRecording {
+  std::string source;  ///< directory or "simulation"
+  double fs_hz = 0.0;  ///< nominal rate (WAV header)
+  std::vector<float> accel_ms2;
+  std::vector<SpeedPoint> speed;
+};
+
+/// Reads DIR (recording.toml, WAV, candump) decoding speed frames with `frame`; `can_delay_s` (the
+/// nominal scenario's [can] delay_s) is subtracted from the log times. Throws ptda::Error.
+[[nodiscard]] GapRecording load_recording(const std::filesystem::path& dir, const config::SpeedFrameSpec& frame,
+                                          double can_delay_s);
+/// The same view of an in-memory simulation of scenario `s` (decoding its own speed frames).
+[[nodiscard]] GapRecording recording_from_simulation(const sim::SimulatedSignals& sig, const sim::Scenario& s);
+
+enum class SegmentType : std::uint8_t { kConstant = 0, kAccel = 1, kStandstill = 2 };
+[[nodiscard]] const char* segment_type_name(SegmentType t) noexcept;
+
+struct Segment {
+  SegmentType type = SegmentType::kConstant;
+  double t0_s = 0.0;
+  double t1_s = 0.0;
+  double speed_rad_s = 0.0;  ///< mean signed speed
+  std::uint32_t cycle = 0;   ///< job cycle (count of starts from standstill), or block index
+};
+
+/// Segments from the CAN speed: standstill below 2 % of the top speed, constant where the speed changes
+/// by less than 2 % of the top speed per second, acceleration otherwise. A recording without standstill
+/// (test rig) is split into blocks of `block_s` that play the role of cycles.
+[[nodiscard]] std::vector<Segment> segment_recording(const GapRecording& rec, double block_s = 0.2);
+
+/// One analysis window: [start, start + len) samples.
+struct Window {
+  std::size_t start = 0;
+  std::size_t len = 0;
+  SegmentType type = SegmentType::kConstant;
+  int speed_class = -1;      ///< constant windows: index into AnalysisPlan::speeds
+  double speed_rad_s = 0.0;  ///< mean CAN speed of its segment
+  std::uint32_t cycle = 0;
+};
+
+/// Window lengths and constant-speed classes, fixed once (from the measured recording) so real and
+/// simulated data are cut alike.
+struct AnalysisPlan {
+  double fs_hz = 0.0;
+  std::vector<double> speeds;          ///< signed class speeds (rad/s)
+  std::vector<std::size_t> const_len;  ///< window length per class
+  std::size_t accel_len = 0;           ///< 0: no acceleration windows
+  std::size_t still_len = 0;           ///< 0: no standstill windows
+  std::uint32_t cycles = 0;
+};
+
+[[nodiscard]] AnalysisPlan make_plan(const GapRecording& rec, const std::vector<Segment>& segs);
+/// Windows of `rec` by the plan; windows of constant segments whose speed matches no class are dropped.
+[[nodiscard]] std::vector<Window> cut_windows(const GapRecording& rec, const std::vector<Segment>& segs,
+                                              const AnalysisPlan& plan);
+
+}  // namespace ptda::gap

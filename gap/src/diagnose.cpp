@@ -1,0 +1,574 @@
+// Calibration, effect fitting and greedy attribution (docs/gap.md "Method").
+#include "ptda/gap/diagnose.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "ptda/common/error.hpp"
+
+namespace ptda::gap {
+namespace {
+
+using sim::EffectKind;
+using sim::EffectSpec;
+
+double db(double p) { return 10.0 * std::log10(std::max(p, 1e-20)); }
+
+// A model is re-calibrated when a free parameter is off by more than this (harmonic level or noise floor).
+constexpr double kRecalibrateDb = 0.5;
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wformat-nonliteral"
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+#pragma GCC diagnostic pop
+
+/// Everything needed to score a model (scenario + effects) against the measured recording.
+class Evaluator {
+ public:
+  Evaluator(const GapRecording& real, std::uint64_t seed) : real_(real), seed_(seed) {
+    segs_ = segment_recording(real_);
+    plan_ = make_plan(real_, segs_);
+    windows_ = cut_windows(real_, segs_, plan_);
+  }
+
+  void set_context(const sim::Scenario& nominal) {
+    ctx_.gearbox = nominal.gearbox;
+    ctx_.plan = plan_;
+    ctx_.nominal_orders.clear();
+    for (std::size_t k = 0; k < nominal.vibration.gmf_amplitudes.size(); ++k) {
+      if (nominal.vibration.gmf_amplitudes[k] > 0.0) ctx_.nominal_orders.push_back(static_cast<int>(k + 1));
+    }
+  }
+
+  /// Simulates and returns the model's probes (all cycles).
+  ProbeSet model_probes(const sim::Scenario& s, std::uint64_t seed) {
+    ++simulations_;
+    const sim::SimulatedSignals sig = sim::simulate_signals(s, seed);
+    const GapRecording rec = recording_from_simulation(sig, s);
+    const std::vector<Segment> segs = segment_recording(rec);
+    const std::vector<Window> ws = cut_windows(rec, segs, plan_);
+    return compute_probes(rec, segs, ws, {}, ctx_);
+  }
+  ProbeSet real_probes(const std::vector<char>& part, const ProbeSet* ref) const {
+    return compute_probes(real_, segs_, windows_, part, ctx_, ref);
+  }
+  GapBreakdown gap(const sim::Scenario& s, const std::vector<char>& part, ProbeSet* model_out = nullptr,
+                   ProbeSet* real_out = nullptr) {
+    ProbeSet m = model_probes(s, seed_);
+    ProbeSet r = real_probes(part, &m);
+    GapBreakdown g = compare_probes(r, m);
+    if (model_out != nullptr) *model_out = std::move(m);
+    if (real_out != nullptr) *real_out = std::move(r);
+    return g;
+  }
+
+  /// Re-fits the free parameters (GMF amplitudes per order, noise rms) of `s` on `part` by up to `passes`
+  /// ratio updates; returns the gap of the final model on `part`.
+  GapBreakdown calibrate(sim::Scenario& s, const std::vector<char>& part, int passes, ProbeSet* model_out = nullptr,
+                         ProbeSet* real_out = nullptr) {
+    GapBreakdown g = gap(s, part, model_out, real_out);
+    for (int it = 0; it < passes; ++it) {
+      double worst = std::fabs(g.noise_offset_db);
+      for (std::size_t k = 0; k < s.vibration.gmf_amplitudes.size(); ++k) {
+        if (s.vibration.gmf_amplitudes[k] > 0.0 && k + 1 < g.harmonic_offset_db.size()) {
+          worst = std::max(worst, std::fabs(g.harmonic_offset_db[k + 1]));
+        }
+      }
+      if (worst < kRecalibrateDb) break;
+      for (std::size_t k = 0; k < s.vibration.gmf_amplitudes.size(); ++k) {
+        if (s.vibration.gmf_amplitudes[k] <= 0.0 || k + 1 >= g.harmonic_offset_db.size()) continue;
+        s.vibration.gmf_amplitudes[k] *= std::pow(10.0, std::clamp(g.harmonic_offset_db[k + 1], -20.0, 20.0) / 20.0);
+      }
+      if (s.vibration.noise_rms > 0.0) {
+        s.vibration.noise_rms *= std::pow(10.0, std::clamp(g.noise_offset_db, -20.0, 20.0) / 20.0);
+      }
+      g = gap(s, part, model_out, real_out);
+    }
+    return g;
+  }
+
+  const AnalysisPlan& plan() const { return plan_; }
+  const std::vector<Segment>& segments() const { return segs_; }
+  const std::vector<Window>& windows() const { return windows_; }
+  const ProbeContext& context() const { return ctx_; }
+  std::uint32_t simulations() const { return simulations_; }
+  std::uint64_t seed() const { return seed_; }
+
+ private:
+  const GapRecording& real_;
+  std::uint64_t seed_;
+  std::vector<Segment> segs_;
+  AnalysisPlan plan_;
+  std::vector<Window> windows_;
+  ProbeContext ctx_;
+  std::uint32_t simulations_ = 0;
+};
+
+/// Data-driven starting points for the fits, from the measured fit cycles vs the calibrated model.
+struct Guesses {
+  double floor_peak_const_hz = 1000.0;
+  double floor_peak_accel_hz = 1000.0;
+  double line_still_hz = 50.0;  ///< strongest excess line where the mesh is silent (or off-order)
+  double line_const_ratio = 1.37;  ///< strongest off-order excess line in class 0 / GMF
+  double sideband_order = 1.0;
+  double ppm = 0.0;
+  double lag_s = 0.0;
+  double max_abs_ms2 = 1.0;
+};
+
+double excess_peak_hz(const ProbeSet& r, const ProbeSet& m, SegmentType type, double offset_db) {
+  double best = -1e300, f = 1000.0;
+  std::map<std::string, double> sim_floor;
+  for (const ProbeElement& e : m.elements) {
+    if (e.probe == "noise_floor" && e.segment == type) sim_floor[e.key] = e.value;
+  }
+  for (const ProbeElement& e : r.elements) {
+    if (e.probe != "noise_floor" || e.segment != type) continue;
+    auto it = sim_floor.find(e.key);
+    if (it == sim_floor.end()) continue;
+    const double d = e.value - it->second - offset_db;
+    if (d > best) {
+      best = d;
+      f = std::sqrt(e.f_lo_hz * e.f_hi_hz);
+    }
+  }
+  return f;
+}
+
+/// Strongest bin where the measured spectrum exceeds the model's, skipping [lo, hi] exclusions.
+double excess_line_hz(const std::vector<double>& pr, const std::vector<double>& pm, double df,
+                      const std::vector<std::pair<double, double>>& excl) {
+  double best = -1e300, f = 0.0;
+  for (std::size_t k = 3; k < std::min(pr.size(), pm.size()) * 9 / 10; ++k) {
+    const double fk = static_cast<double>(k) * df;
+    bool skip = false;
+    for (const auto& [lo, hi] : excl) skip = skip || (fk >= lo && fk <= hi);
+    if (skip) continue;
+    const double d = db(pr[k]) - db(pm[k]);
+    if (d > best && pr[k] >= pr[k - 1] && pr[k] >= pr[k + 1]) {
+      best = d;
+      f = fk;
+    }
+  }
+  if (f > 0.0) {
+    const auto k = static_cast<std::size_t>(std::lround(f / df));
+    const double a = db(pr[k - 1]), b = db(pr[k]), c = db(pr[k + 1]);
+    const double den = a - 2 * b + c;
+    if (den < 0) f += 0.5 * (a - c) / den * df;
+  }
+  return f;
+}
+
+Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g, const sim::Scenario& nominal,
+                     const AnalysisPlan& plan) {
+  Guesses q;
+  q.floor_peak_const_hz = excess_peak_hz(r, m, SegmentType::kConstant, g.noise_offset_db);
+  q.floor_peak_accel_hz = plan.accel_len > 0 ? excess_peak_hz(r, m, SegmentType::kAccel, g.noise_offset_db)
+                                             : q.floor_peak_const_hz;
+  const double fs = plan.fs_hz;
+  // Lines: standstill if there is any (the mesh is silent), else acceleration, else class 0 off-order.
+  std::vector<std::pair<double, double>> excl_const;
+  double gmf0 = 0.0;
+  std::size_t len0 = plan.const_len.empty() ? 0 : plan.const_len[0];
+  if (!plan.speeds.empty()) {
+    gmf0 = std::fabs(sim::gmf_hz(nominal.gearbox, plan.speeds[0]));
+    const double f_in = gmf0 / nominal.gearbox.z_in;
+    const double df0 = len0 > 0 ? fs / static_cast<double>(len0) : 1.0;
+    for (int k = 1; k * gmf0 < 0.5 * fs; ++k) excl_const.push_back({k * gmf0 - 3.6 * f_in - 3 * df0, k * gmf0 + 3.6 * f_in + 3 * df0});
+  }
+  if (!r.still_power.empty() && r.still_power.size() == m.still_power.size()) {
+    q.line_still_hz = excess_line_hz(r.still_power, m.still_power, fs / static_cast<double>(plan.still_len), {});
+  } else if (!r.accel_power.empty() && r.accel_power.size() == m.accel_power.size()) {
+    q.line_still_hz = excess_line_hz(r.accel_power, m.accel_power, fs / static_cast<double>(plan.accel_len), {});
+  } else if (r.class_power.count(0) && m.class_power.count(0)) {
+    q.line_still_hz = excess_line_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0), excl_const);
+  }
+  if (r.class_power.count(0) && m.class_power.count(0) && gmf0 > 0.0) {
+    const double f = excess_line_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0), excl_const);
+    if (f > 0.0) q.line_const_ratio = f / gmf0;
+  }
+  // Sidebands, clock and lag: differences of probe values.
+  std::map<std::string, double> sv;
+  for (const ProbeElement& e : m.elements) sv[e.probe + "/" + e.key] = e.value;
+  double best = -1e300;
+  double ppm_sum = 0.0;
+  int ppm_n = 0;
+  for (const ProbeElement& e : r.elements) {
+    auto it = sv.find(e.probe + "/" + e.key);
+    if (it == sv.end()) continue;
+    if (e.probe == "sidebands" && e.key.rfind("c0.d", 0) == 0) {
+      const double d = e.value - it->second;
+      if (d > best) {
+        best = d;
+        q.sideband_order = std::stod(e.key.substr(4));
+      }
+    } else if (e.probe == "tracking" && e.key.find("gmf_ppm") != std::string::npos) {
+      ppm_sum += e.value - it->second;
+      ++ppm_n;
+    }
+  }
+  if (ppm_n > 0) q.ppm = -ppm_sum / ppm_n;
+  if (std::isfinite(r.lag_s) && std::isfinite(m.lag_s)) q.lag_s = r.lag_s - m.lag_s;
+  q.max_abs_ms2 = r.max_abs_ms2;
+  return q;
+}
+
+struct FitStage {
+  const char* param;
+  std::vector<double> values;
+  bool relative = false;  ///< values multiply the current value
+};
+
+std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, const sim::Scenario& nominal) {
+  const double top = 0.45 * fs;
+  auto around = [&](double g, std::initializer_list<double> f) {
+    std::vector<double> v;
+    for (double x : f) v.push_back(std::clamp(g * x, 20.0, top));
+    return v;
+  };
+  switch (k) {
+    case EffectKind::kTransferPath:
+      return {{"frequency_hz", around(q.floor_peak_const_hz, {0.8, 0.89, 1.0, 1.12, 1.25})},
+              {"gain_db", {3, 6, 10, 15, 20, 26}},
+              {"q", {1.5, 3, 5, 8, 14}},
+              {"frequency_hz", {0.95, 1.0, 1.05}, true},
+              {"gain_db", {0.85, 1.0, 1.15}, true}};
+    case EffectKind::kSpeedRipple:
+      return {{"jitter_rad", {0.05, 0.1, 0.2, 0.4, 0.8, 1.5}},
+              {"bandwidth_hz", {2, 5, 10, 20, 50, 100}},
+              {"jitter_rad", {0.8, 1.0, 1.25}, true}};
+    case EffectKind::kMeshModulation:
+      return {{"rate_order", {std::max(0.1, q.sideband_order - 0.25), q.sideband_order, q.sideband_order + 0.25}},
+              {"am_depth", {0.05, 0.1, 0.2, 0.35, 0.5, 0.7}},
+              {"pm_rad", {0.0, 0.15, 0.3, 0.6, 1.0}},
+              {"rate_order", {0.96, 1.0, 1.04}, true},
+              {"am_depth", {0.8, 1.0, 1.25}, true}};
+    case EffectKind::kImpacts:
+      return {{"resonance_hz", around(q.floor_peak_accel_hz, {0.8, 0.89, 1.0, 1.12, 1.25})},
+              {"amplitude_ms2", {1, 2, 4, 8, 16, 32}},
+              {"damping_ratio", {0.02, 0.05, 0.1, 0.2}},
+              {"amplitude_ms2", {0.8, 1.0, 1.25}, true},
+              {"resonance_hz", {0.95, 1.0, 1.05}, true}};
+    case EffectKind::kElectricalInterference: {
+      const double f = std::max(q.line_still_hz, 1.0);
+      std::vector<double> fr{f};
+      if (f / 2 >= 1.0) fr.push_back(f / 2);
+      if (f / 3 >= 1.0) fr.push_back(f / 3);
+      return {{"frequency_hz", fr},
+              {"amplitude_ms2", {0.02, 0.05, 0.1, 0.2, 0.5, 1, 2}},
+              {"harmonics", {1, 2, 3, 5, 8}},
+              {"harmonic_decay", {0.3, 0.5, 0.7, 0.9}},
+              {"amplitude_ms2", {0.8, 1.0, 1.25}, true}};
+    }
+    case EffectKind::kAdcClipping:
+      return {{"level_ms2", {q.max_abs_ms2 * 0.995, q.max_abs_ms2, q.max_abs_ms2 * 1.005}}};
+    case EffectKind::kSampleClockError:
+      return {{"ppm", {q.ppm - 100, q.ppm - 50, q.ppm, q.ppm + 50, q.ppm + 100}},
+              {"ppm", {q.ppm - 20, q.ppm + 20}}};
+    case EffectKind::kSpeedLatency: {
+      const double g = std::max(0.0, std::fabs(q.lag_s));
+      std::vector<double> d;
+      for (double x : {-0.006, -0.003, 0.0, 0.003, 0.006}) d.push_back(std::max(0.0, g + x));
+      const double jmax = 0.999 * nominal.can.period_s - nominal.can.jitter_s;
+      std::vector<double> j;
+      for (double x : {0.0, 0.001, 0.002, 0.003}) if (x < jmax) j.push_back(x);
+      return {{"delay_s", d}, {"jitter_s", j}, {"delay_s", {0.9, 1.0, 1.1}, true}};
+    }
+    case EffectKind::kOtherAxis:
+      return {{"frequency_ratio", {q.line_const_ratio * 0.995, q.line_const_ratio, q.line_const_ratio * 1.005}},
+              {"amplitude_ms2", {0.05, 0.1, 0.2, 0.5, 1, 2}},
+              {"lag_s", {0.0, 0.05, 0.1, 0.2, 0.4}},
+              {"amplitude_ms2", {0.8, 1.0, 1.25}, true}};
+    case EffectKind::kLoadDependence:
+      return {{"direction_gain", {-0.6, -0.4, -0.2, -0.1, 0.0, 0.1, 0.2, 0.4, 0.6}},
+              {"accel_gain", {-0.4, -0.2, 0.0, 0.2, 0.4}},
+              {"direction_gain", {-0.05, 0.0, 0.05}, false}};
+    case EffectKind::kNoiseColor:
+      return {{"corner_hz", {20, 50, 100, 200, 500, 1000, 2000}},
+              {"rms_ms2", {0.05, 0.1, 0.2, 0.4, 0.8, 1.6}},
+              {"corner_hz", {0.7, 1.0, 1.4}, true},
+              {"rms_ms2", {0.8, 1.0, 1.25}, true}};
+  }
+  return {};
+}
+
+/// Initial parameters: defaults with the data-driven guesses.
+EffectSpec initial_effect(EffectKind k, const Guesses& q) {
+  EffectSpec e = EffectSpec::with_defaults(k);
+  switch (k) {
+    case EffectKind::kTransferPath:
+      e.set("frequency_hz", q.floor_peak_const_hz);
+      break;
+    case EffectKind::kImpacts:
+      e.set("resonance_hz", q.floor_peak_accel_hz);
+      break;
+    case EffectKind::kElectricalInterference:
+      e.set("frequency_hz", std::max(1.0, q.line_still_hz));
+      e.set("harmonics", 1.0);
+      break;
+    case EffectKind::kMeshModulation:
+      e.set("rate_order", q.sideband_order);
+      break;
+    case EffectKind::kSampleClockError:
+      e.set("ppm", q.ppm);
+      break;
+    case EffectKind::kSpeedLatency:
+      e.set("delay_s", std::fabs(q.lag_s));
+      break;
+    case EffectKind::kOtherAxis:
+      e.set("frequency_ratio", q.line_const_ratio);
+      break;
+    case EffectKind::kAdcClipping:
+      e.set("level_ms2", q.max_abs_ms2);
+      break;
+    default:
+      break;
+  }
+  return e;
+}
+
+void clamp_params(EffectSpec& e) {
+  const sim::EffectInfo& info = sim::effect_info(e.kind);
+  for (std::size_t i = 0; i < info.params.size(); ++i) {
+    e.params[i] = std::clamp(e.params[i], info.params[i].min_value, info.params[i].max_value);
+  }
+}
+
+}  // namespace
+
+std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
+  switch (e.kind) {
+    case EffectKind::kTransferPath:
+      return "resonance at " + fmt("%.0f", e.get("frequency_hz")) + " Hz (Q " + fmt("%.1f", e.get("q")) + ", +" +
+             fmt("%.1f", e.get("gain_db")) + " dB)";
+    case EffectKind::kSpeedRipple:
+      return "mesh phase jitter " + fmt("%.2f", e.get("jitter_rad")) + " rad rms over " +
+             fmt("%.0f", e.get("bandwidth_hz")) + " Hz";
+    case EffectKind::kMeshModulation:
+      return "sidebands every " + fmt("%.2f", e.get("rate_order")) + " x input-shaft rate (AM " +
+             fmt("%.2f", e.get("am_depth")) + ", PM " + fmt("%.2f", e.get("pm_rad")) + " rad)";
+    case EffectKind::kImpacts:
+      return "knocks at torque reversals ringing at " + fmt("%.0f", e.get("resonance_hz")) + " Hz";
+    case EffectKind::kElectricalInterference:
+      return "lines at " + fmt("%.2f", e.get("frequency_hz")) + " Hz and harmonics";
+    case EffectKind::kAdcClipping:
+      return "clipping at +-" + fmt("%.3g", e.get("level_ms2")) + " m/s^2";
+    case EffectKind::kSampleClockError:
+      return "sample clock off by " + fmt("%.0f", e.get("ppm")) + " ppm";
+    case EffectKind::kSpeedLatency:
+      return "CAN speed " + fmt("%.1f", e.get("delay_s") * 1e3) + " ms late";
+    case EffectKind::kOtherAxis:
+      return "extra mesh at " + fmt("%.3f", e.get("frequency_ratio")) + " x GMF, lag " +
+             fmt("%.2f", e.get("lag_s")) + " s";
+    case EffectKind::kLoadDependence:
+      return "mesh level differs by direction (" + fmt("%+.2f", e.get("direction_gain")) + ") and accel (" +
+             fmt("%+.2f", e.get("accel_gain")) + ")";
+    case EffectKind::kNoiseColor:
+      return "extra noise below " + fmt("%.0f", e.get("corner_hz")) + " Hz";
+  }
+  (void)nominal;
+  return "";
+}
+
+Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, const DiagnoseOptions& opt) {
+  const auto t_start = std::chrono::steady_clock::now();
+  auto log = [&](const std::string& s) {
+    if (opt.log) opt.log(s);
+  };
+  Diagnosis d;
+  d.scenario = nominal_in.name;
+  d.real_source = real.source;
+  d.fs_hz = real.fs_hz;
+  if (std::fabs(real.fs_hz - nominal_in.sensor.fs_hz) > 0.5) {
+    throw Error(real.source + ": sample rate " + fmt("%.0f", real.fs_hz) + " Hz differs from the scenario's [sensor] fs_hz " +
+                fmt("%.0f", nominal_in.sensor.fs_hz) + " (" + nominal_in.source + ")");
+  }
+  Evaluator ev(real, opt.sim_seed);
+  const AnalysisPlan& plan = ev.plan();
+  d.cycles = plan.cycles;
+  d.class_speeds_rad_s = plan.speeds;
+  if (plan.cycles < 4) throw Error(real.source + ": only " + std::to_string(plan.cycles) + " cycles/blocks; the diagnosis needs >= 4");
+  std::vector<char> fit(plan.cycles, 0), held(plan.cycles, 0);
+  for (std::uint32_t c = 0; c < plan.cycles; ++c) (c % 2 == 0 ? fit : held)[c] = 1;
+  d.fit_cycles = (plan.cycles + 1) / 2;
+  d.heldout_cycles = plan.cycles / 2;
+  for (const Window& w : ev.windows()) (fit[w.cycle] ? d.windows_fit : d.windows_heldout) += 1;
+
+  // The model: the nominal scenario with as many cycles as were measured (or the measured duration).
+  sim::Scenario model = nominal_in;
+  model.effects.clear();
+  if (model.motion.kind == sim::MotionKind::kConstant) {
+    model.motion.duration_s = static_cast<double>(real.accel_ms2.size()) / real.fs_hz;
+    model.motion.cycles = 1;
+  } else {
+    model.motion.cycles = std::max<std::uint32_t>(plan.cycles, 4);
+  }
+  ev.set_context(model);
+
+  // 1. Calibration of the free parameters (harmonic amplitudes per order, noise level) on the fit cycles.
+  (void)ev.calibrate(model, fit, 3);
+  d.calibrated_gmf_amplitudes = model.vibration.gmf_amplitudes;
+  d.calibrated_noise_rms = model.vibration.noise_rms;
+
+  ProbeSet model_probes, real_fit_probes;
+  const GapBreakdown g_fit0 = ev.gap(model, fit, &model_probes, &real_fit_probes);
+  ProbeSet real_held_probes;
+  d.nominal_heldout = ev.gap(model, held, nullptr, &real_held_probes);
+  // Sampling-noise level: the model against an independent realisation of itself, on as many cycles.
+  {
+    const ProbeSet other = ev.model_probes(model, opt.sim_seed + 7777);
+    d.noise_gap = compare_probes(other, model_probes).total;
+  }
+  log("calibrated nominal: held-out gap " + fmt("%.2f", d.nominal_heldout.total) + ", noise gap " + fmt("%.2f", d.noise_gap));
+  if (!plan.const_len.empty() && real_held_probes.class_power.count(0) && model_probes.class_power.count(0)) {
+    d.spectrum_df_hz = real.fs_hz / static_cast<double>(plan.const_len[0]);
+    for (double p : real_held_probes.class_power.at(0)) d.spectrum_real_db.push_back(db(p));
+    for (double p : model_probes.class_power.at(0)) d.spectrum_nominal_db.push_back(db(p));
+  }
+  d.gap_significant = d.nominal_heldout.total > opt.min_gap_noise * d.noise_gap;
+
+  // 2. Greedy forward selection.
+  std::vector<EffectKind> kinds = opt.candidates;
+  if (kinds.empty()) {
+    for (const sim::EffectInfo& info : sim::effect_catalog()) kinds.push_back(info.kind);
+  }
+  double current_held = d.nominal_heldout.total;
+  ProbeSet cur_model = model_probes, cur_real_fit = real_fit_probes;
+  GapBreakdown cur_fit_gap = g_fit0;
+  sim::Scenario current = model;
+  for (std::uint32_t round = 0; round < opt.max_effects && d.gap_significant; ++round) {
+    SelectionRound sr;
+    sr.gap_before_heldout = current_held;
+    const Guesses q = make_guesses(cur_real_fit, cur_model, cur_fit_gap, current, plan);
+    struct Work {
+      EffectSpec e;
+      double fit_gap = 0;
+      std::uint32_t evals = 0;
+      std::size_t stage = 0;
+    };
+    std::vector<Work> work;
+    // Each candidate model is re-calibrated (one pass) so that e.g. a resonance is not counted twice,
+    // once in the calibrated harmonic amplitudes and once in the path.
+    auto eval_fit = [&](const EffectSpec& e) {
+      sim::Scenario s = current;
+      s.effects.push_back(e);
+      return ev.calibrate(s, fit, 1).total;
+    };
+    auto run_stage = [&](Work& w, const FitStage& st) {
+      double best = w.fit_gap;
+      EffectSpec best_e = w.e;
+      for (double v : st.values) {
+        EffectSpec e = w.e;
+        e.set(st.param, st.relative ? w.e.get(st.param) * v : v);
+        clamp_params(e);
+        if (e.params == w.e.params && w.evals > 0) continue;
+        const double g = eval_fit(e);
+        ++w.evals;
+        if (g < best) {
+          best = g;
+          best_e = e;
+        }
+      }
+      w.e = best_e;
+      w.fit_gap = best;
+    };
+    for (EffectKind k : kinds) {
+      bool used = false;
+      for (const EffectSpec& e : current.effects) used = used || e.kind == k;
+      if (used) continue;
+      Work w;
+      w.e = initial_effect(k, q);
+      clamp_params(w.e);
+      w.fit_gap = std::numeric_limits<double>::infinity();
+      const std::vector<FitStage> stages = fit_stages(k, q, real.fs_hz, current);
+      // Screen: the first stage only.
+      if (!stages.empty()) run_stage(w, stages[0]);
+      w.stage = 1;
+      work.push_back(w);
+    }
+    std::sort(work.begin(), work.end(), [](const Work& a, const Work& b) { return a.fit_gap < b.fit_gap; });
+    for (std::size_t i = 0; i < work.size() && i < opt.full_fits; ++i) {
+      Work& w = work[i];
+      const std::vector<FitStage> stages = fit_stages(w.e.kind, q, real.fs_hz, current);
+      for (std::size_t s = 1; s < stages.size(); ++s) run_stage(w, stages[s]);
+      w.stage = stages.size();
+    }
+    std::vector<sim::Scenario> models;  // calibrated model per fully fitted candidate, in work order
+    for (std::size_t i = 0; i < work.size(); ++i) {
+      CandidateResult c;
+      c.effect = work[i].e;
+      c.gap_fit = work[i].fit_gap;
+      c.fully_fitted = i < opt.full_fits;
+      c.evaluations = work[i].evals;
+      c.location = effect_location(c.effect, current);
+      if (c.fully_fitted) {
+        sim::Scenario s = current;
+        s.effects.push_back(c.effect);
+        (void)ev.calibrate(s, fit, 1);
+        models.push_back(s);
+        c.gap_heldout = ev.gap(s, held).total;
+      } else {
+        c.gap_heldout = std::numeric_limits<double>::quiet_NaN();
+      }
+      c.shrink_pct = std::isfinite(c.gap_heldout) ? 100.0 * (current_held - c.gap_heldout) / std::max(current_held, 1e-12) : 0.0;
+      sr.ranked.push_back(c);
+    }
+    std::stable_sort(sr.ranked.begin(), sr.ranked.end(), [](const CandidateResult& a, const CandidateResult& b) {
+      if (a.fully_fitted != b.fully_fitted) return a.fully_fitted;
+      return a.gap_heldout < b.gap_heldout;
+    });
+    const CandidateResult& best = sr.ranked.front();
+    const double gain = current_held - best.gap_heldout;
+    log("round " + std::to_string(round + 1) + ": best " + sim::describe(best.effect) + " held-out " +
+        fmt("%.2f", best.gap_heldout) + " (from " + fmt("%.2f", current_held) + ")");
+    if (best.fully_fitted && gain >= opt.min_gain_share * current_held && gain >= opt.min_gain_noise * d.noise_gap) {
+      sr.accepted = 0;
+      d.chosen.push_back(best);
+      for (const sim::Scenario& m : models) {
+        if (!m.effects.empty() && m.effects.back().kind == best.effect.kind) current = m;
+      }
+      current_held = best.gap_heldout;
+      cur_fit_gap = ev.gap(current, fit, &cur_model, &cur_real_fit);
+    }
+    d.rounds.push_back(std::move(sr));
+    if (d.rounds.back().accepted < 0) break;
+  }
+  ProbeSet final_model;
+  d.final_heldout = ev.gap(current, held, &final_model);
+  if (final_model.class_power.count(0)) {
+    for (double p : final_model.class_power.at(0)) d.spectrum_final_db.push_back(db(p));
+  }
+  d.total_shrink_pct = 100.0 * (d.nominal_heldout.total - d.final_heldout.total) / std::max(d.nominal_heldout.total, 1e-12);
+  if (!d.gap_significant) {
+    d.verdict = "no significant gap: the calibrated nominal model is within " + fmt("%.1f", d.nominal_heldout.total / std::max(d.noise_gap, 1e-12)) +
+                " x the simulation's own sampling noise";
+  } else if (d.chosen.empty()) {
+    std::string where;
+    double best = -1;
+    for (const auto& [p, v] : d.nominal_heldout.by_probe) {
+      if (v > best) {
+        best = v;
+        where = p;
+      }
+    }
+    d.verdict = "no candidate effect explains a significant share of the gap; it lies mostly in the '" + where + "' probe";
+  } else {
+    d.verdict = "explained by ";
+    for (std::size_t i = 0; i < d.chosen.size(); ++i) {
+      d.verdict += (i ? " + " : "") + std::string(sim::effect_info(d.chosen[i].effect.kind).name) + " (" + d.chosen[i].location + ")";
+    }
+    d.verdict += "; held-out gap shrinks by " + fmt("%.0f", d.total_shrink_pct) + " %";
+  }
+  d.simulations = ev.simulations();
+  d.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return d;
+}
+
+}  // namespace ptda::gap

@@ -1,0 +1,561 @@
+// The probes (docs/gap.md "Probes") and the normalised gap between two probe sets.
+#include "ptda/gap/probes.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <memory>
+#include <numbers>
+#include <numeric>
+
+#include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/features.hpp"
+#include "ptda/dsp/real_fft.hpp"
+
+namespace ptda::gap {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kTiny = 1e-20;
+// Fixed normalisation scales (one "unit" of gap); docs/gap.md explains the choice.
+constexpr double kScaleHarmonicDb = 2.0;
+constexpr double kScaleSidebandDb = 2.0;
+constexpr double kScaleCoherenceDb = 1.0;
+constexpr double kScaleFloorDb = 1.0;
+constexpr double kScaleLineDb = 3.0;
+constexpr double kScaleLogKurtosis = 0.05;
+constexpr double kScaleCrestDb = 1.0;
+constexpr double kScaleExtremeLog10 = 0.3;
+constexpr double kScaleResidualRmsDb = 0.5;
+constexpr double kScaleEntropy = 0.005;
+constexpr double kScaleAlarm = 0.1;
+constexpr double kScaleGmfPpm = 100.0;
+constexpr double kScaleLagMs = 2.0;
+
+double db(double p) { return 10.0 * std::log10(std::max(p, kTiny)); }
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  return v[mid];
+}
+
+struct Band {
+  double lo = 0.0;
+  double hi = 0.0;
+};
+
+/// 1/3-octave bands from max(20 Hz, 8 bins) to 0.45 fs, each at least 8 bins of the coarsest window.
+std::vector<Band> make_bands(double fs_hz, std::size_t min_len) {
+  std::vector<Band> out;
+  const double df = fs_hz / static_cast<double>(min_len);
+  double lo = std::max(20.0, 8.0 * df);
+  const double top = 0.45 * fs_hz;
+  while (lo < top) {
+    double hi = std::max(lo * std::pow(2.0, 1.0 / 3.0), lo + 8.0 * df);
+    if (hi > top) hi = top;
+    if (hi - lo >= 4.0 * df) out.push_back({lo, hi});
+    lo = hi;
+  }
+  return out;
+}
+
+std::size_t bin_of(double f_hz, double df) { return static_cast<std::size_t>(std::lround(f_hz / df)); }
+
+/// Moments of a window (mean removed).
+void window_stats(const float* x, std::size_t n, double& kurtosis, double& crest_db) {
+  double mean = 0.0;
+  for (std::size_t i = 0; i < n; ++i) mean += x[i];
+  mean /= static_cast<double>(n);
+  double m2 = 0.0, m4 = 0.0, peak = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double d = x[i] - mean;
+    m2 += d * d;
+    m4 += d * d * d * d;
+    peak = std::max(peak, std::fabs(d));
+  }
+  m2 /= static_cast<double>(n);
+  m4 /= static_cast<double>(n);
+  kurtosis = m2 > 0.0 ? m4 / (m2 * m2) : 3.0;
+  crest_db = m2 > 0.0 ? 20.0 * std::log10(peak / std::sqrt(m2)) : 0.0;
+}
+
+struct Accum {
+  std::vector<double> power;  // mean amplitude^2 per bin
+  std::size_t count = 0;
+  std::size_t len = 0;
+  double log_kurt = 0.0;
+  double crest_db = 0.0;
+};
+
+class SpectrumCache {
+ public:
+  dsp::RealFft& fft(std::size_t n) {
+    auto it = ffts_.find(n);
+    if (it == ffts_.end()) it = ffts_.emplace(n, std::make_unique<dsp::RealFft>(n)).first;
+    return *it->second;
+  }
+  const std::vector<float>& hann(std::size_t n) {
+    auto it = hann_.find(n);
+    if (it == hann_.end()) {
+      std::vector<float> w(n);
+      for (std::size_t i = 0; i < n; ++i) w[i] = static_cast<float>(0.5 - 0.5 * std::cos(2.0 * kPi * static_cast<double>(i) / static_cast<double>(n)));
+      it = hann_.emplace(n, std::move(w)).first;
+    }
+    return it->second;
+  }
+
+ private:
+  std::map<std::size_t, std::unique_ptr<dsp::RealFft>> ffts_;
+  std::map<std::size_t, std::vector<float>> hann_;
+};
+
+/// Parabolic peak interpolation on dB values around bin k: fractional bin.
+double interp_peak(const std::vector<double>& p, std::size_t k) {
+  if (k == 0 || k + 1 >= p.size()) return static_cast<double>(k);
+  const double a = db(p[k - 1]), b = db(p[k]), c = db(p[k + 1]);
+  const double den = a - 2.0 * b + c;
+  if (den >= 0.0) return static_cast<double>(k);
+  return static_cast<double>(k) + 0.5 * (a - c) / den;
+}
+
+double envelope_lag(const GapRecording& rec, const std::vector<Segment>& segs, const std::vector<char>& use_cycle) {
+  const double fs = rec.fs_hz;
+  const double frame_s = 0.005;
+  const auto frame = static_cast<std::size_t>(frame_s * fs);
+  const std::size_t frames = rec.accel_ms2.size() / frame;
+  if (frames < 10 || rec.speed.size() < 3) return std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> env(frames), spd(frames);
+  std::vector<char> use(frames, 0);
+  std::size_t si = 0;
+  std::size_t seg = 0;
+  for (std::size_t f = 0; f < frames; ++f) {
+    double ss = 0.0;
+    for (std::size_t i = f * frame; i < (f + 1) * frame; ++i) ss += static_cast<double>(rec.accel_ms2[i]) * rec.accel_ms2[i];
+    env[f] = std::sqrt(ss / static_cast<double>(frame));
+    const double t = (static_cast<double>(f) + 0.5) * frame_s;
+    while (si + 1 < rec.speed.size() && rec.speed[si + 1].t_s < t) ++si;
+    double w = rec.speed[si].speed_rad_s;
+    if (si + 1 < rec.speed.size() && t > rec.speed[si].t_s) {
+      const double u = (t - rec.speed[si].t_s) / (rec.speed[si + 1].t_s - rec.speed[si].t_s);
+      w += std::clamp(u, 0.0, 1.0) * (rec.speed[si + 1].speed_rad_s - rec.speed[si].speed_rad_s);
+    }
+    spd[f] = std::fabs(w);
+    while (seg + 1 < segs.size() && segs[seg].t1_s < t) ++seg;
+    const std::uint32_t c = segs.empty() ? 0 : segs[seg].cycle;
+    use[f] = use_cycle.empty() || (c < use_cycle.size() && use_cycle[c] != 0) ? 1 : 0;
+  }
+  double smax = 0.0;
+  for (double v : spd) smax = std::max(smax, v);
+  double mean = 0.0, var = 0.0;
+  for (double v : spd) mean += v;
+  mean /= static_cast<double>(frames);
+  for (double v : spd) var += (v - mean) * (v - mean);
+  if (smax <= 0.0 || std::sqrt(var / static_cast<double>(frames)) < 0.05 * smax) return std::numeric_limits<double>::quiet_NaN();
+  const int max_lag = static_cast<int>(0.2 / frame_s);
+  std::vector<double> corr;
+  for (int L = -max_lag; L <= max_lag; ++L) {
+    // env[f] compared with spd[f - L]: positive L = the vibration follows the CAN speed later.
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, n = 0;
+    for (std::size_t f = 0; f < frames; ++f) {
+      const auto g = static_cast<std::ptrdiff_t>(f) - L;
+      if (!use[f] || g < 0 || g >= static_cast<std::ptrdiff_t>(frames)) continue;
+      const double x = env[f], y = spd[static_cast<std::size_t>(g)];
+      sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y; n += 1;
+    }
+    const double cov = sxy - sx * sy / std::max(n, 1.0);
+    const double vx = sxx - sx * sx / std::max(n, 1.0);
+    const double vy = syy - sy * sy / std::max(n, 1.0);
+    corr.push_back(vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy) : 0.0);
+  }
+  const auto best = static_cast<std::size_t>(std::max_element(corr.begin(), corr.end()) - corr.begin());
+  double frac = static_cast<double>(best);
+  if (best > 0 && best + 1 < corr.size()) {
+    const double a = corr[best - 1], b = corr[best], c = corr[best + 1];
+    const double den = a - 2 * b + c;
+    if (den < 0) frac += 0.5 * (a - c) / den;
+  }
+  return (frac - max_lag) * frame_s;
+}
+
+void add(ProbeSet& ps, const std::string& probe, const std::string& key, double value, double scale, double f_lo,
+         double f_hi, SegmentType seg, Stage stage, int order = 0) {
+  if (!std::isfinite(value)) return;
+  ps.elements.push_back(ProbeElement{probe, key, value, scale, f_lo, f_hi, seg, stage, order});
+}
+
+}  // namespace
+
+const char* stage_name(Stage s) noexcept {
+  switch (s) {
+    case Stage::kRaw:
+      return "raw_spectrum";
+    case Stage::kResidual:
+      return "residual_features";
+    case Stage::kAlarm:
+      return "alarm_decisions";
+  }
+  return "?";
+}
+
+ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& segs, const std::vector<Window>& windows,
+                        const std::vector<char>& use_cycle, const ProbeContext& ctx, const ProbeSet* reference) {
+  ProbeSet ps;
+  const double fs = rec.fs_hz;
+  const AnalysisPlan& plan = ctx.plan;
+  SpectrumCache cache;
+  auto selected = [&](const Window& w) {
+    return use_cycle.empty() || (w.cycle < use_cycle.size() && use_cycle[w.cycle] != 0);
+  };
+
+  std::map<int, Accum> const_acc;  // per class
+  Accum accel_acc, still_acc;
+  std::size_t min_len = std::numeric_limits<std::size_t>::max();
+  std::vector<float> buf;
+  std::vector<std::complex<float>> spec;
+  double max_abs = 0.0;
+  std::vector<const Window*> used;
+  for (const Window& w : windows) {
+    if (!selected(w)) continue;
+    used.push_back(&w);
+    min_len = std::min(min_len, w.len);
+    Accum& acc = w.type == SegmentType::kConstant ? const_acc[w.speed_class]
+                 : w.type == SegmentType::kAccel  ? accel_acc
+                                                  : still_acc;
+    const float* x = rec.accel_ms2.data() + w.start;
+    for (std::size_t i = 0; i < w.len; ++i) max_abs = std::max(max_abs, static_cast<double>(std::fabs(x[i])));
+    const std::vector<float>& h = cache.hann(w.len);
+    buf.resize(w.len);
+    double mean = 0.0;
+    for (std::size_t i = 0; i < w.len; ++i) mean += x[i];
+    mean /= static_cast<double>(w.len);
+    for (std::size_t i = 0; i < w.len; ++i) buf[i] = static_cast<float>((x[i] - mean) * h[i]);
+    spec.resize(w.len / 2 + 1);
+    cache.fft(w.len).forward(buf, spec);
+    if (acc.power.empty()) {
+      acc.power.assign(spec.size(), 0.0);
+      acc.len = w.len;
+    }
+    const double norm = 2.0 / (0.5 * static_cast<double>(w.len));  // amplitude of a sine
+    for (std::size_t k = 0; k < spec.size(); ++k) acc.power[k] += std::norm(spec[k]) * norm * norm;
+    double kurt = 3.0, crest = 0.0;
+    window_stats(x, w.len, kurt, crest);
+    acc.log_kurt += std::log(kurt);
+    acc.crest_db += crest;
+    ++acc.count;
+  }
+  ps.windows = used.size();
+  ps.max_abs_ms2 = max_abs;
+  if (used.empty()) return ps;
+  for (auto* acc : {&accel_acc, &still_acc}) {
+    for (double& p : acc->power) p /= static_cast<double>(std::max<std::size_t>(acc->count, 1));
+  }
+  for (auto& [c, acc] : const_acc) {
+    for (double& p : acc.power) p /= static_cast<double>(acc.count);
+  }
+  const std::vector<Band> bands = make_bands(fs, min_len);
+
+  // ---- mesh probes per constant-speed class -------------------------------------------------------
+  int max_nominal = 1;
+  for (int k : ctx.nominal_orders) max_nominal = std::max(max_nominal, k);
+  const int k_limit = std::min(40, 2 * max_nominal);
+  std::vector<std::pair<double, double>> harmonic_exclusions;  // [lo, hi] Hz per class, for the line probe
+  std::map<int, std::vector<std::pair<double, double>>> class_exclusions;
+  for (auto& [c, acc] : const_acc) {
+    const double df = fs / static_cast<double>(acc.len);
+    const double w = plan.speeds[static_cast<std::size_t>(c)];
+    const double gmf = std::fabs(sim::gmf_hz(ctx.gearbox, w));
+    const double f_in = gmf / static_cast<double>(ctx.gearbox.z_in);
+    const std::vector<double>& p = acc.power;
+    ps.class_power[c] = p;
+    if (gmf <= 0.0) continue;
+    const std::string cls = "c" + std::to_string(c);
+    struct Strong {
+      int k;
+      std::size_t bin;
+      double floor_db;
+      double peak_db;
+    };
+    std::vector<Strong> strong;
+    for (int k = 1; k <= k_limit && k * gmf < 0.45 * fs; ++k) {
+      const double f = k * gmf;
+      class_exclusions[c].push_back({f - 3.6 * f_in - 3 * df, f + 3.6 * f_in + 3 * df});
+      const std::size_t b = bin_of(f, df);
+      std::size_t kb = b;
+      double peak = 0.0;
+      for (std::size_t j = b > 2 ? b - 2 : 0; j <= b + 2 && j < p.size(); ++j) {
+        if (p[j] > peak) {
+          peak = p[j];
+          kb = j;
+        }
+      }
+      std::vector<double> around;
+      for (std::size_t j = b > 30 ? b - 30 : 1; j <= b + 30 && j < p.size(); ++j) {
+        if (j + 3 < b || j > b + 3) around.push_back(p[j]);
+      }
+      const double floor_db = db(median_of(around));
+      const double peak_db = db(peak);
+      add(ps, "harmonics", cls + ".k" + std::to_string(k), std::max(peak_db, floor_db + 6.0), kScaleHarmonicDb, f, f,
+          SegmentType::kConstant, Stage::kRaw, k);
+      const bool nominal = std::find(ctx.nominal_orders.begin(), ctx.nominal_orders.end(), k) != ctx.nominal_orders.end();
+      if (nominal && peak_db > floor_db + 15.0) strong.push_back({k, kb, floor_db, peak_db});
+    }
+    if (strong.empty()) continue;
+    double f_lo = 1e300, f_hi = 0.0;
+    for (const Strong& s : strong) {
+      f_lo = std::min(f_lo, s.k * gmf);
+      f_hi = std::max(f_hi, s.k * gmf);
+    }
+    // Sideband excess at offsets 0.5 .. 3.5 input-shaft orders, averaged over the strong harmonics.
+    for (int j = 2; j <= 14; ++j) {
+      const double delta = 0.25 * j * f_in;
+      if (delta < 3.0 * df) continue;
+      double sum = 0.0;
+      for (const Strong& s : strong) {
+        double best = 0.0;
+        for (double sign : {-1.0, 1.0}) {
+          const double f = s.k * gmf + sign * delta;
+          if (f <= 0.0) continue;
+          const std::size_t b = bin_of(f, df);
+          for (std::size_t q = b > 1 ? b - 1 : 0; q <= b + 1 && q < p.size(); ++q) best = std::max(best, p[q]);
+        }
+        sum += std::max(0.0, db(best) - s.floor_db - 3.0);
+      }
+      char key[48];
+      std::snprintf(key, sizeof key, "%s.d%.2f", cls.c_str(), 0.25 * j);
+      add(ps, "sidebands", key, sum / static_cast<double>(strong.size()), kScaleSidebandDb, f_lo, f_hi,
+          SegmentType::kConstant, Stage::kRaw);
+    }
+    // Line sharpness (within-window phase coherence) and the measured mesh frequency.
+    const Strong* top = &strong.front();
+    for (const Strong& s : strong) {
+      double core = 0.0, wide = 0.0;
+      for (std::size_t q = s.bin > 8 ? s.bin - 8 : 0; q <= s.bin + 8 && q < p.size(); ++q) {
+        wide += p[q];
+        if (q + 1 >= s.bin && q <= s.bin + 1) core += p[q];
+      }
+      add(ps, "coherence", cls + ".k" + std::to_string(s.k), db(core / std::max(wide, kTiny)), kScaleCoherenceDb,
+          s.k * gmf, s.k * gmf, SegmentType::kConstant, Stage::kRaw, s.k);
+      if (s.peak_db - s.floor_db > top->peak_db - top->floor_db) top = &s;
+    }
+    const double f_meas = interp_peak(p, top->bin) * df;
+    add(ps, "tracking", cls + ".gmf_ppm", (f_meas / (top->k * gmf) - 1.0) * 1e6, kScaleGmfPpm, top->k * gmf,
+        top->k * gmf, SegmentType::kConstant, Stage::kRaw);
+  }
+
+  // ---- noise floor and lines per band and segment type ----------------------------------------------
+  auto band_probes = [&](SegmentType type, const std::vector<std::pair<const std::vector<double>*, std::size_t>>& spectra,
+                         const std::map<int, std::vector<std::pair<double, double>>>* excl) {
+    if (spectra.empty()) return;
+    const std::string tn = segment_type_name(type);
+    for (std::size_t bi = 0; bi < bands.size(); ++bi) {
+      const Band& band = bands[bi];
+      double floor_sum = 0.0, line_sum = 0.0;
+      int n = 0;
+      for (std::size_t si = 0; si < spectra.size(); ++si) {
+        const std::vector<double>& p = *spectra[si].first;
+        const double df = fs / static_cast<double>(spectra[si].second);
+        std::vector<double> in;
+        double mx = 0.0;
+        for (std::size_t q = bin_of(band.lo, df); q < bin_of(band.hi, df) && q < p.size(); ++q) {
+          in.push_back(p[q]);
+          const double f = static_cast<double>(q) * df;
+          bool excluded = false;
+          if (excl != nullptr) {
+            auto it = excl->begin();
+            std::advance(it, static_cast<std::ptrdiff_t>(si));
+            for (const auto& [lo, hi] : it->second) excluded = excluded || (f >= lo && f <= hi);
+          }
+          if (!excluded) mx = std::max(mx, p[q]);
+        }
+        if (in.size() < 3) continue;
+        const double fl = db(median_of(in));
+        floor_sum += fl;
+        line_sum += mx > 0.0 ? std::max(0.0, db(mx) - fl - 10.0) : 0.0;
+        ++n;
+      }
+      if (n == 0) continue;
+      const std::string key = tn + ".b" + std::to_string(bi);
+      add(ps, "noise_floor", key, floor_sum / n, kScaleFloorDb, band.lo, band.hi, type, Stage::kRaw);
+      add(ps, "lines", key, line_sum / n, kScaleLineDb, band.lo, band.hi, type, Stage::kRaw);
+    }
+  };
+  {
+    std::vector<std::pair<const std::vector<double>*, std::size_t>> cs;
+    std::map<int, std::vector<std::pair<double, double>>> ex;
+    for (auto& [c, acc] : const_acc) {
+      cs.push_back({&acc.power, acc.len});
+      ex[c] = class_exclusions[c];
+    }
+    band_probes(SegmentType::kConstant, cs, &ex);
+    if (accel_acc.count > 0) band_probes(SegmentType::kAccel, {{&accel_acc.power, accel_acc.len}}, nullptr);
+    if (still_acc.count > 0) band_probes(SegmentType::kStandstill, {{&still_acc.power, still_acc.len}}, nullptr);
+    ps.accel_power = accel_acc.power;
+    ps.still_power = still_acc.power;
+  }
+
+  // ---- amplitude statistics ----------------------------------------------------------------------------
+  auto amp_probes = [&](SegmentType type, double log_kurt, double crest, std::size_t count) {
+    if (count == 0) return;
+    const std::string tn = segment_type_name(type);
+    add(ps, "amplitude", tn + ".log_kurtosis", log_kurt / static_cast<double>(count), kScaleLogKurtosis, 0, 0, type, Stage::kRaw);
+    add(ps, "amplitude", tn + ".crest_db", crest / static_cast<double>(count), kScaleCrestDb, 0, 0, type, Stage::kRaw);
+  };
+  {
+    double lk = 0, cr = 0;
+    std::size_t n = 0;
+    for (auto& [c, acc] : const_acc) {
+      lk += acc.log_kurt;
+      cr += acc.crest_db;
+      n += acc.count;
+    }
+    amp_probes(SegmentType::kConstant, lk, cr, n);
+    amp_probes(SegmentType::kAccel, accel_acc.log_kurt, accel_acc.crest_db, accel_acc.count);
+    amp_probes(SegmentType::kStandstill, still_acc.log_kurt, still_acc.crest_db, still_acc.count);
+    // Flat tops: share of the windows' samples within 0.2 % of the largest magnitude.
+    std::size_t near = 0, total = 0;
+    for (const Window* w : used) {
+      const float* x = rec.accel_ms2.data() + w->start;
+      for (std::size_t i = 0; i < w->len; ++i) near += std::fabs(x[i]) >= 0.998 * max_abs ? 1U : 0U;
+      total += w->len;
+    }
+    add(ps, "amplitude", "extreme_share_log10",
+        std::log10(std::max(static_cast<double>(near) / static_cast<double>(total), 1e-6)), kScaleExtremeLog10, 0, 0,
+        SegmentType::kConstant, Stage::kRaw);
+  }
+
+  // ---- residual features (PTDA, leave-one-out) and alarms ---------------------------------------------
+  ps.classes.resize(plan.speeds.size());
+  for (auto& [c, acc] : const_acc) {
+    std::vector<const Window*> ws;
+    for (const Window* w : used) {
+      if (w->type == SegmentType::kConstant && w->speed_class == c) ws.push_back(w);
+    }
+    if (ws.size() < 3) continue;
+    const std::size_t n = acc.len;
+    dsp::WindowAnalyzer an(n);
+    std::vector<std::vector<float>> mags(ws.size(), std::vector<float>(n / 2 + 1));
+    std::vector<double> sum(n / 2 + 1, 0.0);
+    for (std::size_t i = 0; i < ws.size(); ++i) {
+      an.magnitude(std::span<const float>(rec.accel_ms2.data() + ws[i]->start, n), mags[i]);
+      for (std::size_t k = 0; k < sum.size(); ++k) sum[k] += mags[i][k];
+    }
+    ClassReference& ref = ps.classes[static_cast<std::size_t>(c)];
+    ref.mean_magnitude.resize(sum.size());
+    for (std::size_t k = 0; k < sum.size(); ++k) ref.mean_magnitude[k] = static_cast<float>(sum[k] / static_cast<double>(ws.size()));
+    std::vector<float> loo(sum.size());
+    std::vector<double> rms_v, ent_v;
+    const double m = static_cast<double>(ws.size());
+    for (std::size_t i = 0; i < ws.size(); ++i) {
+      for (std::size_t k = 0; k < sum.size(); ++k) loo[k] = static_cast<float>((sum[k] - mags[i][k]) / (m - 1.0));
+      const dsp::Features f = an.analyze_with(std::span<const float>(rec.accel_ms2.data() + ws[i]->start, n), loo, {},
+                                              dsp::Method::kPtda);
+      rms_v.push_back(f.rms_res);
+      ent_v.push_back(f.entropy_res);
+    }
+    double mr = 0, me = 0;
+    for (std::size_t i = 0; i < rms_v.size(); ++i) {
+      mr += rms_v[i];
+      me += ent_v[i];
+    }
+    mr /= m;
+    me /= m;
+    double vr = 0;
+    for (double r : rms_v) vr += (r - mr) * (r - mr);
+    ref.rms_mean = mr;
+    ref.rms_std = std::sqrt(vr / std::max(1.0, m - 1.0));
+    const std::string cls = "c" + std::to_string(c);
+    add(ps, "residual", cls + ".rms_db", 20.0 * std::log10(std::max(mr, 1e-12)), kScaleResidualRmsDb, 0, 0,
+        SegmentType::kConstant, Stage::kResidual);
+    add(ps, "residual", cls + ".entropy", me, kScaleEntropy, 0, 0, SegmentType::kConstant, Stage::kResidual);
+    // Alarm: share of windows whose residual rms falls outside mean +- 3 sigma of the reference.
+    const ClassReference* rr = reference != nullptr && static_cast<std::size_t>(c) < reference->classes.size() &&
+                                       reference->classes[static_cast<std::size_t>(c)].mean_magnitude.size() == sum.size()
+                                   ? &reference->classes[static_cast<std::size_t>(c)]
+                                   : nullptr;
+    std::size_t alarms = 0;
+    for (std::size_t i = 0; i < ws.size(); ++i) {
+      double r = rms_v[i];
+      double lo = mr - 3.0 * ref.rms_std, hi = mr + 3.0 * ref.rms_std;
+      if (rr != nullptr) {
+        r = an.analyze_with(std::span<const float>(rec.accel_ms2.data() + ws[i]->start, n), rr->mean_magnitude, {},
+                            dsp::Method::kPtda)
+                .rms_res;
+        lo = rr->rms_mean - 3.0 * rr->rms_std;
+        hi = rr->rms_mean + 3.0 * rr->rms_std;
+      }
+      alarms += (r < lo || r > hi) ? 1U : 0U;
+    }
+    add(ps, "alarm", cls + ".rate", static_cast<double>(alarms) / m, kScaleAlarm, 0, 0, SegmentType::kConstant, Stage::kAlarm);
+  }
+
+  // ---- CAN speed vs vibration timing ----------------------------------------------------------------
+  ps.lag_s = envelope_lag(rec, segs, use_cycle);
+  add(ps, "tracking", "envelope_lag_ms", ps.lag_s * 1e3, kScaleLagMs, 0, 0, SegmentType::kAccel, Stage::kRaw);
+  return ps;
+}
+
+GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim) {
+  GapBreakdown g;
+  std::map<std::string, const ProbeElement*> sim_by_key;
+  for (const ProbeElement& e : sim.elements) sim_by_key[e.probe + "/" + e.key] = &e;
+  struct Pair {
+    const ProbeElement* r;
+    const ProbeElement* s;
+    double diff;
+  };
+  std::vector<Pair> pairs;
+  for (const ProbeElement& e : real.elements) {
+    auto it = sim_by_key.find(e.probe + "/" + e.key);
+    if (it == sim_by_key.end()) continue;
+    pairs.push_back({&e, it->second, e.value - it->second->value});
+  }
+  // Profile out the free parameters of the nominal model.
+  std::map<int, std::pair<double, int>> per_order;
+  std::vector<double> floor_diffs;
+  for (const Pair& p : pairs) {
+    if (p.r->probe == "harmonics") {
+      auto& a = per_order[p.r->order];
+      a.first += p.diff;
+      a.second += 1;
+    } else if (p.r->probe == "noise_floor" && p.r->segment == SegmentType::kConstant) {
+      floor_diffs.push_back(p.diff);
+    }
+  }
+  g.noise_offset_db = median_of(floor_diffs);
+  for (auto& [k, a] : per_order) {
+    if (k >= static_cast<int>(g.harmonic_offset_db.size())) g.harmonic_offset_db.resize(static_cast<std::size_t>(k) + 1, 0.0);
+    g.harmonic_offset_db[static_cast<std::size_t>(k)] = a.first / a.second;
+  }
+  for (Pair& p : pairs) {
+    if (p.r->probe == "harmonics") p.diff -= g.harmonic_offset_db[static_cast<std::size_t>(p.r->order)];
+    if (p.r->probe == "noise_floor") p.diff -= g.noise_offset_db;
+  }
+  std::map<std::string, int> count;
+  for (const Pair& p : pairs) ++count[p.r->probe];
+  std::vector<GapBreakdown::Top> all;
+  for (const Pair& p : pairs) {
+    const double z = p.diff / p.r->scale;
+    const double c = z * z / count[p.r->probe];
+    g.total += c;
+    g.by_probe[p.r->probe] += c;
+    std::string band = "broadband";
+    if (p.r->f_hi_hz > 0.0) {
+      const double centre = std::sqrt(std::max(p.r->f_lo_hz, 1.0) * p.r->f_hi_hz);
+      const double lo = std::pow(2.0, std::floor(std::log2(centre)));
+      band = std::to_string(static_cast<long>(lo)) + "-" + std::to_string(static_cast<long>(2 * lo)) + " Hz";
+    }
+    g.by_band[band] += c;
+    g.by_segment[segment_type_name(p.r->segment)] += c;
+    g.by_stage[stage_name(p.r->stage)] += c;
+    all.push_back({p.r->probe, p.r->key, p.r->value, p.s->value, z, c});
+  }
+  std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.contribution > b.contribution; });
+  if (all.size() > 12) all.resize(12);
+  g.top = std::move(all);
+  return g;
+}
+
+}  // namespace ptda::gap

@@ -1,0 +1,257 @@
+// Recording view, CAN-based segmentation and window cutting for the gap diagnosis.
+#include "ptda/gap/signals.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/dsp/real_fft.hpp"
+#include "ptda/formats/candump.hpp"
+#include "ptda/formats/recording.hpp"
+#include "ptda/formats/wav.hpp"
+
+namespace ptda::gap {
+namespace {
+
+constexpr double kMarginS = 0.02;       // kept clear of segment ends (CAN delay, jitter, blend edges)
+constexpr double kMaxConstWindowS = 0.5;
+constexpr double kMaxOtherWindowS = 0.25;
+constexpr std::size_t kMinWindow = 256;
+constexpr std::size_t kMaxWindowsPerSegment = 4;
+
+std::size_t fft_len_at_most(double samples) {
+  if (samples < static_cast<double>(kMinWindow)) return 0;
+  auto n = static_cast<std::size_t>(samples);
+  n -= n % 2;
+  for (; n >= kMinWindow; n -= 2) {
+    if (dsp::RealFft::supported_length(n)) return n;
+  }
+  return 0;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const auto i = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
+  return v[i];
+}
+
+}  // namespace
+
+const char* segment_type_name(SegmentType t) noexcept {
+  switch (t) {
+    case SegmentType::kConstant:
+      return "constant";
+    case SegmentType::kAccel:
+      return "acceleration";
+    case SegmentType::kStandstill:
+      return "standstill";
+  }
+  return "?";
+}
+
+GapRecording load_recording(const std::filesystem::path& dir, const config::SpeedFrameSpec& frame,
+                            double can_delay_s) {
+  const formats::RecordingMeta meta = formats::read_recording_meta(dir);
+  GapRecording rec;
+  rec.source = dir.string();
+  formats::WavInfo info;
+  rec.accel_ms2 = formats::read_wav_channel(dir / meta.vibration_file, meta.channel, &info);
+  rec.fs_hz = info.sample_rate_hz;
+  for (float& v : rec.accel_ms2) v = static_cast<float>(v * meta.scale);
+  const std::vector<formats::CandumpRecord> log = formats::read_candump(dir / meta.can_file);
+  const std::int64_t t0_ns = seconds_to_ns(meta.start_time_s);
+  for (const formats::CandumpRecord& r : log) {
+    config::DecodedSpeed d;
+    if (config::decode_speed(r.frame, frame, d) != config::DecodeResult::kOk) continue;
+    rec.speed.push_back({ns_to_seconds(r.frame.t_ns - t0_ns) - can_delay_s, d.speed_rad_s});
+  }
+  if (rec.speed.size() < 2) {
+    throw Error((dir / meta.can_file).string() + ": fewer than 2 speed frames with id " +
+                std::to_string(frame.id) + " (check the scenario's [can.speed_frame])");
+  }
+  return rec;
+}
+
+GapRecording recording_from_simulation(const sim::SimulatedSignals& sig, const sim::Scenario& s) {
+  GapRecording rec;
+  rec.source = "simulation";
+  rec.fs_hz = sig.fs_nominal_hz;
+  const double scale = sim::sensor_scale(s.sensor);
+  rec.accel_ms2.resize(sig.codes.size());
+  for (std::size_t i = 0; i < sig.codes.size(); ++i) rec.accel_ms2[i] = static_cast<float>(sig.codes[i] * scale);
+  config::SpeedFrameSpec spec = s.can.speed_frame;
+  const std::int64_t t0_ns = seconds_to_ns(s.start_time_s);
+  for (const sim::SimCanFrame& f : sig.can) {
+    if (!f.is_speed) continue;
+    config::DecodedSpeed d;
+    if (config::decode_speed(f.frame, spec, d) != config::DecodeResult::kOk) continue;
+    rec.speed.push_back({ns_to_seconds(f.frame.t_ns - t0_ns) - s.can.delay_s, d.speed_rad_s});
+  }
+  return rec;
+}
+
+std::vector<Segment> segment_recording(const GapRecording& rec, double block_s) {
+  std::vector<Segment> out;
+  const std::vector<SpeedPoint>& sp = rec.speed;
+  if (sp.size() < 3) return out;
+  const double duration_s = static_cast<double>(rec.accel_ms2.size()) / rec.fs_hz;
+  double w_max = 0.0;
+  for (const SpeedPoint& p : sp) w_max = std::max(w_max, std::fabs(p.speed_rad_s));
+  if (w_max <= 0.0) return out;
+  const double still = 0.02 * w_max;
+  const double accel_thr = 0.02 * w_max;  // rad/s per s
+  auto classify = [&](std::size_t i) {
+    if (std::fabs(sp[i].speed_rad_s) < still) return SegmentType::kStandstill;
+    const std::size_t a = i == 0 ? 0 : i - 1;
+    const std::size_t b = std::min(i + 1, sp.size() - 1);
+    const double dt = sp[b].t_s - sp[a].t_s;
+    const double acc = dt > 0.0 ? (sp[b].speed_rad_s - sp[a].speed_rad_s) / dt : 0.0;
+    return std::fabs(acc) < accel_thr ? SegmentType::kConstant : SegmentType::kAccel;
+  };
+  // Runs of one type; constant runs also break when the speed moves by more than 1 %.
+  std::size_t start = 0;
+  SegmentType type = classify(0);
+  auto flush = [&](std::size_t end) {  // points [start, end)
+    Segment s;
+    s.type = type;
+    s.t0_s = std::max(0.0, start == 0 ? 0.0 : 0.5 * (sp[start - 1].t_s + sp[start].t_s));
+    s.t1_s = std::min(duration_s, end >= sp.size() ? duration_s : 0.5 * (sp[end - 1].t_s + sp[end].t_s));
+    double sum = 0.0;
+    for (std::size_t i = start; i < end; ++i) sum += sp[i].speed_rad_s;
+    s.speed_rad_s = sum / static_cast<double>(end - start);
+    if (s.t1_s > s.t0_s) out.push_back(s);
+  };
+  for (std::size_t i = 1; i < sp.size(); ++i) {
+    const SegmentType t = classify(i);
+    const bool speed_jump = t == SegmentType::kConstant && type == SegmentType::kConstant &&
+                            std::fabs(sp[i].speed_rad_s - sp[start].speed_rad_s) > 0.01 * w_max;
+    if (t != type || speed_jump) {
+      flush(i);
+      start = i;
+      type = t;
+    }
+  }
+  flush(sp.size());
+
+  bool has_still = false;
+  for (const Segment& s : out) has_still = has_still || s.type == SegmentType::kStandstill;
+  if (!has_still) {
+    // Test rig: constant speed throughout. Blocks play the role of job cycles.
+    std::vector<Segment> blocks;
+    std::uint32_t c = 0;
+    for (const Segment& s : out) {
+      if (s.type != SegmentType::kConstant) {
+        blocks.push_back(s);
+        continue;
+      }
+      for (double t = s.t0_s; t + block_s <= s.t1_s + 1e-9; t += block_s) {
+        Segment b = s;
+        b.t0_s = t;
+        b.t1_s = t + block_s;
+        b.cycle = c++;
+        blocks.push_back(b);
+      }
+    }
+    return blocks;
+  }
+  std::uint32_t cycle = 0;
+  bool started = false;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    // A cycle starts after a real rest (a reversal passes through zero speed only briefly).
+    if (i > 0 && out[i].type != SegmentType::kStandstill && out[i - 1].type == SegmentType::kStandstill &&
+        out[i - 1].t1_s - out[i - 1].t0_s >= 0.1) {
+      if (started) ++cycle;
+      started = true;
+    }
+    if (out[i].type != SegmentType::kStandstill) started = true;
+    out[i].cycle = cycle;
+  }
+  return out;
+}
+
+AnalysisPlan make_plan(const GapRecording& rec, const std::vector<Segment>& segs) {
+  AnalysisPlan plan;
+  plan.fs_hz = rec.fs_hz;
+  bool block_mode = true;
+  for (const Segment& s : segs) block_mode = block_mode && s.type == SegmentType::kConstant;
+  const double margin = block_mode ? 0.0 : kMarginS;
+  std::vector<std::vector<double>> class_durs;
+  std::vector<double> accel_durs;
+  std::vector<double> still_durs;
+  for (const Segment& s : segs) {
+    plan.cycles = std::max(plan.cycles, s.cycle + 1);
+    const double dur = s.t1_s - s.t0_s;
+    if (s.type == SegmentType::kAccel) {
+      if (dur >= 0.05) accel_durs.push_back(dur);
+      continue;
+    }
+    if (s.type == SegmentType::kStandstill) {
+      if (dur >= 0.1) still_durs.push_back(dur - 2 * margin);
+      continue;
+    }
+    if (dur < 0.06) continue;
+    std::size_t c = 0;
+    for (; c < plan.speeds.size(); ++c) {
+      if (std::fabs(plan.speeds[c] - s.speed_rad_s) <= 0.02 * std::fabs(plan.speeds[c])) break;
+    }
+    if (c == plan.speeds.size()) {
+      plan.speeds.push_back(s.speed_rad_s);
+      class_durs.emplace_back();
+    }
+    class_durs[c].push_back(dur - 2 * margin);
+  }
+  for (std::size_t c = 0; c < plan.speeds.size(); ++c) {
+    const double d = std::min(kMaxConstWindowS, quantile(class_durs[c], 0.25));
+    plan.const_len.push_back(fft_len_at_most(d * rec.fs_hz));
+  }
+  if (!accel_durs.empty()) plan.accel_len = fft_len_at_most(std::min(kMaxOtherWindowS, quantile(accel_durs, 0.25)) * rec.fs_hz);
+  if (!still_durs.empty()) plan.still_len = fft_len_at_most(std::min(kMaxOtherWindowS, quantile(still_durs, 0.25)) * rec.fs_hz);
+  return plan;
+}
+
+std::vector<Window> cut_windows(const GapRecording& rec, const std::vector<Segment>& segs, const AnalysisPlan& plan) {
+  std::vector<Window> out;
+  bool block_mode = true;
+  for (const Segment& s : segs) block_mode = block_mode && s.type == SegmentType::kConstant;
+  const double margin = block_mode ? 0.0 : kMarginS;
+  const double fs = rec.fs_hz;
+  const std::size_t n_total = rec.accel_ms2.size();
+  for (const Segment& s : segs) {
+    Window w;
+    w.type = s.type;
+    w.cycle = s.cycle;
+    w.speed_rad_s = s.speed_rad_s;
+    if (s.type == SegmentType::kConstant) {
+      int cls = -1;
+      for (std::size_t c = 0; c < plan.speeds.size(); ++c) {
+        if (std::fabs(plan.speeds[c] - s.speed_rad_s) <= 0.02 * std::fabs(plan.speeds[c])) cls = static_cast<int>(c);
+      }
+      if (cls < 0 || plan.const_len[static_cast<std::size_t>(cls)] == 0) continue;
+      w.speed_class = cls;
+      w.len = plan.const_len[static_cast<std::size_t>(cls)];
+      const double avail = (s.t1_s - s.t0_s - 2 * margin) * fs;
+      const auto k = std::min(kMaxWindowsPerSegment, static_cast<std::size_t>(std::max(0.0, avail) / static_cast<double>(w.len)));
+      const auto first = static_cast<std::size_t>(std::ceil((s.t0_s + margin) * fs));
+      for (std::size_t j = 0; j < k; ++j) {
+        w.start = first + j * w.len;
+        if (w.start + w.len <= n_total) out.push_back(w);
+      }
+      continue;
+    }
+    w.len = s.type == SegmentType::kAccel ? plan.accel_len : plan.still_len;
+    if (w.len == 0) continue;
+    const double m = s.type == SegmentType::kAccel ? 0.0 : margin;
+    const double avail = (s.t1_s - s.t0_s - 2 * m) * fs;
+    if (avail < static_cast<double>(w.len)) continue;
+    const double centre = 0.5 * (s.t0_s + s.t1_s) * fs;
+    const double st = centre - 0.5 * static_cast<double>(w.len);
+    if (st < 0.0) continue;
+    w.start = static_cast<std::size_t>(st);
+    if (w.start + w.len <= n_total) out.push_back(w);
+  }
+  return out;
+}
+
+}  // namespace ptda::gap

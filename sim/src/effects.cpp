@@ -1,0 +1,135 @@
+// The effects catalog: names, parameters, defaults and ranges (docs/gap.md explains each effect).
+#include "ptda/sim/effects.hpp"
+
+#include <array>
+#include <cstdio>
+
+#include "ptda/common/error.hpp"
+
+namespace ptda::sim {
+namespace {
+
+constexpr std::array<EffectParamInfo, 3> kTransferPath{{
+    {"frequency_hz", 3000.0, 20.0, 100000.0, "resonance centre frequency (below fs/2)"},
+    {"gain_db", 12.0, 0.0, 40.0, "peak gain at the centre"},
+    {"q", 5.0, 0.5, 50.0, "quality factor (bandwidth = frequency / q)"},
+}};
+constexpr std::array<EffectParamInfo, 2> kSpeedRipple{{
+    {"jitter_rad", 0.3, 0.0, 3.0, "rms mesh-phase jitter of GMF order 1 (order k: k times)"},
+    {"bandwidth_hz", 20.0, 0.5, 500.0, "bandwidth of the jitter (one-pole low-pass)"},
+}};
+constexpr std::array<EffectParamInfo, 3> kMeshModulation{{
+    {"rate_order", 1.0, 0.1, 10.0, "modulation cycles per input-shaft revolution"},
+    {"am_depth", 0.3, 0.0, 1.0, "amplitude modulation depth"},
+    {"pm_rad", 0.0, 0.0, 2.0, "phase modulation of GMF order 1 (order k: k times)"},
+}};
+constexpr std::array<EffectParamInfo, 4> kImpacts{{
+    {"amplitude_ms2", 5.0, 0.0, 500.0, "ringing amplitude of each knock"},
+    {"resonance_hz", 4000.0, 20.0, 100000.0, "resonance the knocks excite (below fs/2)"},
+    {"damping_ratio", 0.05, 0.005, 0.5, "damping of that resonance"},
+    {"rate_hz", 0.0, 0.0, 100.0, "extra random knocks per second (Poisson), besides the reversals"},
+}};
+constexpr std::array<EffectParamInfo, 4> kElectrical{{
+    {"frequency_hz", 50.0, 1.0, 100000.0, "fundamental (mains, drive switching)"},
+    {"amplitude_ms2", 0.3, 0.0, 100.0, "amplitude of the fundamental"},
+    {"harmonics", 3.0, 1.0, 50.0, "number of harmonics including the fundamental (rounded)"},
+    {"harmonic_decay", 0.5, 0.0, 1.0, "amplitude ratio between successive harmonics"},
+}};
+constexpr std::array<EffectParamInfo, 1> kAdcClipping{{
+    {"level_ms2", 5.0, 0.001, 1.0e5, "the acquisition saturates at +-level"},
+}};
+constexpr std::array<EffectParamInfo, 1> kSampleClock{{
+    {"ppm", 500.0, -20000.0, 20000.0, "real ADC rate = nominal * (1 + ppm 1e-6)"},
+}};
+constexpr std::array<EffectParamInfo, 2> kSpeedLatency{{
+    {"delay_s", 0.02, 0.0, 0.5, "extra delay of the CAN speed frames"},
+    {"jitter_s", 0.0, 0.0, 0.1, "extra uniform jitter (jitter + [can] jitter_s must stay below period_s)"},
+}};
+constexpr std::array<EffectParamInfo, 3> kOtherAxis{{
+    {"amplitude_ms2", 0.5, 0.0, 100.0, "mesh amplitude of the other joint at this joint's reference speed"},
+    {"frequency_ratio", 1.37, 0.05, 20.0, "its mesh frequency / this GMF at the same joint speed"},
+    {"lag_s", 0.1, 0.0, 10.0, "its motion is this joint's motion delayed by lag_s"},
+}};
+constexpr std::array<EffectParamInfo, 2> kLoadDependence{{
+    {"direction_gain", 0.3, -0.95, 0.95, "mesh amplitude * (1 + g sign(speed))"},
+    {"accel_gain", 0.0, -0.95, 0.95, "mesh amplitude * (1 + a sign(speed accel)) while accelerating/braking"},
+}};
+constexpr std::array<EffectParamInfo, 2> kNoiseColor{{
+    {"rms_ms2", 0.3, 0.0, 100.0, "rms of the extra noise"},
+    {"corner_hz", 200.0, 1.0, 100000.0, "corner of its one-pole low-pass (red above the corner)"},
+}};
+
+constexpr std::array<EffectInfo, kEffectKinds> kCatalog{{
+    {EffectKind::kTransferPath, "transfer_path", kTransferPath,
+     "peaking resonance applied to the mechanical signal (mesh, noise, knocks) on its way to the sensor"},
+    {EffectKind::kSpeedRipple, "speed_ripple", kSpeedRipple,
+     "band-limited random jitter of the input-shaft angle seen by the mesh, not by the CAN speed"},
+    {EffectKind::kMeshModulation, "mesh_modulation", kMeshModulation,
+     "mesh amplitude and phase modulated at rate_order x the input-shaft rotation"},
+    {EffectKind::kImpacts, "impacts", kImpacts,
+     "knocks at every torque reversal of the motion (and random ones) ringing a resonance"},
+    {EffectKind::kElectricalInterference, "electrical_interference", kElectrical,
+     "fixed-frequency pickup (fundamental + decaying harmonics), added at the sensor"},
+    {EffectKind::kAdcClipping, "adc_clipping", kAdcClipping, "the signal is clamped to +-level_ms2"},
+    {EffectKind::kSampleClockError, "sample_clock_error", kSampleClock,
+     "the ADC samples at nominal * (1 + ppm 1e-6) while the WAV header says nominal"},
+    {EffectKind::kSpeedLatency, "speed_latency", kSpeedLatency,
+     "the CAN speed frames are logged later (and with more jitter) than the simulator's [can] says"},
+    {EffectKind::kOtherAxis, "other_axis", kOtherAxis,
+     "another joint's mesh, driven by this joint's motion delayed by lag_s"},
+    {EffectKind::kLoadDependence, "load_dependence", kLoadDependence,
+     "mesh amplitude depends on the direction of motion and on accelerating vs braking"},
+    {EffectKind::kNoiseColor, "noise_color", kNoiseColor, "extra red (low-pass) Gaussian background noise"},
+}};
+
+std::size_t param_index(const EffectInfo& info, std::string_view name) {
+  for (std::size_t i = 0; i < info.params.size(); ++i) {
+    if (name == info.params[i].name) return i;
+  }
+  throw Error(std::string("effect '") + info.name + "' has no parameter '" + std::string(name) + "'");
+}
+
+}  // namespace
+
+std::span<const EffectInfo> effect_catalog() noexcept { return kCatalog; }
+
+const EffectInfo& effect_info(EffectKind kind) noexcept { return kCatalog[static_cast<std::size_t>(kind)]; }
+
+std::optional<EffectKind> effect_kind_from_name(std::string_view name) noexcept {
+  for (const EffectInfo& e : kCatalog) {
+    if (name == e.name) return e.kind;
+  }
+  return std::nullopt;
+}
+
+EffectSpec EffectSpec::with_defaults(EffectKind kind) {
+  EffectSpec e;
+  e.kind = kind;
+  for (const EffectParamInfo& p : effect_info(kind).params) e.params.push_back(p.default_value);
+  return e;
+}
+
+double EffectSpec::get(std::string_view name) const {
+  const std::size_t i = param_index(effect_info(kind), name);
+  if (i >= params.size()) throw Error(std::string("effect '") + effect_info(kind).name + "': parameters missing");
+  return params[i];
+}
+
+void EffectSpec::set(std::string_view name, double value) {
+  const std::size_t i = param_index(effect_info(kind), name);
+  if (params.size() < effect_info(kind).params.size()) *this = with_defaults(kind);
+  params[i] = value;
+}
+
+std::string describe(const EffectSpec& e) {
+  const EffectInfo& info = effect_info(e.kind);
+  std::string s = std::string(info.name) + "(";
+  for (std::size_t i = 0; i < info.params.size() && i < e.params.size(); ++i) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%s%s=%.4g", i == 0 ? "" : ", ", info.params[i].name, e.params[i]);
+    s += buf;
+  }
+  return s + ")";
+}
+
+}  // namespace ptda::sim

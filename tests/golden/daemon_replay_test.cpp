@@ -1,0 +1,187 @@
+// End-to-end: the daemon's real threads give the same windows as `ptda monitor`.
+//   For each paper job: `ptda simulate` a healthy (seed 1001) and a faulty (seed 3003) recording,
+//   `ptda train` on the healthy one, `ptda monitor --jsonl` the faulty one; then run ptdad's Daemon
+//   in-process (configure -> activate -> run, acquisition/CAN/processing/supervisor threads) on the
+//   faulty recording with the WAV replay and candump replay backends at "fast" pace, collect every
+//   WindowResult on the processing thread and print each with the CLI's window_json(): every line
+//   must equal the JSONL line (window times, class, features to the last printed digit, bands,
+//   verdict, k-of-n alarm). Times are mapped back from the daemon clock with the recording's t0.
+// A second test runs the built `ptdad` binary on the same replay (--exit-at-end) and checks its
+// status.json counts, and --check-config's exit codes and located error message.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "core/daemon.hpp"
+#include "golden_support.hpp"
+#include "ptda/cli/monitor_output.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/drivers/clock.hpp"
+#include "ptda/formats/recording.hpp"
+
+namespace ptda::golden {
+namespace {
+
+/// Collects every processed window (processing thread); the vector is reserved up front.
+class Collector final : public daemon::WindowSink {
+ public:
+  Collector() { windows.reserve(100000); }
+  void on_window(const dsp::WindowResult& w) noexcept override {
+    if (windows.size() < windows.capacity()) windows.push_back(w);
+  }
+  std::vector<dsp::WindowResult> windows;
+};
+
+std::string job_pipeline(const std::string& job) {
+  // The job's pipeline tables without [can] (the daemon file has its own [can] table below).
+  std::ifstream in(source_dir() / "config" / "examples" / (job + ".toml"));
+  std::string line, out;
+  bool skip = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] == '[') skip = line == "[can]";
+    if (!skip) out += line + "\n";
+  }
+  return out;
+}
+
+fs::path write_daemon_config(const fs::path& dir, const std::string& job, const fs::path& recording,
+                             const fs::path& baseline) {
+  const fs::path path = dir / "ptdad.toml";
+  std::ofstream out(path);
+  out << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << (dir / "status").string()
+      << "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" << recording.string()
+      << "\"\npace = \"fast\"\nblock_len = 1000\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n"
+      << "speed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n"
+      << job_pipeline(job);
+  return path;
+}
+
+struct Prepared {
+  fs::path dir, faulty, baseline, jsonl, config;
+  std::vector<std::string> lines;
+};
+
+Prepared prepare(const std::string& job) {
+  Prepared p;
+  p.dir = scratch_dir("daemon_replay_" + job);
+  const std::string scen = (source_dir() / "config" / "scenarios").string() + "/" + job;
+  const std::string cfg = (source_dir() / "config" / "examples" / (job + ".toml")).string();
+  p.faulty = p.dir / "faulty";
+  p.baseline = p.dir / "baseline.bin";
+  p.jsonl = p.dir / "faulty.jsonl";
+  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_healthy.toml", "--out", (p.dir / "train").string(), "--seed",
+                      "1001"}, p.dir, "sim_train").exit_code, 0);
+  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_faulty.toml", "--out", p.faulty.string(), "--seed", "3003"},
+                     p.dir, "sim_faulty").exit_code, 0);
+  EXPECT_EQ(run_ptda({"train", "--recording", (p.dir / "train").string(), "--config", cfg, "--out",
+                      p.baseline.string()}, p.dir, "train").exit_code, 0);
+  const RunResult m = run_ptda({"monitor", "--recording", p.faulty.string(), "--config", cfg, "--baseline",
+                                p.baseline.string(), "--jsonl", p.jsonl.string(), "--quiet"}, p.dir, "monitor");
+  EXPECT_EQ(m.exit_code, 0) << m.err;
+  std::ifstream in(p.jsonl);
+  std::string line;
+  while (std::getline(in, line)) p.lines.push_back(line);
+  p.config = write_daemon_config(p.dir, job, p.faulty, p.baseline);
+  return p;
+}
+
+struct Pinned {
+  const char* job;
+  std::size_t windows;      ///< windows in the faulty recording's JSONL
+  std::size_t alarm_windows;
+};
+
+// Measured with the seeds above (and equal to tests/golden/paper_jobs_test.cpp's window counts).
+constexpr Pinned kJobs[] = {{"joint_rotation", 40, 38}, {"arc_welding", 101, 37}, {"spot_welding", 20, 18}};
+
+class DaemonReplay : public ::testing::TestWithParam<Pinned> {};
+
+TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
+  const Pinned pin = GetParam();
+  const Prepared p = prepare(pin.job);
+  ASSERT_FALSE(p.lines.empty());
+
+  Collector collector;
+  drivers::MonotonicClock clock;
+  daemon::DaemonOptions opt;
+  opt.config_file = p.config;
+  opt.config_dir = fs::path();
+  opt.exit_at_end = true;
+  daemon::Daemon d(opt, clock);
+  d.set_window_sink(&collector);
+  d.configure();
+  d.activate();
+  ASSERT_EQ(d.run(), 0);
+  const daemon::DaemonView v = d.view();
+  EXPECT_TRUE(v.pipeline.ended);
+  EXPECT_EQ(v.pipeline.phase, daemon::Phase::kEnded);
+  EXPECT_EQ(v.counters.acq_ring_full_blocks, 0U);  // fast replay: back-pressure, never a drop
+  EXPECT_EQ(v.counters.can_ring_full, 0U);
+  EXPECT_EQ(v.pipeline.gap_samples, 0U);
+
+  const formats::RecordingMeta meta = formats::read_recording_meta(p.faulty);
+  const std::int64_t shift = seconds_to_ns(meta.start_time_s) - v.pipeline.t0_mono_ns;
+  ASSERT_EQ(collector.windows.size(), p.lines.size());
+  std::size_t alarm_windows = 0;
+  for (std::size_t i = 0; i < p.lines.size(); ++i) {
+    dsp::WindowResult w = collector.windows[i];
+    w.ref.t_start_ns += shift;
+    w.ref.t_end_ns += shift;
+    EXPECT_EQ(cli::window_json(w, dsp::Method::kPtda), p.lines[i]) << pin.job << " window " << i;
+    if (w.alarm) ++alarm_windows;
+  }
+  EXPECT_EQ(collector.windows.size(), pin.windows) << "pinned window count";
+  EXPECT_EQ(alarm_windows, pin.alarm_windows) << "pinned alarm windows";
+}
+
+INSTANTIATE_TEST_SUITE_P(PaperJobs, DaemonReplay, ::testing::ValuesIn(kJobs),
+                         [](const auto& param_info) { return std::string(param_info.param.job); });
+
+RunResult run_ptdad(const std::vector<std::string>& args, const fs::path& dir, const std::string& tag) {
+  std::string cmd = shell_quote(PTDAD_BINARY);
+  for (const auto& a : args) cmd += " " + shell_quote(a);
+  const fs::path out = dir / (tag + ".out");
+  const fs::path err = dir / (tag + ".err");
+  cmd += " >" + shell_quote(out.string()) + " 2>" + shell_quote(err.string()) + " </dev/null";
+  const int status = std::system(cmd.c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = read_file(out);
+  r.err = read_file(err);
+  return r;
+}
+
+TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
+  const Prepared p = prepare("arc_welding");
+  const RunResult ok = run_ptdad({"--config", p.config.string(), "--config-dir", "", "--check-config"}, p.dir, "check");
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_NE(ok.out.find("configuration is valid"), std::string::npos) << ok.out;
+
+  const fs::path bad = p.dir / "bad.toml";
+  std::ofstream(bad) << "[daemon]\nstatus_period_s = 0.1\n\n[adc]\nbackend = \"wave\"\n";
+  const RunResult ko = run_ptdad({"--config", bad.string(), "--config-dir", "", "--check-config"}, p.dir, "check_bad");
+  EXPECT_EQ(ko.exit_code, 1);
+  EXPECT_NE(ko.err.find(bad.string() + ":5:11: adc.backend must be one of \"iio\", \"wav\", \"sim\", not \"wave\""),
+            std::string::npos)
+      << ko.err;
+
+  const RunResult run = run_ptdad({"--config", p.config.string(), "--config-dir", "", "--exit-at-end", "--foreground"},
+                                  p.dir, "run");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const cli::JsonValue status = cli::parse_json(read_file(p.dir / "status" / "status.json"), "status.json");
+  std::size_t scored = 0, abnormal = 0;
+  for (const auto& line : p.lines) {
+    const cli::JsonValue w = cli::parse_json(line, "jsonl");
+    if (w.at("status").as_string() == "scored") ++scored;
+    if (w.at("abnormal").as_bool()) ++abnormal;
+  }
+  EXPECT_EQ(status.at("pipeline").at("windows_scored").as_number(), static_cast<double>(scored));
+  EXPECT_EQ(status.at("pipeline").at("windows_abnormal").as_number(), static_cast<double>(abnormal));
+  EXPECT_NE(run.err.find("replay ended: " + std::to_string(p.lines.size()) + " windows processed"), std::string::npos)
+      << run.err;
+}
+
+}  // namespace
+}  // namespace ptda::golden

@@ -1,0 +1,143 @@
+// ptdad's configuration: the daemon tables next to the pipeline tables, drop-ins in lexical order,
+// located errors, cross-key checks, relative paths.
+#include <gtest/gtest.h>
+
+#include "daemon_test_support.hpp"
+#include "ptda/common/error.hpp"
+
+namespace ptda::daemon::test {
+namespace {
+
+std::string error_of(const std::string& text) {
+  try {
+    (void)parse_daemon_config(text, "t.toml");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+const std::string kMinimal = "[extraction]\nwindow_len = 4096\n[adc]\nscenario = \"s.toml\"\n";
+
+TEST(DaemonConfig, DefaultsAndOwnTablesBesideThePipeline) {
+  const DaemonConfig c = parse_daemon_config(kMinimal, "t.toml");
+  EXPECT_EQ(c.daemon.baseline, fs::path("/var/lib/ptda/baseline.bin"));
+  EXPECT_EQ(c.daemon.status_dir, fs::path("/run/ptda"));
+  EXPECT_TRUE(c.daemon.metrics_path.empty());
+  EXPECT_EQ(c.adc.backend, AdcBackend::kSim);
+  EXPECT_EQ(c.can.backend, CanBackend::kSim);
+  EXPECT_EQ(c.adc.block_len, 256U);
+  EXPECT_EQ(c.daemon.speed_stale_periods, 25.0);
+  EXPECT_EQ(c.pipeline.extraction.window_len, 4096U);
+  EXPECT_EQ(c.pipeline.speed_frame.id, 0x184U);
+  EXPECT_EQ(c.alarm.min_hold_s, 10.0);
+  EXPECT_TRUE(c.alarm.latch);
+
+  const DaemonConfig d = parse_daemon_config(
+      "[extraction]\nwindow_len = 4096\n"
+          "[can]\nspeed_latency_s = 0.002\nbackend = \"socketcan\"\ninterface = \"can1\"\n"
+          "[can.clear_frame]\nenabled = true\nid = 0x1A1\ndata = \"c1EA\"\n[can.speed_frame]\nid = 0x185\n"
+          "[adc]\nbackend = \"iio\"\nchannel = \"accel_z\"\nblock_len = 512\n[acquisition]\nfs_hz = 25600\n"
+          "[alarm]\nmin_hold_s = 3\n[alarm.gpio]\nenabled = true\nline = 17\nactive_low = true\n",
+      "t.toml");
+  EXPECT_EQ(d.pipeline.speed_latency_s, 0.002);
+  EXPECT_EQ(d.pipeline.speed_frame.id, 0x185U);
+  EXPECT_EQ(d.can.backend, CanBackend::kSocketCan);
+  EXPECT_EQ(d.can.interface, "can1");
+  EXPECT_TRUE(d.can.clear_frame.enabled);
+  EXPECT_EQ(d.can.clear_frame.id, 0x1A1U);
+  EXPECT_EQ(d.can.clear_frame.len, 2U);
+  EXPECT_EQ(d.can.clear_frame.data[0], 0xC1);
+  EXPECT_EQ(d.can.clear_frame.data[1], 0xEA);
+  EXPECT_EQ(d.adc.backend, AdcBackend::kIio);
+  EXPECT_EQ(d.adc.channel, "accel_z");
+  EXPECT_EQ(d.adc.block_len, 512U);
+  EXPECT_EQ(d.alarm.min_hold_s, 3.0);
+  EXPECT_TRUE(d.alarm.gpio_enabled);
+  EXPECT_EQ(d.alarm.gpio_line, 17U);
+  EXPECT_TRUE(d.alarm.gpio_active_low);
+}
+
+TEST(DaemonConfig, ErrorsAreLocated) {
+  EXPECT_EQ(error_of(kMinimal + "[daemon]\nbaselin = \"x\"\n").rfind("t.toml:6:1: unknown key 'baselin' in [daemon]", 0), 0U)
+      << error_of(kMinimal + "[daemon]\nbaselin = \"x\"\n");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"spi\"\n"),
+            "t.toml:4:11: adc.backend must be one of \"iio\", \"wav\", \"sim\", not \"spi\"");
+  const std::string big_block = "[extraction]\nwindow_len = 4096\n[adc]\nscenario = \"s\"\nblock_len = 2048\n";
+  EXPECT_EQ(error_of(big_block).rfind("t.toml:5:13: adc.block_len", 0), 0U) << error_of(big_block);
+  // A daemon key misspelt in the shared [can] table is still an unknown key.
+  EXPECT_NE(error_of(kMinimal + "[can]\nbakend = \"sim\"\n").find("t.toml:6:1: unknown key 'bakend' in [can]"),
+            std::string::npos)
+      << error_of(kMinimal + "[can]\nbakend = \"sim\"\n");
+  EXPECT_NE(error_of(kMinimal + "[can.clear_frame]\ndata = \"C\"\n").find("t.toml:6:8: can.clear_frame.data"),
+            std::string::npos);
+  EXPECT_NE(error_of(kMinimal + "[daemon]\nmetrics_path = \"/tmp/x.txt\"\n").find("must end in \".prom\""),
+            std::string::npos);
+  // Pipeline errors come out the same way.
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4097\n").rfind("t.toml:2:", 0), 0U) << error_of("[extraction]\nwindow_len = 4097\n");
+}
+
+TEST(DaemonConfig, CrossChecksPointAtTheKeyThatWasSet) {
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\n"),
+            "t.toml:4:11: adc.backend = \"wav\" needs adc.recording (a recording directory)");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"iio\"\n[can]\nbackend = \"socketcan\"\n"),
+            "t.toml:4:11: adc.backend = \"iio\" needs [acquisition] fs_hz (the ADC's sample rate)");
+  // can.backend left at its default "sim": the error names the main file.
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\nrecording = \"r\"\n"),
+            "t.toml: can.backend = \"sim\" serves the simulator's speed frames and needs adc.backend = \"sim\" "
+            "(now \"wav\")");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\nrecording = \"r\"\n[can]\nbackend = \"sim\"\n"),
+            "t.toml:7:11: can.backend = \"sim\" serves the simulator's speed frames and needs adc.backend = \"sim\" "
+            "(now \"wav\")");
+}
+
+TEST(DaemonConfig, DropInsApplyInLexicalOrderKeyByKeyWithRelativePaths) {
+  const fs::path dir = scratch("config_dropins");
+  fs::create_directories(dir / "conf.d");
+  write_text(dir / "ptdad.toml", kMinimal + "[decision]\nk = 3\nn = 5\n[daemon]\nbaseline = \"b/base.bin\"\n");
+  write_text(dir / "conf.d" / "20-later.toml", "[decision]\nk = 4\n");
+  write_text(dir / "conf.d" / "10-first.toml", "[decision]\nk = 2\nn = 6\n[adc]\nscenario = \"../sc/x.toml\"\n");
+  write_text(dir / "conf.d" / "30-ignored.conf", "this is not toml");
+  fs::create_directories(dir / "conf.d" / "40-dir.toml");
+  const auto dropins = list_dropins(dir / "conf.d");
+  ASSERT_EQ(dropins.size(), 2U);
+  EXPECT_EQ(dropins[0].filename(), "10-first.toml");
+  EXPECT_EQ(dropins[1].filename(), "20-later.toml");
+  const DaemonConfig c = load_daemon_config(dir / "ptdad.toml", dropins);
+  EXPECT_EQ(c.pipeline.decision.k, 4U);  // 20-later wins
+  EXPECT_EQ(c.pipeline.decision.n, 6U);  // from 10-first, untouched by 20-later
+  EXPECT_EQ(c.daemon.baseline, dir / "b" / "base.bin");
+  EXPECT_EQ(c.adc.scenario, (dir / "sc" / "x.toml").lexically_normal());
+  ASSERT_EQ(c.files.size(), 3U);
+  EXPECT_TRUE(list_dropins(dir / "missing").empty());
+
+  // An error in a drop-in names the drop-in; a cross-key error the file that set the key last.
+  write_text(dir / "conf.d" / "20-later.toml", "[decision]\nk = 7\n");
+  try {
+    (void)load_daemon_config(dir / "ptdad.toml", list_dropins(dir / "conf.d"));
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind((dir / "conf.d" / "20-later.toml").string() + ":2:", 0), 0U) << e.what();
+  }
+}
+
+TEST(DaemonConfig, ShippedExamplesAreValid) {
+  const fs::path ex = source_dir() / "config" / "examples";
+  const DaemonConfig main = load_daemon_config(ex / "ptdad.toml");
+  EXPECT_EQ(main.adc.backend, AdcBackend::kSim);
+  EXPECT_EQ(main.adc.scenario, source_dir() / "config" / "scenarios" / "joint_rotation_healthy.toml");
+  EXPECT_TRUE(fs::exists(main.adc.scenario));
+  struct Job {
+    const char* file;
+    std::uint32_t window_len;
+  };
+  for (const Job job : {Job{"10-joint_rotation.toml", 12800}, Job{"10-arc_welding.toml", 3200},
+                        Job{"10-spot_welding.toml", 10240}}) {
+    const DaemonConfig c = load_daemon_config(ex / "ptdad.toml", {ex / "ptdad.d" / job.file});
+    EXPECT_EQ(c.pipeline.extraction.window_len, job.window_len) << job.file;
+    EXPECT_TRUE(fs::exists(c.adc.scenario)) << c.adc.scenario;
+  }
+}
+
+}  // namespace
+}  // namespace ptda::daemon::test

@@ -1,0 +1,137 @@
+// Helpers shared by the daemon core tests (tests/unit/daemon/daemon_*_test.cpp): scratch directories,
+// configuration text for the arc-welding job on the simulator backends, and a baseline trained
+// in-process from the simulator (the same slicer + dsp::train_baseline that `ptda train` uses).
+#pragma once
+
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "core/daemon.hpp"
+#include "core/daemon_config.hpp"
+#include "core/sim_backends.hpp"
+#include "ptda/config/speed_codec.hpp"
+#include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/formats/baseline_file.hpp"
+
+namespace ptda::daemon::test {
+
+namespace fs = std::filesystem;
+
+inline fs::path source_dir() { return fs::path(PTDA_SOURCE_DIR); }
+inline fs::path arc_scenario() { return source_dir() / "config" / "scenarios" / "arc_welding_healthy.toml"; }
+
+/// A fresh scratch directory PTDA_TEST_TMP/daemon/<name>.
+inline fs::path scratch(const std::string& name) {
+  const char* env = std::getenv("PTDA_TEST_TMP");
+  const fs::path base = env != nullptr ? fs::path(env) : fs::temp_directory_path() / "ptda-test-tmp";
+  const fs::path dir = base / "daemon" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+inline void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out << text;
+}
+
+/// The arc-welding job's pipeline (config/examples/arc_welding.toml) without its [can] table.
+inline std::string arc_pipeline() {
+  std::ifstream in(source_dir() / "config" / "examples" / "arc_welding.toml");
+  std::string line, out;
+  bool skip = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] == '[') skip = line.rfind("[can", 0) == 0;
+    if (!skip) out += line + "\n";
+  }
+  return out;
+}
+
+/// A daemon configuration for the simulator backends (arc-welding healthy scenario).
+inline std::string sim_config(const fs::path& baseline, const fs::path& status_dir, const std::string& pace,
+                              const std::string& extra_daemon = "", const std::string& extra = "") {
+  std::ostringstream s;
+  s << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << status_dir.string()
+    << "\"\nstatus_period_s = 0.05\n" << extra_daemon << "\n[adc]\nbackend = \"sim\"\nscenario = \""
+    << arc_scenario().string() << "\"\nseed = 7\npace = \"" << pace << "\"\n\n[can]\nbackend = \"sim\"\npace = \""
+    << pace << "\"\n\n" << extra << "\n" << arc_pipeline();
+  return s.str();
+}
+
+/// Trains a baseline on the simulated healthy arc-welding job (seed 7) and writes it to `path`, once
+/// per process (later calls copy the first file). Allocates; takes ~1 s.
+inline void write_sim_baseline(const fs::path& path) {
+  static fs::path first;
+  if (!first.empty()) {
+    fs::copy_file(first, path, fs::copy_options::overwrite_existing);
+    return;
+  }
+  const DaemonConfig cfg = parse_daemon_config(sim_config(path, "", "fast"), "baseline.toml");
+  const config::PipelineConfig& pc = cfg.pipeline;
+  const auto rec = make_sim_recording(arc_scenario(), 7);
+  dsp::WindowSlicer slicer(pc.extraction, rec->fs_hz, 0);
+  dsp::CollectedWindows data;
+  std::vector<float> buf(pc.extraction.window_len);
+  const auto drain = [&] {
+    dsp::WindowRef ref;
+    while (slicer.pop(ref, buf)) {
+      data.refs.push_back(ref);
+      data.windows.push_back(buf);
+    }
+    dsp::RegionInfo region;
+    while (slicer.pop_region(region)) data.regions.push_back(region);
+  };
+  std::size_t f = 0;
+  const std::size_t n = rec->samples.size();
+  for (std::size_t pos = 0; pos < n; pos += 4096) {
+    const std::size_t count = std::min<std::size_t>(4096, n - pos);
+    const std::int64_t t_end = rec->sample_offset_ns(pos + count);
+    for (; f < rec->frames.size() && rec->frames[f].t_ns < t_end; ++f) {
+      config::DecodedSpeed d;
+      if (config::decode_speed(rec->frames[f], pc.speed_frame, d) == config::DecodeResult::kOk) {
+        slicer.push_speed({rec->frames[f].t_ns, d.speed_rad_s, d.angle_rad, d.has_angle});
+      }
+    }
+    slicer.push_samples(std::span<const float>(rec->samples.data() + pos, count));
+    drain();
+  }
+  slicer.finish();
+  drain();
+  dsp::Baseline b = dsp::train_baseline(data, pc.classes, pc.thresholds, rec->fs_hz, pc.gearbox);
+  b.source = "daemon tests: simulated arc welding, seed 7";
+  formats::write_baseline(path, b);
+  first = path;
+}
+
+/// Blocks the daemon's signals in this thread (before any thread is started) so that a signal sent
+/// to the process stays pending for the daemon's signalfd instead of killing the test.
+inline void block_daemon_signals() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGHUP);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+}
+
+/// Polls `pred` every 5 ms until it holds or `limit` passed (a failure guard, not a timing claim).
+template <typename Pred>
+bool wait_for(Pred pred, std::chrono::milliseconds limit = std::chrono::milliseconds(10000)) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+}  // namespace ptda::daemon::test

@@ -1,0 +1,281 @@
+#include "training/field_trainer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <limits>
+#include <numbers>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "alloc_counter.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/formats/baseline_file.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ptda::daemon {
+namespace {
+
+constexpr std::uint32_t kLen = 64;
+constexpr double kFs = 1000.0;
+constexpr double kFwd = 0.5;    // rad/s, class 0
+constexpr double kBack = -0.3;  // rad/s, class 1
+
+fs::path scratch(const std::string& name) {
+  const char* base = std::getenv("PTDA_TEST_TMP");
+  fs::path dir = fs::path(base != nullptr ? base : "/tmp") / "field_trainer_test" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+FieldTrainerConfig config() {
+  FieldTrainerConfig c;
+  c.fs_hz = kFs;
+  c.window_len = kLen;
+  c.max_windows = 100;
+  c.max_regions = 50;
+  c.target_cycles = 4;
+  c.classes.min_regions = 3;
+  c.source = "test";
+  return c;
+}
+
+/// Feeds cycles like the processing thread would: per cycle one region with `windows` disjoint
+/// windows (a healthy sine plus noise), then the region once it ended.
+class Feeder {
+ public:
+  explicit Feeder(FieldTrainer& t) : t_(t) {}
+  void cycle(double speed_rad_s, int windows = 2) {
+    const std::uint64_t region = next_region_++;
+    const std::int64_t first = static_cast<std::int64_t>(region) * 1000;
+    for (int k = 0; k < windows; ++k) {
+      dsp::WindowRef ref;
+      ref.seq = next_window_++;
+      ref.region_seq = region;
+      ref.index_in_region = static_cast<std::uint32_t>(k);
+      ref.first_sample = first + k * static_cast<std::int64_t>(kLen);
+      ref.t_start_ns = ref.first_sample * 1'000'000;
+      ref.t_end_ns = ref.t_start_ns + kLen * 1'000'000;
+      ref.speed_rad_s = speed_rad_s;
+      std::vector<float> x(kLen);
+      std::normal_distribution<float> noise(0.0F, 0.05F);
+      for (std::uint32_t n = 0; n < kLen; ++n) {
+        x[n] = static_cast<float>(std::sin(2.0 * std::numbers::pi * 8.0 * n / kLen)) + noise(rng_);
+      }
+      EXPECT_TRUE(t_.add_window(ref, x));
+    }
+    dsp::RegionInfo r;
+    r.seq = region;
+    r.t_begin_ns = first * 1'000'000;
+    r.t_end_ns = r.t_begin_ns + 500'000'000;
+    r.mean_speed_rad_s = speed_rad_s;
+    r.direction = speed_rad_s < 0 ? -1 : 1;
+    EXPECT_TRUE(t_.add_region(r));
+  }
+
+ private:
+  FieldTrainer& t_;
+  std::mt19937 rng_{42};
+  std::uint64_t next_region_ = 0;
+  std::uint64_t next_window_ = 0;
+};
+
+std::string what_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
+TEST(FieldTrainer, ProgressCountsCyclesAndWindowsPerClass) {
+  FieldTrainer t(config());
+  Feeder f(t);
+  TrainingProgress p = t.progress();
+  EXPECT_TRUE(p.classes.empty());
+  EXPECT_FALSE(p.ready);
+  EXPECT_FALSE(p.can_finish);
+  EXPECT_EQ(p.window_capacity, 100U);
+
+  f.cycle(kFwd, 3);
+  f.cycle(kBack, 2);
+  f.cycle(kFwd, 3);
+  p = t.progress();
+  ASSERT_EQ(p.classes.size(), 2U);
+  EXPECT_EQ(p.target_cycles, 4U);
+  EXPECT_EQ(p.windows, 8U);
+  EXPECT_EQ(p.regions, 3U);
+  // Forward classes first.
+  EXPECT_EQ(p.classes[0].segment.direction, 1);
+  EXPECT_DOUBLE_EQ(p.classes[0].segment.speed_rad_s, 0.5);
+  EXPECT_EQ(p.classes[0].cycles, 2U);
+  EXPECT_EQ(p.classes[0].windows, 6U);
+  EXPECT_EQ(p.classes[0].groups, 6U);
+  EXPECT_FALSE(p.classes[0].trainable);  // 2 < min_regions 3
+  EXPECT_EQ(p.classes[1].segment.direction, -1);
+  EXPECT_EQ(p.classes[1].cycles, 1U);
+  EXPECT_EQ(p.classes[1].windows, 2U);
+  EXPECT_EQ(p.classes_trainable, 0U);
+  EXPECT_FALSE(p.can_finish);
+
+  f.cycle(kFwd, 1);
+  p = t.progress();
+  EXPECT_EQ(p.classes[0].cycles, 3U);
+  EXPECT_TRUE(p.classes[0].trainable);
+  EXPECT_FALSE(p.classes[0].complete);  // 3 < target 4
+  EXPECT_TRUE(p.can_finish);
+  EXPECT_FALSE(p.ready);
+
+  // A window whose speed matches no class seen so far.
+  dsp::WindowRef stray;
+  stray.speed_rad_s = 2.0;
+  EXPECT_TRUE(t.add_window(stray, std::vector<float>(kLen, 0.0F)));
+  EXPECT_EQ(t.progress().windows_unmatched, 1U);
+}
+
+TEST(FieldTrainer, ReadyWhenEveryClassHasItsCyclesAndTheBaselineReadsBack) {
+  FieldTrainer t(config());
+  Feeder f(t);
+  for (int c = 0; c < 4; ++c) {
+    f.cycle(kFwd);
+    ASSERT_FALSE(t.progress().ready);
+    f.cycle(kBack);
+  }
+  const TrainingProgress p = t.progress();
+  EXPECT_TRUE(p.ready);
+  EXPECT_EQ(p.classes_complete, 2U);
+
+  const fs::path path = scratch("ready") / "baseline.bin";
+  const dsp::Baseline b = t.finish(path);
+  ASSERT_TRUE(fs::exists(path));
+  const dsp::Baseline r = formats::read_baseline(path);
+  EXPECT_EQ(r.window_len, kLen);
+  EXPECT_DOUBLE_EQ(r.fs_hz, kFs);
+  ASSERT_EQ(r.classes.size(), 2U);
+  EXPECT_EQ(r.classes[0].segment.direction, 1);
+  EXPECT_EQ(r.classes[0].segment.regions, 4U);
+  EXPECT_EQ(r.classes[0].n_windows, 8U);
+  EXPECT_EQ(r.classes[1].segment.direction, -1);
+  EXPECT_DOUBLE_EQ(r.classes[1].segment.speed_rad_s, 0.3);
+  EXPECT_EQ(r.source, "test: 8 regions, 16 windows");
+  EXPECT_EQ(b.source, r.source);
+  EXPECT_EQ(r.classes[0].mean_magnitude, b.classes[0].mean_magnitude);
+  // A healthy window of the training shape is inside its own class's bands.
+  EXPECT_GT(r.classes[0].thresholds[static_cast<std::size_t>(dsp::Method::kRaw)].rms.hi, 0.6);
+}
+
+TEST(FieldTrainer, FinishWithWhatIsThereTrainsTheClassesThatHaveEnough) {
+  FieldTrainer t(config());
+  Feeder f(t);
+  for (int c = 0; c < 3; ++c) f.cycle(kFwd);
+  f.cycle(kBack);
+  const fs::path path = scratch("partial") / "baseline.bin";
+  const std::string msg = what_of([&] { (void)t.finish(path); });
+  EXPECT_NE(msg.find("field training: not ready: 0 of 2 classes complete"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("3/4 cycles, 6 windows in 6 groups"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("1/4 cycles, 2 windows in 2 groups"), std::string::npos) << msg;
+  EXPECT_FALSE(fs::exists(path));
+
+  const dsp::Baseline b = t.finish(path, FinishMode::kWhatIsThere);
+  ASSERT_EQ(b.classes.size(), 1U);
+  EXPECT_EQ(b.classes[0].segment.direction, 1);
+  EXPECT_EQ(formats::read_baseline(path).classes.size(), 1U);
+}
+
+TEST(FieldTrainer, NotEnoughDataIsAClearError) {
+  FieldTrainer t(config());
+  const fs::path path = scratch("empty") / "baseline.bin";
+  EXPECT_EQ(what_of([&] { (void)t.finish(path, FinishMode::kWhatIsThere); }),
+            "field training: no constant-speed cycle seen yet (0 regions, 0 windows)");
+  Feeder f(t);
+  f.cycle(kFwd);
+  f.cycle(kFwd);
+  const std::string msg = what_of([&] { (void)t.finish(path, FinishMode::kWhatIsThere); });
+  EXPECT_EQ(msg,
+            "field training: not enough data: no class has enough (a class needs >= 3 cycles and >= 3 "
+            "non-overlapping windows to train, 4 cycles to be complete); class 0 (+0.5 rad/s): 2/4 cycles, "
+            "4 windows in 4 groups");
+  EXPECT_FALSE(fs::exists(path));
+}
+
+TEST(FieldTrainer, FullPoolIsCountedAndRejectedWindowsToo) {
+  FieldTrainerConfig c = config();
+  c.max_windows = 5;
+  c.max_regions = 2;
+  FieldTrainer t(c);
+  const std::vector<float> x(kLen, 0.25F);
+  dsp::WindowRef ref;
+  for (int i = 0; i < 7; ++i) t.add_window(ref, x);
+  EXPECT_FALSE(t.add_window(ref, x));
+  dsp::RegionInfo r;
+  r.mean_speed_rad_s = 0.5;
+  EXPECT_TRUE(t.add_region(r));
+  EXPECT_TRUE(t.add_region(r));
+  EXPECT_FALSE(t.add_region(r));
+  r.mean_speed_rad_s = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(t.add_region(r));
+
+  std::vector<float> bad(kLen, 0.0F);
+  bad[10] = std::numeric_limits<float>::infinity();
+  t.reset();
+  EXPECT_EQ(t.counters().windows, 0U);
+  EXPECT_FALSE(t.add_window(ref, bad));
+  EXPECT_FALSE(t.add_window(ref, std::vector<float>(kLen - 1, 0.0F)));
+  EXPECT_TRUE(t.add_window(ref, x));
+  const FieldTrainerCounters k = t.counters();
+  EXPECT_EQ(k.windows, 1U);
+  EXPECT_EQ(k.windows_rejected, 2U);
+  EXPECT_EQ(t.progress().windows, 1U);
+
+  FieldTrainer u(c);
+  for (int i = 0; i < 8; ++i) u.add_window(ref, x);
+  const TrainingProgress p = u.progress();
+  EXPECT_EQ(p.windows, 5U);
+  EXPECT_EQ(p.windows_dropped, 3U);
+  EXPECT_EQ(u.counters().windows_dropped, 3U);
+}
+
+TEST(FieldTrainer, AddingMakesNoAllocations) {
+  FieldTrainer t(config());
+  const std::vector<float> x(kLen, 0.5F);
+  dsp::WindowRef ref;
+  dsp::RegionInfo r;
+  r.mean_speed_rad_s = 0.5;
+  int accepted = 0;
+  {
+    test::AllocScope scope;
+    for (int i = 0; i < 150; ++i) {
+      ref.seq = static_cast<std::uint64_t>(i);
+      accepted += t.add_window(ref, x) ? 1 : 0;
+      accepted += t.add_region(r) ? 1 : 0;
+    }
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  EXPECT_EQ(accepted, 150);  // 100 windows + 50 regions
+}
+
+TEST(FieldTrainer, RejectsBadConfiguration) {
+  FieldTrainerConfig c = config();
+  c.window_len = 0;
+  EXPECT_NE(what_of([&] { FieldTrainer t(c); }).find("training.window_len"), std::string::npos);
+  c = config();
+  c.fs_hz = 0.0;
+  EXPECT_NE(what_of([&] { FieldTrainer t(c); }).find("training.fs_hz"), std::string::npos);
+  c = config();
+  c.target_cycles = 2;  // below min_regions 3
+  EXPECT_NE(what_of([&] { FieldTrainer t(c); }).find("training.target_cycles"), std::string::npos);
+  c = config();
+  c.max_windows = 1'000'000;
+  c.window_len = 1024;  // 3.8 GiB
+  EXPECT_NE(what_of([&] { FieldTrainer t(c); }).find("training.max_windows"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace ptda::daemon

@@ -1,0 +1,503 @@
+#include "status/status_writer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "alloc_counter.hpp"
+#include "ptda/common/error.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ptda::daemon {
+namespace {
+
+// ------------------------------------------------------------------ a minimal JSON validator (RFC 8259)
+class JsonChecker {
+ public:
+  explicit JsonChecker(std::string_view s) : s_(s) {}
+  /// True when the text is exactly one JSON value (plus whitespace).
+  bool valid() {
+    ws();
+    if (!value()) return false;
+    ws();
+    return i_ == s_.size();
+  }
+
+ private:
+  void ws() {
+    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\r' || s_[i_] == '\t')) ++i_;
+  }
+  bool lit(std::string_view w) {
+    if (s_.substr(i_, w.size()) != w) return false;
+    i_ += w.size();
+    return true;
+  }
+  bool value() {
+    if (i_ >= s_.size()) return false;
+    switch (s_[i_]) {
+      case '{':
+        return object();
+      case '[':
+        return array();
+      case '"':
+        return string();
+      case 't':
+        return lit("true");
+      case 'f':
+        return lit("false");
+      case 'n':
+        return lit("null");
+      default:
+        return number();
+    }
+  }
+  bool object() {
+    ++i_;
+    ws();
+    if (i_ < s_.size() && s_[i_] == '}') return ++i_, true;
+    for (;;) {
+      ws();
+      if (!string()) return false;
+      ws();
+      if (!lit(":")) return false;
+      ws();
+      if (!value()) return false;
+      ws();
+      if (lit("}")) return true;
+      if (!lit(",")) return false;
+    }
+  }
+  bool array() {
+    ++i_;
+    ws();
+    if (i_ < s_.size() && s_[i_] == ']') return ++i_, true;
+    for (;;) {
+      ws();
+      if (!value()) return false;
+      ws();
+      if (lit("]")) return true;
+      if (!lit(",")) return false;
+    }
+  }
+  bool string() {
+    if (!lit("\"")) return false;
+    while (i_ < s_.size()) {
+      const auto c = static_cast<unsigned char>(s_[i_++]);
+      if (c == '"') return true;
+      if (c < 0x20) return false;
+      if (c == '\\') {
+        if (i_ >= s_.size()) return false;
+        const char e = s_[i_++];
+        if (e == 'u') {
+          for (int k = 0; k < 4; ++k) {
+            if (i_ >= s_.size() || std::isxdigit(static_cast<unsigned char>(s_[i_++])) == 0) return false;
+          }
+        } else if (std::string_view("\"\\/bfnrt").find(e) == std::string_view::npos) {
+          return false;
+        }
+      }
+    }
+    return false;
+  }
+  bool number() {
+    const std::size_t start = i_;
+    if (i_ < s_.size() && s_[i_] == '-') ++i_;
+    if (i_ >= s_.size() || !std::isdigit(static_cast<unsigned char>(s_[i_]))) return false;
+    if (s_[i_] == '0') {
+      ++i_;
+    } else {
+      while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_]))) ++i_;
+    }
+    if (i_ < s_.size() && s_[i_] == '.') {
+      ++i_;
+      if (i_ >= s_.size() || !std::isdigit(static_cast<unsigned char>(s_[i_]))) return false;
+      while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_]))) ++i_;
+    }
+    if (i_ < s_.size() && (s_[i_] == 'e' || s_[i_] == 'E')) {
+      ++i_;
+      if (i_ < s_.size() && (s_[i_] == '+' || s_[i_] == '-')) ++i_;
+      if (i_ >= s_.size() || !std::isdigit(static_cast<unsigned char>(s_[i_]))) return false;
+      while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_]))) ++i_;
+    }
+    return i_ > start;
+  }
+  std::string_view s_;
+  std::size_t i_ = 0;
+};
+
+TEST(JsonChecker, RejectsBrokenJson) {  // the checker itself must be able to fail
+  EXPECT_TRUE(JsonChecker(R"({"a":[1,-2.5e3,true,null,"x\"\u001f"]})").valid());
+  EXPECT_FALSE(JsonChecker(R"({"a":1,})").valid());
+  EXPECT_FALSE(JsonChecker("{\"a\":\"\x01\"}").valid());
+  EXPECT_FALSE(JsonChecker(R"({"a":01})").valid());
+  EXPECT_FALSE(JsonChecker(R"({"a":nan})").valid());
+  EXPECT_FALSE(JsonChecker(R"({"a":"\q"})").valid());
+  EXPECT_FALSE(JsonChecker(R"({"a":1} x)").valid());
+}
+
+fs::path scratch(const std::string& name) {
+  const char* base = std::getenv("PTDA_TEST_TMP");
+  fs::path dir = fs::path(base != nullptr ? base : "/tmp") / "status_writer_test" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+StatusSnapshot known_snapshot() {
+  StatusSnapshot s;
+  s.state = DaemonState::kRunning;
+  s.reason.assign("");
+  s.method.assign("ptda");
+  s.uptime_s = 3600.25;
+  s.now_s = 5000.5;
+  s.wall_time_unix_ns = 1700000000123456789;
+  s.baseline_loaded = true;
+  s.baseline_path.assign("/var/lib/ptda/baseline.bin");
+  s.baseline_source.assign("ptda train rec/2024-05-01");
+  s.baseline_fs_hz = 25600.0;
+  s.baseline_window_len = 4096;
+  s.class_count = 2;
+  s.classes_listed = 2;
+  s.classes[0] = StatusClass{0, 1, 0.5, 1.5, 12, 48, 0.01, 0.02, 0.8, 0.9};
+  s.classes[1] = StatusClass{1, -1, 0.25, 2.0, 12, 60, 0.011, 0.021, 0.81, 0.91};
+  s.have_window = true;
+  s.window_t_s = 4999.125;
+  s.window_class = 1;
+  s.window_speed_rad_s = -0.25;
+  s.window_rms = 0.025;
+  s.window_entropy = 0.85;
+  s.window_rms_lo = 0.011;
+  s.window_rms_hi = 0.021;
+  s.window_entropy_lo = 0.81;
+  s.window_entropy_hi = 0.91;
+  s.window_rms_out = true;
+  s.window_abnormal_in_last_n = 3;
+  s.alarm_level = drivers::AlarmLevel::kAlarm;
+  s.alarm_since_s = 4990.0;
+  s.alarm_latched = true;
+  s.alarm_causes = drivers::kCauseRms | drivers::kCauseSpeed;
+  s.trip_class = 1;
+  s.trip_t_s = 4990.0;
+  s.trip_rms = 0.03;
+  s.trip_entropy = 0.86;
+  s.acq_blocks = 100;
+  s.acq_samples = 102400;
+  s.acq_gaps = 1;
+  s.acq_lost_samples = 64;
+  s.can_frames = 5000;
+  s.can_speed_frames = 4990;
+  s.can_other_ids = 10;
+  s.can_bus_state = drivers::CanBusState::kErrorPassive;
+  s.slicer_regions = 24;
+  s.slicer_windows = 108;
+  s.windows_scored = 107;
+  s.windows_abnormal = 4;
+  s.alarms_raised = 1;
+  s.watchdog_pings = 7200;
+  return s;
+}
+
+constexpr std::string_view kKnownJson =
+    R"({"version":1,"state":"running","reason":"","uptime_s":3600.250,"now_s":5000.500,)"
+    R"("wall_time_unix_ns":1700000000123456789,"method":"ptda",)"
+    R"("baseline":{"loaded":true,"path":"/var/lib/ptda/baseline.bin","source":"ptda train rec/2024-05-01",)"
+    R"("fs_hz":25600,"window_len":4096,"class_count":2,"classes":[)"
+    R"({"id":0,"direction":1,"speed_rad_s":0.5,"duration_s":1.5,"regions":12,"n_windows":48,)"
+    R"("rms_band":[0.01,0.02],"entropy_band":[0.8,0.9]},)"
+    R"({"id":1,"direction":-1,"speed_rad_s":0.25,"duration_s":2,"regions":12,"n_windows":60,)"
+    R"("rms_band":[0.011,0.021],"entropy_band":[0.81,0.91]}]},)"
+    R"("last_window":{"t_s":4999.125,"class":1,"speed_rad_s":-0.25,"rms":0.025,"entropy":0.85,)"
+    R"("rms_band":[0.011,0.021],"entropy_band":[0.81,0.91],"rms_out":true,"entropy_out":false,)"
+    R"("abnormal":true,"abnormal_in_last_n":3},)"
+    R"("alarm":{"level":"alarm","since_s":4990.000,"latched":true,"causes":["rms","speed"],)"
+    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86}},"training":null,)"
+    R"("acquisition":{"blocks":100,"samples":102400,"gaps":1,"lost_samples":64,"short_reads":0,)"
+    R"("time_back":0,"timeouts":0,"read_errors":0},)"
+    R"("can":{"frames":5000,"speed_frames":4990,"other_ids":10,"wrong_dlc":0,"error_frames":0,)"
+    R"("rx_overflow_drops":0,"bus_off":0,"bus_state":"error_passive"},)"
+    R"("slicer":{"regions":24,"windows":108,"windows_invalid":0,"windows_lost":0},)"
+    R"("pipeline":{"ring_overflows":0,"windows_scored":107,"windows_abnormal":4,"alarms_raised":1,)"
+    R"("watchdog_pings":7200}})"
+    "\n";
+
+StatusWriterConfig json_only(const fs::path& dir, std::size_t bytes = 64 * 1024) {
+  StatusWriterConfig c;
+  c.json_path = dir / "status.json";
+  c.buffer_bytes = bytes;
+  return c;
+}
+
+TEST(StatusWriter, JsonTextOfAKnownSnapshot) {
+  StatusWriter w(json_only(scratch("json")));
+  const std::string_view text = w.render_json(known_snapshot());
+  EXPECT_EQ(text, kKnownJson);
+  EXPECT_TRUE(JsonChecker(text).valid());
+}
+
+TEST(StatusWriter, JsonForEmptyAndTrainingSnapshots) {
+  StatusWriter w(json_only(scratch("json2")));
+  StatusSnapshot s;
+  std::string text(w.render_json(s));
+  EXPECT_TRUE(JsonChecker(text).valid()) << text;
+  EXPECT_NE(text.find(R"("state":"configured")"), std::string::npos);
+  EXPECT_NE(text.find(R"("classes":[])"), std::string::npos);
+  EXPECT_NE(text.find(R"("last_window":null)"), std::string::npos);
+  EXPECT_NE(text.find(R"("alarm":{"level":"fault","since_s":0.000,"latched":false,"causes":[],"trip":null})"),
+            std::string::npos)
+      << text;
+
+  s.state = DaemonState::kTraining;
+  s.training_windows = 10;
+  s.training_capacity = 4096;
+  s.training_regions = 3;
+  s.training_classes = 2;
+  s.training_classes_complete = 1;
+  s.training_target_cycles = 10;
+  s.have_window = true;
+  s.window_rms = std::numeric_limits<double>::quiet_NaN();
+  s.window_entropy = std::numeric_limits<double>::infinity();
+  text = w.render_json(s);
+  EXPECT_TRUE(JsonChecker(text).valid()) << text;
+  EXPECT_NE(
+      text.find(R"("training":{"windows":10,"capacity":4096,"regions":3,"classes":2,"classes_complete":1,)"
+                R"("target_cycles":10,"dropped":0})"),
+      std::string::npos)
+      << text;
+  EXPECT_NE(text.find(R"("rms":null,"entropy":null)"), std::string::npos) << text;
+}
+
+TEST(StatusWriter, EscapesStrings) {
+  StatusWriter w(json_only(scratch("esc")));
+  StatusSnapshot s;
+  s.state = DaemonState::kRefused;
+  s.reason.assign("bad \"baseline\" C:\\x\n\ttab\x01\x1f end");
+  const std::string text(w.render_json(s));
+  EXPECT_NE(text.find(R"("reason":"bad \"baseline\" C:\\x\n\ttab\u0001\u001f end")"), std::string::npos)
+      << text;
+  EXPECT_TRUE(JsonChecker(text).valid()) << text;
+
+  char buf[64];
+  TextBuffer b(buf, sizeof buf);
+  b.append_label_value("a\"b\\c\nd\te");
+  EXPECT_EQ(b.view(), "a\\\"b\\\\c\\nd\te");
+  b.clear();
+  b.append_json_string(std::string_view("\b\f\r\x7f/", 5));
+  EXPECT_EQ(b.view(), "\"\\b\\f\\r\x7f/\"");
+}
+
+TEST(StatusWriter, FixedStringTruncates) {
+  FixedString<8> f;
+  f.assign("0123456789");
+  EXPECT_EQ(f.view(), "0123456");
+  EXPECT_EQ(f.text[7], '\0');
+  f.assign("ab");
+  EXPECT_EQ(f.view(), "ab");
+}
+
+/// The sample lines of one metric family (without HELP/TYPE).
+std::vector<std::string> samples_of(std::string_view text, std::string_view name) {
+  std::vector<std::string> out;
+  std::istringstream in{std::string(text)};
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(std::string(name), 0) == 0 &&
+        (line.size() > name.size() && (line[name.size()] == ' ' || line[name.size()] == '{'))) {
+      out.push_back(line);
+    }
+  }
+  return out;
+}
+
+TEST(StatusWriter, PrometheusLines) {
+  StatusWriterConfig c;
+  c.prom_path = scratch("prom") / "ptda.prom";
+  StatusWriter w(c);
+  StatusSnapshot s = known_snapshot();
+  s.reason.assign("operator \"jo\"\\n\nnext");
+  s.baseline_path.assign("/var/lib/ptda/base\\line.bin");
+  const std::string text(w.render_prometheus(s));
+
+  EXPECT_EQ(samples_of(text, "ptda_info"),
+            std::vector<std::string>{R"(ptda_info{method="ptda",reason="operator \"jo\"\\n\nnext",)"
+                                     R"(baseline_path="/var/lib/ptda/base\\line.bin",)"
+                                     R"(baseline_source="ptda train rec/2024-05-01"} 1)"});
+  EXPECT_EQ(
+      samples_of(text, "ptda_state"),
+      (std::vector<std::string>{R"(ptda_state{state="configured"} 0)", R"(ptda_state{state="running"} 1)",
+                                R"(ptda_state{state="paused"} 0)", R"(ptda_state{state="refused"} 0)",
+                                R"(ptda_state{state="training"} 0)", R"(ptda_state{state="stopping"} 0)"}));
+  EXPECT_EQ(samples_of(text, "ptda_rms_threshold"),
+            (std::vector<std::string>{R"(ptda_rms_threshold{class="0",bound="low"} 0.01)",
+                                      R"(ptda_rms_threshold{class="0",bound="high"} 0.02)",
+                                      R"(ptda_rms_threshold{class="1",bound="low"} 0.011)",
+                                      R"(ptda_rms_threshold{class="1",bound="high"} 0.021)"}));
+  EXPECT_EQ(samples_of(text, "ptda_class_speed_radians_per_second"),
+            (std::vector<std::string>{R"(ptda_class_speed_radians_per_second{class="0"} 0.5)",
+                                      R"(ptda_class_speed_radians_per_second{class="1"} -0.25)"}));
+  EXPECT_EQ(samples_of(text, "ptda_window_rms"),
+            std::vector<std::string>{R"(ptda_window_rms{class="1"} 0.025)"});
+  EXPECT_EQ(samples_of(text, "ptda_window_age_seconds"),
+            std::vector<std::string>{"ptda_window_age_seconds 1.375"});
+  EXPECT_EQ(samples_of(text, "ptda_alarm_level"), std::vector<std::string>{"ptda_alarm_level 2"});
+  EXPECT_EQ(samples_of(text, "ptda_alarm_level_duration_seconds"),
+            std::vector<std::string>{"ptda_alarm_level_duration_seconds 10.5"});
+  EXPECT_EQ(samples_of(text, "ptda_alarm_cause"),
+            (std::vector<std::string>{
+                R"(ptda_alarm_cause{cause="rms"} 1)", R"(ptda_alarm_cause{cause="entropy"} 0)",
+                R"(ptda_alarm_cause{cause="sensor"} 0)", R"(ptda_alarm_cause{cause="speed"} 1)",
+                R"(ptda_alarm_cause{cause="baseline"} 0)", R"(ptda_alarm_cause{cause="internal"} 0)"}));
+  EXPECT_EQ(samples_of(text, "ptda_uptime_seconds"), std::vector<std::string>{"ptda_uptime_seconds 3600.25"});
+  EXPECT_EQ(samples_of(text, "ptda_acquisition_samples_total"),
+            std::vector<std::string>{"ptda_acquisition_samples_total 102400"});
+  EXPECT_EQ(samples_of(text, "ptda_watchdog_pings_total"),
+            std::vector<std::string>{"ptda_watchdog_pings_total 7200"});
+  EXPECT_EQ(samples_of(text, "ptda_can_bus_state")[2], R"(ptda_can_bus_state{state="error_passive"} 1)");
+  EXPECT_TRUE(samples_of(text, "ptda_training_windows").empty());  // only while training
+
+  EXPECT_NE(text.find("# HELP ptda_acquisition_samples_total Vibration samples read.\n"
+                      "# TYPE ptda_acquisition_samples_total counter\n"
+                      "ptda_acquisition_samples_total 102400\n"),
+            std::string::npos);
+  EXPECT_NE(text.find("# TYPE ptda_rms_threshold gauge\n"), std::string::npos);
+
+  // Format rules for every line: comments are HELP/TYPE; each family has exactly one of each, before
+  // its samples; counters end in _total; names are ptda_[a-z_]+.
+  std::istringstream in(text);
+  std::string line;
+  std::string family;
+  std::vector<std::string> families;
+  int lines = 0;
+  while (std::getline(in, line)) {
+    ++lines;
+    ASSERT_FALSE(line.empty());
+    if (line[0] == '#') {
+      std::istringstream ls(line);
+      std::string hash, kind, name, type;
+      ls >> hash >> kind >> name;
+      ASSERT_TRUE(kind == "HELP" || kind == "TYPE") << line;
+      ASSERT_EQ(name.rfind("ptda_", 0), 0U) << line;
+      ASSERT_EQ(name.find_first_not_of("abcdefghijklmnopqrstuvwxyz_"), std::string::npos) << line;
+      if (kind == "HELP") {
+        ASSERT_EQ(std::count(families.begin(), families.end(), name), 0) << "duplicate " << name;
+        families.push_back(name);
+        family = name;
+      } else {
+        ASSERT_EQ(name, family) << line;
+        ls >> type;
+        ASSERT_TRUE(type == "gauge" || type == "counter") << line;
+        const bool total = name.size() > 6 && name.compare(name.size() - 6, 6, "_total") == 0;
+        ASSERT_EQ(type == "counter", total) << line;
+      }
+    } else {
+      ASSERT_EQ(line.rfind(family, 0), 0U) << line << " outside its family " << family;
+    }
+  }
+  EXPECT_GT(lines, 100);
+  EXPECT_EQ(text.back(), '\n');
+}
+
+TEST(StatusWriter, WritesBothFilesAtomically) {
+  const fs::path dir = scratch("write");
+  StatusWriterConfig c;
+  c.json_path = dir / "status.json";
+  c.prom_path = dir / "ptda.prom";
+  StatusWriter w(c);
+  ASSERT_EQ(w.write(known_snapshot()), StatusWriteResult::kOk);
+  EXPECT_EQ(slurp(c.json_path), kKnownJson);
+  const std::string prom = slurp(c.prom_path);
+  EXPECT_NE(prom.find("ptda_alarm_level 2\n"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "status.json.tmp"));
+  EXPECT_FALSE(fs::exists(dir / "ptda.prom.tmp"));
+  EXPECT_EQ(fs::status(c.prom_path).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read);
+  // Rewriting replaces the content.
+  StatusSnapshot s = known_snapshot();
+  s.alarm_level = drivers::AlarmLevel::kNormal;
+  ASSERT_EQ(w.write(s), StatusWriteResult::kOk);
+  EXPECT_NE(slurp(c.prom_path).find("ptda_alarm_level 0\n"), std::string::npos);
+  EXPECT_EQ(w.counters().writes, 2U);
+  EXPECT_EQ(w.counters().io_errors, 0U);
+}
+
+TEST(StatusWriter, WriteMakesNoAllocations) {
+  const fs::path dir = scratch("alloc");
+  StatusWriterConfig c;
+  c.json_path = dir / "status.json";
+  c.prom_path = dir / "ptda.prom";
+  StatusWriter w(c);
+  const StatusSnapshot s = known_snapshot();
+  StatusWriteResult r = StatusWriteResult::kOk;
+  {
+    test::AllocScope scope;
+    for (int i = 0; i < 20; ++i) {
+      if (w.write(s) != StatusWriteResult::kOk) r = StatusWriteResult::kIoError;
+    }
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  EXPECT_EQ(r, StatusWriteResult::kOk);
+}
+
+TEST(StatusWriter, TooSmallBufferIsCountedNotOverflowed) {
+  const fs::path dir = scratch("small");
+  StatusWriterConfig c = json_only(dir, 1024);
+  StatusWriter w(c);
+  StatusSnapshot s = known_snapshot();
+  s.classes_listed = kStatusMaxClasses;  // ~16 * 190 bytes: does not fit 1 KiB
+  EXPECT_EQ(w.render_json(s), std::string_view{});
+  EXPECT_EQ(w.counters().overflows, 1U);
+  EXPECT_EQ(w.write(s), StatusWriteResult::kOverflow);
+  EXPECT_EQ(w.counters().overflows, 2U);
+  EXPECT_FALSE(fs::exists(c.json_path));  // nothing half-written
+
+  char buf[8];
+  buf[7] = 'Z';
+  TextBuffer b(buf, 7);
+  b.append("abcdef");
+  b.append("gh");  // does not fit: dropped whole, flagged
+  EXPECT_TRUE(b.overflow());
+  EXPECT_EQ(b.view(), "abcdef");
+  b.append("x");  // nothing after an overflow
+  EXPECT_EQ(b.view(), "abcdef");
+  EXPECT_EQ(buf[7], 'Z');
+}
+
+TEST(StatusWriter, IoErrorIsReported) {
+  StatusWriterConfig c;
+  c.json_path = scratch("io") / "missing-dir" / "status.json";
+  StatusWriter w(c);
+  EXPECT_EQ(w.write(known_snapshot()), StatusWriteResult::kIoError);
+  EXPECT_EQ(w.last_errno(), ENOENT);
+  EXPECT_EQ(w.counters().io_errors, 1U);
+}
+
+TEST(StatusWriter, RejectsBadConfiguration) {
+  StatusWriterConfig c;
+  EXPECT_THROW(StatusWriter{c}, Error);
+  c.prom_path = "/run/ptda/ptda.txt";
+  try {
+    StatusWriter w(c);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(".prom"), std::string::npos) << e.what();
+  }
+  c.prom_path = "/run/ptda/ptda.prom";
+  c.buffer_bytes = 100;
+  EXPECT_THROW(StatusWriter{c}, Error);
+}
+
+}  // namespace
+}  // namespace ptda::daemon

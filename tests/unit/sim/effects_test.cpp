@@ -1,0 +1,301 @@
+// Sim-to-real effects: scenario keys and each effect's signature in the simulated signals.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <filesystem>
+#include <numbers>
+#include <string>
+
+#include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/sim/effects.hpp"
+#include "ptda/sim/simulator.hpp"
+
+namespace ptda::sim {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// Amplitude of the sinusoid at f_hz over x[i0, i0 + n) (single-bin DFT, exact for whole periods).
+double tone_amplitude(const std::vector<double>& x, double fs, double f_hz, std::size_t i0, std::size_t n) {
+  std::complex<double> acc = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    acc += x[i0 + i] * std::polar(1.0, -2.0 * kPi * f_hz * static_cast<double>(i) / fs);
+  }
+  return 2.0 * std::abs(acc) / static_cast<double>(n);
+}
+
+// Mean power of x in [f_lo, f_hi] from single-bin DFTs at 1 Hz spacing over 1 s blocks.
+double band_power(const std::vector<double>& x, double fs, double f_lo, double f_hi) {
+  const auto n = static_cast<std::size_t>(fs);
+  double sum = 0.0;
+  int count = 0;
+  for (std::size_t b = 0; b + n <= x.size(); b += n) {
+    for (double f = f_lo; f <= f_hi; f += 1.0) {
+      const double a = tone_amplitude(x, fs, f, b, n);
+      sum += a * a;
+      ++count;
+    }
+  }
+  return sum / count;
+}
+
+// Constant input shaft at 20 Hz through a parallel 30/60 stage: GMF = 600 Hz, fs 8000 Hz, no noise.
+Scenario rig(double duration_s = 2.0) {
+  Scenario s;
+  s.source = "test";
+  s.motion.kind = MotionKind::kConstant;
+  s.motion.shaft_speed_hz = 20.0;
+  s.motion.duration_s = duration_s;
+  s.motion.cycles = 2;
+  s.gearbox.kind = GearboxKind::kParallel;
+  s.gearbox.z_in = 30;
+  s.gearbox.z_spur = 60;
+  s.gearbox.z_pin = 0;
+  s.vibration.gmf_amplitudes = {1.0};
+  s.vibration.amplitude_speed_exponent = 0.0;
+  s.vibration.noise_rms = 0.0;
+  s.sensor.fs_hz = 8000.0;
+  s.sensor.format = formats::WavSampleFormat::kFloat32;
+  return s;
+}
+
+Scenario with(Scenario s, EffectKind k, std::initializer_list<std::pair<const char*, double>> params) {
+  EffectSpec e = EffectSpec::with_defaults(k);
+  for (const auto& [name, v] : params) e.set(name, v);
+  s.effects.push_back(e);
+  return s;
+}
+
+TEST(EffectsScenario, ParsesEffectsWithDefaults) {
+  const Scenario s = parse_scenario(R"([motion]
+via_points_rad = [0.0, 1.0]
+max_speed_rad_s = 1.0
+[[effects]]
+kind = "transfer_path"
+frequency_hz = 2500.0
+[[effects]]
+kind = "sample_clock_error"
+ppm = -800
+)",
+                                    "t.toml");
+  ASSERT_EQ(s.effects.size(), 2U);
+  EXPECT_EQ(s.effects[0].kind, EffectKind::kTransferPath);
+  EXPECT_DOUBLE_EQ(s.effects[0].get("frequency_hz"), 2500.0);
+  EXPECT_DOUBLE_EQ(s.effects[0].get("gain_db"), 12.0);  // default
+  EXPECT_DOUBLE_EQ(s.effects[1].get("ppm"), -800.0);
+}
+
+void expect_error(const std::string& text, const std::string& needle) {
+  try {
+    (void)parse_scenario(text, "t.toml");
+    ADD_FAILURE() << "no error for:\n" << text;
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << "message: " << e.what();
+  }
+}
+
+TEST(EffectsScenario, ErrorsNameTheKeyAndLine) {
+  const std::string head = "[motion]\nvia_points_rad = [0.0, 1.0]\nmax_speed_rad_s = 1.0\n[[effects]]\n";
+  expect_error(head + "kind = \"warp_drive\"\n", "t.toml:5:8: [[effects]] kind must be one of transfer_path");
+  expect_error(head + "kind = \"impacts\"\nresonanse_hz = 100.0\n", "t.toml:6:1: unknown key 'effects[0].resonanse_hz'");
+  expect_error(head + "kind = \"adc_clipping\"\nlevel_ms2 = -1.0\n", "t.toml:6:13: effects[0].level_ms2: must be in");
+  expect_error(head + "kind = \"transfer_path\"\nfrequency_hz = 20000.0\n", "frequency_hz: must be below 0.49 fs_hz");
+  expect_error(head + "kind = \"speed_latency\"\njitter_s = 0.0045\n", "jitter_s: plus [can] jitter_s must stay below");
+}
+
+TEST(EffectsScenario, EveryShippedScenarioStillParses) {
+  int n = 0;
+  for (const auto& f : std::filesystem::directory_iterator(std::filesystem::path(PTDA_SOURCE_DIR) / "config" / "scenarios")) {
+    if (f.path().extension() != ".toml") continue;
+    EXPECT_NO_THROW((void)load_scenario(f.path())) << f.path();
+    ++n;
+  }
+  EXPECT_GE(n, 9);
+}
+
+TEST(Effects, TransferPathBoostsItsBandOnly) {
+  Scenario s = rig(2.0);
+  s.vibration.gmf_amplitudes.clear();
+  s.vibration.noise_rms = 1.0;
+  const SimulatedSignals a = simulate_signals(s, 5);
+  const SimulatedSignals b = simulate_signals(with(s, EffectKind::kTransferPath, {{"frequency_hz", 2000.0}, {"gain_db", 12.0}, {"q", 4.0}}), 5);
+  const double fs = s.sensor.fs_hz;
+  const double in_band = band_power(b.vibration.accel_ms2, fs, 1950, 2050) / band_power(a.vibration.accel_ms2, fs, 1950, 2050);
+  const double far = band_power(b.vibration.accel_ms2, fs, 400, 500) / band_power(a.vibration.accel_ms2, fs, 400, 500);
+  // Peak gain 12 dB = x15.8 in power; over +-50 Hz (a fifth of the 500 Hz bandwidth) nearly all of it.
+  EXPECT_GT(10.0 * std::log10(in_band), 11.0);
+  EXPECT_LT(10.0 * std::log10(in_band), 12.5);
+  EXPECT_NEAR(10.0 * std::log10(far), 0.0, 0.5);
+}
+
+TEST(Effects, MeshModulationMakesSidebandsAtItsRate) {
+  const Scenario s = with(rig(), EffectKind::kMeshModulation, {{"rate_order", 1.5}, {"am_depth", 0.4}, {"pm_rad", 0.0}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  const double fs = s.sensor.fs_hz;
+  const auto n = static_cast<std::size_t>(fs);  // 1 s: whole periods of 600 and 600 +- 30 Hz
+  // AM depth m puts m/2 of the carrier into each sideband at GMF +- 1.5 x 20 Hz.
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, fs, 600.0, 0, n), 1.0, 1e-3);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, fs, 570.0, 0, n), 0.2, 1e-3);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, fs, 630.0, 0, n), 0.2, 1e-3);
+  EXPECT_LT(tone_amplitude(sig.vibration.accel_ms2, fs, 580.0, 0, n), 1e-3);
+}
+
+TEST(Effects, SampleClockErrorShiftsTheMeshByTheRatio) {
+  const Scenario s = with(rig(1.0), EffectKind::kSampleClockError, {{"ppm", 2000.0}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  EXPECT_EQ(sig.fs_nominal_hz, 8000.0);
+  // Frequency from the first and last upward zero crossings, on the nominal sample grid.
+  const std::vector<double>& x = sig.vibration.accel_ms2;
+  double first = -1, last = -1;
+  int crossings = 0;
+  for (std::size_t i = 1; i < x.size(); ++i) {
+    if (x[i - 1] < 0.0 && x[i] >= 0.0) {
+      const double t = (static_cast<double>(i - 1) + x[i - 1] / (x[i - 1] - x[i])) / sig.fs_nominal_hz;
+      if (first < 0) first = t;
+      last = t;
+      ++crossings;
+    }
+  }
+  const double f = (crossings - 1) / (last - first);
+  EXPECT_NEAR(f / 600.0, 1.0 / 1.002, 2e-6);
+}
+
+TEST(Effects, AdcClippingCapsTheSignal) {
+  const Scenario s = with(rig(), EffectKind::kAdcClipping, {{"level_ms2", 0.7}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  double mx = 0.0;
+  for (double v : sig.vibration.accel_ms2) mx = std::max(mx, std::fabs(v));
+  EXPECT_DOUBLE_EQ(mx, 0.7);
+  // 600 Hz at 8000 Hz repeats every 40 samples (3 periods): the share of those sample phases with
+  // |sin| > 0.7 is exactly the share of clipped samples (continuous-time value 1 - 2 asin(0.7)/pi = 0.506).
+  int above = 0;
+  for (int k = 0; k < 40; ++k) above += std::fabs(std::sin(2.0 * kPi * 3.0 * k / 40.0)) > 0.7 ? 1 : 0;
+  EXPECT_EQ(above, 22);
+  EXPECT_DOUBLE_EQ(static_cast<double>(sig.vibration.effect_clipped_samples) / static_cast<double>(sig.codes.size()),
+                   above / 40.0);
+}
+
+TEST(Effects, ElectricalInterferenceAtFixedFrequencies) {
+  Scenario s = rig();
+  s.vibration.gmf_amplitudes.clear();
+  s = with(s, EffectKind::kElectricalInterference,
+           {{"frequency_hz", 50.0}, {"amplitude_ms2", 0.3}, {"harmonics", 3.0}, {"harmonic_decay", 0.5}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  const auto n = static_cast<std::size_t>(s.sensor.fs_hz);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 50, 0, n), 0.3, 1e-6);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 100, 0, n), 0.15, 1e-6);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 150, 0, n), 0.075, 1e-6);
+  EXPECT_LT(tone_amplitude(sig.vibration.accel_ms2, 8000, 200, 0, n), 1e-6);
+}
+
+TEST(Effects, OtherAxisAddsAnOffOrderMesh) {
+  const Scenario s = with(rig(), EffectKind::kOtherAxis, {{"amplitude_ms2", 0.4}, {"frequency_ratio", 1.25}, {"lag_s", 0.0}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  const auto n = static_cast<std::size_t>(s.sensor.fs_hz);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 750, 0, n), 0.4, 1e-3);  // 1.25 x 600 Hz
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 600, 0, n), 1.0, 1e-3);
+}
+
+Scenario reciprocating(std::uint32_t cycles) {
+  Scenario s;
+  s.source = "test";
+  s.motion.via_points_rad = {0.0, kPi, 0.0};
+  s.motion.segment_speeds_rad_s = {3.49068, 3.49068};
+  s.motion.accel_rad_s2 = 17.45;
+  s.motion.cycles = cycles;
+  s.motion.dwell_s = 0.4;
+  s.motion.start_jitter_s = 0.0;
+  s.motion.lead_in_s = 0.2;
+  s.vibration.gmf_amplitudes = {1.0};
+  s.vibration.reference_speed_rad_s = 3.49068;
+  s.vibration.amplitude_speed_exponent = 0.0;
+  s.vibration.noise_rms = 0.0;
+  return s;
+}
+
+TEST(Effects, ImpactsAtTorqueReversals) {
+  Scenario s = reciprocating(2);
+  s.vibration.gmf_amplitudes.clear();
+  s = with(s, EffectKind::kImpacts, {{"amplitude_ms2", 4.0}, {"resonance_hz", 3000.0}, {"damping_ratio", 0.05}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  // Accel signs per cycle: + (start), - (braking and reversal at pi), + (braking back). The second
+  // cycle starts with + after +: no reversal. 3 + 2 knocks.
+  EXPECT_EQ(sig.vibration.effect_impacts, 5U);
+  // The first knock rings right at the start of the motion (after the 0.2 s lead-in).
+  double before = 0, after = 0;
+  const auto i0 = static_cast<std::size_t>(0.2 * s.sensor.fs_hz);
+  for (std::size_t i = i0 - 100; i < i0; ++i) before = std::max(before, std::fabs(sig.vibration.accel_ms2[i]));
+  for (std::size_t i = i0; i < i0 + 100; ++i) after = std::max(after, std::fabs(sig.vibration.accel_ms2[i]));
+  EXPECT_EQ(before, 0.0);
+  EXPECT_GT(after, 3.0);
+}
+
+TEST(Effects, LoadDependenceScalesTheMeshByDirection) {
+  const Scenario s = with(reciprocating(1), EffectKind::kLoadDependence, {{"direction_gain", 0.5}, {"accel_gain", 0.0}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  double pos = 0, neg = 0;
+  for (std::size_t i = 0; i < sig.codes.size(); ++i) {
+    const double w = sig.motion.speed_rad_s[i];
+    if (w > 3.4) pos = std::max(pos, std::fabs(sig.vibration.accel_ms2[i]));
+    if (w < -3.4) neg = std::max(neg, std::fabs(sig.vibration.accel_ms2[i]));
+  }
+  EXPECT_NEAR(pos, 1.5, 1e-3);
+  EXPECT_NEAR(neg, 0.5, 1e-3);
+}
+
+TEST(Effects, SpeedLatencyDelaysOnlyTheCanFrames) {
+  const Scenario s = reciprocating(1);
+  const SimulatedSignals a = simulate_signals(s, 3);
+  const SimulatedSignals b = simulate_signals(with(s, EffectKind::kSpeedLatency, {{"delay_s", 0.025}, {"jitter_s", 0.0}}), 3);
+  ASSERT_EQ(a.can.size(), b.can.size());
+  for (std::size_t i = 0; i < a.can.size(); i += 97) {
+    EXPECT_NEAR(static_cast<double>(b.can[i].frame.t_ns - a.can[i].frame.t_ns), 25e6, 1000.0);
+  }
+  EXPECT_EQ(a.codes, b.codes);  // the vibration is untouched
+}
+
+TEST(Effects, SpeedRippleSmearsTheMeshLine) {
+  const Scenario s = with(rig(4.0), EffectKind::kSpeedRipple, {{"jitter_rad", 0.5}, {"bandwidth_hz", 20.0}});
+  const SimulatedSignals sig = simulate_signals(s, 2);
+  const auto n = static_cast<std::size_t>(s.sensor.fs_hz);
+  double mean = 0;
+  for (int b = 0; b < 4; ++b) mean += tone_amplitude(sig.vibration.accel_ms2, 8000, 600, static_cast<std::size_t>(b) * n, n) / 4;
+  // Gaussian phase jitter of 0.5 rad rms keeps exp(-0.5^2 / 2) = 0.8825 of the line coherent.
+  EXPECT_NEAR(mean, 0.8825, 0.04);
+  const SimulatedSignals plain = simulate_signals(rig(4.0), 2);
+  ASSERT_EQ(plain.can.size(), sig.can.size());
+  EXPECT_EQ(plain.can[100].frame.data, sig.can[100].frame.data);  // the CAN speed does not show it
+}
+
+TEST(Effects, NoiseColorRaisesLowFrequencies) {
+  Scenario s = rig(2.0);
+  s.vibration.gmf_amplitudes.clear();
+  s.vibration.noise_rms = 0.1;
+  const SimulatedSignals a = simulate_signals(s, 4);
+  const SimulatedSignals b = simulate_signals(with(s, EffectKind::kNoiseColor, {{"rms_ms2", 0.5}, {"corner_hz", 50.0}}), 4);
+  const double low = band_power(b.vibration.accel_ms2, 8000, 10, 40) / band_power(a.vibration.accel_ms2, 8000, 10, 40);
+  const double high = band_power(b.vibration.accel_ms2, 8000, 3000, 3100) / band_power(a.vibration.accel_ms2, 8000, 3000, 3100);
+  // Expected power ratio 1 + rms^2 |H(f)|^2 / sigma^2 for the one-pole y = a y + sqrt(1 - a^2) w:
+  // |H|^2 = (1 - a^2) / |1 - a e^{-j w}|^2 (both noises are white before filtering, same bin scaling).
+  auto expected_db = [](double f) {
+    const double pole = std::exp(-2.0 * kPi * 50.0 / 8000.0);
+    const double w = 2.0 * kPi * f / 8000.0;
+    const double h2 =
+        (1.0 - pole * pole) / (std::pow(1.0 - pole * std::cos(w), 2) + std::pow(pole * std::sin(w), 2));
+    return 10.0 * std::log10(1.0 + 0.25 * h2 / 0.01);
+  };
+  EXPECT_NEAR(expected_db(3050.0), 1.948, 0.001);  // the formula at 3050 Hz
+  EXPECT_NEAR(10.0 * std::log10(high), expected_db(3050.0), 0.5);
+  EXPECT_GT(10.0 * std::log10(low), 20.0);  // about 29 dB at 25 Hz
+}
+
+TEST(Effects, DeterministicForASeed) {
+  const Scenario s = with(with(rig(), EffectKind::kSpeedRipple, {}), EffectKind::kImpacts, {{"rate_hz", 3.0}});
+  EXPECT_EQ(simulate_signals(s, 9).codes, simulate_signals(s, 9).codes);
+  EXPECT_NE(simulate_signals(s, 9).codes, simulate_signals(s, 10).codes);
+}
+
+}  // namespace
+}  // namespace ptda::sim
