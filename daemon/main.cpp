@@ -44,7 +44,8 @@ constexpr const char* kUsage =
     "  --test-stall-processing-after S   stop the processing thread's progress after S seconds\n"
     "\n"
     "signals: SIGTERM/SIGINT stop; SIGHUP reloads the configuration (an invalid one is rejected and\n"
-    "the running configuration kept).\n"
+    "the running configuration kept); SIGUSR1 clears a latched alarm (accepted only once the hold time\n"
+    "passed and the condition is gone).\n"
     "exit codes: 0 stopped on request, 1 configuration or start-up error, 2 usage error.\n";
 
 struct Cli {

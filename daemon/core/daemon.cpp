@@ -106,6 +106,7 @@ void Daemon::configure() {
   sigaddset(&set, SIGTERM);
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGHUP);
+  sigaddset(&set, SIGUSR1);  // local operator clear of a latched alarm
   if (pthread_sigmask(SIG_BLOCK, &set, nullptr) != 0) throw Error("ptdad: pthread_sigmask failed");
   if (signal_fd_ < 0) {
     signal_fd_ = ::signalfd(-1, &set, SFD_NONBLOCK | SFD_CLOEXEC);
@@ -124,6 +125,8 @@ void Daemon::configure() {
 
   auto p = std::make_unique<Pipeline>(cfg_, mode_, clock_);
   p->set_window_sink(sink_);
+  p->set_device_factory(factory_);
+  p->set_probe(probe_);
   p->configure();
   spdlog::info("configured from {} file(s) ({}{}); inputs: {}; fs {} Hz, window {} samples, method {}",
                cfg_.files.size(), cfg_.files.front().string(), cfg_.files.size() > 1 ? " + drop-ins" : "",
@@ -181,6 +184,12 @@ void Daemon::request_reload() noexcept {
   }
 }
 
+void Daemon::request_clear() noexcept {
+  local_clears_.fetch_add(1, std::memory_order_relaxed);
+  std::lock_guard lock(pipeline_mutex_);
+  if (pipeline_) pipeline_->post_clear();
+}
+
 void Daemon::set_processing_stall(bool stall) noexcept {
   stall_.store(stall, std::memory_order_relaxed);
   std::lock_guard lock(pipeline_mutex_);
@@ -210,12 +219,15 @@ DaemonView Daemon::view() const noexcept {
   v.watchdog_pings = pings_.load();
   v.watchdog_skipped = pings_skipped_.load();
   v.status_writes = status_writes_.load();
+  v.local_clears = local_clears_.load();
   return v;
 }
 
 void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   auto fresh = std::make_unique<Pipeline>(cfg, mode, clock_);
   fresh->set_window_sink(sink_);
+  fresh->set_device_factory(factory_);
+  fresh->set_probe(probe_);
   {
     // Stop the old pipeline first: a device (IIO buffer, GPIO line) has one user at a time.
     std::lock_guard lock(pipeline_mutex_);
@@ -488,6 +500,7 @@ void Daemon::check_training(std::int64_t now) {
   const bool ended = pipeline_->status().ended;
   if (!progress.ready && !((timed_out || ended) && progress.can_finish)) return;
   const fs::path out = cfg_.training.output.empty() ? cfg_.daemon.baseline : cfg_.training.output;
+  if (before_write_ != nullptr) before_write_(before_write_arg_);  // test-only hook
   try {
     const dsp::Baseline b =
         trainer.finish(out, progress.ready ? FinishMode::kRequireReady : FinishMode::kWhatIsThere);
@@ -496,8 +509,11 @@ void Daemon::check_training(std::int64_t now) {
     mode_ = PipelineMode::kMonitor;
     DaemonConfig next = cfg_;
     next.daemon.baseline = out;
+    cfg_ = next;
+    // A stop that arrived meanwhile (the write is atomic and was not interrupted): do not start the
+    // monitoring pipeline only to stop it again.
+    if (stop_requested_.load(std::memory_order_acquire)) return;
     restart_pipeline(next, mode_);
-    cfg_ = std::move(next);
   } catch (const Error& e) {
     spdlog::error("field training: {}", e.what());
     training_started_ns_ = now;  // try again after another max_duration_s
@@ -558,6 +574,9 @@ int Daemon::run() {
       while (::read(signal_fd_, &si, sizeof si) == static_cast<ssize_t>(sizeof si)) {
         if (si.ssi_signo == SIGHUP) {
           reload_requested_.store(true);
+        } else if (si.ssi_signo == SIGUSR1) {
+          spdlog::info("SIGUSR1 received: clear request for a latched alarm");
+          request_clear();
         } else {
           spdlog::info("{} received: stopping", si.ssi_signo == SIGTERM ? "SIGTERM" : "SIGINT");
           stop_requested_.store(true);

@@ -61,6 +61,7 @@ struct DaemonView {
   std::uint64_t watchdog_pings = 0;
   std::uint64_t watchdog_skipped = 0;  ///< pings withheld because a stage made no progress
   std::uint64_t status_writes = 0;
+  std::uint64_t local_clears = 0;      ///< local clear commands (SIGUSR1, request_clear())
   std::uint32_t window_len = 0;        ///< of the configuration in use
   double min_hold_s = 0.0;             ///< of the configuration in use
 };
@@ -94,6 +95,21 @@ class Daemon {
   /// Test hook: receives every processed window of this and every later pipeline (processing thread).
   /// Set before configure(). Thread: main.
   void set_window_sink(WindowSink* sink) noexcept { sink_ = sink; }
+  /// Benchmark hook: the latency probe of this and every later pipeline (see PipelineProbe). Set
+  /// before configure(). Thread: main.
+  void set_probe(PipelineProbe* probe) noexcept { probe_ = probe; }
+  /// Test-only hook: the devices of this and every later pipeline (see DeviceFactory). Set before
+  /// configure(). Thread: main.
+  void set_device_factory(DeviceFactory* f) noexcept { factory_ = f; }
+  /// Test-only hook: called by the supervisor right before field training writes the baseline (e.g. to
+  /// send SIGTERM at that moment). Set before activate(). Thread: main.
+  void set_before_baseline_write(void (*hook)(void*), void* arg) noexcept {
+    before_write_ = hook;
+    before_write_arg_ = arg;
+  }
+  /// Local operator clear of a latched alarm (as SIGUSR1): posted to the alarm manager, which accepts
+  /// it only when the hold time passed and the condition is gone. Thread: any. Never blocks or allocates.
+  void request_clear() noexcept;
   /// Test-only fault injection (see Pipeline::set_processing_stall). Thread: any.
   void set_processing_stall(bool stall) noexcept;
 
@@ -119,6 +135,11 @@ class Daemon {
   drivers::Clock& clock_;
   DaemonConfig cfg_;
   WindowSink* sink_ = nullptr;
+  PipelineProbe* probe_ = nullptr;
+  DeviceFactory* factory_ = nullptr;
+  void (*before_write_)(void*) = nullptr;
+  void* before_write_arg_ = nullptr;
+  std::atomic<std::uint64_t> local_clears_{0};  ///< SIGUSR1 / request_clear() calls
   PipelineMode mode_ = PipelineMode::kMonitor;
 
   mutable std::mutex pipeline_mutex_;  ///< guards the pipeline_ pointer (swapped by reloads)

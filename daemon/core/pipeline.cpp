@@ -80,7 +80,14 @@ void Pipeline::configure() {
   // ---- vibration source
   std::optional<std::int64_t> recording_start_unix;
   fs::path recording_can;
-  switch (cfg_.adc.backend) {
+  if (factory_ != nullptr) {  // test-only hook: the test's devices replace the configured backends
+    source_ = factory_->make_source(clock_);
+    channel_ = factory_->make_channel(clock_);
+    source_fast_ = cfg_.adc.pace == Pace::kFast;
+    can_fast_ = cfg_.can.pace == Pace::kFast;
+    inputs_text_ = "test devices (" + std::string(pace_name(cfg_.adc.pace)) + ")";
+  }
+  if (!source_) switch (cfg_.adc.backend) {
     case AdcBackend::kSim: {
       sim_ = make_sim_recording(cfg_.adc.scenario, cfg_.adc.seed);
       SimSourceConfig sc;
@@ -141,7 +148,7 @@ void Pipeline::configure() {
   fs_mhz_ = std::llround(fs_hz_ * 1000.0);
 
   // ---- CAN channel
-  switch (cfg_.can.backend) {
+  if (!channel_) switch (cfg_.can.backend) {
     case CanBackend::kSim: {
       SimCanConfig cc;
       cc.fast = cfg_.can.pace == Pace::kFast;
@@ -194,6 +201,7 @@ void Pipeline::configure() {
     ac.extended = cfg_.alarm.can_extended;
     outputs_.push_back(std::make_unique<drivers::CanAlarmOutput>(ac, *channel_));
   }
+  if (factory_ != nullptr) factory_->add_outputs(outputs_, *channel_);
   for (auto& o : outputs_) o->configure();
 
   // ---- monitoring or training
@@ -361,6 +369,7 @@ void Pipeline::acquisition_loop() noexcept {
           acq_beat_.fetch_add(1, std::memory_order_relaxed);
           sleep_ns(200'000);
         }
+        if (probe_ != nullptr) probe_->on_block_pushed(block);  // a dropped block is reported too
         break;
       case SourceStatus::kTimeout: break;
       case SourceStatus::kEndOfStream: acq_end_.store(true, std::memory_order_release); break;
@@ -447,20 +456,38 @@ void Pipeline::push_block(const drivers::SampleBlock& b) noexcept {
     return;
   }
   const std::uint64_t index = b.first_index - base_index_;
+  // The sample index is the time base (t0 + index / fs). A block stamp that steps by more than
+  // kTimeJumpNs against it since the previous block is a clock jump the index does not show (a clock
+  // step, or samples lost without an index jump): the block is not trusted, so no window spans the jump.
+  const std::int64_t dev = b.t_mono_ns - (st_.t0_mono_ns + sample_time(index));
+  bool invalid = (b.flags & (drivers::kBlockShortRead | drivers::kBlockTimeBack)) != 0;
+  if (have_dev_ && (dev - last_dev_ > kTimeJumpNs || last_dev_ - dev > kTimeJumpNs)) {
+    ++st_.time_jumps;
+    invalid = true;
+  }
+  have_dev_ = true;
+  last_dev_ = dev;
   if (index > expected_index_) {
     const std::uint64_t gap = index - expected_index_;
     if (engine_) engine_->mark_gap(gap);
     if (train_slicer_) train_slicer_->mark_gap(gap);
     st_.gap_samples += gap;
   }
-  const std::span<const float> samples(b.samples, b.count);
-  if (engine_) engine_->push_samples(samples);
-  if (train_slicer_) train_slicer_->push_samples(samples);
+  if (invalid) {
+    // Short read (bytes lost upstream) or a doubtful stamp: the samples keep their place but are
+    // invalid, so every window containing them is discarded (slicer windows_invalid).
+    ++st_.blocks_invalid;
+    if (engine_) engine_->mark_gap(b.count);
+    if (train_slicer_) train_slicer_->mark_gap(b.count);
+  } else {
+    const std::span<const float> samples(b.samples, b.count);
+    if (engine_) engine_->push_samples(samples);
+    if (train_slicer_) train_slicer_->push_samples(samples);
+  }
   expected_index_ = index + b.count;
   ++st_.blocks;
   st_.samples += b.count;
   st_.data_time_ns = st_.t0_mono_ns + sample_time(expected_index_);
-  const std::int64_t dev = b.t_mono_ns - (st_.t0_mono_ns + sample_time(index));
   st_.max_block_dev_ns = std::max(st_.max_block_dev_ns, dev < 0 ? -dev : dev);
 }
 
@@ -511,6 +538,7 @@ void Pipeline::drain_windows(std::int64_t now) noexcept {
 bool Pipeline::process_step(std::int64_t now) noexcept {
   bool work = false;
   if (!have_block_ && sample_ring_->try_pop(*held_block_)) {
+    if (probe_ != nullptr) probe_->on_block_popped(*held_block_);
     have_block_ = true;
     last_block_arrival_ns_ = now;
     if (!st_.have_t0) {
@@ -636,6 +664,7 @@ void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
   for (auto& o : outputs_) {
     if (o->set(report) != drivers::OutputStatus::kOk) output_errors_.add();
   }
+  if (probe_ != nullptr) probe_->on_outputs_set(report);
   last_output_level_ = report.level;
   last_output_causes_ = report.causes;
   last_output_ns_ = now;

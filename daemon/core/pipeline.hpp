@@ -53,6 +53,9 @@ inline constexpr std::size_t kSampleRingBlocks = 64;   ///< 64 x 1024 samples: 2
 inline constexpr std::size_t kSpeedRingSamples = 4096; ///< 16 s of 4 ms speed frames
 inline constexpr std::size_t kCanBatch = 64;           ///< frames per receive() call
 inline constexpr std::int64_t kStageWaitNs = 50'000'000;  ///< longest wait of a stage before it re-checks
+/// A block stamp that moves more than this against the sample index since the previous block is a clock
+/// jump: the block's samples are declared invalid (the index stays the time base).
+inline constexpr std::int64_t kTimeJumpNs = 100'000'000;
 
 using SampleRing = SpscRing<drivers::SampleBlock, kSampleRingBlocks>;
 using SpeedRing = SpscRing<dsp::SpeedSample, kSpeedRingSamples>;
@@ -79,6 +82,39 @@ class WindowSink {
   virtual void on_window(const dsp::WindowResult& w) noexcept = 0;
 };
 
+/// Marks the points of the latency path (benchmark hook: daemon/bench/daemon_bench.cpp). Each call is
+/// made on the named thread and must not block, allocate or throw; the implementation takes its own
+/// timestamps. Unset (nullptr, the default) it costs one predictable branch per block and per output
+/// update.
+class PipelineProbe {
+ public:
+  virtual ~PipelineProbe() = default;
+  /// Acquisition thread: `b` was just pushed into the sample ring.
+  virtual void on_block_pushed(const drivers::SampleBlock& b) noexcept = 0;
+  /// Processing thread: `b` was just popped from the sample ring (it may still wait for speed).
+  virtual void on_block_popped(const drivers::SampleBlock& b) noexcept = 0;
+  /// Processing thread: every alarm output was just set to `report`.
+  virtual void on_outputs_set(const drivers::AlarmReport& report) noexcept = 0;
+};
+
+/// Test-only hook (tests/unit/daemon/daemon_faults_test.cpp and friends; docs/daemon.md, "Faults"):
+/// supplies the vibration source and the CAN channel instead of the configured [adc]/[can] backends,
+/// and may add alarm outputs after the configured ones. The configured pace still decides between
+/// back-pressure (fast) and dropping (real time). Called by Pipeline::configure() on the main thread,
+/// once per pipeline (a reload or the end of field training asks again). May allocate and throw.
+class DeviceFactory {
+ public:
+  virtual ~DeviceFactory() = default;
+  [[nodiscard]] virtual std::unique_ptr<drivers::SampleSource> make_source(drivers::Clock& clock) = 0;
+  [[nodiscard]] virtual std::unique_ptr<drivers::CanChannel> make_channel(drivers::Clock& clock) = 0;
+  /// Appends extra outputs (e.g. drivers::RecordingAlarmOutput); `channel` is the pipeline's channel.
+  virtual void add_outputs(std::vector<std::unique_ptr<drivers::AlarmOutput>>& outputs,
+                           drivers::CanChannel& channel) {
+    (void)outputs;
+    (void)channel;
+  }
+};
+
 /// Published by the processing thread (seqlock), read by the supervisor.
 struct PipelineStatus {
   Phase phase = Phase::kStarting;
@@ -92,6 +128,9 @@ struct PipelineStatus {
   std::uint64_t blocks = 0, samples = 0, speeds = 0;
   std::uint64_t gap_samples = 0;     ///< samples declared missing to the engine (index jumps)
   std::uint64_t index_back = 0;      ///< blocks dropped because their index went backwards
+  std::uint64_t blocks_invalid = 0;  ///< blocks whose samples were declared invalid (short read,
+                                     ///< device timestamp back or jumping): their windows are discarded
+  std::uint64_t time_jumps = 0;      ///< block stamps that jumped against the sample index (> kTimeJumpNs)
   std::uint64_t speeds_before_t0 = 0;
   std::uint64_t pauses = 0;          ///< transitions into a paused phase
   std::int64_t max_block_dev_ns = 0; ///< max |block stamp - (t0 + index / fs)|
@@ -135,6 +174,10 @@ class Pipeline {
 
   /// Test/tool hook, set before activate(). Thread: main.
   void set_window_sink(WindowSink* sink) noexcept { sink_ = sink; }
+  /// Test-only hook, set before configure() (see DeviceFactory). Thread: main.
+  void set_device_factory(DeviceFactory* f) noexcept { factory_ = f; }
+  /// Benchmark hook, set before activate(). Thread: main.
+  void set_probe(PipelineProbe* probe) noexcept { probe_ = probe; }
   /// Test-only fault injection: while true the processing thread stops working and stops beating
   /// (it still honours stop). Thread: any. Never blocks.
   void set_processing_stall(bool stall) noexcept { stall_.store(stall, std::memory_order_relaxed); }
@@ -203,6 +246,8 @@ class Pipeline {
   std::vector<float> train_window_;
   std::unique_ptr<AlarmManager> alarm_;
   WindowSink* sink_ = nullptr;
+  PipelineProbe* probe_ = nullptr;
+  DeviceFactory* factory_ = nullptr;
 
   // Rings (allocated at configure).
   std::unique_ptr<SampleRing> sample_ring_;
@@ -230,6 +275,8 @@ class Pipeline {
   bool streams_finished_ = false;
   std::uint64_t base_index_ = 0;      ///< first_index of the first block (stream sample 0)
   std::uint64_t expected_index_ = 0;  ///< stream index of the next sample
+  bool have_dev_ = false;
+  std::int64_t last_dev_ = 0;         ///< previous block's stamp - nominal time
   bool have_any_speed_ = false;
   bool faults_applied_ = false;
   std::int64_t alarm_time_ns_ = 0;    ///< monotone time base of the alarm manager

@@ -4,11 +4,13 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <complex>
 #include <numbers>
 #include <random>
 #include <vector>
 
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/real_fft.hpp"
 #include "ptda/dsp/training.hpp"
 
 namespace {
@@ -53,6 +55,29 @@ BENCHMARK(BM_Analyze)
     ->ArgsProduct({{3200, 10240, 12800, 25600}, {0, 1, 2}})
     ->ArgNames({"N", "method"})
     ->Unit(benchmark::kMicrosecond);
+
+// One forward + one inverse real FFT per iteration (the project's RealFft over KissFFT); the counter
+// "us_per_transform" is half the pair, comparable with the KissFFT anchor in
+// /work/shared/notes/performance-and-reliability.md (~103 us per 16384-point transform here).
+void BM_RealFftPair(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  std::mt19937 rng(2);
+  const std::vector<float> x = gear_like_window(n, rng);
+  std::vector<float> y(n);
+  std::vector<std::complex<float>> spectrum(n / 2 + 1);
+  ptda::dsp::RealFft fft(n);
+  for (auto _ : state) {
+    fft.forward(x, spectrum);
+    fft.inverse(spectrum, y);
+    benchmark::DoNotOptimize(y.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["us_per_transform"] =
+      benchmark::Counter(2e-6, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
+BENCHMARK(BM_RealFftPair)->ArgName("N")->Arg(3200)->Arg(10240)->Arg(12800)->Arg(16384)->Arg(25600)->Unit(
+    benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -24,6 +24,8 @@ inline constexpr std::uint64_t kStreamJitter = 1;
 inline constexpr std::uint64_t kStreamNoise = 2;
 inline constexpr std::uint64_t kStreamCan = 3;
 inline constexpr std::uint64_t kStreamOtherFrames = 4;
+inline constexpr std::uint64_t kStreamCycleAmplitude = 5;
+inline constexpr std::uint64_t kStreamCycleNoise = 6;
 /// Effect i of the scenario draws from stream kStreamEffectBase + i.
 inline constexpr std::uint64_t kStreamEffectBase = 100;
 

@@ -99,6 +99,18 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
   vb.insert("amplitude_speed_exponent", s.vibration.amplitude_speed_exponent);
   vb.insert("noise_rms", s.vibration.noise_rms);
   vb.insert("harmonics_above_nyquist", static_cast<std::int64_t>(vib.harmonics_above_nyquist));
+  // The cycle variation only when on: without it truth.toml stays as it was before the feature.
+  const CycleVariation& cv = vib.cycle_variation;
+  if (s.vibration.cycle_amplitude_jitter_rel > 0.0) {
+    vb.insert("cycle_amplitude_jitter_rel", s.vibration.cycle_amplitude_jitter_rel);
+    toml::array rows;  // [cycle][k]: factor on gmf_amplitudes[k] in that cycle
+    for (const std::vector<double>& row : cv.amplitude_factors) rows.push_back(to_array(row));
+    vb.insert("cycle_amplitude_factors", std::move(rows));
+  }
+  if (s.vibration.cycle_noise_jitter_rel > 0.0) {
+    vb.insert("cycle_noise_jitter_rel", s.vibration.cycle_noise_jitter_rel);
+    vb.insert("cycle_noise_factors", to_array(cv.noise_factors));
+  }
   root.insert("vibration", std::move(vb));
 
   toml::array faults;

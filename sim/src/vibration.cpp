@@ -20,6 +20,7 @@ struct Harmonic {
   double order = 0.0;      ///< k
   double amplitude = 0.0;  ///< A_k at reference speed
   double phase_rad = 0.0;  ///< phi_k
+  std::size_t entry = 0;   ///< index into gmf_amplitudes / dmf_amplitudes
 };
 
 double speed_factor(const VibrationSpec& v, double speed_rad_s) {
@@ -30,6 +31,25 @@ double speed_factor(const VibrationSpec& v, double speed_rad_s) {
 }
 
 }  // namespace
+
+CycleVariation draw_cycle_variation(const VibrationSpec& v, std::uint32_t cycles, std::uint64_t seed) {
+  CycleVariation out;
+  // One draw per cycle and gmf_amplitudes entry, in that order, whether the entry is zero or omitted
+  // above Nyquist: the factors of a cycle do not depend on which orders happen to be synthesised.
+  if (v.cycle_amplitude_jitter_rel > 0.0) {
+    Rng rng(seed, kStreamCycleAmplitude);
+    out.amplitude_factors.assign(cycles, std::vector<double>(v.gmf_amplitudes.size(), 1.0));
+    for (auto& row : out.amplitude_factors) {
+      for (double& f : row) f = std::exp(v.cycle_amplitude_jitter_rel * rng.normal());
+    }
+  }
+  if (v.cycle_noise_jitter_rel > 0.0) {
+    Rng rng(seed, kStreamCycleNoise);
+    out.noise_factors.resize(cycles);
+    for (double& f : out.noise_factors) f = std::exp(v.cycle_noise_jitter_rel * rng.normal());
+  }
+  return out;
+}
 
 void add_ringing(std::vector<double>& x, double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
                  double damping_ratio) {
@@ -67,7 +87,7 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
       ++out.harmonics_above_nyquist;
       continue;
     }
-    gmf.push_back({order, vs.gmf_amplitudes[k], vs.gmf_phases_rad.empty() ? 0.0 : vs.gmf_phases_rad[k]});
+    gmf.push_back({order, vs.gmf_amplitudes[k], vs.gmf_phases_rad.empty() ? 0.0 : vs.gmf_phases_rad[k], k});
   }
   std::vector<Harmonic> dmf;
   for (std::size_t k = 0; k < vs.dmf_amplitudes.size(); ++k) {
@@ -77,7 +97,7 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
       ++out.harmonics_above_nyquist;
       continue;
     }
-    dmf.push_back({order, vs.dmf_amplitudes[k], 0.0});
+    dmf.push_back({order, vs.dmf_amplitudes[k], 0.0, k});
   }
 
   // Per-cycle gains of the faults (severity is constant within a cycle).
@@ -91,6 +111,19 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
       harmonic_gain[c] *= 1.0 + f.harmonic_gain * sev;
       noise_gain[c] *= 1.0 + f.noise_gain * sev;
     }
+  }
+  // Cycle-to-cycle variation: the GMF amplitudes of each cycle (a copy of the nominal ones per cycle
+  // when off, so the product below is the same as without the feature) and the noise level.
+  out.cycle_variation = draw_cycle_variation(vs, cycles, seed);
+  const CycleVariation& cv = out.cycle_variation;
+  std::vector<std::vector<double>> gmf_amplitude(cycles, std::vector<double>(gmf.size()));
+  for (std::uint32_t c = 0; c < cycles; ++c) {
+    for (std::size_t j = 0; j < gmf.size(); ++j) {
+      gmf_amplitude[c][j] = cv.amplitude_factors.empty()
+                                ? gmf[j].amplitude
+                                : gmf[j].amplitude * cv.amplitude_factors[c][gmf[j].entry];
+    }
+    if (!cv.noise_factors.empty()) noise_gain[c] *= cv.noise_factors[c];
   }
   std::vector<const FaultSpec*> tooth;
   for (const FaultSpec& f : s.faults) {
@@ -112,7 +145,10 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
     if (sf != 0.0) {
       // phase_k = k * Z_in * theta_in + phi_k: follows the integrated input angle, so speed changes
       // and cycle-to-cycle start differences move the phase exactly as a real mesh does.
-      for (const Harmonic& h : gmf) mesh += h.amplitude * std::sin(h.order * z_in * theta_mesh + h.phase_rad);
+      const std::vector<double>& amp = gmf_amplitude[c];
+      for (std::size_t j = 0; j < gmf.size(); ++j) {
+        mesh += amp[j] * std::sin(gmf[j].order * z_in * theta_mesh + gmf[j].phase_rad);
+      }
       mesh *= harmonic_gain[c];
       if (perturbed) mesh *= pert.gain[i];
       for (const FaultSpec* f : tooth) {

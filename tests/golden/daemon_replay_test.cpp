@@ -93,8 +93,10 @@ struct Pinned {
   std::size_t alarm_windows;
 };
 
-// Measured with the seeds above (and equal to tests/golden/paper_jobs_test.cpp's window counts).
-constexpr Pinned kJobs[] = {{"joint_rotation", 40, 38}, {"arc_welding", 101, 37}, {"spot_welding", 20, 18}};
+// Measured with the seeds above (and equal to tests/golden/paper_jobs_test.cpp's window counts); arc
+// welding re-measured after its example config moved to k = 4 of n = 10 and the presets gained
+// cycle-to-cycle variation.
+constexpr Pinned kJobs[] = {{"joint_rotation", 40, 38}, {"arc_welding", 101, 89}, {"spot_welding", 20, 18}};
 
 class DaemonReplay : public ::testing::TestWithParam<Pinned> {};
 

@@ -34,7 +34,8 @@ TEST(GapDiagnosis, NamesTheMountResonanceAndWritesTheSchema) {
   EXPECT_EQ(chosen[0].at("effect").at("kind").as_string(), "transfer_path");
   const double f = chosen[0].at("effect").at("params").at("frequency_hz").as_number();
   EXPECT_NEAR(f / 4200.0, 1.0, 0.15);
-  // Measured with this build (full catalog run: 4157 Hz, held-out 363.8 -> 10.7, 97 %).
+  // Measured with this build, nominal with the preset's cycle-to-cycle variation: these 2 candidates
+  // 3949 Hz, held-out 208.3 -> 7.26, 96.5 %; full catalog the same first choice (docs/gap.md).
   EXPECT_GT(chosen[0].at("shrink_pct").as_number(), 90.0);
   EXPECT_GT(j.at("total_shrink_pct").as_number(), 90.0);
   const std::string html = read_file(dir / "gap.html");

@@ -286,7 +286,11 @@ TEST_F(Lifecycle, SighupWithAnInvalidConfigKeepsTheOldOne) {
 
   // Invalid: a range error. Rejected; the running pipeline is not touched.
   std::string bad = good;
-  bad.replace(bad.find("k = 3"), 5, "k = 0");
+  // Replace whatever [decision] k the job example sets by an out-of-range 0.
+  const std::size_t k_pos = bad.find("\nk = ");
+  ASSERT_NE(k_pos, std::string::npos) << "the test config has no 'k = ' line";
+  const std::size_t k_end = bad.find('\n', k_pos + 1);
+  bad.replace(k_pos + 1, k_end - (k_pos + 1), "k = 0");
   write_text(dir / "ptdad.toml", bad);
   ASSERT_EQ(::kill(::getpid(), SIGHUP), 0);
   ASSERT_TRUE(wait_for([&] { return d.view().reload_failures == 1; }));

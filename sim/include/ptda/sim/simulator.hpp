@@ -73,6 +73,12 @@ struct VibrationSpec {
   double amplitude_speed_exponent = 1.0;  ///< A_k(w) = A_k * (|w| / w_ref)^exponent
   std::vector<double> dmf_amplitudes;     ///< cycloid mesh harmonics (small), same speed law
   double noise_rms = 0.05;                ///< white Gaussian background
+  /// Cycle-to-cycle variation of the mesh (payload, temperature, lubrication, load sharing): in job
+  /// cycle c, GMF entry k is multiplied by exp(rel * z_ck), z_ck ~ N(0, 1) independent per cycle and
+  /// entry (log-normal: median 1, relative spread ~rel). 0: off, every cycle has the same amplitudes.
+  double cycle_amplitude_jitter_rel = 0.0;
+  /// The same for the background noise level: noise_rms times exp(rel * z_c) in cycle c. 0: off.
+  double cycle_noise_jitter_rel = 0.0;
 };
 
 /// [[fault]]
@@ -196,6 +202,20 @@ struct MotionProfile {
 /// allocation.
 [[nodiscard]] double fault_severity(const FaultSpec& f, std::uint32_t cycle) noexcept;
 
+/// The per-cycle factors of VibrationSpec's cycle variation (truth). Each kind is drawn from its own
+/// random stream, so switching one on changes neither the other nor the noise, jitter or CAN draws.
+struct CycleVariation {
+  /// [cycle][k]: multiplies gmf_amplitudes[k] in that cycle (one entry per gmf_amplitudes entry, zeros
+  /// and omitted orders included). Empty when cycle_amplitude_jitter_rel is 0.
+  std::vector<std::vector<double>> amplitude_factors;
+  /// [cycle]: multiplies noise_rms in that cycle. Empty when cycle_noise_jitter_rel is 0.
+  std::vector<double> noise_factors;
+};
+
+/// Draws the cycle variation for `cycles` job cycles. Deterministic from seed. Any thread; allocates.
+[[nodiscard]] CycleVariation draw_cycle_variation(const VibrationSpec& v, std::uint32_t cycles,
+                                                  std::uint64_t seed);
+
 /// Synthesised vibration in m/s^2 (before clipping and quantisation).
 struct Vibration {
   std::vector<double> accel_ms2;
@@ -204,6 +224,7 @@ struct Vibration {
   std::vector<double> impulse_amplitudes_ms2;  ///< matching ringing amplitudes
   std::uint64_t effect_clipped_samples = 0;    ///< samples clamped by an adc_clipping effect
   std::uint64_t effect_impacts = 0;            ///< knocks added by impacts effects
+  CycleVariation cycle_variation;              ///< the factors used (empty when the variation is off)
 };
 
 /// Synthesises the sensor signal for the profile. Deterministic from seed. Any thread; allocates.

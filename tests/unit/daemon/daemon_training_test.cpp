@@ -1,0 +1,279 @@
+// Field training (`ptdad --train`) end to end through the daemon's real threads, on in-memory replays
+// of the simulated arc-welding job (daemon_fakes.hpp): progress in status.json, the baseline written
+// atomically, monitoring on it afterwards; and stops at many moments (including right before the
+// baseline write) never leave a partial baseline or a temporary file.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+
+#include "daemon_fakes.hpp"
+#include "daemon_test_support.hpp"
+#include "ptda/common/error.hpp"
+
+namespace ptda::daemon::test {
+namespace {
+
+using namespace std::chrono_literals;
+constexpr std::int64_t kS = 1'000'000'000;
+
+class Training : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { block_daemon_signals(); }
+};
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/// The unsigned value after "key": inside status.json's "training" object (0 when absent).
+std::uint64_t json_u64(const std::string& text, const std::string& key) {
+  const auto obj = text.find("\"training\":{");
+  if (obj == std::string::npos) return 0;
+  const auto at = text.find("\"" + key + "\":", obj);
+  if (at == std::string::npos) return 0;
+  return std::strtoull(text.c_str() + at + key.size() + 3, nullptr, 10);
+}
+
+std::string train_config(const fs::path& dir, std::uint32_t target_cycles) {
+  // k = n = 5: only a run of abnormal windows alarms.
+  const std::string pipe = with_decision(arc_pipeline(), 5, 5);
+  return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
+         (dir / "status").string() + "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
+         (dir / "not-opened").string() + "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n"
+         "[training]\ntarget_cycles = " + std::to_string(target_cycles) + "\noutput = \"" +
+         (dir / "trained.bin").string() + "\"\n\n" + pipe;
+}
+
+std::shared_ptr<const SourcePlan> source_of(const SimRecording& rec, float gain_from_to[3] = nullptr) {
+  auto p = std::make_shared<SourcePlan>(plan_blocks(rec, 512));
+  if (gain_from_to != nullptr) {
+    for (drivers::SampleBlock& b : p->blocks) {
+      const double t = static_cast<double>(b.t_mono_ns) * 1e-9;
+      if (t < gain_from_to[1] || t >= gain_from_to[2]) continue;
+      for (std::uint32_t i = 0; i < b.count; ++i) b.samples[i] *= gain_from_to[0];
+    }
+  }
+  return p;
+}
+
+std::shared_ptr<const ChannelPlan> frames_of(const SimRecording& rec) {
+  auto p = std::make_shared<ChannelPlan>();
+  p->frames = rec.frames;
+  return p;
+}
+
+/// No "*.tmp*" file next to the baseline.
+std::size_t temp_files(const fs::path& dir) {
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().filename().string().find(".tmp") != std::string::npos) ++n;
+  }
+  return n;
+}
+
+/// The output either does not exist or is a complete, valid baseline.
+void expect_absent_or_valid(const fs::path& path, const std::string& when) {
+  if (!fs::exists(path)) return;
+  try {
+    const dsp::Baseline b = formats::read_baseline(path);
+    EXPECT_FALSE(b.classes.empty()) << when;
+  } catch (const Error& e) {
+    ADD_FAILURE() << when << ": partial baseline: " << e.what();
+  }
+}
+
+TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
+  const fs::path dir = scratch("training_e2e");
+  const auto rec = make_sim_recording(arc_scenario(), 7);
+  constexpr std::uint32_t kTarget = 12;
+  FakeDevices dev(source_of(*rec), frames_of(*rec));
+  dev.gate.t_ns = rec->loop_ns / 5;  // hold the data early in training, to look at the progress
+  write_text(dir / "ptdad.toml", train_config(dir, kTarget));
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  opt.train = true;
+  opt.exit_at_end = true;
+  drivers::MonotonicClock clock;
+  Daemon d(opt, clock);
+  d.set_device_factory(&dev);
+  d.configure();
+  d.activate();
+  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+  struct StopOnExit {
+    Daemon& d;
+    std::thread& t;
+    ~StopOnExit() {
+      d.request_stop();
+      if (t.joinable()) t.join();
+    }
+  } stop_on_exit{d, runner};
+
+  // Progress while training: state "training", windows and regions pooled, the target reported.
+  const fs::path status = dir / "status" / "status.json";
+  std::string text;
+  ASSERT_TRUE(wait_for([&] {
+    text = read_text(status);
+    return text.find("\"state\":\"training\"") != std::string::npos && json_u64(text, "regions") > 0 &&
+           d.view().pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000;
+  }));
+  ASSERT_TRUE(wait_for([&] {
+    text = read_text(status);
+    return json_u64(text, "windows") == d.view().pipeline.windows && json_u64(text, "windows") > 0;
+  }));
+  EXPECT_EQ(json_u64(text, "target_cycles"), kTarget);
+  EXPECT_GT(json_u64(text, "classes"), 0U);
+  EXPECT_EQ(json_u64(text, "classes_complete"), 0U);  // 1/5 of a 20-cycle job: nothing complete yet
+  EXPECT_EQ(d.view().state, DaemonState::kTraining);
+  EXPECT_EQ(d.view().pipeline.report.level, drivers::AlarmLevel::kFault);  // nothing judged while training
+  EXPECT_FALSE(fs::exists(dir / "trained.bin"));
+  std::printf("training progress at 1/5: %s\n", text.substr(text.find("\"training\":{"), 120).c_str());
+
+  // Let it finish: the baseline is written once every class has kTarget cycles, then monitoring starts
+  // on it (a new pipeline, the replay from its start) and runs to the end of the replay.
+  dev.gate.t_ns = std::numeric_limits<std::int64_t>::max();
+  runner.join();
+  EXPECT_EQ(dev.pipelines, 2);
+  const dsp::Baseline b = formats::read_baseline(dir / "trained.bin");
+  ASSERT_FALSE(b.classes.empty());
+  for (const dsp::ClassBaseline& c : b.classes) EXPECT_GE(c.segment.regions, kTarget) << "class " << c.segment.id;
+  EXPECT_EQ(temp_files(dir), 0U);
+  const DaemonView v = d.view();
+  EXPECT_TRUE(v.pipeline.ended);
+  EXPECT_GT(v.pipeline.scored, 0U);
+  EXPECT_EQ(d.config().daemon.baseline, dir / "trained.bin");
+  std::printf("trained: %zu classes (%s); monitoring the same replay: %llu windows scored, %llu abnormal, %llu alarms\n",
+              b.classes.size(), b.source.c_str(), static_cast<unsigned long long>(v.pipeline.scored),
+              static_cast<unsigned long long>(v.pipeline.abnormal),
+              static_cast<unsigned long long>(v.pipeline.alarm_counters.alarms_raised));
+
+  // A later monitoring run with that baseline: a faulty replay (the vibration 4x for 20 s) alarms, a
+  // fresh healthy replay (another seed) does not.
+  const auto monitor = [&](std::shared_ptr<const SourcePlan> src, std::shared_ptr<const ChannelPlan> frames) {
+    std::string cfg = train_config(dir, kTarget);
+    cfg.replace(cfg.find("baseline.bin"), 12, "trained.bin");
+    write_text(dir / "monitor.toml", cfg);
+    DaemonOptions o;
+    o.config_file = dir / "monitor.toml";
+    o.config_dir = fs::path();
+    o.exit_at_end = true;
+    FakeDevices md(std::move(src), std::move(frames));
+    Daemon m(o, clock);
+    m.set_device_factory(&md);
+    m.configure();
+    m.activate();
+    EXPECT_EQ(m.run(), 0);
+    return m.view();
+  };
+  float gain[3] = {4.0F, 20.0F, 40.0F};
+  const DaemonView faulty = monitor(source_of(*rec, gain), frames_of(*rec));
+  const auto fresh = make_sim_recording(arc_scenario(), 8);
+  const DaemonView healthy = monitor(source_of(*fresh), frames_of(*fresh));
+  EXPECT_GE(faulty.pipeline.alarm_counters.alarms_raised, 1U);
+  EXPECT_EQ(faulty.pipeline.report.level == drivers::AlarmLevel::kAlarm || faulty.pipeline.alarm.latched, true);
+  EXPECT_GT(healthy.pipeline.scored, 0U);
+  EXPECT_EQ(healthy.pipeline.alarm_counters.alarms_raised, 0U);
+  std::printf("faulty replay: %llu scored, %llu abnormal, %llu alarms; fresh healthy replay (seed 8): %llu scored, "
+              "%llu abnormal, %llu alarms\n",
+              static_cast<unsigned long long>(faulty.pipeline.scored),
+              static_cast<unsigned long long>(faulty.pipeline.abnormal),
+              static_cast<unsigned long long>(faulty.pipeline.alarm_counters.alarms_raised),
+              static_cast<unsigned long long>(healthy.pipeline.scored),
+              static_cast<unsigned long long>(healthy.pipeline.abnormal),
+              static_cast<unsigned long long>(healthy.pipeline.alarm_counters.alarms_raised));
+}
+
+TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
+  const fs::path dir = scratch("training_stop");
+  const auto rec = make_sim_recording(arc_scenario(), 7);
+  write_text(dir / "ptdad.toml", train_config(dir, 5));
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  opt.train = true;
+  drivers::MonotonicClock clock;
+  const auto src = source_of(*rec);
+  const auto frames = frames_of(*rec);
+
+  // SIGTERM at many moments of a training run (before, around and after the baseline write).
+  int written = 0;
+  for (const auto delay : {0ms, 2ms, 10ms, 30ms, 60ms, 100ms, 150ms, 250ms, 400ms}) {
+    fs::remove(dir / "trained.bin");
+    FakeDevices dev(src, frames);
+    Daemon d(opt, clock);
+    d.set_device_factory(&dev);
+    d.configure();
+    d.activate();
+    std::atomic<bool> done{false};
+    int code = -1;
+    std::thread runner([&] {
+      code = d.run();
+      done = true;
+    });
+    std::this_thread::sleep_for(delay);
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_EQ(::kill(::getpid(), SIGTERM), 0);
+    const bool stopped = wait_for([&] { return done.load(); }, 5000ms);
+    const auto took = std::chrono::steady_clock::now() - t0;
+    runner.join();
+    ASSERT_TRUE(stopped);
+    EXPECT_EQ(code, 0);
+    EXPECT_LT(took, 1000ms) << "delay " << delay.count() << " ms";
+    const std::string when = "SIGTERM " + std::to_string(delay.count()) + " ms after start";
+    expect_absent_or_valid(dir / "trained.bin", when);
+    EXPECT_EQ(temp_files(dir), 0U) << when;
+    written += fs::exists(dir / "trained.bin") ? 1 : 0;
+    std::printf("%s: stopped in %.1f ms, baseline %s\n", when.c_str(),
+                std::chrono::duration<double, std::milli>(took).count(),
+                fs::exists(dir / "trained.bin") ? "written (valid)" : "absent");
+  }
+  EXPECT_GT(written, 0);  // the later stops came after the write: the sweep covers both sides
+
+  // The stop request arrives right before the baseline write (test hook): the atomic write completes,
+  // the daemon does not start monitoring and stops at once.
+  for (const bool by_signal : {false, true}) {
+    fs::remove(dir / "trained.bin");
+    FakeDevices dev(src, frames);
+    Daemon d(opt, clock);
+    d.set_device_factory(&dev);
+    struct Hook {
+      Daemon* d;
+      bool by_signal;
+      std::chrono::steady_clock::time_point at{};
+      int calls = 0;
+    } hook{&d, by_signal};
+    d.set_before_baseline_write(
+        [](void* arg) {
+          auto* h = static_cast<Hook*>(arg);
+          ++h->calls;
+          h->at = std::chrono::steady_clock::now();
+          if (h->by_signal) {
+            ::kill(::getpid(), SIGTERM);
+          } else {
+            h->d->request_stop();
+          }
+        },
+        &hook);
+    d.configure();
+    d.activate();
+    EXPECT_EQ(d.run(), 0);
+    const auto took = std::chrono::steady_clock::now() - hook.at;
+    EXPECT_EQ(hook.calls, 1);
+    EXPECT_LT(took, 1000ms);
+    const dsp::Baseline b = formats::read_baseline(dir / "trained.bin");  // complete and valid
+    EXPECT_FALSE(b.classes.empty());
+    EXPECT_EQ(temp_files(dir), 0U);
+    EXPECT_EQ(dev.pipelines, by_signal ? 2 : 1);  // request_stop: no monitoring pipeline was started
+    std::printf("stop %s right before the write: stopped %.1f ms later, baseline valid (%zu classes)\n",
+                by_signal ? "by SIGTERM" : "by request_stop()", std::chrono::duration<double, std::milli>(took).count(),
+                b.classes.size());
+  }
+}
+
+}  // namespace
+}  // namespace ptda::daemon::test
