@@ -1,8 +1,8 @@
+#include "ptda/drivers/clock.hpp"
+
 #include <time.h>
 
 #include <cerrno>
-
-#include "ptda/drivers/clock.hpp"
 
 namespace ptda::drivers {
 

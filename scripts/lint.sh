@@ -9,7 +9,7 @@ echo "lint: clang-format on ${#files[@]} files"
 clang-format --dry-run -Werror "${files[@]}"
 build="${1:-}"
 if [ -n "$build" ]; then
-  mapfile -t srcs < <(git ls-files '*.cpp' | grep -v '^tests/')
+  mapfile -t srcs < <(git ls-files '*.cpp' | grep -v -e '^tests/' -e '/bench/')
   echo "lint: clang-tidy naming on ${#srcs[@]} sources"
   out=$(printf '%s\n' "${srcs[@]}" | xargs -P "$(nproc)" -n 6 clang-tidy -p "$build" --quiet \
         --checks='-*,readability-identifier-naming' 2>/dev/null | grep -E 'warning:' || true)

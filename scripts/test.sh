@@ -9,6 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 what="${1:-all}"
 scripts/bootstrap.sh
+scripts/lint.sh   # clang-format gate (naming: scripts/lint.sh <build_dir>)
 jobs="$(nproc 2>/dev/null || echo 2)"
 
 run_preset() {  # preset [build target] [ctest label]

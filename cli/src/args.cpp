@@ -13,7 +13,9 @@ namespace ptda::cli {
 
 namespace {
 
-std::string quoted(std::string_view s) { return "'" + std::string(s) + "'"; }
+std::string quoted(std::string_view s) {
+  return "'" + std::string(s) + "'";
+}
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front())) != 0) s.remove_prefix(1);
@@ -40,7 +42,9 @@ std::size_t parse_number_prefix(std::string_view s, double& out) {
 
 }  // namespace
 
-bool ParsedArgs::has(std::string_view name) const { return values_.find(name) != values_.end(); }
+bool ParsedArgs::has(std::string_view name) const {
+  return values_.find(name) != values_.end();
+}
 
 const std::string& ParsedArgs::value(std::string_view name) const {
   const auto it = values_.find(name);
@@ -67,7 +71,8 @@ ArgParser::ArgParser(std::string command, std::string synopsis, std::string desc
 
 ArgParser& ArgParser::option(std::string name, std::string value_name, std::string help, bool required,
                              bool repeatable) {
-  options_.push_back(OptionSpec{std::move(name), std::move(value_name), std::move(help), required, repeatable});
+  options_.push_back(
+      OptionSpec{std::move(name), std::move(value_name), std::move(help), required, repeatable});
   return *this;
 }
 
@@ -165,7 +170,8 @@ double parse_double_arg(std::string_view text, std::string_view option) {
   if (t.empty() || used != t.size()) {
     throw UsageError("--" + std::string(option) + ": not a number " + quoted(text));
   }
-  if (!std::isfinite(v)) throw UsageError("--" + std::string(option) + ": not a finite number " + quoted(text));
+  if (!std::isfinite(v))
+    throw UsageError("--" + std::string(option) + ": not a finite number " + quoted(text));
   return v;
 }
 
@@ -216,7 +222,8 @@ std::uint64_t FractionRange::first(std::uint64_t count) const noexcept {
 
 std::uint64_t FractionRange::last(std::uint64_t count) const noexcept {
   if (to >= 1.0) return count;
-  return std::min<std::uint64_t>(count, static_cast<std::uint64_t>(std::floor(to * static_cast<double>(count))));
+  return std::min<std::uint64_t>(count,
+                                 static_cast<std::uint64_t>(std::floor(to * static_cast<double>(count))));
 }
 
 FractionRange parse_fraction_range(std::string_view text, std::string_view option) {

@@ -38,9 +38,8 @@ std::string overview_help() {
   for (const auto& c : kCommands) {
     s += "  " + std::string(c.name) + std::string(10 - c.name.size(), ' ') + std::string(c.summary) + "\n";
   }
-  s +=
-      "\n'ptda <command> --help' describes each command's options.\n"
-      "exit codes: 0 ok, 1 data or runtime error, 2 usage error.\n";
+  s += "\n'ptda <command> --help' describes each command's options.\n"
+       "exit codes: 0 ok, 1 data or runtime error, 2 usage error.\n";
   return s;
 }
 

@@ -49,8 +49,8 @@ int plot_mode(const ParsedArgs& a, std::ostream& out) {
   if (feature != "rms_res" && feature != "entropy_res") {
     throw UsageError("--feature: expected rms_res or entropy_res, got '" + feature + "'");
   }
-  const std::string svg = auc_plot_svg(results, feature, a.value_or("title", feature + " ROC AUC"),
-                                       a.value_or("x-label", "x"));
+  const std::string svg =
+      auc_plot_svg(results, feature, a.value_or("title", feature + " ROC AUC"), a.value_or("x-label", "x"));
   write_text_file(a.value("plot"), svg + "\n", out);
   if (a.value("plot") != "-") out << "wrote " << a.value("plot") << " (" << results.size() << " results)\n";
   return kExitOk;
@@ -76,7 +76,8 @@ int cmd_evaluate(std::span<const std::string> args, std::ostream& out) {
       .option("label", "TEXT", "name of this case in the outputs (e.g. '0 %, a1')")
       .option("x", "NUMBER", "numeric position of this case for --plot (e.g. the load in %)")
       .option("plot", "OUT.svg", "plot mode: draw the AUC of --results files against their x")
-      .option("results", "FILE", "plot mode: a file written by --json (one JSON line per result)", false, true)
+      .option("results", "FILE", "plot mode: a file written by --json (one JSON line per result)", false,
+              true)
       .option("feature", "F", "plot mode: rms_res (default) or entropy_res")
       .option("title", "TEXT", "plot mode: plot title")
       .option("x-label", "TEXT", "plot mode: x axis label");

@@ -36,11 +36,14 @@ std::vector<sim::EffectKind> parse_effect_list(const std::string& text) {
 }  // namespace
 
 int cmd_gap(std::span<const std::string> args, std::ostream& out) {
-  ArgParser parser("gap", "--scenario NOMINAL.toml --real DIR [--json OUT] [--html OUT] [--seed N] [--effects LIST]",
-                   "Diagnoses the sim-to-real gap: calibrates the nominal scenario's harmonic amplitudes and noise\n"
-                   "level on the even cycles of the measured recording DIR, fits each candidate effect there, and\n"
-                   "keeps effects that shrink the gap on the odd (held-out) cycles significantly (docs/gap.md).");
-  parser.option("scenario", "FILE", "nominal scenario (what the model knows); its [[effects]] are ignored", true)
+  ArgParser parser(
+      "gap", "--scenario NOMINAL.toml --real DIR [--json OUT] [--html OUT] [--seed N] [--effects LIST]",
+      "Diagnoses the sim-to-real gap: calibrates the nominal scenario's harmonic amplitudes and noise\n"
+      "level on the even cycles of the measured recording DIR, fits each candidate effect there, and\n"
+      "keeps effects that shrink the gap on the odd (held-out) cycles significantly (docs/gap.md).");
+  parser
+      .option("scenario", "FILE", "nominal scenario (what the model knows); its [[effects]] are ignored",
+              true)
       .option("real", "DIR", "measured recording directory (truth.toml, if any, is not read)", true)
       .option("json", "OUT", "write the diagnosis as JSON (schema ptda-gap v1)")
       .option("html", "OUT", "write an HTML report with plots")
@@ -56,7 +59,8 @@ int cmd_gap(std::span<const std::string> args, std::ostream& out) {
   if (a.has("seed")) opt.sim_seed = parse_u64_arg(a.value("seed"), "seed");
   if (a.has("effects")) opt.candidates = parse_effect_list(a.value("effects"));
   const sim::Scenario nominal = sim::load_scenario(a.value("scenario"));
-  const gap::GapRecording real = gap::load_recording(a.value("real"), nominal.can.speed_frame, nominal.can.delay_s);
+  const gap::GapRecording real =
+      gap::load_recording(a.value("real"), nominal.can.speed_frame, nominal.can.delay_s);
   if (!a.has("quiet")) opt.log = [](const std::string& s) { std::cerr << "ptda gap: " << s << "\n"; };
   const gap::Diagnosis d = gap::diagnose(nominal, real, opt);
   if (a.has("json")) write_file(a.value("json"), gap::diagnosis_json(d));
@@ -68,7 +72,8 @@ int cmd_gap(std::span<const std::string> args, std::ostream& out) {
   bool first = true;
   for (const auto& [p, v] : d.nominal_heldout.by_probe) {
     if (v < 0.05 * d.nominal_heldout.total) continue;
-    out << (first ? "" : ", ") << p << " " << static_cast<int>(100.0 * v / d.nominal_heldout.total + 0.5) << " %";
+    out << (first ? "" : ", ") << p << " " << static_cast<int>(100.0 * v / d.nominal_heldout.total + 0.5)
+        << " %";
     first = false;
   }
   out << "\n  runtime       " << d.runtime_s << " s, " << d.simulations << " simulations\n";

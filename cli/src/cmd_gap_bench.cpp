@@ -12,16 +12,18 @@
 namespace ptda::cli {
 
 int cmd_gap_bench(std::span<const std::string> args, std::ostream& out) {
-  ArgParser parser("gap-bench", "--cases N --seed S [--json OUT] [--jobs A.toml,B.toml] [--cycles N] [--work DIR]",
-                   "Scores `ptda gap` on simulated cases: each case's recording carries one withheld effect (or a\n"
-                   "pair, or none) with randomised parameters; the diagnosis sees only the recording and the\n"
-                   "nominal job scenario. Reports top-1 accuracy, location accuracy, false attributions on\n"
-                   "no-effect cases and the median held-out shrink (docs/gap.md).");
+  ArgParser parser(
+      "gap-bench", "--cases N --seed S [--json OUT] [--jobs A.toml,B.toml] [--cycles N] [--work DIR]",
+      "Scores `ptda gap` on simulated cases: each case's recording carries one withheld effect (or a\n"
+      "pair, or none) with randomised parameters; the diagnosis sees only the recording and the\n"
+      "nominal job scenario. Reports top-1 accuracy, location accuracy, false attributions on\n"
+      "no-effect cases and the median held-out shrink (docs/gap.md).");
   parser.option("cases", "N", "number of cases (they cycle: each effect alone, none, a pair)", true)
       .option("seed", "S", "bench seed (case parameters, amplitudes, noise and recording seeds)", true)
       .option("json", "OUT", "write the per-case results and confusion matrix as JSON")
-      .option("jobs", "LIST", "comma-separated job scenarios, used in turn (default: config/scenarios/"
-                              "spot_welding_healthy.toml,config/scenarios/arc_welding_healthy.toml)")
+      .option("jobs", "LIST",
+              "comma-separated job scenarios, used in turn (default: config/scenarios/"
+              "spot_welding_healthy.toml,config/scenarios/arc_welding_healthy.toml)")
       .option("cycles", "N", "job cycles per recording (default 6)")
       .option("work", "DIR", "directory for the temporary recordings (default: system temp)")
       .flag("quiet", "no per-case lines on stderr");
@@ -35,12 +37,14 @@ int cmd_gap_bench(std::span<const std::string> args, std::ostream& out) {
   opt.seed = parse_u64_arg(a.value("seed"), "seed");
   if (a.has("cycles")) opt.cycles = static_cast<std::uint32_t>(parse_u64_arg(a.value("cycles"), "cycles"));
   if (opt.cycles < 4) throw UsageError("--cycles: needs at least 4 (half are held out)");
-  std::string jobs = a.has("jobs") ? a.value("jobs")
-                                   : "config/scenarios/spot_welding_healthy.toml,config/scenarios/arc_welding_healthy.toml";
+  std::string jobs =
+      a.has("jobs") ? a.value("jobs")
+                    : "config/scenarios/spot_welding_healthy.toml,config/scenarios/arc_welding_healthy.toml";
   std::stringstream ss(jobs);
   for (std::string j; std::getline(ss, j, ',');) opt.jobs.emplace_back(j);
-  opt.work_dir = a.has("work") ? std::filesystem::path(a.value("work"))
-                               : std::filesystem::temp_directory_path() / ("ptda-gap-bench-" + std::to_string(opt.seed));
+  opt.work_dir =
+      a.has("work") ? std::filesystem::path(a.value("work"))
+                    : std::filesystem::temp_directory_path() / ("ptda-gap-bench-" + std::to_string(opt.seed));
   if (!a.has("quiet")) opt.log = [](const std::string& s) { std::cerr << "ptda gap-bench: " << s << "\n"; };
   const gap::BenchResult r = gap::run_bench(opt);
   if (a.has("json")) {

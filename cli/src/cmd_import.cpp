@@ -13,12 +13,14 @@ int cmd_import(std::span<const std::string> args, std::ostream& out) {
       "import", "--csv FILE --column NAME_OR_INDEX --rate HZ --shaft-speed SPEED --out DIR [options]",
       "Turns one column of a CSV or gzip-compressed CSV file (header line, then one sample per line) into a\n"
       "recording directory: a float32 WAV and a generated CAN log with a constant-speed frame every 4 ms.\n"
-      "For imported data the CAN \"joint\" speed is the speed of the measured shaft. Every malformed cell is\n"
+      "For imported data the CAN \"joint\" speed is the speed of the measured shaft. Every malformed cell "
+      "is\n"
       "an error naming file, line and column.");
   parser.option("csv", "FILE", "CSV or CSV.gz input", true)
       .option("column", "NAME_OR_INDEX", "header name, or 0-based index when no header name matches", true)
       .option("rate", "HZ", "sample rate in Hz (a whole number)", true)
-      .option("shaft-speed", "SPEED", "constant shaft speed with unit: 30Hz, 30rev/s, 1800rpm, 188.5rad/s", true)
+      .option("shaft-speed", "SPEED", "constant shaft speed with unit: 30Hz, 30rev/s, 1800rpm, 188.5rad/s",
+              true)
       .option("out", "DIR", "recording directory to write (created)", true)
       .option("unit", "UNIT", "physical unit of the values (default m/s^2)")
       .option("scale", "X", "stored value * X = value in UNIT (default 1)")
@@ -49,13 +51,14 @@ int cmd_import(std::span<const std::string> args, std::ostream& out) {
   const ImportSummary s = import_csv(o);
   out << "imported " << a.value("csv") << " column '" << s.column_name << "' (index " << s.column_index
       << ") into " << a.value("out") << "\n";
-  out << "  samples      " << s.samples << " at " << general(o.rate_hz, 10) << " Hz = " << fixed(s.duration_s, 3)
-      << " s\n";
+  out << "  samples      " << s.samples << " at " << general(o.rate_hz, 10)
+      << " Hz = " << fixed(s.duration_s, 3) << " s\n";
   out << "  values       min " << general(s.min_value) << ", max " << general(s.max_value) << ", rms "
       << general(s.rms) << " (stored; scale " << general(o.scale) << " -> " << o.unit << ")\n";
-  out << "  shaft speed  " << fixed(o.shaft_speed_rad_s, 4) << " rad/s = " << fixed(o.shaft_speed_rad_s / (2.0 * 3.14159265358979323846), 4)
-      << " rev/s, written as the joint speed in " << s.speed_frames << " CAN frames (id 0x"
-      << std::hex << o.speed_frame.id << std::dec << " every " << fixed(o.speed_frame.period_s * 1000.0, 1) << " ms)\n";
+  out << "  shaft speed  " << fixed(o.shaft_speed_rad_s, 4)
+      << " rad/s = " << fixed(o.shaft_speed_rad_s / (2.0 * 3.14159265358979323846), 4)
+      << " rev/s, written as the joint speed in " << s.speed_frames << " CAN frames (id 0x" << std::hex
+      << o.speed_frame.id << std::dec << " every " << fixed(o.speed_frame.period_s * 1000.0, 1) << " ms)\n";
   return kExitOk;
 }
 

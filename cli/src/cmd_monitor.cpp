@@ -18,7 +18,9 @@ namespace ptda::cli {
 
 namespace {
 
-std::string band_text(const dsp::Band& b) { return "[" + general(b.lo, 4) + ", " + general(b.hi, 4) + "]"; }
+std::string band_text(const dsp::Band& b) {
+  return "[" + general(b.lo, 4) + ", " + general(b.hi, 4) + "]";
+}
 
 // " > " above the band, " < " below, "   " inside (NaN is outside: shown as "?").
 std::string relation(double v, const dsp::Band& b) {
@@ -73,7 +75,8 @@ std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std
   s += pad_left(std::to_string(w.class_id), 7) + pad_left(fixed(w.ref.speed_rad_s, 3), 10) + "  " +
        pad_left(general(w.features.rms_res, 5), 10) + relation(w.features.rms_res, w.thresholds.rms) +
        pad_right(band_text(w.thresholds.rms), 20) + pad_left(fixed(w.features.entropy_res, 4), 8) +
-       relation(w.features.entropy_res, w.thresholds.entropy) + pad_right(band_text(w.thresholds.entropy), 18);
+       relation(w.features.entropy_res, w.thresholds.entropy) +
+       pad_right(band_text(w.thresholds.entropy), 18);
   if (w.verdict.abnormal()) {
     s += "ABNORMAL(";
     s += w.verdict.rms_out ? (w.verdict.entropy_out ? "rms+entropy" : "rms") : "entropy";
@@ -82,7 +85,8 @@ std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std
     s += "ok";
   }
   if (w.alarm) {
-    s += " ALARM (" + std::to_string(w.abnormal_in_last_n) + " of the last " + std::to_string(decision_n) + ")";
+    s += " ALARM (" + std::to_string(w.abnormal_in_last_n) + " of the last " + std::to_string(decision_n) +
+         ")";
   }
   return s + "\n";
 }
@@ -115,32 +119,31 @@ MonitorSummary summarize(const std::vector<dsp::WindowResult>& windows, std::int
 
 void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::SlicerCounters& slicer,
                    const CanCounters& can, dsp::Method method) {
-  out << "summary (" << dsp::method_name(method) << "): " << s.windows << " windows, " << s.scored << " scored, "
-      << s.no_class << " without a matching class\n";
+  out << "summary (" << dsp::method_name(method) << "): " << s.windows << " windows, " << s.scored
+      << " scored, " << s.no_class << " without a matching class\n";
   out << "  abnormal   " << s.abnormal << " (rms " << s.rms_out << ", entropy " << s.entropy_out << ")";
   if (s.first_abnormal) {
-    out << ", first at " << fixed(ns_to_seconds(s.first_abnormal->ref.t_start_ns - s.t0_ns), 3) << " s (window "
-        << s.first_abnormal->ref.seq << ")";
+    out << ", first at " << fixed(ns_to_seconds(s.first_abnormal->ref.t_start_ns - s.t0_ns), 3)
+        << " s (window " << s.first_abnormal->ref.seq << ")";
   }
   out << "\n";
   if (s.first_alarm) {
     const double t = ns_to_seconds(s.first_alarm->ref.t_start_ns);
     out << "  ALARM      first raised at " << fixed(ns_to_seconds(s.first_alarm->ref.t_start_ns - s.t0_ns), 3)
-        << " s (window " << s.first_alarm->ref.seq << ", " << utc_time(t) << "), active in " << s.alarm_windows
-        << " windows\n";
+        << " s (window " << s.first_alarm->ref.seq << ", " << utc_time(t) << "), active in "
+        << s.alarm_windows << " windows\n";
   } else {
     out << "  alarm      never raised\n";
   }
   if (s.scored > 0) {
-    out << "  mean       rms_res " << general(s.rms_sum / static_cast<double>(s.scored), 6) << ", entropy_res "
-        << fixed(s.entropy_sum / static_cast<double>(s.scored), 4) << "\n";
+    out << "  mean       rms_res " << general(s.rms_sum / static_cast<double>(s.scored), 6)
+        << ", entropy_res " << fixed(s.entropy_sum / static_cast<double>(s.scored), 4) << "\n";
   }
   out << "  slicer     " << slicer.regions << " regions, " << slicer.windows_invalid << " invalid windows, "
       << slicer.windows_lost << " lost and " << slicer.windows_overflow << " overflowed windows, "
-      << slicer.speed_gaps << " speed gaps, "
-      << slicer.speed_out_of_order << " out-of-order and " << slicer.speed_out_of_range
-      << " out-of-range speed samples, " << slicer.samples_nonfinite << " non-finite and " << slicer.samples_clipped
-      << " clipped samples\n";
+      << slicer.speed_gaps << " speed gaps, " << slicer.speed_out_of_order << " out-of-order and "
+      << slicer.speed_out_of_range << " out-of-range speed samples, " << slicer.samples_nonfinite
+      << " non-finite and " << slicer.samples_clipped << " clipped samples\n";
   out << "  CAN        " << can.frames << " frames: " << can.speed_frames << " speed, " << can.other_id
       << " other ids, " << can.wrong_dlc << " wrong DLC, " << can.rtr << " remote, " << can.error_frames
       << " error frames\n";
@@ -162,7 +165,8 @@ MonitorInputs load_monitor_inputs(const std::string& recording, const std::strin
 int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   ArgParser parser(
       "monitor",
-      "--recording DIR --config FILE --baseline BASELINE [--method ptda|tda|raw] [--jsonl OUT] [--windows F:T]",
+      "--recording DIR --config FILE --baseline BASELINE [--method ptda|tda|raw] [--jsonl OUT] [--windows "
+      "F:T]",
       "Replays a recording through the monitoring engine (the same one the daemon runs): constant-speed\n"
       "windows, residual by the chosen method, RMS and spectral entropy against the class's bands, k-of-n\n"
       "alarm. Prints a table of the windows and a summary; --jsonl writes one JSON object per window.");
@@ -214,8 +218,9 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
 
   if (table) {
     out << "monitor " << in.rec.dir.string() << " with " << dsp::method_name(method) << " against "
-        << in.baseline_path << " (" << in.baseline.classes.size() << " classes, N = " << in.baseline.window_len
-        << ", alarm " << in.cfg.decision.k << " of " << in.cfg.decision.n << ")\n";
+        << in.baseline_path << " (" << in.baseline.classes.size()
+        << " classes, N = " << in.baseline.window_len << ", alarm " << in.cfg.decision.k << " of "
+        << in.cfg.decision.n << ")\n";
     if (!range.whole()) out << "windows " << a.value("windows") << ": " << r.windows.size() << " windows\n";
     out << window_table_header();
     for (const auto& w : r.windows) out << window_table_row(w, in.rec.t0_ns, in.cfg.decision.n);

@@ -64,7 +64,8 @@ WindowExample make_example(const CapturedWindow& c, const dsp::Baseline& baselin
 
 int cmd_report(std::span<const std::string> args, std::ostream& out) {
   ArgParser parser(
-      "report", "--recording DIR [--recording DIR ...] --config FILE --baseline BASELINE --html OUT [--label NAME ...]",
+      "report",
+      "--recording DIR [--recording DIR ...] --config FILE --baseline BASELINE --html OUT [--label NAME ...]",
       "Monitors each recording with raw, TDA and PTDA residuals and writes one self-contained HTML file:\n"
       "example windows (raw, deterministic and residual parts in time and frequency, like the paper's\n"
       "Figs. 8-11), the feature trends against the class bands, and the counts per method.");
@@ -111,12 +112,14 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   data.summary.emplace_back("window length", std::to_string(baseline.window_len) + " samples (" +
                                                  fixed(1000.0 * baseline.window_len / fs_hz, 1) + " ms)");
   data.summary.emplace_back("segment classes", std::to_string(baseline.classes.size()));
-  data.summary.emplace_back("alarm rule", std::to_string(inputs.front().cfg.decision.k) + " abnormal of the last " +
-                                              std::to_string(inputs.front().cfg.decision.n) + " scored windows");
+  data.summary.emplace_back("alarm rule",
+                            std::to_string(inputs.front().cfg.decision.k) + " abnormal of the last " +
+                                std::to_string(inputs.front().cfg.decision.n) + " scored windows");
 
   std::vector<CapturedWindow> captured;
-  out << pad_right("recording", 18) << pad_right("method", 8) << pad_left("scored", 8) << pad_left("abnormal", 10)
-      << pad_left("alarm at [s]", 14) << pad_left("mean rms_res", 14) << pad_left("mean entropy", 14) << "\n";
+  out << pad_right("recording", 18) << pad_right("method", 8) << pad_left("scored", 8)
+      << pad_left("abnormal", 10) << pad_left("alarm at [s]", 14) << pad_left("mean rms_res", 14)
+      << pad_left("mean entropy", 14) << "\n";
   for (const dsp::Method method : kMethods) {
     MethodTrend trend;
     trend.method = std::string(dsp::method_name(method));
@@ -173,25 +176,27 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
       const double mean_rms = s.scored > 0 ? s.rms_sum / static_cast<double>(s.scored) : 0.0;
       const double mean_ent = s.scored > 0 ? s.entropy_sum / static_cast<double>(s.scored) : 0.0;
       out << pad_right(labels[i], 18) << pad_right(trend.method, 8) << pad_left(std::to_string(s.scored), 8)
-          << pad_left(std::to_string(s.abnormal), 10) << pad_left(alarm_at, 14) << pad_left(general(mean_rms, 5), 14)
-          << pad_left(fixed(mean_ent, 4), 14) << "\n";
+          << pad_left(std::to_string(s.abnormal), 10) << pad_left(alarm_at, 14)
+          << pad_left(general(mean_rms, 5), 14) << pad_left(fixed(mean_ent, 4), 14) << "\n";
       data.summary.emplace_back(labels[i] + " / " + trend.method,
                                 std::to_string(s.scored) + " scored, " + std::to_string(s.abnormal) +
-                                    " abnormal, alarm " + (s.first_alarm ? "at " + alarm_at + " s" : "never") +
-                                    ", mean rms_res " + general(mean_rms, 5) + ", mean entropy_res " +
-                                    fixed(mean_ent, 4));
+                                    " abnormal, alarm " +
+                                    (s.first_alarm ? "at " + alarm_at + " s" : "never") + ", mean rms_res " +
+                                    general(mean_rms, 5) + ", mean entropy_res " + fixed(mean_ent, 4));
     }
     data.trends.push_back(std::move(trend));
   }
 
   dsp::WindowAnalyzer analyzer(baseline.window_len);
   for (const auto& c : captured) data.examples.push_back(make_example(c, baseline, fs_hz, analyzer));
-  data.notes.push_back("Residuals: raw = the window itself; TDA = window minus the healthy time-domain mean (eq. 5); "
-                       "PTDA = window minus the IDFT of the healthy mean magnitude with the window's own phase "
-                       "(eqs. 7-9).");
-  data.notes.push_back("A window is abnormal when rms_res or entropy_res leaves its class band; the alarm needs " +
-                       std::to_string(inputs.front().cfg.decision.k) + " abnormal windows among the last " +
-                       std::to_string(inputs.front().cfg.decision.n) + " scored ones.");
+  data.notes.push_back(
+      "Residuals: raw = the window itself; TDA = window minus the healthy time-domain mean (eq. 5); "
+      "PTDA = window minus the IDFT of the healthy mean magnitude with the window's own phase "
+      "(eqs. 7-9).");
+  data.notes.push_back(
+      "A window is abnormal when rms_res or entropy_res leaves its class band; the alarm needs " +
+      std::to_string(inputs.front().cfg.decision.k) + " abnormal windows among the last " +
+      std::to_string(inputs.front().cfg.decision.n) + " scored ones.");
   write_html_report(html_path, data);
   out << "report written to " << html_path << " (" << data.examples.size() << " example windows, "
       << data.trends.size() << " methods)\n";

@@ -43,9 +43,11 @@ int cmd_simulate(std::span<const std::string> args, std::ostream& out) {
   out << "\n";
   out << "  GMF           " << fixed(s.gmf_hz_at_first_plateau, 2) << " Hz at the first plateau\n";
   if (s.harmonics_above_nyquist > 0) {
-    out << "  note          " << s.harmonics_above_nyquist << " GMF harmonic(s) above Nyquist were left out\n";
+    out << "  note          " << s.harmonics_above_nyquist
+        << " GMF harmonic(s) above Nyquist were left out\n";
   }
-  if (s.clipped_samples > 0) out << "  clipped       " << s.clipped_samples << " samples at the sensor range\n";
+  if (s.clipped_samples > 0)
+    out << "  clipped       " << s.clipped_samples << " samples at the sensor range\n";
   double max_sev = 0.0;
   for (const double v : s.severity_per_cycle) max_sev = std::max(max_sev, v);
   if (max_sev > 0.0) {

@@ -15,7 +15,9 @@ namespace ptda::cli {
 
 namespace {
 
-std::string band_text(const dsp::Band& b) { return "[" + general(b.lo, 5) + ", " + general(b.hi, 5) + "]"; }
+std::string band_text(const dsp::Band& b) {
+  return "[" + general(b.lo, 5) + ", " + general(b.hi, 5) + "]";
+}
 
 std::string stats_text(const dsp::FeatureStats& s) {
   return "mean " + general(s.mean, 5) + " sd " + general(s.stddev, 3) + " (n " + std::to_string(s.n) + ")";
@@ -65,7 +67,8 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     out << "recording " << dir << ": " << fixed(rec.duration_s, 2) << " s at " << general(fs, 10) << " Hz, "
         << c.data.regions.size() << " constant-speed regions, " << c.data.refs.size() << " windows\n";
     out << "  slicer: " << c.slicer.windows_invalid << " invalid and " << c.slicer.windows_lost
-        << " lost windows (" << c.slicer.windows_overflow << " overflowed), " << c.slicer.speed_gaps << " speed gaps, " << c.slicer.speed_out_of_order
+        << " lost windows (" << c.slicer.windows_overflow << " overflowed), " << c.slicer.speed_gaps
+        << " speed gaps, " << c.slicer.speed_out_of_order
         << " out-of-order speed samples; CAN: " << c.can.frames << " frames, " << c.can.speed_frames
         << " speed, " << c.can.other_id << " other ids, " << c.can.wrong_dlc << " wrong DLC, "
         << c.can.error_frames << " error frames\n";
@@ -81,22 +84,22 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     source += " --windows " + a.value("windows");
   }
   if (all.refs.empty()) {
-    throw Error("no constant-speed windows in the training recording(s): check [extraction] in " + config_path +
-                " (window_len " + std::to_string(cfg.extraction.window_len) + ", min_duration_s " +
-                general(cfg.extraction.min_duration_s) + ")");
+    throw Error("no constant-speed windows in the training recording(s): check [extraction] in " +
+                config_path + " (window_len " + std::to_string(cfg.extraction.window_len) +
+                ", min_duration_s " + general(cfg.extraction.min_duration_s) + ")");
   }
 
   dsp::Baseline baseline = dsp::train_baseline(all, cfg.classes, cfg.thresholds, fs_hz, cfg.gearbox);
   baseline.source = source;
   formats::write_baseline(a.value("out"), baseline);
 
-  out << "baseline " << a.value("out") << ": " << baseline.classes.size() << " segment class(es), N = "
-      << baseline.window_len << " samples (" << fixed(1000.0 * baseline.window_len / fs_hz, 1) << " ms) at "
-      << general(fs_hz, 10) << " Hz\n";
+  out << "baseline " << a.value("out") << ": " << baseline.classes.size()
+      << " segment class(es), N = " << baseline.window_len << " samples ("
+      << fixed(1000.0 * baseline.window_len / fs_hz, 1) << " ms) at " << general(fs_hz, 10) << " Hz\n";
   out << "  threshold policy: "
       << (baseline.policy.kind == dsp::ThresholdPolicy::Kind::kGaussian ? "gaussian" : "quantile")
-      << ", false-alarm rate " << general(baseline.policy.false_alarm_rate) << " per window and feature, margin "
-      << general(baseline.policy.margin) << "\n";
+      << ", false-alarm rate " << general(baseline.policy.false_alarm_rate)
+      << " per window and feature, margin " << general(baseline.policy.margin) << "\n";
   for (const auto& c : baseline.classes) {
     const auto& s = c.segment;
     out << "class " << s.id << ": direction " << (s.direction < 0 ? "-" : "+") << ", speed "

@@ -4,8 +4,8 @@
 
 #include <algorithm>
 #include <charconv>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <string_view>
@@ -121,7 +121,9 @@ std::vector<std::string_view> split(std::string_view line) {
   }
 }
 
-bool is_blank(std::string_view s) { return trim(s).empty(); }
+bool is_blank(std::string_view s) {
+  return trim(s).empty();
+}
 
 }  // namespace
 
@@ -146,7 +148,8 @@ CsvColumn read_csv_column(const fs::path& path, const std::string& column) {
   out.columns = names.size();
   const auto named = std::count(names.begin(), names.end(), column);
   if (named > 1) {
-    throw Error(file, 1, 0, "column name '" + column + "' appears " + std::to_string(named) + " times in the header");
+    throw Error(file, 1, 0,
+                "column name '" + column + "' appears " + std::to_string(named) + " times in the header");
   }
   if (named == 1) {
     out.index = static_cast<std::size_t>(std::find(names.begin(), names.end(), column) - names.begin());
@@ -159,8 +162,9 @@ CsvColumn read_csv_column(const fs::path& path, const std::string& column) {
       throw Error(file, 1, 0, "no column named '" + column + "' (header: " + list + ")");
     }
     if (idx >= names.size()) {
-      throw Error(file, 1, 0, "column index " + column + " out of range: the header has " +
-                                  std::to_string(names.size()) + " column(s) (0-based)");
+      throw Error(file, 1, 0,
+                  "column index " + column + " out of range: the header has " + std::to_string(names.size()) +
+                      " column(s) (0-based)");
     }
     out.index = idx;
   }
@@ -178,8 +182,9 @@ CsvColumn read_csv_column(const fs::path& path, const std::string& column) {
     }
     const auto cells = split(line);
     if (cells.size() != names.size()) {
-      throw Error(file, line_no, static_cast<long>(std::min(cells.size(), names.size()) + 1),
-                  std::to_string(cells.size()) + " cell(s) but the header has " + std::to_string(names.size()));
+      throw Error(
+          file, line_no, static_cast<long>(std::min(cells.size(), names.size()) + 1),
+          std::to_string(cells.size()) + " cell(s) but the header has " + std::to_string(names.size()));
     }
     for (std::size_t c = 0; c < cells.size(); ++c) {
       const std::string_view cell = trim(cells[c]);
@@ -193,14 +198,17 @@ CsvColumn read_csv_column(const fs::path& path, const std::string& column) {
         throw Error(file, line_no, col, "number out of range '" + std::string(cell) + "'");
       }
       if (r.ec != std::errc{} || r.ptr != cell.data() + cell.size()) {
-        throw Error(file, line_no, col, "not a number '" + std::string(cell) + "' in column '" + names[c] + "'");
+        throw Error(file, line_no, col,
+                    "not a number '" + std::string(cell) + "' in column '" + names[c] + "'");
       }
       if (!std::isfinite(v)) {
-        throw Error(file, line_no, col, "not a finite number '" + std::string(cell) + "' in column '" + names[c] + "'");
+        throw Error(file, line_no, col,
+                    "not a finite number '" + std::string(cell) + "' in column '" + names[c] + "'");
       }
       if (c == out.index) {
         if (std::abs(v) > static_cast<double>(std::numeric_limits<float>::max())) {
-          throw Error(file, line_no, col, "value " + std::string(cell) + " does not fit a float32 WAV sample");
+          throw Error(file, line_no, col,
+                      "value " + std::string(cell) + " does not fit a float32 WAV sample");
         }
         out.values.push_back(static_cast<float>(v));
       }
@@ -213,13 +221,15 @@ CsvColumn read_csv_column(const fs::path& path, const std::string& column) {
 
 ImportSummary import_csv(const ImportOptions& o) {
   if (!(o.rate_hz > 0.0) || o.rate_hz != std::floor(o.rate_hz) || o.rate_hz > 4.0e9) {
-    throw Error("--rate: the sample rate must be a positive whole number of Hz (WAV stores integer rates), got " +
-                std::to_string(o.rate_hz));
+    throw Error(
+        "--rate: the sample rate must be a positive whole number of Hz (WAV stores integer rates), got " +
+        std::to_string(o.rate_hz));
   }
   if (!std::isfinite(o.shaft_speed_rad_s) || o.shaft_speed_rad_s == 0.0) {
     throw Error("--shaft-speed: must be finite and non-zero");
   }
-  const double max_speed = static_cast<double>(std::numeric_limits<std::int32_t>::max()) * o.speed_frame.speed.scale;
+  const double max_speed =
+      static_cast<double>(std::numeric_limits<std::int32_t>::max()) * o.speed_frame.speed.scale;
   if (o.speed_frame.speed.length == 4 && std::abs(o.shaft_speed_rad_s) > max_speed) {
     throw Error("--shaft-speed: " + std::to_string(o.shaft_speed_rad_s) +
                 " rad/s does not fit the speed frame (max " + std::to_string(max_speed) + " rad/s)");

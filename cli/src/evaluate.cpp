@@ -51,7 +51,8 @@ double mean_of(std::span<const double> v) {
   return s / static_cast<double>(v.size());
 }
 
-FeatureSeparation separation(const char* name, std::span<const double> healthy, std::span<const double> faulty) {
+FeatureSeparation separation(const char* name, std::span<const double> healthy,
+                             std::span<const double> faulty) {
   FeatureSeparation f;
   f.feature = name;
   f.mean_healthy = mean_of(healthy);
@@ -95,7 +96,8 @@ std::string feature_json(const FeatureSeparation& f) {
 }
 
 // Splices already-serialised objects into a JSON object text: {"a":<a>,"b":<b>}.
-std::string with_members(std::string object, const std::vector<std::pair<std::string, std::string>>& members) {
+std::string with_members(std::string object,
+                         const std::vector<std::pair<std::string, std::string>>& members) {
   object.pop_back();  // '}'
   for (const auto& [k, v] : members) {
     if (object.size() > 1) object.push_back(',');
@@ -104,7 +106,9 @@ std::string with_members(std::string object, const std::vector<std::pair<std::st
   return object + "}";
 }
 
-std::string percent(double fraction) { return fixed(100.0 * fraction, 1) + " %"; }
+std::string percent(double fraction) {
+  return fixed(100.0 * fraction, 1) + " %";
+}
 
 }  // namespace
 
@@ -138,7 +142,8 @@ void read_monitor_jsonl(const std::string& path, MonitorWindows& into) {
 }
 
 double roc_auc(std::span<const double> healthy, std::span<const double> faulty) {
-  if (healthy.empty() || faulty.empty()) throw Error("ROC AUC: needs at least one healthy and one faulty value");
+  if (healthy.empty() || faulty.empty())
+    throw Error("ROC AUC: needs at least one healthy and one faulty value");
   std::vector<double> h(healthy.begin(), healthy.end());
   for (const double v : h) {
     if (std::isnan(v)) throw Error("ROC AUC: a healthy value is NaN");
@@ -152,14 +157,18 @@ double roc_auc(std::span<const double> healthy, std::span<const double> faulty) 
     const auto hi = std::upper_bound(lo, h.end(), v);
     twice_u += 2 * static_cast<std::uint64_t>(lo - h.begin()) + static_cast<std::uint64_t>(hi - lo);
   }
-  return static_cast<double>(twice_u) / (2.0 * static_cast<double>(h.size()) * static_cast<double>(faulty.size()));
+  return static_cast<double>(twice_u) /
+         (2.0 * static_cast<double>(h.size()) * static_cast<double>(faulty.size()));
 }
 
 const char* direction_name(Direction d) noexcept {
   switch (d) {
-    case Direction::kHigher: return "higher";
-    case Direction::kLower: return "lower";
-    case Direction::kNone: break;
+    case Direction::kHigher:
+      return "higher";
+    case Direction::kLower:
+      return "lower";
+    case Direction::kNone:
+      break;
   }
   return "none";
 }
@@ -167,8 +176,8 @@ const char* direction_name(Direction d) noexcept {
 Evaluation evaluate_separation(const MonitorWindows& healthy, const MonitorWindows& faulty,
                                const std::string& healthy_source, const std::string& faulty_source) {
   if (healthy.scored() == 0) {
-    throw Error(healthy_source + ": no scored windows in the healthy set (" + std::to_string(healthy.windows) +
-                " windows read)");
+    throw Error(healthy_source + ": no scored windows in the healthy set (" +
+                std::to_string(healthy.windows) + " windows read)");
   }
   if (faulty.scored() == 0) {
     throw Error(faulty_source + ": no scored windows in the faulty set (" + std::to_string(faulty.windows) +
@@ -235,7 +244,8 @@ Evaluation parse_evaluation_json(const std::string& text, const std::string& sou
     out.ratio = ratio.kind == JsonValue::Kind::kNumber ? ratio.number : std::nan("");
     out.auc = finite_member(f, "auc", where);
     out.separability = std::max(out.auc, 1.0 - out.auc);
-    out.direction = out.auc > 0.5 ? Direction::kHigher : (out.auc < 0.5 ? Direction::kLower : Direction::kNone);
+    out.direction =
+        out.auc > 0.5 ? Direction::kHigher : (out.auc < 0.5 ? Direction::kLower : Direction::kNone);
   }
   return e;
 }
@@ -244,8 +254,8 @@ std::string evaluation_text(const Evaluation& e) {
   std::string s = "evaluate";
   if (!e.label.empty()) s += " " + e.label;
   s += " (" + e.method + "): healthy " + std::to_string(e.healthy.scored) + " scored of " +
-       std::to_string(e.healthy.windows) + " windows, faulty " + std::to_string(e.faulty.scored) + " scored of " +
-       std::to_string(e.faulty.windows) + "\n";
+       std::to_string(e.healthy.windows) + " windows, faulty " + std::to_string(e.faulty.scored) +
+       " scored of " + std::to_string(e.faulty.windows) + "\n";
   for (const auto& f : e.features) {
     s += "  " + pad_right(f.feature, 12) + "mean healthy " + general(f.mean_healthy, 6) + ", faulty " +
          general(f.mean_faulty, 6) + ", ratio " + general(f.ratio, 5) + ", AUC " + fixed(f.auc, 4) +
@@ -254,7 +264,8 @@ std::string evaluation_text(const Evaluation& e) {
   const auto set_line = [](const char* name, const SetSummary& set) {
     return std::string("  ") + name + "abnormal " + std::to_string(set.abnormal) + " of " +
            std::to_string(set.scored) + " (" + percent(set.detection_rate()) + "), alarm " +
-           (set.alarm() ? "raised in " + std::to_string(set.alarm_windows) + " windows" : std::string("never raised")) +
+           (set.alarm() ? "raised in " + std::to_string(set.alarm_windows) + " windows"
+                        : std::string("never raised")) +
            "\n";
   };
   s += set_line("healthy     ", e.healthy);
@@ -263,7 +274,8 @@ std::string evaluation_text(const Evaluation& e) {
 }
 
 std::string evaluation_markdown_header() {
-  return "| case | method | scored h / f | RMS ratio f/h | RMS AUC | entropy ratio f/h | entropy AUC | abnormal h | "
+  return "| case | method | scored h / f | RMS ratio f/h | RMS AUC | entropy ratio f/h | entropy AUC | "
+         "abnormal h | "
          "abnormal f | alarm h / f |\n"
          "|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n";
 }
@@ -275,24 +287,25 @@ std::string evaluation_markdown_row(const Evaluation& e) {
   return "| " + e.label + " | " + e.method + " | " + std::to_string(e.healthy.scored) + " / " +
          std::to_string(e.faulty.scored) + " | " + fixed(r.ratio, 4) + " | " + fixed(r.auc, 3) + " | " +
          fixed(h.ratio, 4) + " | " + fixed(h.auc, 3) + " | " + percent(e.healthy.detection_rate()) + " | " +
-         percent(e.faulty.detection_rate()) + " | " + yn(e.healthy.alarm()) + " / " + yn(e.faulty.alarm()) + " |\n";
+         percent(e.faulty.detection_rate()) + " | " + yn(e.healthy.alarm()) + " / " + yn(e.faulty.alarm()) +
+         " |\n";
 }
 
-std::string auc_plot_svg(std::span<const Evaluation> results, const std::string& feature, const std::string& title,
-                         const std::string& x_label) {
+std::string auc_plot_svg(std::span<const Evaluation> results, const std::string& feature,
+                         const std::string& title, const std::string& x_label) {
   std::size_t fi = kFeatureNames.size();
   for (std::size_t i = 0; i < kFeatureNames.size(); ++i) {
     if (feature == kFeatureNames[i]) fi = i;
   }
-  if (fi == kFeatureNames.size()) throw Error("AUC plot: unknown feature '" + feature + "' (rms_res or entropy_res)");
+  if (fi == kFeatureNames.size())
+    throw Error("AUC plot: unknown feature '" + feature + "' (rms_res or entropy_res)");
   struct MethodStyle {
     const char* method;
     const char* label;
     const char* color;
   };
-  constexpr std::array<MethodStyle, 3> kMethods = {{{"raw", "raw", "#1f77b4"},
-                                                    {"tda", "TDA", "#ff7f0e"},
-                                                    {"ptda", "PTDA", "#2ca02c"}}};
+  constexpr std::array<MethodStyle, 3> kMethods = {
+      {{"raw", "raw", "#1f77b4"}, {"tda", "TDA", "#ff7f0e"}, {"ptda", "PTDA", "#2ca02c"}}};
   std::map<std::string, std::vector<std::pair<double, double>>> points;
   for (const auto& e : results) {
     if (!e.x) throw Error("AUC plot: result '" + e.label + "' (" + e.method + ") has no x value");

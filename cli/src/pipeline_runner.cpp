@@ -33,7 +33,8 @@ std::string num(double v) {
 RecordingInfo open_recording(const fs::path& dir) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) throw Error(dir.string() + ": recording directory does not exist");
-  if (!fs::is_directory(dir, ec)) throw Error(dir.string() + ": not a directory (expected a recording directory)");
+  if (!fs::is_directory(dir, ec))
+    throw Error(dir.string() + ": not a directory (expected a recording directory)");
   RecordingInfo rec;
   rec.dir = dir;
   rec.meta = formats::read_recording_meta(dir);
@@ -53,7 +54,8 @@ RecordingInfo open_recording(const fs::path& dir) {
   return rec;
 }
 
-double pipeline_fs_hz(const RecordingInfo& rec, const config::PipelineConfig& cfg, const std::string& config_source) {
+double pipeline_fs_hz(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                      const std::string& config_source) {
   const double fs = static_cast<double>(rec.wav.sample_rate_hz);
   if (cfg.fs_hz != 0.0 && std::abs(cfg.fs_hz - fs) > 1e-9 * fs) {
     throw Error(config_source + ": [acquisition] fs_hz = " + num(cfg.fs_hz) + " Hz but recording " +
@@ -90,10 +92,18 @@ CanCounters run_recording(const RecordingInfo& rec, const config::PipelineConfig
           pending = dsp::SpeedSample{record.frame.t_ns - latency_ns, decoded.speed_rad_s, decoded.angle_rad,
                                      decoded.has_angle};
           break;
-        case config::DecodeResult::kOtherId: ++counters.other_id; break;
-        case config::DecodeResult::kWrongDlc: ++counters.wrong_dlc; break;
-        case config::DecodeResult::kRtr: ++counters.rtr; break;
-        case config::DecodeResult::kErrorFrame: ++counters.error_frames; break;
+        case config::DecodeResult::kOtherId:
+          ++counters.other_id;
+          break;
+        case config::DecodeResult::kWrongDlc:
+          ++counters.wrong_dlc;
+          break;
+        case config::DecodeResult::kRtr:
+          ++counters.rtr;
+          break;
+        case config::DecodeResult::kErrorFrame:
+          ++counters.error_frames;
+          break;
       }
     }
   };
@@ -252,8 +262,8 @@ void check_baseline_matches(const dsp::Baseline& baseline, const std::string& ba
   }
   if (baseline.window_len != cfg.extraction.window_len) {
     throw Error(baseline_source + ": baseline window length is " + std::to_string(baseline.window_len) +
-                " samples but " + config_source + " sets [extraction] window_len = " +
-                std::to_string(cfg.extraction.window_len));
+                " samples but " + config_source +
+                " sets [extraction] window_len = " + std::to_string(cfg.extraction.window_len));
   }
 }
 

@@ -10,7 +10,9 @@ namespace ptda::cli {
 Progress::Progress(std::string label, std::uint64_t total, bool enabled)
     : label_(std::move(label)), total_(total), active_(enabled && total > 0 && isatty(STDERR_FILENO) == 1) {}
 
-Progress::~Progress() { done(); }
+Progress::~Progress() {
+  done();
+}
 
 void Progress::update(std::uint64_t done_units) {
   if (!active_) return;

@@ -71,7 +71,8 @@ struct Panel {
   const char* name;
   const char* color;
   const std::vector<float>* x;
-  std::size_t scale_group;  ///< panels of a group share their y scales (0: raw and deterministic, 1: residuals)
+  std::size_t
+      scale_group;  ///< panels of a group share their y scales (0: raw and deterministic, 1: residuals)
 };
 
 std::string example_section(const WindowExample& ex, const ReportData& data, std::size_t index) {
@@ -120,13 +121,13 @@ std::string example_section(const WindowExample& ex, const ReportData& data, std
   std::string o;
   o += "<section class=\"example\">\n<h3>" + svg::escape_xml(ex.title) + "</h3>\n";
   if (any) {
-    o += "<p class=\"meta\">fs = " + svg::format_fixed(ex.fs_hz, 1) + " Hz, " +
-         std::to_string(ex.raw.size()) + " samples (" +
-         svg::format_fixed(static_cast<double>(ex.raw.size()) / ex.fs_hz, 3) +
-         " s). Left: time domain; right: one-sided amplitude spectrum. Raw and deterministic panels share "
-         "one y scale, the two residuals another, so TDA and PTDA compare directly." +
-         std::string(markers.empty() ? "" : " Dashed orange lines: gear mesh frequency (GMF) and harmonics.") +
-         "</p>\n";
+    o +=
+        "<p class=\"meta\">fs = " + svg::format_fixed(ex.fs_hz, 1) + " Hz, " + std::to_string(ex.raw.size()) +
+        " samples (" + svg::format_fixed(static_cast<double>(ex.raw.size()) / ex.fs_hz, 3) +
+        " s). Left: time domain; right: one-sided amplitude spectrum. Raw and deterministic panels share "
+        "one y scale, the two residuals another, so TDA and PTDA compare directly." +
+        std::string(markers.empty() ? "" : " Dashed orange lines: gear mesh frequency (GMF) and harmonics.") +
+        "</p>\n";
   }
   o += "<div class=\"grid\">\n";
   double f_top_hz = any ? ex.fs_hz / 2.0 : 1.0;
@@ -140,7 +141,8 @@ std::string example_section(const WindowExample& ex, const ReportData& data, std
   for (std::size_t i = 0; i < panels.size(); ++i) {
     const auto& x = *panels[i].x;
     svg::Plot tp;
-    tp.title = std::string(panels[i].name) + (x.empty() ? "" : " (RMS " + svg::format_fixed(rms_of(x), 4) + " " + unit + ")");
+    tp.title = std::string(panels[i].name) +
+               (x.empty() ? "" : " (RMS " + svg::format_fixed(rms_of(x), 4) + " " + unit + ")");
     tp.x_label = "time [s]";
     tp.y_label = "amplitude [" + unit + "]";
     tp.empty_message = "no data: signal not provided";
@@ -208,7 +210,8 @@ std::string detection_table(const std::vector<MethodTrend>& trends) {
     }
     for (const auto& rec : order) {
       const auto& c = counts[rec];
-      const double pct = c.windows ? 100.0 * static_cast<double>(c.abnormal) / static_cast<double>(c.windows) : 0.0;
+      const double pct =
+          c.windows ? 100.0 * static_cast<double>(c.abnormal) / static_cast<double>(c.windows) : 0.0;
       o += "<tr><td>" + svg::escape_xml(method_display_name(tr.method)) + "</td><td>" + svg::escape_xml(rec) +
            "</td><td>" + std::to_string(c.windows) + "</td><td>" + std::to_string(c.abnormal) + "</td><td>" +
            svg::format_fixed(pct, 1) + "</td><td>" + std::to_string(c.alarm) + "</td><td>" +
@@ -222,7 +225,8 @@ std::string detection_table(const std::vector<MethodTrend>& trends) {
   return o;
 }
 
-constexpr const char* kCss = R"(body{font-family:sans-serif;margin:1.5em auto;max-width:1200px;color:#222;line-height:1.4}
+constexpr const char* kCss =
+    R"(body{font-family:sans-serif;margin:1.5em auto;max-width:1200px;color:#222;line-height:1.4}
 h1{font-size:1.5em}h2{border-bottom:1px solid #bbb;margin-top:1.6em}h3{font-size:1.05em;margin-bottom:.2em}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:.2em .6em;text-align:left}
 th{background:#f0f0f0}.grid{display:grid;grid-template-columns:repeat(2,max-content);gap:4px}
@@ -290,7 +294,8 @@ svg::Plot trend_plot(const MethodTrend& trend, TrendFeature feature, const std::
   if (!ab.x.empty()) p.series.push_back(std::move(ab));
 
   auto sorted = trend.class_thresholds;
-  std::stable_sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::stable_sort(sorted.begin(), sorted.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
   for (const auto& [c, th] : sorted) {
     const auto& band = rms ? th.rms : th.entropy;
     p.bands.push_back({band.lo, band.hi, class_name(c) + " band", class_color(c)});
@@ -326,8 +331,9 @@ std::string render_html_report(const ReportData& data) {
   const std::string title = data.title.empty() ? std::string("PTDA gearbox condition report") : data.title;
   std::string o;
   o.reserve(1 << 20);
-  o += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + svg::escape_xml(title) +
-       "</title>\n<style>\n" + kCss + "</style>\n</head>\n<body>\n<h1>" + svg::escape_xml(title) + "</h1>\n";
+  o += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" +
+       svg::escape_xml(title) + "</title>\n<style>\n" + kCss + "</style>\n</head>\n<body>\n<h1>" +
+       svg::escape_xml(title) + "</h1>\n";
 
   o += "<h2 id=\"summary\">Summary</h2>\n<table class=\"summary\">\n";
   for (const auto& [k, v] : data.summary) {
@@ -343,7 +349,8 @@ std::string render_html_report(const ReportData& data) {
   if (data.trends.empty()) {
     o += "<p>No feature trends in this report.</p>\n";
   } else {
-    o += "<p class=\"meta\">Rows: raw signal, TDA residual, PTDA residual. Columns: RMS_res, Entropy_res.</p>\n";
+    o += "<p class=\"meta\">Rows: raw signal, TDA residual, PTDA residual. Columns: RMS_res, "
+         "Entropy_res.</p>\n";
     o += "<div class=\"grid\">\n";
     for (const auto& tr : data.trends) {
       for (const auto f : {TrendFeature::kRms, TrendFeature::kEntropy}) {

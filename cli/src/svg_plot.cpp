@@ -21,7 +21,9 @@ constexpr int kLegendSwatchPx = 14;
 constexpr double kPadFraction = 0.05;
 constexpr std::size_t kVLineTextRows = 3;
 
-std::string px(double v) { return format_fixed(v, kPixelDecimals); }
+std::string px(double v) {
+  return format_fixed(v, kPixelDecimals);
+}
 
 double text_width_px(std::string_view text, int font_px) {
   return static_cast<double>(text.size()) * font_px * kCharWidthRatio;
@@ -81,7 +83,9 @@ LegendPlacement place_legend(const std::vector<LegendEntry>& entries, double ava
   return p;
 }
 
-int legend_font_px(const PlotStyle& style) { return std::max(8, style.font_px - 1); }
+int legend_font_px(const PlotStyle& style) {
+  return std::max(8, style.font_px - 1);
+}
 
 void widen_if_degenerate(double& lo, double& hi) {
   if (hi - lo > std::abs(hi) * 1e-12 && hi > lo) return;
@@ -97,12 +101,24 @@ std::string escape_xml(std::string_view text) {
   out.reserve(text.size());
   for (const char c : text) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c; break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
+        break;
     }
   }
   return out;
@@ -143,7 +159,8 @@ Ticks nice_ticks(double lo, double hi, int target_count) {
   }
   Ticks t;
   t.step = nice * mag;
-  t.decimals = std::max(0, -static_cast<int>(std::floor(std::log10(t.step) + kTickTolerance)) + (two_and_half ? 1 : 0));
+  t.decimals = std::max(
+      0, -static_cast<int>(std::floor(std::log10(t.step) + kTickTolerance)) + (two_and_half ? 1 : 0));
   const auto k_lo = static_cast<long long>(std::ceil(lo / t.step - kTickTolerance));
   const auto k_hi = static_cast<long long>(std::floor(hi / t.step + kTickTolerance));
   for (long long k = k_lo; k <= k_hi; ++k) {
@@ -295,10 +312,10 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
   const double right = l.left_px + l.width_px, bottom = l.top_px + l.height_px;
   std::string o;
   o.reserve(4096);
-  o += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + std::to_string(style.width_px) + "\" height=\"" +
-       std::to_string(style.height_px) + "\" viewBox=\"0 0 " + std::to_string(style.width_px) + " " +
-       std::to_string(style.height_px) + "\" font-family=\"sans-serif\" font-size=\"" + std::to_string(fpx) +
-       "\">\n";
+  o += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + std::to_string(style.width_px) +
+       "\" height=\"" + std::to_string(style.height_px) + "\" viewBox=\"0 0 " +
+       std::to_string(style.width_px) + " " + std::to_string(style.height_px) +
+       "\" font-family=\"sans-serif\" font-size=\"" + std::to_string(fpx) + "\">\n";
   o += "<rect x=\"0\" y=\"0\" width=\"" + std::to_string(style.width_px) + "\" height=\"" +
        std::to_string(style.height_px) + "\" fill=\"#ffffff\"/>\n";
   o += "<text x=\"" + px(style.width_px / 2.0) + "\" y=\"" + std::to_string(kTitleBaselinePx) +
@@ -314,25 +331,25 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
     const std::string col = escape_xml(e.color);
     switch (e.kind) {
       case LegendEntry::Kind::kLine:
-        o += "<line x1=\"" + px(x0) + "\" y1=\"" + px(yc) + "\" x2=\"" + px(x0 + kLegendSwatchPx) + "\" y2=\"" +
-             px(yc) + "\" stroke=\"" + col + "\" stroke-width=\"2\"/>";
+        o += "<line x1=\"" + px(x0) + "\" y1=\"" + px(yc) + "\" x2=\"" + px(x0 + kLegendSwatchPx) +
+             "\" y2=\"" + px(yc) + "\" stroke=\"" + col + "\" stroke-width=\"2\"/>";
         break;
       case LegendEntry::Kind::kMarker:
-        o += "<circle cx=\"" + px(x0 + kLegendSwatchPx / 2.0) + "\" cy=\"" + px(yc) + "\" r=\"3\" fill=\"" + col +
-             "\"/>";
+        o += "<circle cx=\"" + px(x0 + kLegendSwatchPx / 2.0) + "\" cy=\"" + px(yc) + "\" r=\"3\" fill=\"" +
+             col + "\"/>";
         break;
       case LegendEntry::Kind::kRing:
         o += "<circle cx=\"" + px(x0 + kLegendSwatchPx / 2.0) + "\" cy=\"" + px(yc) +
              "\" r=\"4\" fill=\"none\" stroke=\"" + col + "\" stroke-width=\"1.5\"/>";
         break;
       case LegendEntry::Kind::kBand:
-        o += "<rect x=\"" + px(x0) + "\" y=\"" + px(yc - 4.0) + "\" width=\"" + std::to_string(kLegendSwatchPx) +
-             "\" height=\"8\" fill=\"" + col + "\" fill-opacity=\"0.15\" stroke=\"" + col +
-             "\" stroke-dasharray=\"3,2\"/>";
+        o += "<rect x=\"" + px(x0) + "\" y=\"" + px(yc - 4.0) + "\" width=\"" +
+             std::to_string(kLegendSwatchPx) + "\" height=\"8\" fill=\"" + col +
+             "\" fill-opacity=\"0.15\" stroke=\"" + col + "\" stroke-dasharray=\"3,2\"/>";
         break;
       case LegendEntry::Kind::kSpan:
-        o += "<rect x=\"" + px(x0) + "\" y=\"" + px(yc - 4.0) + "\" width=\"" + std::to_string(kLegendSwatchPx) +
-             "\" height=\"8\" fill=\"" + col + "\" fill-opacity=\"0.2\"/>";
+        o += "<rect x=\"" + px(x0) + "\" y=\"" + px(yc - 4.0) + "\" width=\"" +
+             std::to_string(kLegendSwatchPx) + "\" height=\"8\" fill=\"" + col + "\" fill-opacity=\"0.2\"/>";
         break;
     }
     o += "<text x=\"" + px(x0 + kLegendSwatchPx + 4.0) + "\" y=\"" + px(yc + 4.0) + "\" font-size=\"" +
@@ -340,17 +357,17 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
   }
 
   // Plot area: a nested <svg> with a viewBox in document coordinates clips what is drawn inside.
-  o += "<svg x=\"" + px(l.left_px) + "\" y=\"" + px(l.top_px) + "\" width=\"" + px(l.width_px) + "\" height=\"" +
-       px(l.height_px) + "\" viewBox=\"" + px(l.left_px) + " " + px(l.top_px) + " " + px(l.width_px) + " " +
-       px(l.height_px) + "\" overflow=\"hidden\">\n";
+  o += "<svg x=\"" + px(l.left_px) + "\" y=\"" + px(l.top_px) + "\" width=\"" + px(l.width_px) +
+       "\" height=\"" + px(l.height_px) + "\" viewBox=\"" + px(l.left_px) + " " + px(l.top_px) + " " +
+       px(l.width_px) + " " + px(l.height_px) + "\" overflow=\"hidden\">\n";
   if (!l.empty) {
     for (const double v : l.y_ticks.values) {
       o += "<line x1=\"" + px(l.left_px) + "\" y1=\"" + px(l.y_px(v)) + "\" x2=\"" + px(right) + "\" y2=\"" +
            px(l.y_px(v)) + "\" stroke=\"#e6e6e6\"/>";
     }
     for (const double v : l.x_ticks.values) {
-      o += "<line x1=\"" + px(l.x_px(v)) + "\" y1=\"" + px(l.top_px) + "\" x2=\"" + px(l.x_px(v)) + "\" y2=\"" +
-           px(bottom) + "\" stroke=\"#e6e6e6\"/>";
+      o += "<line x1=\"" + px(l.x_px(v)) + "\" y1=\"" + px(l.top_px) + "\" x2=\"" + px(l.x_px(v)) +
+           "\" y2=\"" + px(bottom) + "\" stroke=\"#e6e6e6\"/>";
     }
     o += "\n";
     for (const auto& sp : plot.spans) {
@@ -364,11 +381,11 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
       if (!std::isfinite(b.lo) || !std::isfinite(b.hi)) continue;
       const std::string col = escape_xml(b.color);
       const double y_top = l.y_px(std::max(b.lo, b.hi)), y_bot = l.y_px(std::min(b.lo, b.hi));
-      o += "<rect x=\"" + px(l.left_px) + "\" y=\"" + px(y_top) + "\" width=\"" + px(l.width_px) + "\" height=\"" +
-           px(y_bot - y_top) + "\" fill=\"" + col + "\" fill-opacity=\"0.08\"/>\n";
+      o += "<rect x=\"" + px(l.left_px) + "\" y=\"" + px(y_top) + "\" width=\"" + px(l.width_px) +
+           "\" height=\"" + px(y_bot - y_top) + "\" fill=\"" + col + "\" fill-opacity=\"0.08\"/>\n";
       for (const double yv : {y_top, y_bot}) {
-        o += "<line x1=\"" + px(l.left_px) + "\" y1=\"" + px(yv) + "\" x2=\"" + px(right) + "\" y2=\"" + px(yv) +
-             "\" stroke=\"" + col + "\" stroke-width=\"1.2\" stroke-dasharray=\"6,3\"/>\n";
+        o += "<line x1=\"" + px(l.left_px) + "\" y1=\"" + px(yv) + "\" x2=\"" + px(right) + "\" y2=\"" +
+             px(yv) + "\" stroke=\"" + col + "\" stroke-width=\"1.2\" stroke-dasharray=\"6,3\"/>\n";
       }
     }
     // Marker texts go on up to kVLineTextRows staggered rows; a text that fits on no row is left out.
@@ -379,8 +396,8 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
       if (!std::isfinite(v.x) || v.x < l.x_lo || v.x > l.x_hi) continue;
       const std::string col = escape_xml(v.color);
       const double xp = l.x_px(v.x);
-      o += "<line x1=\"" + px(xp) + "\" y1=\"" + px(l.top_px) + "\" x2=\"" + px(xp) + "\" y2=\"" + px(bottom) +
-           "\" stroke=\"" + col + "\" stroke-dasharray=\"3,3\"/>";
+      o += "<line x1=\"" + px(xp) + "\" y1=\"" + px(l.top_px) + "\" x2=\"" + px(xp) + "\" y2=\"" +
+           px(bottom) + "\" stroke=\"" + col + "\" stroke-dasharray=\"3,3\"/>";
       if (!v.text.empty()) {
         const double x_text = xp + 2.0;
         for (std::size_t r = 0; r < kVLineTextRows; ++r) {
@@ -412,10 +429,12 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
       } else {
         const bool ring = s.kind == Series::Kind::kRings;
         for (std::size_t i = 0; i < s.x.size(); ++i) {
-          if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i]) || s.x[i] < l.x_lo || s.x[i] > l.x_hi) continue;
+          if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i]) || s.x[i] < l.x_lo || s.x[i] > l.x_hi)
+            continue;
           o += "<circle cx=\"" + px(l.x_px(s.x[i])) + "\" cy=\"" + px(l.y_px(s.y[i])) + "\" r=\"" +
                format_fixed(s.width_px, 2) + "\"";
-          o += ring ? " fill=\"none\" stroke=\"" + col + "\" stroke-width=\"1.5\"/>" : " fill=\"" + col + "\"/>";
+          o += ring ? " fill=\"none\" stroke=\"" + col + "\" stroke-width=\"1.5\"/>"
+                    : " fill=\"" + col + "\"/>";
         }
         o += "\n";
       }
@@ -424,24 +443,26 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
   o += "</svg>\n";
 
   // Frame, ticks, labels.
-  o += "<rect x=\"" + px(l.left_px) + "\" y=\"" + px(l.top_px) + "\" width=\"" + px(l.width_px) + "\" height=\"" +
-       px(l.height_px) + "\" fill=\"none\" stroke=\"#333333\"/>\n";
+  o += "<rect x=\"" + px(l.left_px) + "\" y=\"" + px(l.top_px) + "\" width=\"" + px(l.width_px) +
+       "\" height=\"" + px(l.height_px) + "\" fill=\"none\" stroke=\"#333333\"/>\n";
   if (l.empty) {
     o += "<text x=\"" + px(l.left_px + l.width_px / 2.0) + "\" y=\"" + px(l.top_px + l.height_px / 2.0) +
-         "\" text-anchor=\"middle\" fill=\"#777777\" font-style=\"italic\">" + escape_xml(plot.empty_message) +
-         "</text>\n";
+         "\" text-anchor=\"middle\" fill=\"#777777\" font-style=\"italic\">" +
+         escape_xml(plot.empty_message) + "</text>\n";
   } else {
     for (const double v : l.y_ticks.values) {
       const double yp = l.y_px(v);
-      o += "<line x1=\"" + px(l.left_px - 4.0) + "\" y1=\"" + px(yp) + "\" x2=\"" + px(l.left_px) + "\" y2=\"" +
-           px(yp) + "\" stroke=\"#333333\"/><text x=\"" + px(l.left_px - 6.0) + "\" y=\"" + px(yp + fpx * 0.35) +
-           "\" text-anchor=\"end\">" + format_fixed(v, l.y_ticks.decimals) + "</text>\n";
+      o += "<line x1=\"" + px(l.left_px - 4.0) + "\" y1=\"" + px(yp) + "\" x2=\"" + px(l.left_px) +
+           "\" y2=\"" + px(yp) + "\" stroke=\"#333333\"/><text x=\"" + px(l.left_px - 6.0) + "\" y=\"" +
+           px(yp + fpx * 0.35) + "\" text-anchor=\"end\">" + format_fixed(v, l.y_ticks.decimals) +
+           "</text>\n";
     }
     for (const double v : l.x_ticks.values) {
       const double xp = l.x_px(v);
-      o += "<line x1=\"" + px(xp) + "\" y1=\"" + px(bottom) + "\" x2=\"" + px(xp) + "\" y2=\"" + px(bottom + 4.0) +
-           "\" stroke=\"#333333\"/><text x=\"" + px(xp) + "\" y=\"" + px(bottom + 6.0 + fpx) +
-           "\" text-anchor=\"middle\">" + format_fixed(v, l.x_ticks.decimals) + "</text>\n";
+      o += "<line x1=\"" + px(xp) + "\" y1=\"" + px(bottom) + "\" x2=\"" + px(xp) + "\" y2=\"" +
+           px(bottom + 4.0) + "\" stroke=\"#333333\"/><text x=\"" + px(xp) + "\" y=\"" +
+           px(bottom + 6.0 + fpx) + "\" text-anchor=\"middle\">" + format_fixed(v, l.x_ticks.decimals) +
+           "</text>\n";
     }
   }
   if (!plot.x_label.empty()) {

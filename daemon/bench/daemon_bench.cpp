@@ -159,11 +159,17 @@ const Prepared& prepare(const std::string& job) {
       if (r.exit_code != 0) throw Error(std::string("ptda ") + what + " failed; see " + log.string());
     };
     check(run_process({PTDA_BINARY, "simulate", "--scenario", scen + "_healthy.toml", "--out",
-                       (p.dir / "train").string(), "--seed", "1001"}, log), "simulate");
-    check(run_process({PTDA_BINARY, "simulate", "--scenario", scen + "_faulty.toml", "--out", p.faulty.string(),
-                       "--seed", "3003"}, log), "simulate");
-    check(run_process({PTDA_BINARY, "train", "--recording", (p.dir / "train").string(), "--config", cfg, "--out",
-                       p.baseline.string()}, log), "train");
+                       (p.dir / "train").string(), "--seed", "1001"},
+                      log),
+          "simulate");
+    check(run_process({PTDA_BINARY, "simulate", "--scenario", scen + "_faulty.toml", "--out",
+                       p.faulty.string(), "--seed", "3003"},
+                      log),
+          "simulate");
+    check(run_process({PTDA_BINARY, "train", "--recording", (p.dir / "train").string(), "--config", cfg,
+                       "--out", p.baseline.string()},
+                      log),
+          "train");
   }
   const formats::RecordingMeta meta = formats::read_recording_meta(p.faulty);
   const formats::WavReader wav(p.faulty / meta.vibration_file);
@@ -193,11 +199,12 @@ fs::path write_replay_config(const Prepared& p, const std::string& job, const st
   fs::create_directories(dir);
   const fs::path path = dir / "ptdad.toml";
   std::ofstream out(path);
-  out << "[daemon]\nbaseline = \"" << p.baseline.string() << "\"\nstatus_dir = \"" << (dir / "status").string()
+  out << "[daemon]\nbaseline = \"" << p.baseline.string() << "\"\nstatus_dir = \""
+      << (dir / "status").string()
       << "\"\nlog_level = \"warn\"\nstatus_period_s = " << (pace == "fast" ? "0.05" : "1.0")
-      << "\n\n[adc]\nbackend = \"wav\"\nrecording = \"" << p.faulty.string()
-      << "\"\npace = \"" << pace << "\"\nblock_len = " << kBlockLen << "\n\n[can]\nbackend = \"candump\"\npace = \""
-      << pace << "\"\nspeed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n"
+      << "\n\n[adc]\nbackend = \"wav\"\nrecording = \"" << p.faulty.string() << "\"\npace = \"" << pace
+      << "\"\nblock_len = " << kBlockLen << "\n\n[can]\nbackend = \"candump\"\npace = \"" << pace
+      << "\"\nspeed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n"
       << "[alarm.can]\nenabled = true\nperiod_s = 0.1\n\n[monitor]\nmethod = \"" << method << "\"\n\n"
       << job_pipeline(job);
   return path;
@@ -239,8 +246,8 @@ class Recorder final : public daemon::PipelineProbe, public daemon::WindowSink {
   }
   void on_window(const dsp::WindowResult& w) noexcept override {
     if (windows_.size() < windows_.capacity()) {
-      windows_.push_back({mono_ns(), w.ref.first_sample + static_cast<std::int64_t>(window_len) - 1, w.ref.t_end_ns,
-                          sets_.size()});
+      windows_.push_back({mono_ns(), w.ref.first_sample + static_cast<std::int64_t>(window_len) - 1,
+                          w.ref.t_end_ns, sets_.size()});
     }
   }
 
@@ -396,9 +403,9 @@ void BM_PtdadProcess(benchmark::State& state) {
   double cpu_s = 0.0, user_s = 0.0, sys_s = 0.0, rss = 0.0;
   std::int64_t runs = 0;
   for (auto _ : state) {
-    const ProcessResult r = run_process({PTDAD_BINARY, "--config", config.string(), "--config-dir", "",
-                                         "--exit-at-end", "--foreground"},
-                                        config.parent_path() / "ptdad.log");
+    const ProcessResult r = run_process(
+        {PTDAD_BINARY, "--config", config.string(), "--config-dir", "", "--exit-at-end", "--foreground"},
+        config.parent_path() / "ptdad.log");
     if (r.exit_code != 0) state.SkipWithError("ptdad failed; see ptdad.log next to the configuration");
     state.SetIterationTime(r.wall_s);
     cpu_s += r.user_s + r.sys_s;
@@ -441,18 +448,21 @@ void BM_PtdadSim(benchmark::State& state) {
   const fs::path config = dir / "ptdad.toml";
   {
     std::ofstream out(config);
-    out << "[daemon]\nbaseline = \"" << p.baseline.string() << "\"\nstatus_dir = \"" << (dir / "status").string()
+    out << "[daemon]\nbaseline = \"" << p.baseline.string() << "\"\nstatus_dir = \""
+        << (dir / "status").string()
         << "\"\nstatus_period_s = 0.05\nlog_level = \"warn\"\n\n[adc]\nbackend = \"sim\"\nscenario = \""
         << PTDA_SOURCE_DIR << "/config/scenarios/" << job << "_faulty.toml\"\nseed = 3003\npace = \"fast\"\n"
         << "loop = true\nblock_len = " << kBlockLen << "\n\n[can]\nbackend = \"sim\"\npace = \"fast\"\n"
-        << "speed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n[monitor]\nmethod = \"ptda\"\n\n"
+        << "speed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n[monitor]\nmethod = "
+           "\"ptda\"\n\n"
         << job_pipeline(job);
   }
   double cpu_s = 0.0, rss = 0.0, samples = 0.0;
   for (auto _ : state) {
     const ProcessResult r =
         run_process({PTDAD_BINARY, "--config", config.string(), "--config-dir", "", "--foreground",
-                     "--test-exit-after-windows", std::to_string(state.range(1))}, dir / "ptdad.log");
+                     "--test-exit-after-windows", std::to_string(state.range(1))},
+                    dir / "ptdad.log");
     if (r.exit_code != 0) state.SkipWithError("ptdad failed; see sim/ptdad.log");
     state.SetIterationTime(r.wall_s);
     cpu_s += r.user_s + r.sys_s;
@@ -499,16 +509,16 @@ void print_fixed_allocations() {
     const std::size_t hop = ex.hop == 0 ? n : ex.hop;
     const std::size_t history = 4 * n + static_cast<std::size_t>(std::ceil(p.fs_hz));
     const std::size_t slicer = history * (sizeof(float) + 1);
-    const std::size_t pending = (2 * history / hop + 64) * sizeof(dsp::WindowRef) + 1024 * 16 +
-                                256 * sizeof(dsp::RegionInfo);
+    const std::size_t pending =
+        (2 * history / hop + 64) * sizeof(dsp::WindowRef) + 1024 * 16 + 256 * sizeof(dsp::RegionInfo);
     const std::size_t plans = fft_plan_bytes(n, 0) + fft_plan_bytes(n, 1);
     // WindowAnalyzer d_, r_ (N floats each), X_, D_, R_ (N/2+1 complex each); MonitorEngine window_.
     const std::size_t analyzer = 3 * n * sizeof(float) + 3 * bins * sizeof(std::complex<float>);
     std::size_t baseline = 0;
     for (const auto& c : b.classes) baseline += (c.mean_magnitude.size() + c.tda_mean.size()) * sizeof(float);
     std::printf("%-15s %7zu %10zu %10zu %10zu %12zu %10zu %10zu %10zu %10zu  (%zu classes)\n", job, n,
-                sizeof(daemon::SampleRing), sizeof(daemon::SpeedRing), 2 * sizeof(drivers::SampleBlock), slicer,
-                pending, plans, analyzer, baseline, b.classes.size());
+                sizeof(daemon::SampleRing), sizeof(daemon::SpeedRing), 2 * sizeof(drivers::SampleBlock),
+                slicer, pending, plans, analyzer, baseline, b.classes.size());
   }
   std::printf("\n");
   std::fflush(stdout);

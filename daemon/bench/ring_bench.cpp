@@ -23,8 +23,8 @@
 
 namespace {
 
-constexpr std::size_t kCapacity = 8192;      // floats in either queue
-constexpr std::size_t kItems = 1U << 22;     // floats per transfer (exact as float: < 2^24)
+constexpr std::size_t kCapacity = 8192;   // floats in either queue
+constexpr std::size_t kItems = 1U << 22;  // floats per transfer (exact as float: < 2^24)
 
 using Ring = ptda::daemon::SpscRing<float, kCapacity>;
 

@@ -3,12 +3,11 @@
 #include <poll.h>
 #include <pthread.h>
 #include <signal.h>
+#include <spdlog/spdlog.h>
 #include <sys/eventfd.h>
 #include <sys/signalfd.h>
 #include <time.h>
 #include <unistd.h>
-
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -34,13 +33,17 @@ std::int64_t wall_time_ns() noexcept {
 
 DaemonState state_of(Phase phase) noexcept {
   switch (phase) {
-    case Phase::kRefused: return DaemonState::kRefused;
-    case Phase::kTraining: return DaemonState::kTraining;
+    case Phase::kRefused:
+      return DaemonState::kRefused;
+    case Phase::kTraining:
+      return DaemonState::kTraining;
     case Phase::kPausedSpeed:
     case Phase::kPausedSensor:
-    case Phase::kEnded: return DaemonState::kPaused;
+    case Phase::kEnded:
+      return DaemonState::kPaused;
     case Phase::kStarting:
-    case Phase::kMonitoring: return DaemonState::kRunning;
+    case Phase::kMonitoring:
+      return DaemonState::kRunning;
   }
   return DaemonState::kRunning;
 }
@@ -50,8 +53,9 @@ class DeltaLine {
  public:
   void add(const char* name, std::uint64_t now, std::uint64_t before) noexcept {
     if (now == before || len_ >= sizeof(buf_) - 1) return;
-    const int n = std::snprintf(buf_ + len_, sizeof(buf_) - len_, "%s%s +%llu (%llu)", len_ == 0 ? "" : ", ", name,
-                                static_cast<unsigned long long>(now - before), static_cast<unsigned long long>(now));
+    const int n =
+        std::snprintf(buf_ + len_, sizeof(buf_) - len_, "%s%s +%llu (%llu)", len_ == 0 ? "" : ", ", name,
+                      static_cast<unsigned long long>(now - before), static_cast<unsigned long long>(now));
     if (n > 0) len_ = std::min(sizeof(buf_) - 1, len_ + static_cast<std::size_t>(n));
   }
   [[nodiscard]] bool empty() const noexcept { return len_ == 0; }
@@ -73,7 +77,8 @@ Daemon::~Daemon() {
 }
 
 DaemonConfig Daemon::load_config() const {
-  const fs::path dir = options_.config_dir ? *options_.config_dir : options_.config_file.parent_path() / "conf.d";
+  const fs::path dir =
+      options_.config_dir ? *options_.config_dir : options_.config_file.parent_path() / "conf.d";
   DaemonConfig cfg = load_daemon_config(options_.config_file, list_dropins(dir));
   if (!options_.status_dir.empty()) cfg.daemon.status_dir = options_.status_dir;
   return cfg;
@@ -85,7 +90,8 @@ void Daemon::build_status_writer() {
     std::error_code ec;
     fs::create_directories(cfg_.daemon.status_dir, ec);
     if (ec) {
-      throw Error("[daemon] status_dir " + cfg_.daemon.status_dir.string() + ": cannot create: " + ec.message());
+      throw Error("[daemon] status_dir " + cfg_.daemon.status_dir.string() +
+                  ": cannot create: " + ec.message());
     }
     wc.json_path = cfg_.daemon.status_dir / "status.json";
   }
@@ -154,7 +160,8 @@ void Daemon::activate() {
   update_state_and_reason(started_ns_);
   notifier_.ready();
   std::snprintf(status_text_, sizeof status_text_, "%s: %s", daemon_state_name(state_.load()).data(),
-                mode_ == PipelineMode::kTrain ? "field training" : (pipeline_->refused() ? "no usable baseline" : "monitoring"));
+                mode_ == PipelineMode::kTrain ? "field training"
+                                              : (pipeline_->refused() ? "no usable baseline" : "monitoring"));
   notifier_.status(status_text_);
   spdlog::info("running ({}); watchdog {}", mode_ == PipelineMode::kTrain ? "field training" : "monitoring",
                options_.watchdog.enabled ? "on" : "off");
@@ -310,7 +317,8 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
   const PipelineStatus ps = p->status();
   const StageHeartbeats b = p->heartbeats();
   const std::uint64_t beats[3] = {b.acquisition, b.can, b.processing};
-  const std::uint64_t last[3] = {last_seen_beats_.acquisition, last_seen_beats_.can, last_seen_beats_.processing};
+  const std::uint64_t last[3] = {last_seen_beats_.acquisition, last_seen_beats_.can,
+                                 last_seen_beats_.processing};
   static constexpr const char* kStage[3] = {"acquisition", "can", "processing"};
   int stalled = -1;
   for (int i = 0; i < 3; ++i) {
@@ -322,7 +330,9 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
   DaemonState state = state_of(ps.phase);
   char reason[kStatusTextBytes] = {};
   switch (ps.phase) {
-    case Phase::kRefused: std::snprintf(reason, sizeof reason, "%s", p->refusal().c_str()); break;
+    case Phase::kRefused:
+      std::snprintf(reason, sizeof reason, "%s", p->refusal().c_str());
+      break;
     case Phase::kPausedSpeed:
       std::snprintf(reason, sizeof reason, "no joint speed (CAN id 0x%X) for more than %.3g s%s",
                     static_cast<unsigned>(cfg_.pipeline.speed_frame.id),
@@ -330,13 +340,19 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
                     p->can_bus_state() == drivers::CanBusState::kBusOff ? " (bus-off)" : "");
       break;
     case Phase::kPausedSensor:
-      std::snprintf(reason, sizeof reason, "no vibration data for more than %.3g s", cfg_.daemon.sensor_stale_s);
+      std::snprintf(reason, sizeof reason, "no vibration data for more than %.3g s",
+                    cfg_.daemon.sensor_stale_s);
       break;
-    case Phase::kEnded: std::snprintf(reason, sizeof reason, "replay ended; %llu windows processed",
-                                      static_cast<unsigned long long>(ps.windows)); break;
-    case Phase::kStarting: std::snprintf(reason, sizeof reason, "waiting for the first vibration block"); break;
+    case Phase::kEnded:
+      std::snprintf(reason, sizeof reason, "replay ended; %llu windows processed",
+                    static_cast<unsigned long long>(ps.windows));
+      break;
+    case Phase::kStarting:
+      std::snprintf(reason, sizeof reason, "waiting for the first vibration block");
+      break;
     case Phase::kTraining:
-    case Phase::kMonitoring: break;
+    case Phase::kMonitoring:
+      break;
   }
   if (stalled >= 0) {
     std::snprintf(reason, sizeof reason, "stage %s made no progress for more than %.3g s", kStage[stalled],
@@ -356,7 +372,8 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
     if (ps.phase == Phase::kRefused || ps.phase == Phase::kPausedSpeed || ps.phase == Phase::kPausedSensor) {
       spdlog::warn("state {} ({}): {}", daemon_state_name(state), phase_name(ps.phase), reason);
     } else {
-      spdlog::info("state {} ({}){}{}", daemon_state_name(state), phase_name(ps.phase), reason[0] ? ": " : "", reason);
+      spdlog::info("state {} ({}){}{}", daemon_state_name(state), phase_name(ps.phase), reason[0] ? ": " : "",
+                   reason);
     }
     last_phase_ = ps.phase;
     last_state_ = state;
@@ -504,8 +521,9 @@ void Daemon::check_training(std::int64_t now) {
   try {
     const dsp::Baseline b =
         trainer.finish(out, progress.ready ? FinishMode::kRequireReady : FinishMode::kWhatIsThere);
-    spdlog::info("field training: baseline written to {} ({} segment class(es), {} windows); monitoring starts",
-                 out.string(), b.classes.size(), progress.windows);
+    spdlog::info(
+        "field training: baseline written to {} ({} segment class(es), {} windows); monitoring starts",
+        out.string(), b.classes.size(), progress.windows);
     mode_ = PipelineMode::kMonitor;
     DaemonConfig next = cfg_;
     next.daemon.baseline = out;
@@ -529,7 +547,8 @@ void Daemon::supervise(std::int64_t now) noexcept {
   }
   fill_snapshot(now);
   if (writer_) {
-    if (writer_->write(snapshot_) == StatusWriteResult::kOk) status_writes_.fetch_add(1, std::memory_order_relaxed);
+    if (writer_->write(snapshot_) == StatusWriteResult::kOk)
+      status_writes_.fetch_add(1, std::memory_order_relaxed);
   }
   Pipeline* p = pipeline_.get();
   if (p != nullptr) {
@@ -548,7 +567,8 @@ void Daemon::supervise(std::int64_t now) noexcept {
       spdlog::info("{} windows processed, stopping (--exit-after-windows)", ps.windows);
       stop_requested_.store(true);
     }
-    if (options_.stall_processing_after_s >= 0.0 && now - started_ns_ >= seconds_to_ns(options_.stall_processing_after_s) &&
+    if (options_.stall_processing_after_s >= 0.0 &&
+        now - started_ns_ >= seconds_to_ns(options_.stall_processing_after_s) &&
         !stall_.load(std::memory_order_relaxed)) {
       spdlog::warn("test hook: stalling the processing thread");
       stall_.store(true);

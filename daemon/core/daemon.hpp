@@ -38,14 +38,14 @@ struct DaemonOptions {
   std::filesystem::path config_file = "/etc/ptda/ptda.toml";
   /// Drop-in directory; unset = "<directory of config_file>/conf.d"; an empty path = none.
   std::optional<std::filesystem::path> config_dir;
-  bool train = false;                        ///< field training mode (--train)
-  std::filesystem::path status_dir;          ///< non-empty: overrides [daemon] status_dir
-  std::string notify_socket;                 ///< $NOTIFY_SOCKET ("" = not under systemd)
-  WatchdogSettings watchdog;                 ///< from $WATCHDOG_USEC / $WATCHDOG_PID
-  bool exit_at_end = false;                  ///< stop (exit 0) once a replay ended and was processed
+  bool train = false;                ///< field training mode (--train)
+  std::filesystem::path status_dir;  ///< non-empty: overrides [daemon] status_dir
+  std::string notify_socket;         ///< $NOTIFY_SOCKET ("" = not under systemd)
+  WatchdogSettings watchdog;         ///< from $WATCHDOG_USEC / $WATCHDOG_PID
+  bool exit_at_end = false;          ///< stop (exit 0) once a replay ended and was processed
   // Test-only hooks (documented as such in docs/daemon.md and `ptdad --help`).
-  std::uint64_t exit_after_windows = 0;      ///< stop after this many processed windows (0 = never)
-  double stall_processing_after_s = -1.0;    ///< stall the processing thread after this long (< 0 = never)
+  std::uint64_t exit_after_windows = 0;    ///< stop after this many processed windows (0 = never)
+  double stall_processing_after_s = -1.0;  ///< stall the processing thread after this long (< 0 = never)
 };
 
 /// What tests and tools can observe from another thread. Fixed size; copying never allocates.
@@ -56,14 +56,14 @@ struct DaemonView {
   PipelineStatus pipeline;
   PipelineCounters counters;
   StageHeartbeats heartbeats;
-  std::uint64_t reloads = 0;           ///< successful reloads
-  std::uint64_t reload_failures = 0;   ///< rejected reloads (old configuration kept)
+  std::uint64_t reloads = 0;          ///< successful reloads
+  std::uint64_t reload_failures = 0;  ///< rejected reloads (old configuration kept)
   std::uint64_t watchdog_pings = 0;
   std::uint64_t watchdog_skipped = 0;  ///< pings withheld because a stage made no progress
   std::uint64_t status_writes = 0;
-  std::uint64_t local_clears = 0;      ///< local clear commands (SIGUSR1, request_clear())
-  std::uint32_t window_len = 0;        ///< of the configuration in use
-  double min_hold_s = 0.0;             ///< of the configuration in use
+  std::uint64_t local_clears = 0;  ///< local clear commands (SIGUSR1, request_clear())
+  std::uint32_t window_len = 0;    ///< of the configuration in use
+  double min_hold_s = 0.0;         ///< of the configuration in use
 };
 
 class Daemon {
@@ -169,7 +169,8 @@ class Daemon {
   FixedString<kStatusTextBytes> reason_;
   FixedString<kStatusTextBytes> last_reload_error_;
   std::atomic<DaemonState> state_{DaemonState::kConfigured};
-  std::atomic<std::uint64_t> reloads_{0}, reload_failures_{0}, pings_{0}, pings_skipped_{0}, status_writes_{0};
+  std::atomic<std::uint64_t> reloads_{0}, reload_failures_{0}, pings_{0}, pings_skipped_{0},
+      status_writes_{0};
   mutable std::mutex reason_mutex_;  ///< guards reason_ for view()
   char status_text_[256] = {};
 };

@@ -18,27 +18,43 @@ using config::TableReader;
 
 const char* adc_backend_name(AdcBackend b) noexcept {
   switch (b) {
-    case AdcBackend::kIio: return "iio";
-    case AdcBackend::kWav: return "wav";
-    case AdcBackend::kSim: return "sim";
+    case AdcBackend::kIio:
+      return "iio";
+    case AdcBackend::kWav:
+      return "wav";
+    case AdcBackend::kSim:
+      return "sim";
   }
   return "?";
 }
 
 const char* can_backend_name(CanBackend b) noexcept {
   switch (b) {
-    case CanBackend::kSocketCan: return "socketcan";
-    case CanBackend::kCandump: return "candump";
-    case CanBackend::kSim: return "sim";
+    case CanBackend::kSocketCan:
+      return "socketcan";
+    case CanBackend::kCandump:
+      return "candump";
+    case CanBackend::kSim:
+      return "sim";
   }
   return "?";
 }
 
-const char* pace_name(Pace p) noexcept { return p == Pace::kFast ? "fast" : "realtime"; }
+const char* pace_name(Pace p) noexcept {
+  return p == Pace::kFast ? "fast" : "realtime";
+}
 
 std::vector<std::string> daemon_owned_tables() {
-  return {"daemon",         "adc",          "alarm",           "training",         "can.backend",
-          "can.interface",  "can.replay_file", "can.pace",     "can.bus_error_frames", "can.rcvbuf_bytes",
+  return {"daemon",
+          "adc",
+          "alarm",
+          "training",
+          "can.backend",
+          "can.interface",
+          "can.replay_file",
+          "can.pace",
+          "can.bus_error_frames",
+          "can.rcvbuf_bytes",
           "can.clear_frame"};
 }
 
@@ -57,8 +73,9 @@ std::vector<fs::path> list_dropins(const fs::path& conf_dir) {
     out.push_back(p);
   }
   // Lexical byte order of the file names, as systemd orders drop-ins.
-  std::sort(out.begin(), out.end(),
-            [](const fs::path& a, const fs::path& b) { return a.filename().string() < b.filename().string(); });
+  std::sort(out.begin(), out.end(), [](const fs::path& a, const fs::path& b) {
+    return a.filename().string() < b.filename().string();
+  });
   return out;
 }
 
@@ -95,23 +112,29 @@ class DaemonTablesBuilder {
       fail_key("adc.backend", "adc.backend = \"sim\" needs adc.scenario (a simulator scenario file)");
     }
     if (can_.backend == CanBackend::kSim && adc_.backend != AdcBackend::kSim) {
-      fail_key("can.backend", "can.backend = \"sim\" serves the simulator's speed frames and needs "
-                              "adc.backend = \"sim\" (now \"" + std::string(adc_backend_name(adc_.backend)) + "\")");
+      fail_key("can.backend",
+               "can.backend = \"sim\" serves the simulator's speed frames and needs "
+               "adc.backend = \"sim\" (now \"" +
+                   std::string(adc_backend_name(adc_.backend)) + "\")");
     }
     if (adc_.backend == AdcBackend::kSim && can_.backend != CanBackend::kSim) {
-      fail_key("adc.backend", "adc.backend = \"sim\" needs can.backend = \"sim\" (the simulated joint "
-                              "speed belongs to the simulated vibration; now \"" +
-                                  std::string(can_backend_name(can_.backend)) + "\")");
+      fail_key("adc.backend",
+               "adc.backend = \"sim\" needs can.backend = \"sim\" (the simulated joint "
+               "speed belongs to the simulated vibration; now \"" +
+                   std::string(can_backend_name(can_.backend)) + "\")");
     }
-    if (can_.backend == CanBackend::kCandump && can_.replay_file.empty() && adc_.backend != AdcBackend::kWav) {
-      fail_key("can.backend", "can.backend = \"candump\" needs can.replay_file (or adc.backend = \"wav\", "
-                              "whose recording's can.log is then replayed)");
+    if (can_.backend == CanBackend::kCandump && can_.replay_file.empty() &&
+        adc_.backend != AdcBackend::kWav) {
+      fail_key("can.backend",
+               "can.backend = \"candump\" needs can.replay_file (or adc.backend = \"wav\", "
+               "whose recording's can.log is then replayed)");
     }
     if (alarm_.can_enabled && can_.backend == CanBackend::kSim) {
       // The simulator channel records sent frames like the candump replay does: allowed.
     }
     if (training_.target_cycles < 3) {
-      fail_key("training.target_cycles", "training.target_cycles must be at least 3 (leave-one-out thresholds)");
+      fail_key("training.target_cycles",
+               "training.target_cycles must be at least 3 (leave-one-out thresholds)");
     }
   }
 
@@ -150,10 +173,12 @@ class DaemonTablesBuilder {
     get_path(r, "baseline", daemon_.baseline);
     get_path(r, "status_dir", daemon_.status_dir);
     get_path(r, "metrics_path", daemon_.metrics_path);
-    if (r.read_choice(
-            "log_level", daemon_.log_level,
-            {std::pair<std::string_view, std::string>{"trace", "trace"}, {"debug", "debug"}, {"info", "info"},
-             {"warn", "warn"}, {"error", "error"}})) {
+    if (r.read_choice("log_level", daemon_.log_level,
+                      {std::pair<std::string_view, std::string>{"trace", "trace"},
+                       {"debug", "debug"},
+                       {"info", "info"},
+                       {"warn", "warn"},
+                       {"error", "error"}})) {
       note(r, "log_level");
     }
     get(r, "status_period_s", daemon_.status_period_s, 0.05, 60.0);
@@ -161,7 +186,8 @@ class DaemonTablesBuilder {
     get(r, "sensor_stale_s", daemon_.sensor_stale_s, 0.01, 3600.0);
     get(r, "stage_stall_s", daemon_.stage_stall_s, 0.1, 3600.0);
     if (!daemon_.metrics_path.empty() && daemon_.metrics_path.extension() != ".prom") {
-      r.fail_value("metrics_path", "must end in \".prom\" (the node_exporter textfile collector reads only *.prom)");
+      r.fail_value("metrics_path",
+                   "must end in \".prom\" (the node_exporter textfile collector reads only *.prom)");
     }
     r.finish();
   }
@@ -202,7 +228,8 @@ class DaemonTablesBuilder {
     r.ignore("speed_latency_s");  // the pipeline's
     r.ignore("speed_frame");
     if (r.read_choice("backend", can_.backend,
-                      {{"socketcan", CanBackend::kSocketCan}, {"candump", CanBackend::kCandump},
+                      {{"socketcan", CanBackend::kSocketCan},
+                       {"candump", CanBackend::kCandump},
                        {"sim", CanBackend::kSim}})) {
       note(r, "backend");
     }
@@ -224,21 +251,24 @@ class DaemonTablesBuilder {
       if (cr.read("data", hex)) {
         note(cr, "data");
         if (hex.empty() || hex.size() % 2 != 0 || hex.size() > 16) {
-          cr.fail_value("data", "must be 1..8 bytes as an even number of hex digits (e.g. \"C1\"), not \"" + hex + "\"");
+          cr.fail_value("data", "must be 1..8 bytes as an even number of hex digits (e.g. \"C1\"), not \"" +
+                                    hex + "\"");
         }
         for (std::size_t i = 0; i < hex.size(); i += 2) {
           const auto nibble = [&](char ch) -> int {
             if (std::isxdigit(static_cast<unsigned char>(ch)) == 0) {
               cr.fail_value("data", "must be hex digits, not \"" + hex + "\"");
             }
-            return std::isdigit(static_cast<unsigned char>(ch)) != 0 ? ch - '0'
-                                                                      : (std::tolower(static_cast<unsigned char>(ch)) - 'a' + 10);
+            return std::isdigit(static_cast<unsigned char>(ch)) != 0
+                       ? ch - '0'
+                       : (std::tolower(static_cast<unsigned char>(ch)) - 'a' + 10);
           };
           spec.data[i / 2] = static_cast<std::uint8_t>(nibble(hex[i]) * 16 + nibble(hex[i + 1]));
         }
         spec.len = static_cast<std::uint8_t>(hex.size() / 2);
       }
-      if (!spec.extended && spec.id > 0x7FF) cr.fail_value("id", "is above 0x7FF: set extended = true for a 29-bit id");
+      if (!spec.extended && spec.id > 0x7FF)
+        cr.fail_value("id", "is above 0x7FF: set extended = true for a 29-bit id");
       cr.finish();
     }
     r.finish();

@@ -37,7 +37,7 @@ struct DaemonSection {
   double status_period_s = 1.0;                    ///< status file, STATUS= and counter log period
   double speed_stale_periods = 25.0;               ///< no speed for this many frame periods: paused
   double sensor_stale_s = 1.0;                     ///< no vibration block for this long: paused
-  double stage_stall_s = 2.0;                      ///< a stage whose heartbeat stood still this long is stalled
+  double stage_stall_s = 2.0;  ///< a stage whose heartbeat stood still this long is stalled
 };
 
 /// [adc]
@@ -58,7 +58,7 @@ struct AdcSection {
   std::filesystem::path scenario;
   std::uint32_t seed = 0;  ///< sim: 0 = the scenario's own seed
   Pace pace = Pace::kRealTime;
-  bool loop = true;        ///< sim: start over at the end of the simulated recording
+  bool loop = true;  ///< sim: start over at the end of the simulated recording
 };
 
 /// The frame that clears a latched alarm ([can.clear_frame]).

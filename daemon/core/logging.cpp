@@ -48,6 +48,8 @@ void setup_logging(LogTarget target, const std::string& level) {
   spdlog::set_default_logger(logger);
 }
 
-void set_log_level(const std::string& level) { spdlog::default_logger()->set_level(parse_level(level)); }
+void set_log_level(const std::string& level) {
+  spdlog::default_logger()->set_level(parse_level(level));
+}
 
 }  // namespace ptda::daemon

@@ -28,13 +28,20 @@ using drivers::SourceStatus;
 
 const char* phase_name(Phase p) noexcept {
   switch (p) {
-    case Phase::kStarting: return "starting";
-    case Phase::kMonitoring: return "monitoring";
-    case Phase::kPausedSpeed: return "paused: no joint speed";
-    case Phase::kPausedSensor: return "paused: no vibration data";
-    case Phase::kRefused: return "refused";
-    case Phase::kTraining: return "training";
-    case Phase::kEnded: return "replay ended";
+    case Phase::kStarting:
+      return "starting";
+    case Phase::kMonitoring:
+      return "monitoring";
+    case Phase::kPausedSpeed:
+      return "paused: no joint speed";
+    case Phase::kPausedSensor:
+      return "paused: no vibration data";
+    case Phase::kRefused:
+      return "refused";
+    case Phase::kTraining:
+      return "training";
+    case Phase::kEnded:
+      return "replay ended";
   }
   return "?";
 }
@@ -55,7 +62,9 @@ std::string num(double v) {
   return buf;
 }
 
-bool same_rate(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
+bool same_rate(double a, double b) {
+  return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b));
+}
 
 bool matches_clear(const CanFrame& f, const ClearFrameSpec& spec) noexcept {
   if (!spec.enabled || f.error() || f.rtr() || f.id != spec.id || f.extended() != spec.extended) return false;
@@ -71,7 +80,9 @@ bool matches_clear(const CanFrame& f, const ClearFrameSpec& spec) noexcept {
 Pipeline::Pipeline(const DaemonConfig& cfg, PipelineMode mode, drivers::Clock& clock)
     : cfg_(cfg), mode_(mode), clock_(clock) {}
 
-Pipeline::~Pipeline() { deactivate(); }
+Pipeline::~Pipeline() {
+  deactivate();
+}
 
 void Pipeline::configure() {
   const config::PipelineConfig& pc = cfg_.pipeline;
@@ -88,102 +99,104 @@ void Pipeline::configure() {
     inputs_text_ = "test devices (" + std::string(pace_name(cfg_.adc.pace)) + ")";
   }
   if (!source_) switch (cfg_.adc.backend) {
-    case AdcBackend::kSim: {
-      sim_ = make_sim_recording(cfg_.adc.scenario, cfg_.adc.seed);
-      SimSourceConfig sc;
-      sc.block_len = cfg_.adc.block_len;
-      sc.fast = cfg_.adc.pace == Pace::kFast;
-      sc.loop = cfg_.adc.loop;
-      source_ = std::make_unique<SimSampleSource>(sim_, sim_anchor_, clock_, sc);
-      source_fast_ = sc.fast;
-      inputs_text_ = "adc sim (" + cfg_.adc.scenario.string() + ", seed " + std::to_string(sim_->seed) + ", " +
-                     pace_name(cfg_.adc.pace) + (sc.loop ? ", looping" : "") + ")";
-      break;
+      case AdcBackend::kSim: {
+        sim_ = make_sim_recording(cfg_.adc.scenario, cfg_.adc.seed);
+        SimSourceConfig sc;
+        sc.block_len = cfg_.adc.block_len;
+        sc.fast = cfg_.adc.pace == Pace::kFast;
+        sc.loop = cfg_.adc.loop;
+        source_ = std::make_unique<SimSampleSource>(sim_, sim_anchor_, clock_, sc);
+        source_fast_ = sc.fast;
+        inputs_text_ = "adc sim (" + cfg_.adc.scenario.string() + ", seed " + std::to_string(sim_->seed) +
+                       ", " + pace_name(cfg_.adc.pace) + (sc.loop ? ", looping" : "") + ")";
+        break;
+      }
+      case AdcBackend::kWav: {
+        const formats::RecordingMeta meta = formats::read_recording_meta(cfg_.adc.recording);
+        drivers::WavReplayConfig wc;
+        wc.path = cfg_.adc.recording / meta.vibration_file;
+        wc.channel = meta.channel;
+        wc.block_len = cfg_.adc.block_len;
+        wc.scale = static_cast<float>(meta.scale);
+        wc.pace = cfg_.adc.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible
+                                               : drivers::ReplayPace::kRealTime;
+        wc.start_unix_ns = seconds_to_ns(meta.start_time_s);
+        wc.timeline.origin_unix_ns = wc.start_unix_ns;
+        wc.timeline.origin_mono_ns = origin_mono;
+        recording_start_unix = wc.start_unix_ns;
+        recording_can = cfg_.adc.recording / meta.can_file;
+        source_ = std::make_unique<drivers::WavReplaySource>(wc, clock_);
+        source_fast_ = cfg_.adc.pace == Pace::kFast;
+        inputs_text_ = "adc wav (" + cfg_.adc.recording.string() + ", " + pace_name(cfg_.adc.pace) + ")";
+        break;
+      }
+      case AdcBackend::kIio: {
+        drivers::IioSourceConfig ic;
+        ic.sysfs_dir = cfg_.adc.sysfs_dir;
+        ic.dev_path = cfg_.adc.device;
+        ic.channel = cfg_.adc.channel;
+        ic.timestamp = cfg_.adc.timestamp;
+        ic.fs_hz = pc.fs_hz;
+        ic.trigger = cfg_.adc.trigger;
+        ic.buffer_length = cfg_.adc.buffer_length;
+        ic.watermark = cfg_.adc.watermark;
+        ic.block_len = cfg_.adc.block_len;
+        ic.scale = cfg_.adc.scale;
+        source_ = std::make_unique<drivers::IioSampleSource>(ic, clock_);
+        source_fast_ = false;
+        inputs_text_ = "adc iio (" + cfg_.adc.device.string() + " " + cfg_.adc.channel + ")";
+        break;
+      }
     }
-    case AdcBackend::kWav: {
-      const formats::RecordingMeta meta = formats::read_recording_meta(cfg_.adc.recording);
-      drivers::WavReplayConfig wc;
-      wc.path = cfg_.adc.recording / meta.vibration_file;
-      wc.channel = meta.channel;
-      wc.block_len = cfg_.adc.block_len;
-      wc.scale = static_cast<float>(meta.scale);
-      wc.pace = cfg_.adc.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible : drivers::ReplayPace::kRealTime;
-      wc.start_unix_ns = seconds_to_ns(meta.start_time_s);
-      wc.timeline.origin_unix_ns = wc.start_unix_ns;
-      wc.timeline.origin_mono_ns = origin_mono;
-      recording_start_unix = wc.start_unix_ns;
-      recording_can = cfg_.adc.recording / meta.can_file;
-      source_ = std::make_unique<drivers::WavReplaySource>(wc, clock_);
-      source_fast_ = cfg_.adc.pace == Pace::kFast;
-      inputs_text_ = "adc wav (" + cfg_.adc.recording.string() + ", " + pace_name(cfg_.adc.pace) + ")";
-      break;
-    }
-    case AdcBackend::kIio: {
-      drivers::IioSourceConfig ic;
-      ic.sysfs_dir = cfg_.adc.sysfs_dir;
-      ic.dev_path = cfg_.adc.device;
-      ic.channel = cfg_.adc.channel;
-      ic.timestamp = cfg_.adc.timestamp;
-      ic.fs_hz = pc.fs_hz;
-      ic.trigger = cfg_.adc.trigger;
-      ic.buffer_length = cfg_.adc.buffer_length;
-      ic.watermark = cfg_.adc.watermark;
-      ic.block_len = cfg_.adc.block_len;
-      ic.scale = cfg_.adc.scale;
-      source_ = std::make_unique<drivers::IioSampleSource>(ic, clock_);
-      source_fast_ = false;
-      inputs_text_ = "adc iio (" + cfg_.adc.device.string() + " " + cfg_.adc.channel + ")";
-      break;
-    }
-  }
   source_->configure();
   fs_hz_ = source_->fs_hz();
-  if (!(fs_hz_ >= 1.0 && fs_hz_ <= 1e6)) throw Error("adc: sample rate " + num(fs_hz_) + " Hz is outside 1..1e6");
+  if (!(fs_hz_ >= 1.0 && fs_hz_ <= 1e6))
+    throw Error("adc: sample rate " + num(fs_hz_) + " Hz is outside 1..1e6");
   if (pc.fs_hz != 0.0 && !same_rate(pc.fs_hz, fs_hz_)) {
-    throw Error(cfg_.files.empty() ? std::string("config") : cfg_.files.front().string(),
-                0, 0,
-                "[acquisition] fs_hz = " + num(pc.fs_hz) + " Hz but the " + adc_backend_name(cfg_.adc.backend) +
-                    " source delivers " + num(fs_hz_) + " Hz");
+    throw Error(cfg_.files.empty() ? std::string("config") : cfg_.files.front().string(), 0, 0,
+                "[acquisition] fs_hz = " + num(pc.fs_hz) + " Hz but the " +
+                    adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
   }
   fs_mhz_ = std::llround(fs_hz_ * 1000.0);
 
   // ---- CAN channel
   if (!channel_) switch (cfg_.can.backend) {
-    case CanBackend::kSim: {
-      SimCanConfig cc;
-      cc.fast = cfg_.can.pace == Pace::kFast;
-      cc.loop = cfg_.adc.loop;
-      channel_ = std::make_unique<SimCanChannel>(sim_, sim_anchor_, clock_, cc);
-      can_fast_ = cc.fast;
-      inputs_text_ += ", can sim (" + std::string(pace_name(cfg_.can.pace)) + ")";
-      break;
-    }
-    case CanBackend::kCandump: {
-      drivers::CandumpReplayConfig cc;
-      cc.path = cfg_.can.replay_file.empty() ? recording_can : cfg_.can.replay_file;
-      cc.pace = cfg_.can.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible : drivers::ReplayPace::kRealTime;
-      if (recording_start_unix) cc.timeline.origin_unix_ns = *recording_start_unix;
-      cc.timeline.origin_mono_ns = origin_mono;
-      channel_ = std::make_unique<drivers::CandumpReplayChannel>(cc, clock_);
-      can_fast_ = cfg_.can.pace == Pace::kFast;
-      inputs_text_ += ", can candump (" + cc.path.string() + ", " + pace_name(cfg_.can.pace) + ")";
-      break;
-    }
-    case CanBackend::kSocketCan: {
-      drivers::SocketCanConfig sc;
-      sc.interface = cfg_.can.interface;
-      sc.filters.push_back({pc.speed_frame.id, pc.speed_frame.extended, 0});
-      if (cfg_.can.clear_frame.enabled) {
-        sc.filters.push_back({cfg_.can.clear_frame.id, cfg_.can.clear_frame.extended, 0});
+      case CanBackend::kSim: {
+        SimCanConfig cc;
+        cc.fast = cfg_.can.pace == Pace::kFast;
+        cc.loop = cfg_.adc.loop;
+        channel_ = std::make_unique<SimCanChannel>(sim_, sim_anchor_, clock_, cc);
+        can_fast_ = cc.fast;
+        inputs_text_ += ", can sim (" + std::string(pace_name(cfg_.can.pace)) + ")";
+        break;
       }
-      sc.bus_error_frames = cfg_.can.bus_error_frames;
-      sc.rcvbuf_bytes = static_cast<int>(cfg_.can.rcvbuf_bytes);
-      channel_ = std::make_unique<drivers::SocketCanChannel>(sc, clock_);
-      can_fast_ = false;
-      inputs_text_ += ", can socketcan (" + cfg_.can.interface + ")";
-      break;
+      case CanBackend::kCandump: {
+        drivers::CandumpReplayConfig cc;
+        cc.path = cfg_.can.replay_file.empty() ? recording_can : cfg_.can.replay_file;
+        cc.pace = cfg_.can.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible
+                                               : drivers::ReplayPace::kRealTime;
+        if (recording_start_unix) cc.timeline.origin_unix_ns = *recording_start_unix;
+        cc.timeline.origin_mono_ns = origin_mono;
+        channel_ = std::make_unique<drivers::CandumpReplayChannel>(cc, clock_);
+        can_fast_ = cfg_.can.pace == Pace::kFast;
+        inputs_text_ += ", can candump (" + cc.path.string() + ", " + pace_name(cfg_.can.pace) + ")";
+        break;
+      }
+      case CanBackend::kSocketCan: {
+        drivers::SocketCanConfig sc;
+        sc.interface = cfg_.can.interface;
+        sc.filters.push_back({pc.speed_frame.id, pc.speed_frame.extended, 0});
+        if (cfg_.can.clear_frame.enabled) {
+          sc.filters.push_back({cfg_.can.clear_frame.id, cfg_.can.clear_frame.extended, 0});
+        }
+        sc.bus_error_frames = cfg_.can.bus_error_frames;
+        sc.rcvbuf_bytes = static_cast<int>(cfg_.can.rcvbuf_bytes);
+        channel_ = std::make_unique<drivers::SocketCanChannel>(sc, clock_);
+        can_fast_ = false;
+        inputs_text_ += ", can socketcan (" + cfg_.can.interface + ")";
+        break;
+      }
     }
-  }
   channel_->configure();
   fast_ = source_fast_ && can_fast_;
 
@@ -215,10 +228,12 @@ void Pipeline::configure() {
                     adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
       }
       if (baseline->window_len != window_len) {
-        throw Error(path.string() + ": baseline window length is " + std::to_string(baseline->window_len) +
-                    " samples but the configuration sets [extraction] window_len = " + std::to_string(window_len));
+        throw Error(
+            path.string() + ": baseline window length is " + std::to_string(baseline->window_len) +
+            " samples but the configuration sets [extraction] window_len = " + std::to_string(window_len));
       }
-      engine_ = std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method, fs_hz_, 0);
+      engine_ =
+          std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method, fs_hz_, 0);
       baseline_ = std::move(baseline);
     } catch (const Error& e) {
       refusal_ = e.what();
@@ -257,8 +272,9 @@ void Pipeline::configure() {
   speed_stale_ns_ = seconds_to_ns(cfg_.daemon.speed_stale_periods * pc.speed_frame.period_s);
   sensor_stale_ns_ = seconds_to_ns(cfg_.daemon.sensor_stale_s);
   // A block waits for the speed sample that follows it at most this long (real-time sources).
-  hold_ns_ = std::min<std::int64_t>(std::max<std::int64_t>(seconds_to_ns(4 * pc.speed_frame.period_s), 50'000'000),
-                                    std::max<std::int64_t>(speed_stale_ns_ / 2, 1'000'000));
+  hold_ns_ =
+      std::min<std::int64_t>(std::max<std::int64_t>(seconds_to_ns(4 * pc.speed_frame.period_s), 50'000'000),
+                             std::max<std::int64_t>(speed_stale_ns_ / 2, 1'000'000));
   output_period_ns_ = seconds_to_ns(cfg_.alarm.can_period_s);
   st_ = PipelineStatus{};
   st_.phase = mode_ == PipelineMode::kMonitor && refused() ? Phase::kRefused : Phase::kStarting;
@@ -371,8 +387,11 @@ void Pipeline::acquisition_loop() noexcept {
         }
         if (probe_ != nullptr) probe_->on_block_pushed(block);  // a dropped block is reported too
         break;
-      case SourceStatus::kTimeout: break;
-      case SourceStatus::kEndOfStream: acq_end_.store(true, std::memory_order_release); break;
+      case SourceStatus::kTimeout:
+        break;
+      case SourceStatus::kEndOfStream:
+        acq_end_.store(true, std::memory_order_release);
+        break;
       case SourceStatus::kError:
       case SourceStatus::kNotActive:
         acq_read_errors_.add();
@@ -431,9 +450,15 @@ void Pipeline::can_loop() noexcept {
             can_other_id_.add();
           }
           break;
-        case config::DecodeResult::kWrongDlc: can_wrong_dlc_.add(); break;
-        case config::DecodeResult::kRtr: can_rtr_.add(); break;
-        case config::DecodeResult::kErrorFrame: can_error_frames_.add(); break;
+        case config::DecodeResult::kWrongDlc:
+          can_wrong_dlc_.add();
+          break;
+        case config::DecodeResult::kRtr:
+          can_rtr_.add();
+          break;
+        case config::DecodeResult::kErrorFrame:
+          can_error_frames_.add();
+          break;
       }
     }
   }
@@ -573,9 +598,9 @@ bool Pipeline::process_step(std::int64_t now) noexcept {
       have_speed_ = speed_ring_->try_pop(next_speed_);
       work = true;
     }
-    const bool release = have_speed_ || can_end ||
-                         (!fast_ && (now - block_end > hold_ns_ ||
-                                     sample_ring_->size_approx() > kSampleRingBlocks * 3 / 4));
+    const bool release =
+        have_speed_ || can_end ||
+        (!fast_ && (now - block_end > hold_ns_ || sample_ring_->size_approx() > kSampleRingBlocks * 3 / 4));
     if (release) {
       push_block(b);
       have_block_ = false;

@@ -49,9 +49,9 @@
 
 namespace ptda::daemon {
 
-inline constexpr std::size_t kSampleRingBlocks = 64;   ///< 64 x 1024 samples: 2.56 s at 25.6 kHz
-inline constexpr std::size_t kSpeedRingSamples = 4096; ///< 16 s of 4 ms speed frames
-inline constexpr std::size_t kCanBatch = 64;           ///< frames per receive() call
+inline constexpr std::size_t kSampleRingBlocks = 64;      ///< 64 x 1024 samples: 2.56 s at 25.6 kHz
+inline constexpr std::size_t kSpeedRingSamples = 4096;    ///< 16 s of 4 ms speed frames
+inline constexpr std::size_t kCanBatch = 64;              ///< frames per receive() call
 inline constexpr std::int64_t kStageWaitNs = 50'000'000;  ///< longest wait of a stage before it re-checks
 /// A block stamp that moves more than this against the sample index since the previous block is a clock
 /// jump: the block's samples are declared invalid (the index stays the time base).
@@ -62,13 +62,13 @@ using SpeedRing = SpscRing<dsp::SpeedSample, kSpeedRingSamples>;
 
 /// What the processing stage is doing (the reason behind the daemon state).
 enum class Phase : std::uint8_t {
-  kStarting = 0,     ///< activated, no vibration block yet
-  kMonitoring = 1,   ///< windows are being judged
-  kPausedSpeed = 2,  ///< no speed sample for [daemon] speed_stale_periods frame periods, or bus-off
-  kPausedSensor = 3, ///< no vibration block for [daemon] sensor_stale_s (real-time sources)
-  kRefused = 4,      ///< no usable baseline: nothing is judged
-  kTraining = 5,     ///< field training: windows go to the FieldTrainer
-  kEnded = 6,        ///< a replay ended and every window was processed
+  kStarting = 0,      ///< activated, no vibration block yet
+  kMonitoring = 1,    ///< windows are being judged
+  kPausedSpeed = 2,   ///< no speed sample for [daemon] speed_stale_periods frame periods, or bus-off
+  kPausedSensor = 3,  ///< no vibration block for [daemon] sensor_stale_s (real-time sources)
+  kRefused = 4,       ///< no usable baseline: nothing is judged
+  kTraining = 5,      ///< field training: windows go to the FieldTrainer
+  kEnded = 6,         ///< a replay ended and every window was processed
 };
 [[nodiscard]] const char* phase_name(Phase p) noexcept;
 
@@ -118,12 +118,12 @@ class DeviceFactory {
 /// Published by the processing thread (seqlock), read by the supervisor.
 struct PipelineStatus {
   Phase phase = Phase::kStarting;
-  std::uint8_t fault_causes = 0;     ///< AlarmCause bits passed to the alarm manager
+  std::uint8_t fault_causes = 0;  ///< AlarmCause bits passed to the alarm manager
   bool have_t0 = false;
   bool ended = false;
-  std::int64_t t0_mono_ns = 0;       ///< daemon time of sample 0
-  std::int64_t data_time_ns = 0;     ///< end time of the newest vibration block pushed
-  std::int64_t last_speed_ns = 0;    ///< newest speed sample (latency applied)
+  std::int64_t t0_mono_ns = 0;     ///< daemon time of sample 0
+  std::int64_t data_time_ns = 0;   ///< end time of the newest vibration block pushed
+  std::int64_t last_speed_ns = 0;  ///< newest speed sample (latency applied)
   std::uint64_t windows = 0, scored = 0, no_class = 0, abnormal = 0, alarm_windows = 0;
   std::uint64_t blocks = 0, samples = 0, speeds = 0;
   std::uint64_t gap_samples = 0;     ///< samples declared missing to the engine (index jumps)
@@ -132,11 +132,11 @@ struct PipelineStatus {
                                      ///< device timestamp back or jumping): their windows are discarded
   std::uint64_t time_jumps = 0;      ///< block stamps that jumped against the sample index (> kTimeJumpNs)
   std::uint64_t speeds_before_t0 = 0;
-  std::uint64_t pauses = 0;          ///< transitions into a paused phase
-  std::int64_t max_block_dev_ns = 0; ///< max |block stamp - (t0 + index / fs)|
+  std::uint64_t pauses = 0;           ///< transitions into a paused phase
+  std::int64_t max_block_dev_ns = 0;  ///< max |block stamp - (t0 + index / fs)|
   dsp::SlicerCounters slicer;
   bool have_window = false;
-  dsp::WindowResult last_window;     ///< last scored window (times on the daemon clock)
+  dsp::WindowResult last_window;  ///< last scored window (times on the daemon clock)
   AlarmState alarm;
   drivers::AlarmReport report;
   AlarmCounters alarm_counters;
@@ -276,10 +276,10 @@ class Pipeline {
   std::uint64_t base_index_ = 0;      ///< first_index of the first block (stream sample 0)
   std::uint64_t expected_index_ = 0;  ///< stream index of the next sample
   bool have_dev_ = false;
-  std::int64_t last_dev_ = 0;         ///< previous block's stamp - nominal time
+  std::int64_t last_dev_ = 0;  ///< previous block's stamp - nominal time
   bool have_any_speed_ = false;
   bool faults_applied_ = false;
-  std::int64_t alarm_time_ns_ = 0;    ///< monotone time base of the alarm manager
+  std::int64_t alarm_time_ns_ = 0;  ///< monotone time base of the alarm manager
   std::int64_t last_block_arrival_ns_ = 0;
   std::int64_t hold_ns_ = 0;
   std::int64_t speed_stale_ns_ = 0;

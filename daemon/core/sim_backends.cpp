@@ -67,8 +67,8 @@ std::shared_ptr<const SimRecording> make_sim_recording(const fs::path& scenario_
   // the bytes `ptda simulate` would write (quantised codes, candump microsecond timestamps).
   TempDir dir;
   const fs::path rec_dir = dir.path() / "rec";
-  const sim::SimulationSummary summary =
-      sim::simulate_to_directory(scenario, rec_dir, seed == 0 ? std::nullopt : std::optional<std::uint64_t>(seed));
+  const sim::SimulationSummary summary = sim::simulate_to_directory(
+      scenario, rec_dir, seed == 0 ? std::nullopt : std::optional<std::uint64_t>(seed));
   const formats::RecordingMeta meta = formats::read_recording_meta(rec_dir);
 
   auto rec = std::make_shared<SimRecording>();
@@ -99,8 +99,8 @@ std::shared_ptr<const SimRecording> make_sim_recording(const fs::path& scenario_
 
 // ---- SimSampleSource --------------------------------------------------------------------------
 
-SimSampleSource::SimSampleSource(std::shared_ptr<const SimRecording> rec, SimAnchor& anchor, drivers::Clock& clock,
-                                 SimSourceConfig config)
+SimSampleSource::SimSampleSource(std::shared_ptr<const SimRecording> rec, SimAnchor& anchor,
+                                 drivers::Clock& clock, SimSourceConfig config)
     : rec_(std::move(rec)), anchor_(anchor), clock_(clock), config_(config) {}
 
 void SimSampleSource::configure() {
@@ -158,8 +158,8 @@ SourceStatus SimSampleSource::read(drivers::SampleBlock& out, std::int64_t timeo
 
 // ---- SimCanChannel ----------------------------------------------------------------------------
 
-SimCanChannel::SimCanChannel(std::shared_ptr<const SimRecording> rec, SimAnchor& anchor, drivers::Clock& clock,
-                             SimCanConfig config)
+SimCanChannel::SimCanChannel(std::shared_ptr<const SimRecording> rec, SimAnchor& anchor,
+                             drivers::Clock& clock, SimCanConfig config)
     : rec_(std::move(rec)), anchor_(anchor), clock_(clock), config_(config) {}
 
 void SimCanChannel::configure() {
@@ -181,7 +181,8 @@ std::int64_t SimCanChannel::frame_time(std::uint64_t k) const noexcept {
   return t0_mono_ns_ + static_cast<std::int64_t>(k / n) * rec_->loop_ns + rec_->frames[k % n].t_ns;
 }
 
-CanStatus SimCanChannel::receive(std::span<CanFrame> out, std::size_t& received, std::int64_t timeout_ns) noexcept {
+CanStatus SimCanChannel::receive(std::span<CanFrame> out, std::size_t& received,
+                                 std::int64_t timeout_ns) noexcept {
   received = 0;
   if (!active_) return CanStatus::kNotActive;
   const std::uint64_t n = rec_->frames.size();

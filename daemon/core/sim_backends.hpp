@@ -26,11 +26,11 @@ namespace ptda::daemon {
 /// A simulated recording in memory. Immutable after make_sim_recording(); shared by both backends.
 struct SimRecording {
   double fs_hz = 0.0;
-  std::int64_t fs_mhz = 0;             ///< fs in millihertz (exact time arithmetic)
-  std::vector<float> samples;          ///< stored value * scale (as WavReplaySource delivers a recording)
-  std::vector<CanFrame> frames;        ///< t_ns relative to sample 0 (ns), log order
-  std::int64_t start_unix_ns = 0;      ///< the scenario's start_time_s (informational)
-  std::int64_t loop_ns = 0;            ///< time of sample `samples.size()` relative to sample 0
+  std::int64_t fs_mhz = 0;         ///< fs in millihertz (exact time arithmetic)
+  std::vector<float> samples;      ///< stored value * scale (as WavReplaySource delivers a recording)
+  std::vector<CanFrame> frames;    ///< t_ns relative to sample 0 (ns), log order
+  std::int64_t start_unix_ns = 0;  ///< the scenario's start_time_s (informational)
+  std::int64_t loop_ns = 0;        ///< time of sample `samples.size()` relative to sample 0
   std::uint64_t seed = 0;
   std::string scenario_name;
 
@@ -106,7 +106,8 @@ class SimCanChannel final : public drivers::CanChannel {
   void activate() override;
   /// Releases the frames whose time has come (real-time) or the next ones (fast). Thread: the CAN
   /// thread. Never allocates, throws or logs.
-  drivers::CanStatus receive(std::span<CanFrame> out, std::size_t& received, std::int64_t timeout_ns) noexcept override;
+  drivers::CanStatus receive(std::span<CanFrame> out, std::size_t& received,
+                             std::int64_t timeout_ns) noexcept override;
   /// Records the frame (alarm frames of the daemon). Thread: one sending thread. Never blocks or allocates.
   drivers::CanStatus send(const CanFrame& frame) noexcept override;
   void deactivate() noexcept override { active_ = false; }

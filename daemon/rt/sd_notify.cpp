@@ -27,7 +27,8 @@ bool parse_positive(const char* text, std::uint64_t& out) {
 
 }  // namespace
 
-WatchdogSettings parse_watchdog_settings(const char* watchdog_usec, const char* watchdog_pid, pid_t self_pid) {
+WatchdogSettings parse_watchdog_settings(const char* watchdog_usec, const char* watchdog_pid,
+                                         pid_t self_pid) {
   WatchdogSettings w;
   if (watchdog_usec == nullptr) return w;
   std::uint64_t usec = 0;
@@ -101,7 +102,9 @@ SdNotifier& SdNotifier::operator=(SdNotifier&& other) noexcept {
   return *this;
 }
 
-bool SdNotifier::notify(std::string_view state) noexcept { return notify_pair(state, {}); }
+bool SdNotifier::notify(std::string_view state) noexcept {
+  return notify_pair(state, {});
+}
 
 bool SdNotifier::notify_pair(std::string_view key, std::string_view value) noexcept {
   if (fd_ < 0) return true;

@@ -68,7 +68,9 @@ class SdNotifier {
   bool status(std::string_view text) noexcept { return notify_pair("STATUS=", text); }
 
   /// Datagrams that failed to send since construction. Thread: any. Never allocates.
-  [[nodiscard]] std::uint64_t send_errors() const noexcept { return send_errors_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t send_errors() const noexcept {
+    return send_errors_.load(std::memory_order_relaxed);
+  }
   /// Datagrams sent since construction. Thread: any. Never allocates.
   [[nodiscard]] std::uint64_t sent() const noexcept { return sent_.load(std::memory_order_relaxed); }
 

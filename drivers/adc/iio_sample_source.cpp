@@ -40,7 +40,8 @@ void write_attr(const fs::path& p, const std::string& value) {
   const int e = errno;
   ::close(fd);
   if (n != static_cast<ssize_t>(line.size()))
-    throw Error(p.string(), 0, 0, "cannot write '" + value + "': " + (n < 0 ? std::strerror(e) : "short write"));
+    throw Error(p.string(), 0, 0,
+                "cannot write '" + value + "': " + (n < 0 ? std::strerror(e) : "short write"));
 }
 
 /// Shortest decimal text that reads back as v ("25600", "1600.5").
@@ -80,7 +81,9 @@ IioSampleSource::~IioSampleSource() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-fs::path IioSampleSource::buffer_attr(const char* name) const { return buffer_dir_ / name; }
+fs::path IioSampleSource::buffer_attr(const char* name) const {
+  return buffer_dir_ / name;
+}
 
 void IioSampleSource::configure() {
   const fs::path& dir = config_.sysfs_dir;
@@ -90,7 +93,8 @@ void IioSampleSource::configure() {
   if (!(config_.gap_tolerance > 0.0)) throw Error(dir.string(), 0, 0, "gap_tolerance must be > 0");
   // Since Linux 5.11 each buffer has bufferN/; buffer/ stays as the first one's alias.
   buffer_dir_ = fs::is_directory(dir / "buffer") ? dir / "buffer" : dir / "buffer0";
-  if (!fs::is_directory(buffer_dir_)) throw Error(dir.string(), 0, 0, "no buffer/ directory: not a buffered device");
+  if (!fs::is_directory(buffer_dir_))
+    throw Error(dir.string(), 0, 0, "no buffer/ directory: not a buffered device");
   enable_path_ = buffer_attr("enable").string();
 
   // 1. Stop a capture a previous run may have left on: scan elements cannot change while enabled.
@@ -165,7 +169,8 @@ void IioSampleSource::configure() {
   have_ = 0;
   if (fd_ >= 0) ::close(fd_);
   fd_ = ::open(config_.dev_path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-  if (fd_ < 0) throw Error(config_.dev_path.string(), 0, 0, std::string("cannot open: ") + std::strerror(errno));
+  if (fd_ < 0)
+    throw Error(config_.dev_path.string(), 0, 0, std::string("cannot open: ") + std::strerror(errno));
 }
 
 void IioSampleSource::activate() {
@@ -231,8 +236,9 @@ SourceStatus IioSampleSource::read(SampleBlock& out, std::int64_t timeout_ns) no
 
   const std::size_t scans = std::min<std::size_t>(have_ / scan, config_.block_len);
   const IioScanElement& value_el = layout_.elements[static_cast<std::size_t>(value_element_)];
-  const IioScanElement* ts_el =
-      layout_.timestamp_element >= 0 ? &layout_.elements[static_cast<std::size_t>(layout_.timestamp_element)] : nullptr;
+  const IioScanElement* ts_el = layout_.timestamp_element >= 0
+                                    ? &layout_.elements[static_cast<std::size_t>(layout_.timestamp_element)]
+                                    : nullptr;
   const double gap_limit_ns = (1.0 + config_.gap_tolerance) * period_ns_;
 
   std::uint32_t flags = 0;
@@ -268,7 +274,8 @@ SourceStatus IioSampleSource::read(SampleBlock& out, std::int64_t timeout_ns) no
   }
   if (ts_el == nullptr) {
     flags |= kBlockClockTime;
-    t_first = clock_.now_ns() - static_cast<std::int64_t>(std::llround(static_cast<double>(count) * period_ns_));
+    t_first =
+        clock_.now_ns() - static_cast<std::int64_t>(std::llround(static_cast<double>(count) * period_ns_));
   }
   if (short_read_pending_) {  // a read that went into this block ended inside a scan
     flags |= kBlockShortRead;

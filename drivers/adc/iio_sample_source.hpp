@@ -22,16 +22,16 @@ namespace ptda::drivers {
 struct IioSourceConfig {
   std::filesystem::path sysfs_dir = "/sys/bus/iio/devices/iio:device0";
   std::filesystem::path dev_path = "/dev/iio:device0";
-  std::string channel = "accel_x";           ///< delivered channel: scan_elements/in_<channel>_*
-  std::vector<std::string> extra_channels;   ///< also enabled (other axes), not delivered
-  bool timestamp = true;                     ///< enable in_timestamp when the device offers it
-  double fs_hz = 25600.0;                    ///< written to sampling_frequency; 0 = keep the device's
-  std::string trigger;                       ///< written to trigger/current_trigger; "" = keep
-  std::uint32_t buffer_length = 4096;        ///< buffer/length in scans; 0 = keep
-  std::uint32_t watermark = 0;               ///< buffer/watermark (when present); 0 = keep
-  std::uint32_t block_len = 256;             ///< scans per SampleBlock, 1..kMaxBlock
-  float scale = 1.0F;                        ///< sample = raw code * scale
-  double gap_tolerance = 0.5;                ///< a timestamp step > (1 + tol) / fs is a gap
+  std::string channel = "accel_x";          ///< delivered channel: scan_elements/in_<channel>_*
+  std::vector<std::string> extra_channels;  ///< also enabled (other axes), not delivered
+  bool timestamp = true;                    ///< enable in_timestamp when the device offers it
+  double fs_hz = 25600.0;                   ///< written to sampling_frequency; 0 = keep the device's
+  std::string trigger;                      ///< written to trigger/current_trigger; "" = keep
+  std::uint32_t buffer_length = 4096;       ///< buffer/length in scans; 0 = keep
+  std::uint32_t watermark = 0;              ///< buffer/watermark (when present); 0 = keep
+  std::uint32_t block_len = 256;            ///< scans per SampleBlock, 1..kMaxBlock
+  float scale = 1.0F;                       ///< sample = raw code * scale
+  double gap_tolerance = 0.5;               ///< a timestamp step > (1 + tol) / fs is a gap
 };
 
 class IioSampleSource final : public SampleSource {

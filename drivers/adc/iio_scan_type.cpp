@@ -23,12 +23,15 @@ bool take(std::string_view& s, std::string_view prefix) {
   return true;
 }
 
-std::size_t round_up(std::size_t v, std::size_t to) { return to == 0 ? v : (v + to - 1) / to * to; }
+std::size_t round_up(std::size_t v, std::size_t to) {
+  return to == 0 ? v : (v + to - 1) / to * to;
+}
 
 }  // namespace
 
 IioScanType parse_iio_scan_type(std::string_view text, const std::string& where) {
-  while (!text.empty() && (text.back() == '\n' || text.back() == ' ' || text.back() == '\r')) text.remove_suffix(1);
+  while (!text.empty() && (text.back() == '\n' || text.back() == ' ' || text.back() == '\r'))
+    text.remove_suffix(1);
   const std::string quoted = "'" + std::string(text) + "'";
   auto bad = [&](const std::string& what) -> Error {
     return Error(where, 0, 0, "bad IIO scan type " + quoted + ": " + what);
@@ -98,8 +101,8 @@ IioScanLayout compute_iio_scan_layout(std::span<const IioChannelSpec> channels) 
   for (std::size_t i = 0; i < sorted.size(); ++i) {
     const IioChannelSpec& c = sorted[i];
     if (i > 0 && sorted[i - 1].index == c.index)
-      throw Error("IIO scan layout: channels '" + sorted[i - 1].name + "' and '" + c.name + "' share _index " +
-                  std::to_string(c.index));
+      throw Error("IIO scan layout: channels '" + sorted[i - 1].name + "' and '" + c.name +
+                  "' share _index " + std::to_string(c.index));
     for (std::size_t j = 0; j < i; ++j)
       if (sorted[j].name == c.name) throw Error("IIO scan layout: channel '" + c.name + "' listed twice");
     if (c.name == "timestamp") {
@@ -136,7 +139,8 @@ std::int64_t decode_iio_value(const std::uint8_t* scan, const IioScanElement& e,
   return static_cast<std::int64_t>(raw);
 }
 
-void encode_iio_value(std::uint8_t* scan, const IioScanElement& e, std::int64_t value, std::size_t rep) noexcept {
+void encode_iio_value(std::uint8_t* scan, const IioScanElement& e, std::int64_t value,
+                      std::size_t rep) noexcept {
   const std::size_t n = e.type.storage_bytes();
   std::uint8_t* p = scan + e.offset + rep * n;
   std::uint64_t raw = static_cast<std::uint64_t>(value);

@@ -69,6 +69,7 @@ struct IioScanLayout {
                                             std::size_t rep = 0) noexcept;
 
 /// Inverse of decode_iio_value (for tests and simulators): writes `value` into the scan. Thread: any.
-void encode_iio_value(std::uint8_t* scan, const IioScanElement& e, std::int64_t value, std::size_t rep = 0) noexcept;
+void encode_iio_value(std::uint8_t* scan, const IioScanElement& e, std::int64_t value,
+                      std::size_t rep = 0) noexcept;
 
 }  // namespace ptda::drivers

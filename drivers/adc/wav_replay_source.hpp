@@ -20,12 +20,12 @@ namespace ptda::drivers {
 
 struct WavReplayConfig {
   std::filesystem::path path;
-  std::uint16_t channel = 0;               ///< 0-based
-  std::uint32_t block_len = 256;           ///< samples per block, 1..kMaxBlock
-  float scale = 1.0F;                      ///< sample = stored value * scale
+  std::uint16_t channel = 0;      ///< 0-based
+  std::uint32_t block_len = 256;  ///< samples per block, 1..kMaxBlock
+  float scale = 1.0F;             ///< sample = stored value * scale
   ReplayPace pace = ReplayPace::kRealTime;
-  std::int64_t start_unix_ns = 0;          ///< log time of sample 0 (recording.toml start_time_s)
-  ReplayTimeline timeline;                 ///< log time -> daemon clock (shared with the CAN replay)
+  std::int64_t start_unix_ns = 0;  ///< log time of sample 0 (recording.toml start_time_s)
+  ReplayTimeline timeline;         ///< log time -> daemon clock (shared with the CAN replay)
 };
 
 class WavReplaySource final : public SampleSource {
@@ -56,9 +56,9 @@ class WavReplaySource final : public SampleSource {
   std::unique_ptr<formats::WavReader> reader_;
   double fs_hz_ = 0.0;
   std::uint64_t total_ = 0;
-  std::int64_t t0_mono_ns_ = 0;    ///< daemon time of sample 0
+  std::int64_t t0_mono_ns_ = 0;  ///< daemon time of sample 0
   std::uint64_t next_index_ = 0;
-  std::vector<float> staged_;      ///< the next block, read ahead of its release time
+  std::vector<float> staged_;  ///< the next block, read ahead of its release time
   std::uint32_t staged_count_ = 0;
   bool active_ = false;
 };

@@ -28,9 +28,11 @@ float decode_value(std::uint16_t raw, double lsb) noexcept {
 
 void validate(const CanAlarmConfig& c) {
   if (c.extended ? c.id > 0x1FFFFFFFU : c.id > 0x7FFU)
-    throw Error("alarm frame", 0, 0, "id " + std::to_string(c.id) + " does not fit a " +
-                                         (c.extended ? "29" : "11") + "-bit identifier");
-  if (!(c.rms_lsb > 0.0) || !std::isfinite(c.rms_lsb)) throw Error("alarm frame", 0, 0, "rms_lsb must be > 0");
+    throw Error(
+        "alarm frame", 0, 0,
+        "id " + std::to_string(c.id) + " does not fit a " + (c.extended ? "29" : "11") + "-bit identifier");
+  if (!(c.rms_lsb > 0.0) || !std::isfinite(c.rms_lsb))
+    throw Error("alarm frame", 0, 0, "rms_lsb must be > 0");
   if (!(c.entropy_lsb > 0.0) || !std::isfinite(c.entropy_lsb))
     throw Error("alarm frame", 0, 0, "entropy_lsb must be > 0");
 }
@@ -40,7 +42,8 @@ CanFrame encode_alarm_frame(const AlarmReport& r, const CanAlarmConfig& c, std::
   f.id = c.id;
   f.flags = c.extended ? kCanExtended : 0;
   f.len = 8;
-  f.data[0] = static_cast<std::uint8_t>((static_cast<std::uint8_t>(r.level) & kLevelMask) | ((alive & 0x0F) << 4));
+  f.data[0] =
+      static_cast<std::uint8_t>((static_cast<std::uint8_t>(r.level) & kLevelMask) | ((alive & 0x0F) << 4));
   f.data[1] = r.causes;
   f.data[2] = r.segment_class;
   f.data[3] = r.abnormal_windows;
@@ -53,8 +56,10 @@ CanFrame encode_alarm_frame(const AlarmReport& r, const CanAlarmConfig& c, std::
   return f;
 }
 
-bool decode_alarm_frame(const CanFrame& f, const CanAlarmConfig& c, AlarmReport& r, std::uint8_t& alive) noexcept {
-  if (f.error() || f.rtr() || f.fd() || f.extended() != c.extended || f.id != c.id || f.len != 8) return false;
+bool decode_alarm_frame(const CanFrame& f, const CanAlarmConfig& c, AlarmReport& r,
+                        std::uint8_t& alive) noexcept {
+  if (f.error() || f.rtr() || f.fd() || f.extended() != c.extended || f.id != c.id || f.len != 8)
+    return false;
   if ((f.data[0] & 0x0C) != 0) return false;  // reserved bits must be zero
   r.level = static_cast<AlarmLevel>(f.data[0] & kLevelMask);
   alive = static_cast<std::uint8_t>(f.data[0] >> 4);
@@ -66,9 +71,12 @@ bool decode_alarm_frame(const CanFrame& f, const CanAlarmConfig& c, AlarmReport&
   return true;
 }
 
-CanAlarmOutput::CanAlarmOutput(CanAlarmConfig config, CanChannel& channel) : config_(config), channel_(channel) {}
+CanAlarmOutput::CanAlarmOutput(CanAlarmConfig config, CanChannel& channel)
+    : config_(config), channel_(channel) {}
 
-void CanAlarmOutput::configure() { validate(config_); }
+void CanAlarmOutput::configure() {
+  validate(config_);
+}
 
 CanStatus CanAlarmOutput::send_frame(const AlarmReport& report) noexcept {
   last_send_ = channel_.send(encode_alarm_frame(report, config_, alive_));
@@ -82,8 +90,9 @@ void CanAlarmOutput::activate() {
   const CanStatus s = send_frame(fault);
   if (s != CanStatus::kOk && s != CanStatus::kTxFull) {
     active_ = false;
-    throw Error("alarm frame", 0, 0, "the CAN channel refused the first frame (status " +
-                                         std::to_string(static_cast<int>(s)) + ")");
+    throw Error(
+        "alarm frame", 0, 0,
+        "the CAN channel refused the first frame (status " + std::to_string(static_cast<int>(s)) + ")");
   }
 }
 

@@ -22,8 +22,8 @@ namespace ptda::drivers {
 struct CanAlarmConfig {
   std::uint32_t id = 0x3A0;
   bool extended = false;
-  double rms_lsb = 1e-3;       ///< rms_res per raw step (recording unit): 0..65.534 by default
-  double entropy_lsb = 1e-4;   ///< entropy_res per raw step: [0, 1] -> 0..10000
+  double rms_lsb = 1e-3;      ///< rms_res per raw step (recording unit): 0..65.534 by default
+  double entropy_lsb = 1e-4;  ///< entropy_res per raw step: [0, 1] -> 0..10000
 };
 
 inline constexpr std::uint16_t kAlarmValueUnavailable = 0xFFFF;
@@ -35,8 +35,8 @@ void validate(const CanAlarmConfig& config);
                                           std::uint8_t alive) noexcept;
 /// Reads a frame back (values rounded to the lsb; unavailable -> NaN). False when the id, format or
 /// length do not match. Thread: any. Never allocates.
-[[nodiscard]] bool decode_alarm_frame(const CanFrame& frame, const CanAlarmConfig& config, AlarmReport& report,
-                                      std::uint8_t& alive) noexcept;
+[[nodiscard]] bool decode_alarm_frame(const CanFrame& frame, const CanAlarmConfig& config,
+                                      AlarmReport& report, std::uint8_t& alive) noexcept;
 
 class CanAlarmOutput final : public AlarmOutput {
  public:

@@ -16,10 +16,10 @@
 namespace ptda::drivers {
 
 struct GpiodOutputConfig {
-  std::string chip = "/dev/gpiochip0";     ///< character device path
-  unsigned int line = 0;                   ///< line offset on the chip
+  std::string chip = "/dev/gpiochip0";  ///< character device path
+  unsigned int line = 0;                ///< line offset on the chip
   bool active_low = false;
-  std::string consumer = "ptdad-alarm";    ///< shown by gpioinfo
+  std::string consumer = "ptdad-alarm";        ///< shown by gpioinfo
   AlarmLevel trip_level = AlarmLevel::kAlarm;  ///< levels >= this de-energise the line
 };
 

@@ -16,9 +16,13 @@ struct GpiodOutput::Impl {
   bool requested = false;
 };
 
-void GpiodOutput::ImplDeleter::operator()(Impl* impl) const noexcept { delete impl; }
+void GpiodOutput::ImplDeleter::operator()(Impl* impl) const noexcept {
+  delete impl;
+}
 
-const char* GpiodOutput::api_name() noexcept { return "libgpiod v1"; }
+const char* GpiodOutput::api_name() noexcept {
+  return "libgpiod v1";
+}
 
 GpiodOutput::~GpiodOutput() {
   deactivate();
@@ -36,15 +40,17 @@ void GpiodOutput::configure() {
     throw Error(config_.chip, 0, 0, std::string("gpiod_chip_open: ") + std::strerror(errno));
   const unsigned int n = gpiod_chip_num_lines(impl_->chip);
   if (config_.line >= n)
-    throw Error(config_.chip, 0, 0,
-                "line " + std::to_string(config_.line) + " out of range (chip has " + std::to_string(n) + ")");
+    throw Error(
+        config_.chip, 0, 0,
+        "line " + std::to_string(config_.line) + " out of range (chip has " + std::to_string(n) + ")");
   impl_->line = gpiod_chip_get_line(impl_->chip, config_.line);
   if (impl_->line == nullptr)
     throw Error(config_.chip, 0, 0, std::string("gpiod_chip_get_line: ") + std::strerror(errno));
   if (gpiod_line_is_used(impl_->line)) {
     const char* who = gpiod_line_consumer(impl_->line);
-    throw Error(config_.chip, 0, 0,
-                "line " + std::to_string(config_.line) + " is in use by '" + (who != nullptr ? who : "?") + "'");
+    throw Error(
+        config_.chip, 0, 0,
+        "line " + std::to_string(config_.line) + " is in use by '" + (who != nullptr ? who : "?") + "'");
   }
 }
 

@@ -17,9 +17,13 @@ struct GpiodOutput::Impl {
   gpiod_line_request* request = nullptr;
 };
 
-void GpiodOutput::ImplDeleter::operator()(Impl* impl) const noexcept { delete impl; }
+void GpiodOutput::ImplDeleter::operator()(Impl* impl) const noexcept {
+  delete impl;
+}
 
-const char* GpiodOutput::api_name() noexcept { return "libgpiod v2"; }
+const char* GpiodOutput::api_name() noexcept {
+  return "libgpiod v2";
+}
 
 GpiodOutput::~GpiodOutput() {
   deactivate();
@@ -36,12 +40,14 @@ void GpiodOutput::configure() {
   if (impl_->chip == nullptr)
     throw Error(config_.chip, 0, 0, std::string("gpiod_chip_open: ") + std::strerror(errno));
   gpiod_chip_info* info = gpiod_chip_get_info(impl_->chip);
-  if (info == nullptr) throw Error(config_.chip, 0, 0, std::string("gpiod_chip_get_info: ") + std::strerror(errno));
+  if (info == nullptr)
+    throw Error(config_.chip, 0, 0, std::string("gpiod_chip_get_info: ") + std::strerror(errno));
   const std::size_t n = gpiod_chip_info_get_num_lines(info);
   gpiod_chip_info_free(info);
   if (config_.line >= n)
-    throw Error(config_.chip, 0, 0,
-                "line " + std::to_string(config_.line) + " out of range (chip has " + std::to_string(n) + ")");
+    throw Error(
+        config_.chip, 0, 0,
+        "line " + std::to_string(config_.line) + " out of range (chip has " + std::to_string(n) + ")");
   gpiod_line_info* li = gpiod_chip_get_line_info(impl_->chip, config_.line);
   if (li == nullptr)
     throw Error(config_.chip, 0, 0, std::string("gpiod_chip_get_line_info: ") + std::strerror(errno));
@@ -49,7 +55,9 @@ void GpiodOutput::configure() {
   const char* who = gpiod_line_info_get_consumer(li);
   const std::string consumer = who != nullptr ? who : "?";
   gpiod_line_info_free(li);
-  if (used) throw Error(config_.chip, 0, 0, "line " + std::to_string(config_.line) + " is in use by '" + consumer + "'");
+  if (used)
+    throw Error(config_.chip, 0, 0,
+                "line " + std::to_string(config_.line) + " is in use by '" + consumer + "'");
 }
 
 void GpiodOutput::activate() {

@@ -10,10 +10,17 @@ void enter(CanChannelStats& s, CanBusState next) noexcept {
   const CanBusState cur = s.state.load(std::memory_order_relaxed);
   if (cur == next) return;
   switch (next) {
-    case CanBusState::kBusOff: s.bus_off.add(); break;
-    case CanBusState::kErrorPassive: s.error_passive.add(); break;
-    case CanBusState::kErrorWarning: s.error_warning.add(); break;
-    case CanBusState::kErrorActive: break;
+    case CanBusState::kBusOff:
+      s.bus_off.add();
+      break;
+    case CanBusState::kErrorPassive:
+      s.error_passive.add();
+      break;
+    case CanBusState::kErrorWarning:
+      s.error_warning.add();
+      break;
+    case CanBusState::kErrorActive:
+      break;
   }
   s.state.store(next, std::memory_order_relaxed);
 }

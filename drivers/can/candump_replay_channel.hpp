@@ -17,12 +17,12 @@ namespace ptda::drivers {
 
 struct CandumpReplayConfig {
   std::filesystem::path path;
-  std::string interface;                   ///< only frames logged on this interface; "" = all
-  bool skip_transmitted = true;            ///< drop records marked 'T' (the logger's own transmissions)
+  std::string interface;         ///< only frames logged on this interface; "" = all
+  bool skip_transmitted = true;  ///< drop records marked 'T' (the logger's own transmissions)
   ReplayPace pace = ReplayPace::kRealTime;
-  ReplayTimeline timeline;                 ///< log time -> daemon clock
-  std::size_t max_frames = 4'000'000;      ///< configure() refuses longer logs (memory is fixed up front)
-  std::size_t tx_capacity = 4096;          ///< sent frames kept; further sends return kTxFull
+  ReplayTimeline timeline;             ///< log time -> daemon clock
+  std::size_t max_frames = 4'000'000;  ///< configure() refuses longer logs (memory is fixed up front)
+  std::size_t tx_capacity = 4096;      ///< sent frames kept; further sends return kTxFull
 };
 
 class CandumpReplayChannel final : public CanChannel {
@@ -37,7 +37,8 @@ class CandumpReplayChannel final : public CanChannel {
   void activate() override;
   /// Releases the next frames. Real-time pace: only frames whose mapped time has come, sleeping on the
   /// clock up to timeout_ns for the first; kEndOfStream once every frame was released.
-  CanStatus receive(std::span<CanFrame> out, std::size_t& received, std::int64_t timeout_ns) noexcept override;
+  CanStatus receive(std::span<CanFrame> out, std::size_t& received,
+                    std::int64_t timeout_ns) noexcept override;
   /// Records the frame (stamped with the clock) in the transmit buffer. Never blocks or allocates.
   CanStatus send(const CanFrame& frame) noexcept override;
   void deactivate() noexcept override { active_ = false; }

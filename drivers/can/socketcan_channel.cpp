@@ -88,7 +88,8 @@ CanRxMeta parse_rx_cmsgs(const msghdr& msg) noexcept {
       timeval tv{};
       std::memcpy(&tv, CMSG_DATA(c), sizeof tv);
       meta.has_time = true;
-      meta.t_realtime_ns = static_cast<std::int64_t>(tv.tv_sec) * 1'000'000'000 + static_cast<std::int64_t>(tv.tv_usec) * 1000;
+      meta.t_realtime_ns =
+          static_cast<std::int64_t>(tv.tv_sec) * 1'000'000'000 + static_cast<std::int64_t>(tv.tv_usec) * 1000;
     } else if (c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(std::uint32_t))) {
       std::memcpy(&meta.drops, CMSG_DATA(c), sizeof meta.drops);
       meta.has_drops = true;
@@ -213,7 +214,8 @@ void SocketCanChannel::configure() {
   if (::setsockopt(fd_, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0) fail("setsockopt(SO_RXQ_OVFL)");
   if (config_.rcvbuf_bytes > 0) {
     // SO_RCVBUFFORCE needs CAP_NET_ADMIN; without it the plain option (capped by rmem_max) is used.
-    if (::setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &config_.rcvbuf_bytes, sizeof config_.rcvbuf_bytes) != 0 &&
+    if (::setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &config_.rcvbuf_bytes, sizeof config_.rcvbuf_bytes) !=
+            0 &&
         ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &config_.rcvbuf_bytes, sizeof config_.rcvbuf_bytes) != 0)
       fail("setsockopt(SO_RCVBUF)");
   }
@@ -238,7 +240,9 @@ void SocketCanChannel::activate() {
   active_ = true;
 }
 
-void SocketCanChannel::deactivate() noexcept { active_ = false; }
+void SocketCanChannel::deactivate() noexcept {
+  active_ = false;
+}
 
 CanStatus SocketCanChannel::receive(std::span<CanFrame> out, std::size_t& received,
                                     std::int64_t timeout_ns) noexcept {
@@ -294,7 +298,8 @@ CanStatus SocketCanChannel::receive(std::span<CanFrame> out, std::size_t& receiv
     }
     const std::int64_t t_ns = meta.has_time ? meta.t_realtime_ns - offset : mono_now;
     CanFrame& f = out[received];
-    if (!from_kernel_frame(frames_[static_cast<std::size_t>(i)], msgs_[static_cast<std::size_t>(i)].msg_len, t_ns, f)) {
+    if (!from_kernel_frame(frames_[static_cast<std::size_t>(i)], msgs_[static_cast<std::size_t>(i)].msg_len,
+                           t_ns, f)) {
       stats_.rx_errors.add();
       continue;
     }

@@ -40,11 +40,12 @@ struct CanRxMeta {
   bool has_time = false;
   std::int64_t t_realtime_ns = 0;  ///< SO_TIMESTAMP(NS): kernel receive time on CLOCK_REALTIME
   bool has_drops = false;
-  std::uint32_t drops = 0;         ///< SO_RXQ_OVFL: cumulative drops of this socket (wraps at 2^32)
+  std::uint32_t drops = 0;  ///< SO_RXQ_OVFL: cumulative drops of this socket (wraps at 2^32)
 };
 
 /// Control-message buffer size for one received frame (timestamp + drop counter).
-inline constexpr std::size_t kCanCmsgBytes = CMSG_SPACE(sizeof(struct timespec)) + CMSG_SPACE(sizeof(std::uint32_t));
+inline constexpr std::size_t kCanCmsgBytes =
+    CMSG_SPACE(sizeof(struct timespec)) + CMSG_SPACE(sizeof(std::uint32_t));
 
 // Pure helpers (no kernel needed; unit-tested directly).
 
@@ -77,7 +78,8 @@ class SocketCanChannel final : public CanChannel {
   /// "socketcan <iface>: <call>: <reason>"; EAFNOSUPPORT means the kernel has no AF_CAN.
   void configure() override;
   void activate() override;
-  CanStatus receive(std::span<CanFrame> out, std::size_t& received, std::int64_t timeout_ns) noexcept override;
+  CanStatus receive(std::span<CanFrame> out, std::size_t& received,
+                    std::int64_t timeout_ns) noexcept override;
   CanStatus send(const CanFrame& frame) noexcept override;
   void deactivate() noexcept override;
 

@@ -76,8 +76,14 @@ void BM_RealFftPair(benchmark::State& state) {
       benchmark::Counter(2e-6, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
-BENCHMARK(BM_RealFftPair)->ArgName("N")->Arg(3200)->Arg(10240)->Arg(12800)->Arg(16384)->Arg(25600)->Unit(
-    benchmark::kMicrosecond);
+BENCHMARK(BM_RealFftPair)
+    ->ArgName("N")
+    ->Arg(3200)
+    ->Arg(10240)
+    ->Arg(12800)
+    ->Arg(16384)
+    ->Arg(25600)
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

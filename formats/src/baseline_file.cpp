@@ -57,7 +57,8 @@ class Writer {
     b_.insert(b_.end(), c, c + n);
   }
   void patch_u64(std::size_t at, std::uint64_t v) {
-    for (int i = 0; i < 8; ++i) b_[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+    for (int i = 0; i < 8; ++i)
+      b_[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
   }
   std::vector<std::uint8_t>& buf() { return b_; }
 
@@ -81,14 +82,16 @@ class Reader {
   std::uint32_t u32() {
     need(4);
     std::uint32_t v = 0;
-    for (int i = 0; i < 4; ++i) v |= static_cast<std::uint32_t>(b_[pos_ + static_cast<std::size_t>(i)]) << (8 * i);
+    for (int i = 0; i < 4; ++i)
+      v |= static_cast<std::uint32_t>(b_[pos_ + static_cast<std::size_t>(i)]) << (8 * i);
     pos_ += 4;
     return v;
   }
   std::uint64_t u64() {
     need(8);
     std::uint64_t v = 0;
-    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(b_[pos_ + static_cast<std::size_t>(i)]) << (8 * i);
+    for (int i = 0; i < 8; ++i)
+      v |= static_cast<std::uint64_t>(b_[pos_ + static_cast<std::size_t>(i)]) << (8 * i);
     pos_ += 8;
     return v;
   }
@@ -116,17 +119,20 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
   if (b.window_len == 0) throw Error(where + ": window_len must be positive");
   if (static_cast<std::uint8_t>(b.gearbox.kind) > static_cast<std::uint8_t>(dsp::GearboxInfo::Kind::kUnknown))
     throw Error(where + ": unknown gearbox kind " + std::to_string(static_cast<int>(b.gearbox.kind)));
-  if (static_cast<std::uint8_t>(b.policy.kind) > static_cast<std::uint8_t>(dsp::ThresholdPolicy::Kind::kQuantile))
+  if (static_cast<std::uint8_t>(b.policy.kind) >
+      static_cast<std::uint8_t>(dsp::ThresholdPolicy::Kind::kQuantile))
     throw Error(where + ": unknown threshold policy kind " + std::to_string(static_cast<int>(b.policy.kind)));
   const std::size_t n_mag = b.window_len / 2 + 1;
   for (std::size_t i = 0; i < b.classes.size(); ++i) {
     const auto& c = b.classes[i];
-    const std::string cls = where + ": class " + std::to_string(i) + " (id " + std::to_string(c.segment.id) + ")";
+    const std::string cls =
+        where + ": class " + std::to_string(i) + " (id " + std::to_string(c.segment.id) + ")";
     if (c.segment.direction != 1 && c.segment.direction != -1)
       throw Error(cls + ": direction must be +1 or -1, got " + std::to_string(c.segment.direction));
     if (c.mean_magnitude.size() != n_mag)
-      throw Error(cls + ": mean_magnitude has " + std::to_string(c.mean_magnitude.size()) + " values, window_len " +
-                  std::to_string(b.window_len) + " needs N/2+1 = " + std::to_string(n_mag));
+      throw Error(cls + ": mean_magnitude has " + std::to_string(c.mean_magnitude.size()) +
+                  " values, window_len " + std::to_string(b.window_len) +
+                  " needs N/2+1 = " + std::to_string(n_mag));
     if (c.tda_mean.size() != b.window_len)
       throw Error(cls + ": tda_mean has " + std::to_string(c.tda_mean.size()) + " values, window_len is " +
                   std::to_string(b.window_len));
@@ -231,8 +237,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   r.skip(kMagic.size());
   const std::uint32_t version = r.u32();
   if (version != kBaselineFormatVersion)
-    throw Error(source + ": unsupported baseline format version " + std::to_string(version) + " (this build reads " +
-                std::to_string(kBaselineFormatVersion) + ")");
+    throw Error(source + ": unsupported baseline format version " + std::to_string(version) +
+                " (this build reads " + std::to_string(kBaselineFormatVersion) + ")");
   const std::uint64_t declared = r.u64();
   if (declared > size)
     throw Error(source + ": truncated: header says " + std::to_string(declared) + " bytes, file has " +
@@ -244,7 +250,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   for (std::size_t i = 0; i < 4; ++i) stored |= static_cast<std::uint32_t>(bytes[size - 4 + i]) << (8 * i);
   const std::uint32_t computed = crc32(bytes.data(), size - kCrcBytes);
   if (stored != computed)
-    throw Error(source + ": corrupt: CRC-32 mismatch (stored " + hex32(stored) + ", computed " + hex32(computed) + ")");
+    throw Error(source + ": corrupt: CRC-32 mismatch (stored " + hex32(stored) + ", computed " +
+                hex32(computed) + ")");
 
   // From here the bytes are what the writer produced; the checks catch writer bugs and hand-made files.
   Reader body(bytes.first(size - kCrcBytes), source);
@@ -253,7 +260,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   b.fs_hz = body.f64();
   b.window_len = body.u32();
   const std::uint8_t gk = body.u8();
-  if (gk > static_cast<std::uint8_t>(dsp::GearboxInfo::Kind::kUnknown)) body.fail("unknown gearbox kind " + std::to_string(gk));
+  if (gk > static_cast<std::uint8_t>(dsp::GearboxInfo::Kind::kUnknown))
+    body.fail("unknown gearbox kind " + std::to_string(gk));
   b.gearbox.kind = static_cast<dsp::GearboxInfo::Kind>(gk);
   b.gearbox.z_in = body.u32();
   b.gearbox.z_spur = body.u32();
@@ -267,7 +275,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   b.policy.margin = body.f64();
   const std::uint32_t n_classes = body.u32();
   if (n_classes > body.left() / kMinClassBytes)
-    body.fail(std::to_string(n_classes) + " classes cannot fit in the remaining " + std::to_string(body.left()) + " bytes");
+    body.fail(std::to_string(n_classes) + " classes cannot fit in the remaining " +
+              std::to_string(body.left()) + " bytes");
   const std::size_t n_mag = b.window_len / 2 + 1;
   b.classes.resize(n_classes);
   for (std::uint32_t i = 0; i < n_classes; ++i) {
@@ -291,7 +300,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
     for (auto& v : c.mean_magnitude) v = body.f32();
     const std::uint32_t n_t = body.u32();
     if (n_t != b.window_len)
-      body.fail(cls + "tda_mean has " + std::to_string(n_t) + " values, window_len is " + std::to_string(b.window_len));
+      body.fail(cls + "tda_mean has " + std::to_string(n_t) + " values, window_len is " +
+                std::to_string(b.window_len));
     body.need(std::size_t{4} * n_t);
     c.tda_mean.resize(n_t);
     for (auto& v : c.tda_mean) v = body.f32();
@@ -309,7 +319,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   b.source.assign(reinterpret_cast<const char*>(bytes.data() + body.pos()), n_src);
   body.skip(n_src);
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
-  if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0)) throw Error(source + ": inconsistent baseline: fs_hz must be positive");
+  if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0))
+    throw Error(source + ": inconsistent baseline: fs_hz must be positive");
   if (b.window_len == 0) throw Error(source + ": inconsistent baseline: window_len is 0");
   return b;
 }

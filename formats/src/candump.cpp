@@ -28,7 +28,9 @@ int hex_val(char c) noexcept {
   if (c >= 'a' && c <= 'f') return c - 'a' + 10;
   return -1;
 }
-bool is_space(char c) noexcept { return c == ' ' || c == '\t'; }
+bool is_space(char c) noexcept {
+  return c == ' ' || c == '\t';
+}
 
 // Carries where the line came from so each check can throw "<source>:<line>: <what>".
 struct LineContext {
@@ -78,8 +80,7 @@ std::size_t parse_data(std::string_view s, std::uint8_t* dst, std::size_t max_le
     if (hi < 0) ctx.fail(std::string("bad character '") + c + "' in " + kind + " data");
     if (i + 1 >= s.size() || hex_val(s[i + 1]) < 0)
       ctx.fail(std::string("odd number of hex digits in ") + kind + " data");
-    if (n == max_len)
-      ctx.fail(std::string(kind) + " data longer than " + std::to_string(max_len) + " bytes");
+    if (n == max_len) ctx.fail(std::string(kind) + " data longer than " + std::to_string(max_len) + " bytes");
     if (dst != nullptr) dst[n] = static_cast<std::uint8_t>((hi << 4) | hex_val(s[i + 1]));
     ++n;
     i += 2;
@@ -94,7 +95,8 @@ void parse_len8_suffix(std::string_view rest, std::size_t len, const LineContext
   if (rest.empty()) return;
   if (rest[0] != '_') ctx.fail("unexpected " + show_text(rest) + " after the frame data");
   if (len != kClassicMaxLen) ctx.fail("'_<dlc>' suffix is only valid after 8 data bytes");
-  if (rest.size() != 2 || hex_val(rest[1]) < 9) ctx.fail("bad '_<dlc>' suffix " + show_text(rest) + " (expected _9.._F)");
+  if (rest.size() != 2 || hex_val(rest[1]) < 9)
+    ctx.fail("bad '_<dlc>' suffix " + show_text(rest) + " (expected _9.._F)");
 }
 
 // CAN XL: <vcid:2hex><prio:3hex>#<flags:2hex>:<sdt:2hex>:<af:8hex>#<data>. Validated, then ignored.
@@ -141,7 +143,8 @@ bool parse_frame(std::string_view tok, CanFrame& f, const LineContext& ctx) {
       f.id = v & kCanEffMask;
       f.flags = kCanError;
     } else {
-      if (v > kCanEffMask) ctx.fail("extended CAN id " + show_text(id_str) + " exceeds 29 bits (max 1FFFFFFF)");
+      if (v > kCanEffMask)
+        ctx.fail("extended CAN id " + show_text(id_str) + " exceeds 29 bits (max 1FFFFFFF)");
       f.id = v;
       f.flags = kCanExtended;
     }
@@ -171,14 +174,16 @@ bool parse_frame(std::string_view tok, CanFrame& f, const LineContext& ctx) {
     if (!rest.empty() && rest[0] != '_') {
       const int dlc = hex_val(rest[0]);
       if (dlc < 0) ctx.fail("bad remote frame DLC " + show_text(rest));
-      if (dlc > static_cast<int>(kClassicMaxLen)) ctx.fail("remote frame DLC " + std::to_string(dlc) + " exceeds 8");
+      if (dlc > static_cast<int>(kClassicMaxLen))
+        ctx.fail("remote frame DLC " + std::to_string(dlc) + " exceeds 8");
       f.len = static_cast<std::uint8_t>(dlc);
       rest.remove_prefix(1);
     }
     parse_len8_suffix(rest, f.len, ctx);
     return true;
   }
-  f.len = static_cast<std::uint8_t>(parse_data(rest, f.data.data(), kClassicMaxLen, true, "classic CAN", ctx, used));
+  f.len = static_cast<std::uint8_t>(
+      parse_data(rest, f.data.data(), kClassicMaxLen, true, "classic CAN", ctx, used));
   parse_len8_suffix(rest.substr(used), f.len, ctx);
   return true;
 }
@@ -202,7 +207,8 @@ struct FileCloser {
 
 }  // namespace
 
-bool parse_candump_line_into(std::string_view line, const std::string& source, long line_no, CandumpRecord& out) {
+bool parse_candump_line_into(std::string_view line, const std::string& source, long line_no,
+                             CandumpRecord& out) {
   while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.remove_suffix(1);
   if (line.empty() || line.front() != '(') return false;
   const LineContext ctx{source, line_no};
@@ -214,7 +220,8 @@ bool parse_candump_line_into(std::string_view line, const std::string& source, l
   if (i == sec_start) ctx.fail("timestamp: expected seconds digits after '('");
   std::uint64_t sec = 0;
   const auto r = std::from_chars(line.data() + sec_start, line.data() + i, sec);
-  constexpr std::uint64_t kMaxSec = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max() / kNsPerS) - 1;
+  constexpr std::uint64_t kMaxSec =
+      static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max() / kNsPerS) - 1;
   if (r.ec != std::errc{} || sec > kMaxSec) ctx.fail("timestamp: seconds out of range");
   if (i >= line.size() || line[i] != '.') ctx.fail("timestamp: expected '.' after the seconds");
   ++i;
@@ -254,7 +261,8 @@ bool parse_candump_line_into(std::string_view line, const std::string& source, l
   return true;
 }
 
-std::optional<CandumpRecord> parse_candump_line(std::string_view line, const std::string& source, long line_no) {
+std::optional<CandumpRecord> parse_candump_line(std::string_view line, const std::string& source,
+                                                long line_no) {
   CandumpRecord rec;
   if (!parse_candump_line_into(line, source, line_no, rec)) return std::nullopt;
   return rec;
@@ -279,10 +287,12 @@ bool CandumpReader::next(CandumpRecord& out) {
       any = true;
       if (c == '\n') break;
       if (line_.size() == kMaxLineChars)
-        throw Error(source_, line_no_ + 1, 0, "line longer than " + std::to_string(kMaxLineChars) + " characters");
+        throw Error(source_, line_no_ + 1, 0,
+                    "line longer than " + std::to_string(kMaxLineChars) + " characters");
       line_.push_back(static_cast<char>(c));
     }
-    if (std::ferror(f_) != 0) throw Error(source_, line_no_ + 1, 0, std::string("read error: ") + std::strerror(errno));
+    if (std::ferror(f_) != 0)
+      throw Error(source_, line_no_ + 1, 0, std::string("read error: ") + std::strerror(errno));
     if (!any) return false;
     ++line_no_;
     if (parse_candump_line_into(line_, source_, line_no_, out)) return true;
@@ -299,7 +309,8 @@ std::vector<CandumpRecord> read_candump(const std::filesystem::path& path) {
 
 std::string format_candump_line(const CandumpRecord& rec) {
   const CanFrame& f = rec.frame;
-  if (f.t_ns < 0) throw Error("candump: cannot write a negative timestamp (" + std::to_string(f.t_ns) + " ns)");
+  if (f.t_ns < 0)
+    throw Error("candump: cannot write a negative timestamp (" + std::to_string(f.t_ns) + " ns)");
   if (rec.iface.empty() || rec.iface.find_first_of(" \t\r\n") != std::string::npos)
     throw Error("candump: interface name " + show_text(rec.iface) + " is empty or contains whitespace");
   if (rec.direction != 0 && rec.direction != 'R' && rec.direction != 'T')

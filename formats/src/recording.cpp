@@ -1,6 +1,8 @@
 // recording.toml: read with toml++, checked key by key so every error points at a file:line:column.
 #include "ptda/formats/recording.hpp"
 
+#include <toml++/toml.h>
+
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -10,8 +12,6 @@
 #include <string_view>
 #include <system_error>
 #include <utility>
-
-#include <toml++/toml.h>
 
 #include "ptda/common/error.hpp"
 #include "ptda/formats/wav.hpp"
@@ -32,7 +32,8 @@ class Checker {
   }
 
   // Rejects keys the format does not define (a typo must not silently fall back to a default).
-  void only_keys(const toml::table& t, std::initializer_list<std::string_view> allowed, const std::string& table) const {
+  void only_keys(const toml::table& t, std::initializer_list<std::string_view> allowed,
+                 const std::string& table) const {
     for (auto&& [k, v] : t) {
       bool ok = false;
       for (const auto a : allowed) ok = ok || k.str() == a;
@@ -77,7 +78,8 @@ class Checker {
 
   const toml::table& need_table(const toml::table& t, std::string_view key) const {
     const toml::node& n = need(t, key, "the top level");
-    if (!n.is_table()) fail(n.source(), "'" + std::string(key) + "' must be a table ([" + std::string(key) + "])");
+    if (!n.is_table())
+      fail(n.source(), "'" + std::string(key) + "' must be a table ([" + std::string(key) + "])");
     return *n.as_table();
   }
 
@@ -145,7 +147,8 @@ RecordingMeta read_recording_meta(const std::filesystem::path& dir) {
   ck.only_keys(root, {"format", "version", "vibration", "can"}, "the top level");
   const std::string format = ck.need_string(root, "format", "the top level");
   if (format != kFormatName)
-    ck.fail(root.get("format")->source(), "format is '" + format + "', expected '" + std::string(kFormatName) + "'");
+    ck.fail(root.get("format")->source(),
+            "format is '" + format + "', expected '" + std::string(kFormatName) + "'");
   const std::int64_t version = ck.need_integer(root, "version", "the top level");
   if (version != kFormatVersion)
     ck.fail(root.get("version")->source(),

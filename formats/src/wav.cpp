@@ -42,7 +42,9 @@ void put32(std::uint8_t* p, std::uint32_t v) noexcept {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
 }
 
-std::string errno_text() { return std::strerror(errno); }
+std::string errno_text() {
+  return std::strerror(errno);
+}
 
 // Decodes one stored sample to its code (PCM) or value (float).
 float decode_sample(const std::uint8_t* p, WavSampleFormat format) noexcept {
@@ -51,7 +53,8 @@ float decode_sample(const std::uint8_t* p, WavSampleFormat format) noexcept {
       return static_cast<float>(static_cast<std::int16_t>(le16(p)));
     case WavSampleFormat::kPcm24: {
       // Place the 24 bits at the top of a 32-bit word, then shift back arithmetically to sign-extend.
-      const std::uint32_t u = (static_cast<std::uint32_t>(p[0]) << 8) | (static_cast<std::uint32_t>(p[1]) << 16) |
+      const std::uint32_t u = (static_cast<std::uint32_t>(p[0]) << 8) |
+                              (static_cast<std::uint32_t>(p[1]) << 16) |
                               (static_cast<std::uint32_t>(p[2]) << 24);
       return static_cast<float>(static_cast<std::int32_t>(u) >> 8);
     }
@@ -77,10 +80,14 @@ struct FileCloser {
 
 std::uint16_t wav_bytes_per_sample(WavSampleFormat format) noexcept {
   switch (format) {
-    case WavSampleFormat::kPcm16: return 2;
-    case WavSampleFormat::kPcm24: return 3;
-    case WavSampleFormat::kPcm32: return 4;
-    case WavSampleFormat::kFloat32: return 4;
+    case WavSampleFormat::kPcm16:
+      return 2;
+    case WavSampleFormat::kPcm24:
+      return 3;
+    case WavSampleFormat::kPcm32:
+      return 4;
+    case WavSampleFormat::kFloat32:
+      return 4;
   }
   return 4;
 }
@@ -151,8 +158,8 @@ WavReader::WavReader(const std::filesystem::path& path) : path_(path) {
           if (size < 40) throw Error(name + ": WAVE_FORMAT_EXTENSIBLE fmt chunk shorter than 40 bytes");
           const std::uint16_t valid_bits = le16(fmt.data() + 18);
           if (valid_bits > bits)
-            throw Error(name + ": valid bits per sample " + std::to_string(valid_bits) + " exceed container " +
-                        std::to_string(bits));
+            throw Error(name + ": valid bits per sample " + std::to_string(valid_bits) +
+                        " exceed container " + std::to_string(bits));
           if (std::memcmp(fmt.data() + 26, kGuidTail.data(), kGuidTail.size()) != 0)
             throw Error(name + ": unsupported WAVE_FORMAT_EXTENSIBLE sub-format GUID");
           tag = le16(fmt.data() + 24);
@@ -182,7 +189,8 @@ WavReader::WavReader(const std::filesystem::path& path) : path_(path) {
         bytes_per_sample_ = wav_bytes_per_sample(info_.format);
         if (block_align != channels * bytes_per_sample_)
           throw Error(name + ": block align " + std::to_string(block_align) + " does not match " +
-                      std::to_string(channels) + " channels x " + std::to_string(bytes_per_sample_) + " bytes");
+                      std::to_string(channels) + " channels x " + std::to_string(bytes_per_sample_) +
+                      " bytes");
         block_align_ = block_align;
         info_.channels = channels;
         info_.sample_rate_hz = rate;
@@ -211,7 +219,8 @@ void WavReader::seek(std::uint64_t frame) {
   pos_frames_ = std::min(frame, info_.frames);
   const std::uint64_t off = data_offset_ + pos_frames_ * block_align_;
   if (fseeko(f_, static_cast<off_t>(off), SEEK_SET) != 0)
-    throw Error(path_.string() + ": cannot seek to frame " + std::to_string(pos_frames_) + ": " + errno_text());
+    throw Error(path_.string() + ": cannot seek to frame " + std::to_string(pos_frames_) + ": " +
+                errno_text());
 }
 
 std::size_t WavReader::read(std::uint16_t channel, std::span<float> out) {
@@ -230,7 +239,8 @@ std::size_t WavReader::read(std::uint16_t channel, std::span<float> out) {
     if (got != bytes)
       throw Error(path_.string() + ": unexpected end of file or read error at frame " +
                   std::to_string(pos_frames_ + got / block_align_) + " of " + std::to_string(info_.frames));
-    for (std::size_t i = 0; i < n; ++i) out[done + i] = decode_sample(buf_.data() + i * block_align_ + ch_off, info_.format);
+    for (std::size_t i = 0; i < n; ++i)
+      out[done + i] = decode_sample(buf_.data() + i * block_align_ + ch_off, info_.format);
     done += n;
     pos_frames_ += n;
   }
@@ -276,8 +286,8 @@ void encode_sample(std::uint8_t* p, float v, WavSampleFormat format) noexcept {
       return;
     }
     case WavSampleFormat::kPcm32:
-      put32(p, static_cast<std::uint32_t>(static_cast<std::int32_t>(to_code(v, std::numeric_limits<std::int32_t>::min(),
-                                                                            std::numeric_limits<std::int32_t>::max()))));
+      put32(p, static_cast<std::uint32_t>(static_cast<std::int32_t>(to_code(
+                   v, std::numeric_limits<std::int32_t>::min(), std::numeric_limits<std::int32_t>::max()))));
       return;
     case WavSampleFormat::kFloat32: {
       std::uint32_t u = 0;
@@ -364,12 +374,14 @@ void write_wav(const std::filesystem::path& path, std::uint32_t sample_rate_hz, 
   for (std::size_t start = 0; start < frames; start += kBlockFrames) {
     const std::size_t n = std::min(kBlockFrames, frames - start);
     for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t c = 0; c < n_ch; ++c) encode_sample(block.data() + i * block_align + c * bps, channels[c][start + i], format);
+      for (std::size_t c = 0; c < n_ch; ++c)
+        encode_sample(block.data() + i * block_align + c * bps, channels[c][start + i], format);
     }
     if (std::fwrite(block.data(), 1, n * block_align, f.get()) != n * block_align)
       throw Error(name + ": write failed: " + errno_text());
   }
-  if ((data_bytes & 1U) != 0 && std::fputc(0, f.get()) == EOF) throw Error(name + ": write failed: " + errno_text());
+  if ((data_bytes & 1U) != 0 && std::fputc(0, f.get()) == EOF)
+    throw Error(name + ": write failed: " + errno_text());
   if (std::fclose(f.release()) != 0) throw Error(name + ": close failed: " + errno_text());
 }
 

@@ -18,7 +18,9 @@ using sim::EffectSpec;
 
 constexpr std::uint64_t kStreamBench = 0xBE7C;
 
-double uni(sim::Rng& r, double lo, double hi) { return lo + (hi - lo) * r.uniform(); }
+double uni(sim::Rng& r, double lo, double hi) {
+  return lo + (hi - lo) * r.uniform();
+}
 
 EffectSpec random_effect(EffectKind k, sim::Rng& r, double fs, double peak_ms2, const sim::Scenario& job) {
   EffectSpec e = EffectSpec::with_defaults(k);
@@ -82,7 +84,9 @@ EffectSpec random_effect(EffectKind k, sim::Rng& r, double fs, double peak_ms2, 
   return e;
 }
 
-double rel(double a, double b) { return std::fabs(a / b - 1.0); }
+double rel(double a, double b) {
+  return std::fabs(a / b - 1.0);
+}
 
 std::string num(double v) {
   if (!std::isfinite(v)) return "null";
@@ -106,8 +110,8 @@ std::string effects_json(const std::vector<EffectSpec>& v) {
 
 }  // namespace
 
-std::vector<EffectSpec> bench_case_effects(std::uint32_t index, std::uint64_t seed, double fs_hz, double peak_ms2,
-                                           const sim::Scenario& job) {
+std::vector<EffectSpec> bench_case_effects(std::uint32_t index, std::uint64_t seed, double fs_hz,
+                                           double peak_ms2, const sim::Scenario& job) {
   sim::Rng r(seed * 1000003ULL + index, kStreamBench);
   const std::uint32_t slots = sim::kEffectKinds + 2;
   const std::uint32_t slot = index % slots;
@@ -131,7 +135,8 @@ bool location_matches(const EffectSpec& t, const EffectSpec& f) {
     case EffectKind::kTransferPath:
       return rel(f.get("frequency_hz"), t.get("frequency_hz")) < 0.15;
     case EffectKind::kSpeedRipple:
-      return f.get("jitter_rad") > 0.5 * t.get("jitter_rad") && f.get("jitter_rad") < 2.0 * t.get("jitter_rad");
+      return f.get("jitter_rad") > 0.5 * t.get("jitter_rad") &&
+             f.get("jitter_rad") < 2.0 * t.get("jitter_rad");
     case EffectKind::kMeshModulation:
       return std::fabs(f.get("rate_order") - t.get("rate_order")) < 0.15;
     case EffectKind::kImpacts:
@@ -197,7 +202,8 @@ BenchResult run_bench(const BenchOptions& opt) {
     cr.noise_gap = d.noise_gap;
     cr.runtime_s = d.runtime_s;
     cr.verdict = d.verdict;
-    const std::size_t named = cr.chosen.empty() ? sim::kEffectKinds : static_cast<std::size_t>(cr.chosen[0].kind);
+    const std::size_t named =
+        cr.chosen.empty() ? sim::kEffectKinds : static_cast<std::size_t>(cr.chosen[0].kind);
     if (cr.truth.empty()) {
       ++res.none_cases;
       cr.false_attribution = !cr.chosen.empty();
@@ -228,8 +234,8 @@ BenchResult run_bench(const BenchOptions& opt) {
       for (const EffectSpec& e : cr.chosen) c += sim::describe(e) + " ";
       opt.log("case " + std::to_string(i) + " [" + cr.job + "] truth: " + (t.empty() ? "none " : t) +
               "| named: " + (c.empty() ? "none " : c) + "| " + (cr.top1_correct ? "OK" : "WRONG") +
-              (cr.location_ok ? " located" : "") + " shrink " + num(cr.shrink_pct) + " % gap " + num(cr.gap_heldout) +
-              " noise " + num(cr.noise_gap) + " (" + num(cr.runtime_s) + " s)");
+              (cr.location_ok ? " located" : "") + " shrink " + num(cr.shrink_pct) + " % gap " +
+              num(cr.gap_heldout) + " noise " + num(cr.noise_gap) + " (" + num(cr.runtime_s) + " s)");
     }
     std::filesystem::remove_all(dir);
     res.cases.push_back(std::move(cr));
@@ -250,12 +256,15 @@ std::string bench_json(const BenchResult& r) {
   std::ostringstream o;
   o << "{\n  \"format\": \"ptda-gap-bench\",\n  \"version\": 1,\n";
   o << "  \"effect_cases\": " << r.effect_cases << ",\n  \"none_cases\": " << r.none_cases << ",\n";
-  o << "  \"top1_accuracy\": " << num(r.top1_accuracy) << ",\n  \"location_accuracy\": " << num(r.location_accuracy)
-    << ",\n  \"false_attribution_rate\": " << num(r.false_attribution_rate) << ",\n  \"median_shrink_pct\": "
-    << num(r.median_shrink_pct) << ",\n  \"runtime_s\": " << num(r.runtime_s) << ",\n";
+  o << "  \"top1_accuracy\": " << num(r.top1_accuracy)
+    << ",\n  \"location_accuracy\": " << num(r.location_accuracy)
+    << ",\n  \"false_attribution_rate\": " << num(r.false_attribution_rate)
+    << ",\n  \"median_shrink_pct\": " << num(r.median_shrink_pct)
+    << ",\n  \"runtime_s\": " << num(r.runtime_s) << ",\n";
   o << "  \"labels\": [";
   for (std::size_t k = 0; k <= sim::kEffectKinds; ++k) {
-    o << (k ? ", " : "") << "\"" << (k < sim::kEffectKinds ? sim::effect_info(static_cast<EffectKind>(k)).name : "none") << "\"";
+    o << (k ? ", " : "") << "\""
+      << (k < sim::kEffectKinds ? sim::effect_info(static_cast<EffectKind>(k)).name : "none") << "\"";
   }
   o << "],\n  \"confusion\": [";
   for (std::size_t t = 0; t < r.confusion.size(); ++t) {
@@ -266,10 +275,12 @@ std::string bench_json(const BenchResult& r) {
   o << "\n  ],\n  \"cases\": [";
   for (std::size_t i = 0; i < r.cases.size(); ++i) {
     const BenchCaseResult& c = r.cases[i];
-    o << (i ? "," : "") << "\n    {\"index\": " << c.index << ", \"job\": \"" << c.job << "\", \"seed\": " << c.seed
-      << ", \"truth\": " << effects_json(c.truth) << ", \"chosen\": " << effects_json(c.chosen)
-      << ", \"top1_correct\": " << (c.top1_correct ? "true" : "false") << ", \"location_ok\": "
-      << (c.location_ok ? "true" : "false") << ", \"false_attribution\": " << (c.false_attribution ? "true" : "false")
+    o << (i ? "," : "") << "\n    {\"index\": " << c.index << ", \"job\": \"" << c.job
+      << "\", \"seed\": " << c.seed << ", \"truth\": " << effects_json(c.truth)
+      << ", \"chosen\": " << effects_json(c.chosen)
+      << ", \"top1_correct\": " << (c.top1_correct ? "true" : "false")
+      << ", \"location_ok\": " << (c.location_ok ? "true" : "false")
+      << ", \"false_attribution\": " << (c.false_attribution ? "true" : "false")
       << ", \"shrink_pct\": " << num(c.shrink_pct) << ", \"gap_heldout\": " << num(c.gap_heldout)
       << ", \"noise_gap\": " << num(c.noise_gap) << ", \"runtime_s\": " << num(c.runtime_s) << "}";
   }

@@ -15,7 +15,9 @@ namespace {
 using sim::EffectKind;
 using sim::EffectSpec;
 
-double db(double p) { return 10.0 * std::log10(std::max(p, 1e-20)); }
+double db(double p) {
+  return 10.0 * std::log10(std::max(p, 1e-20));
+}
 
 // A model is re-calibrated when a free parameter is off by more than this (harmonic level or noise floor).
 constexpr double kRecalibrateDb = 0.5;
@@ -71,8 +73,8 @@ class Evaluator {
 
   /// Re-fits the free parameters (GMF amplitudes per order, noise rms) of `s` on `part` by up to `passes`
   /// ratio updates; returns the gap of the final model on `part`.
-  GapBreakdown calibrate(sim::Scenario& s, const std::vector<char>& part, int passes, ProbeSet* model_out = nullptr,
-                         ProbeSet* real_out = nullptr) {
+  GapBreakdown calibrate(sim::Scenario& s, const std::vector<char>& part, int passes,
+                         ProbeSet* model_out = nullptr, ProbeSet* real_out = nullptr) {
     GapBreakdown g = gap(s, part, model_out, real_out);
     for (int it = 0; it < passes; ++it) {
       double worst = std::fabs(g.noise_offset_db);
@@ -84,7 +86,8 @@ class Evaluator {
       if (worst < kRecalibrateDb) break;
       for (std::size_t k = 0; k < s.vibration.gmf_amplitudes.size(); ++k) {
         if (s.vibration.gmf_amplitudes[k] <= 0.0 || k + 1 >= g.harmonic_offset_db.size()) continue;
-        s.vibration.gmf_amplitudes[k] *= std::pow(10.0, std::clamp(g.harmonic_offset_db[k + 1], -20.0, 20.0) / 20.0);
+        s.vibration.gmf_amplitudes[k] *=
+            std::pow(10.0, std::clamp(g.harmonic_offset_db[k + 1], -20.0, 20.0) / 20.0);
       }
       if (s.vibration.noise_rms > 0.0) {
         s.vibration.noise_rms *= std::pow(10.0, std::clamp(g.noise_offset_db, -20.0, 20.0) / 20.0);
@@ -115,7 +118,7 @@ class Evaluator {
 struct Guesses {
   double floor_peak_const_hz = 1000.0;
   double floor_peak_accel_hz = 1000.0;
-  double line_still_hz = 50.0;  ///< strongest excess line where the mesh is silent (or off-order)
+  double line_still_hz = 50.0;     ///< strongest excess line where the mesh is silent (or off-order)
   double line_const_ratio = 1.37;  ///< strongest off-order excess line in class 0 / GMF
   double sideband_order = 1.0;
   double ppm = 0.0;
@@ -166,8 +169,8 @@ double excess_line_hz(const std::vector<double>& pr, const std::vector<double>& 
   return f;
 }
 
-Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g, const sim::Scenario& nominal,
-                     const AnalysisPlan& plan) {
+Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g,
+                     const sim::Scenario& nominal, const AnalysisPlan& plan) {
   Guesses q;
   q.floor_peak_const_hz = excess_peak_hz(r, m, SegmentType::kConstant, g.noise_offset_db);
   q.floor_peak_accel_hz = plan.accel_len > 0 ? excess_peak_hz(r, m, SegmentType::kAccel, g.noise_offset_db)
@@ -181,17 +184,22 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
     gmf0 = std::fabs(sim::gmf_hz(nominal.gearbox, plan.speeds[0]));
     const double f_in = gmf0 / nominal.gearbox.z_in;
     const double df0 = len0 > 0 ? fs / static_cast<double>(len0) : 1.0;
-    for (int k = 1; k * gmf0 < 0.5 * fs; ++k) excl_const.push_back({k * gmf0 - 3.6 * f_in - 3 * df0, k * gmf0 + 3.6 * f_in + 3 * df0});
+    for (int k = 1; k * gmf0 < 0.5 * fs; ++k)
+      excl_const.push_back({k * gmf0 - 3.6 * f_in - 3 * df0, k * gmf0 + 3.6 * f_in + 3 * df0});
   }
   if (!r.still_power.empty() && r.still_power.size() == m.still_power.size()) {
-    q.line_still_hz = excess_line_hz(r.still_power, m.still_power, fs / static_cast<double>(plan.still_len), {});
+    q.line_still_hz =
+        excess_line_hz(r.still_power, m.still_power, fs / static_cast<double>(plan.still_len), {});
   } else if (!r.accel_power.empty() && r.accel_power.size() == m.accel_power.size()) {
-    q.line_still_hz = excess_line_hz(r.accel_power, m.accel_power, fs / static_cast<double>(plan.accel_len), {});
+    q.line_still_hz =
+        excess_line_hz(r.accel_power, m.accel_power, fs / static_cast<double>(plan.accel_len), {});
   } else if (r.class_power.count(0) && m.class_power.count(0)) {
-    q.line_still_hz = excess_line_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0), excl_const);
+    q.line_still_hz =
+        excess_line_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0), excl_const);
   }
   if (r.class_power.count(0) && m.class_power.count(0) && gmf0 > 0.0) {
-    const double f = excess_line_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0), excl_const);
+    const double f =
+        excess_line_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0), excl_const);
     if (f > 0.0) q.line_const_ratio = f / gmf0;
   }
   // Sidebands, clock and lag: differences of probe values.
@@ -245,11 +253,12 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
               {"bandwidth_hz", {2, 5, 10, 20, 50, 100}},
               {"jitter_rad", {0.8, 1.0, 1.25}, true}};
     case EffectKind::kMeshModulation:
-      return {{"rate_order", {std::max(0.1, q.sideband_order - 0.25), q.sideband_order, q.sideband_order + 0.25}},
-              {"am_depth", {0.05, 0.1, 0.2, 0.35, 0.5, 0.7}},
-              {"pm_rad", {0.0, 0.15, 0.3, 0.6, 1.0}},
-              {"rate_order", {0.96, 1.0, 1.04}, true},
-              {"am_depth", {0.8, 1.0, 1.25}, true}};
+      return {
+          {"rate_order", {std::max(0.1, q.sideband_order - 0.25), q.sideband_order, q.sideband_order + 0.25}},
+          {"am_depth", {0.05, 0.1, 0.2, 0.35, 0.5, 0.7}},
+          {"pm_rad", {0.0, 0.15, 0.3, 0.6, 1.0}},
+          {"rate_order", {0.96, 1.0, 1.04}, true},
+          {"am_depth", {0.8, 1.0, 1.25}, true}};
     case EffectKind::kImpacts:
       return {{"resonance_hz", around(q.floor_peak_accel_hz, {0.8, 0.89, 1.0, 1.12, 1.25})},
               {"amplitude_ms2", {1, 2, 4, 8, 16, 32}},
@@ -278,14 +287,16 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       for (double x : {-0.006, -0.003, 0.0, 0.003, 0.006}) d.push_back(std::max(0.0, g + x));
       const double jmax = 0.999 * nominal.can.period_s - nominal.can.jitter_s;
       std::vector<double> j;
-      for (double x : {0.0, 0.001, 0.002, 0.003}) if (x < jmax) j.push_back(x);
+      for (double x : {0.0, 0.001, 0.002, 0.003})
+        if (x < jmax) j.push_back(x);
       return {{"delay_s", d}, {"jitter_s", j}, {"delay_s", {0.9, 1.0, 1.1}, true}};
     }
     case EffectKind::kOtherAxis:
-      return {{"frequency_ratio", {q.line_const_ratio * 0.995, q.line_const_ratio, q.line_const_ratio * 1.005}},
-              {"amplitude_ms2", {0.05, 0.1, 0.2, 0.5, 1, 2}},
-              {"lag_s", {0.0, 0.05, 0.1, 0.2, 0.4}},
-              {"amplitude_ms2", {0.8, 1.0, 1.25}, true}};
+      return {
+          {"frequency_ratio", {q.line_const_ratio * 0.995, q.line_const_ratio, q.line_const_ratio * 1.005}},
+          {"amplitude_ms2", {0.05, 0.1, 0.2, 0.5, 1, 2}},
+          {"lag_s", {0.0, 0.05, 0.1, 0.2, 0.4}},
+          {"amplitude_ms2", {0.8, 1.0, 1.25}, true}};
     case EffectKind::kLoadDependence:
       return {{"direction_gain", {-0.6, -0.4, -0.2, -0.1, 0.0, 0.1, 0.2, 0.4, 0.6}},
               {"accel_gain", {-0.4, -0.2, 0.0, 0.2, 0.4}},
@@ -346,8 +357,8 @@ void clamp_params(EffectSpec& e) {
 std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
   switch (e.kind) {
     case EffectKind::kTransferPath:
-      return "resonance at " + fmt("%.0f", e.get("frequency_hz")) + " Hz (Q " + fmt("%.1f", e.get("q")) + ", +" +
-             fmt("%.1f", e.get("gain_db")) + " dB)";
+      return "resonance at " + fmt("%.0f", e.get("frequency_hz")) + " Hz (Q " + fmt("%.1f", e.get("q")) +
+             ", +" + fmt("%.1f", e.get("gain_db")) + " dB)";
     case EffectKind::kSpeedRipple:
       return "mesh phase jitter " + fmt("%.2f", e.get("jitter_rad")) + " rad rms over " +
              fmt("%.0f", e.get("bandwidth_hz")) + " Hz";
@@ -387,14 +398,17 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   d.real_source = real.source;
   d.fs_hz = real.fs_hz;
   if (std::fabs(real.fs_hz - nominal_in.sensor.fs_hz) > 0.5) {
-    throw Error(real.source + ": sample rate " + fmt("%.0f", real.fs_hz) + " Hz differs from the scenario's [sensor] fs_hz " +
-                fmt("%.0f", nominal_in.sensor.fs_hz) + " (" + nominal_in.source + ")");
+    throw Error(real.source + ": sample rate " + fmt("%.0f", real.fs_hz) +
+                " Hz differs from the scenario's [sensor] fs_hz " + fmt("%.0f", nominal_in.sensor.fs_hz) +
+                " (" + nominal_in.source + ")");
   }
   Evaluator ev(real, opt.sim_seed);
   const AnalysisPlan& plan = ev.plan();
   d.cycles = plan.cycles;
   d.class_speeds_rad_s = plan.speeds;
-  if (plan.cycles < 4) throw Error(real.source + ": only " + std::to_string(plan.cycles) + " cycles/blocks; the diagnosis needs >= 4");
+  if (plan.cycles < 4)
+    throw Error(real.source + ": only " + std::to_string(plan.cycles) +
+                " cycles/blocks; the diagnosis needs >= 4");
   std::vector<char> fit(plan.cycles, 0), held(plan.cycles, 0);
   for (std::uint32_t c = 0; c < plan.cycles; ++c) (c % 2 == 0 ? fit : held)[c] = 1;
   d.fit_cycles = (plan.cycles + 1) / 2;
@@ -426,7 +440,8 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     const ProbeSet other = ev.model_probes(model, opt.sim_seed + 7777);
     d.noise_gap = compare_probes(other, model_probes).total;
   }
-  log("calibrated nominal: held-out gap " + fmt("%.2f", d.nominal_heldout.total) + ", noise gap " + fmt("%.2f", d.noise_gap));
+  log("calibrated nominal: held-out gap " + fmt("%.2f", d.nominal_heldout.total) + ", noise gap " +
+      fmt("%.2f", d.noise_gap));
   if (!plan.const_len.empty() && real_held_probes.class_power.count(0) && model_probes.class_power.count(0)) {
     d.spectrum_df_hz = real.fs_hz / static_cast<double>(plan.const_len[0]);
     for (double p : real_held_probes.class_power.at(0)) d.spectrum_real_db.push_back(db(p));
@@ -517,18 +532,22 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
       } else {
         c.gap_heldout = std::numeric_limits<double>::quiet_NaN();
       }
-      c.shrink_pct = std::isfinite(c.gap_heldout) ? 100.0 * (current_held - c.gap_heldout) / std::max(current_held, 1e-12) : 0.0;
+      c.shrink_pct = std::isfinite(c.gap_heldout)
+                         ? 100.0 * (current_held - c.gap_heldout) / std::max(current_held, 1e-12)
+                         : 0.0;
       sr.ranked.push_back(c);
     }
-    std::stable_sort(sr.ranked.begin(), sr.ranked.end(), [](const CandidateResult& a, const CandidateResult& b) {
-      if (a.fully_fitted != b.fully_fitted) return a.fully_fitted;
-      return a.gap_heldout < b.gap_heldout;
-    });
+    std::stable_sort(sr.ranked.begin(), sr.ranked.end(),
+                     [](const CandidateResult& a, const CandidateResult& b) {
+                       if (a.fully_fitted != b.fully_fitted) return a.fully_fitted;
+                       return a.gap_heldout < b.gap_heldout;
+                     });
     const CandidateResult& best = sr.ranked.front();
     const double gain = current_held - best.gap_heldout;
     log("round " + std::to_string(round + 1) + ": best " + sim::describe(best.effect) + " held-out " +
         fmt("%.2f", best.gap_heldout) + " (from " + fmt("%.2f", current_held) + ")");
-    if (best.fully_fitted && gain >= opt.min_gain_share * current_held && gain >= opt.min_gain_noise * d.noise_gap) {
+    if (best.fully_fitted && gain >= opt.min_gain_share * current_held &&
+        gain >= opt.min_gain_noise * d.noise_gap) {
       sr.accepted = 0;
       d.chosen.push_back(best);
       for (const sim::Scenario& m : models) {
@@ -545,9 +564,11 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   if (final_model.class_power.count(0)) {
     for (double p : final_model.class_power.at(0)) d.spectrum_final_db.push_back(db(p));
   }
-  d.total_shrink_pct = 100.0 * (d.nominal_heldout.total - d.final_heldout.total) / std::max(d.nominal_heldout.total, 1e-12);
+  d.total_shrink_pct =
+      100.0 * (d.nominal_heldout.total - d.final_heldout.total) / std::max(d.nominal_heldout.total, 1e-12);
   if (!d.gap_significant) {
-    d.verdict = "no significant gap: the calibrated nominal model is within " + fmt("%.1f", d.nominal_heldout.total / std::max(d.noise_gap, 1e-12)) +
+    d.verdict = "no significant gap: the calibrated nominal model is within " +
+                fmt("%.1f", d.nominal_heldout.total / std::max(d.noise_gap, 1e-12)) +
                 " x the simulation's own sampling noise";
   } else if (d.chosen.empty()) {
     std::string where;
@@ -558,11 +579,13 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
         where = p;
       }
     }
-    d.verdict = "no candidate effect explains a significant share of the gap; it lies mostly in the '" + where + "' probe";
+    d.verdict = "no candidate effect explains a significant share of the gap; it lies mostly in the '" +
+                where + "' probe";
   } else {
     d.verdict = "explained by ";
     for (std::size_t i = 0; i < d.chosen.size(); ++i) {
-      d.verdict += (i ? " + " : "") + std::string(sim::effect_info(d.chosen[i].effect.kind).name) + " (" + d.chosen[i].location + ")";
+      d.verdict += (i ? " + " : "") + std::string(sim::effect_info(d.chosen[i].effect.kind).name) + " (" +
+                   d.chosen[i].location + ")";
     }
     d.verdict += "; held-out gap shrinks by " + fmt("%.0f", d.total_shrink_pct) + " %";
   }

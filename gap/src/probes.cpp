@@ -33,7 +33,9 @@ constexpr double kScaleAlarm = 0.1;
 constexpr double kScaleGmfPpm = 100.0;
 constexpr double kScaleLagMs = 2.0;
 
-double db(double p) { return 10.0 * std::log10(std::max(p, kTiny)); }
+double db(double p) {
+  return 10.0 * std::log10(std::max(p, kTiny));
+}
 
 double median_of(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -62,7 +64,9 @@ std::vector<Band> make_bands(double fs_hz, std::size_t min_len) {
   return out;
 }
 
-std::size_t bin_of(double f_hz, double df) { return static_cast<std::size_t>(std::lround(f_hz / df)); }
+std::size_t bin_of(double f_hz, double df) {
+  return static_cast<std::size_t>(std::lround(f_hz / df));
+}
 
 /// Moments of a window (mean removed).
 void window_stats(const float* x, std::size_t n, double& kurtosis, double& crest_db) {
@@ -101,7 +105,9 @@ class SpectrumCache {
     auto it = hann_.find(n);
     if (it == hann_.end()) {
       std::vector<float> w(n);
-      for (std::size_t i = 0; i < n; ++i) w[i] = static_cast<float>(0.5 - 0.5 * std::cos(2.0 * kPi * static_cast<double>(i) / static_cast<double>(n)));
+      for (std::size_t i = 0; i < n; ++i)
+        w[i] = static_cast<float>(
+            0.5 - 0.5 * std::cos(2.0 * kPi * static_cast<double>(i) / static_cast<double>(n)));
       it = hann_.emplace(n, std::move(w)).first;
     }
     return it->second;
@@ -121,7 +127,8 @@ double interp_peak(const std::vector<double>& p, std::size_t k) {
   return static_cast<double>(k) + 0.5 * (a - c) / den;
 }
 
-double envelope_lag(const GapRecording& rec, const std::vector<Segment>& segs, const std::vector<char>& use_cycle) {
+double envelope_lag(const GapRecording& rec, const std::vector<Segment>& segs,
+                    const std::vector<char>& use_cycle) {
   const double fs = rec.fs_hz;
   const double frame_s = 0.005;
   const auto frame = static_cast<std::size_t>(frame_s * fs);
@@ -133,7 +140,8 @@ double envelope_lag(const GapRecording& rec, const std::vector<Segment>& segs, c
   std::size_t seg = 0;
   for (std::size_t f = 0; f < frames; ++f) {
     double ss = 0.0;
-    for (std::size_t i = f * frame; i < (f + 1) * frame; ++i) ss += static_cast<double>(rec.accel_ms2[i]) * rec.accel_ms2[i];
+    for (std::size_t i = f * frame; i < (f + 1) * frame; ++i)
+      ss += static_cast<double>(rec.accel_ms2[i]) * rec.accel_ms2[i];
     env[f] = std::sqrt(ss / static_cast<double>(frame));
     const double t = (static_cast<double>(f) + 0.5) * frame_s;
     while (si + 1 < rec.speed.size() && rec.speed[si + 1].t_s < t) ++si;
@@ -153,17 +161,23 @@ double envelope_lag(const GapRecording& rec, const std::vector<Segment>& segs, c
   for (double v : spd) mean += v;
   mean /= static_cast<double>(frames);
   for (double v : spd) var += (v - mean) * (v - mean);
-  if (smax <= 0.0 || std::sqrt(var / static_cast<double>(frames)) < 0.05 * smax) return std::numeric_limits<double>::quiet_NaN();
+  if (smax <= 0.0 || std::sqrt(var / static_cast<double>(frames)) < 0.05 * smax)
+    return std::numeric_limits<double>::quiet_NaN();
   const int max_lag = static_cast<int>(0.2 / frame_s);
   std::vector<double> corr;
-  for (int L = -max_lag; L <= max_lag; ++L) {
-    // env[f] compared with spd[f - L]: positive L = the vibration follows the CAN speed later.
+  for (int lag = -max_lag; lag <= max_lag; ++lag) {
+    // env[f] compared with spd[f - lag]: positive lag = the vibration follows the CAN speed later.
     double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, n = 0;
     for (std::size_t f = 0; f < frames; ++f) {
-      const auto g = static_cast<std::ptrdiff_t>(f) - L;
+      const auto g = static_cast<std::ptrdiff_t>(f) - lag;
       if (!use[f] || g < 0 || g >= static_cast<std::ptrdiff_t>(frames)) continue;
       const double x = env[f], y = spd[static_cast<std::size_t>(g)];
-      sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y; n += 1;
+      sx += x;
+      sy += y;
+      sxx += x * x;
+      syy += y * y;
+      sxy += x * y;
+      n += 1;
     }
     const double cov = sxy - sx * sy / std::max(n, 1.0);
     const double vx = sxx - sx * sx / std::max(n, 1.0);
@@ -180,8 +194,8 @@ double envelope_lag(const GapRecording& rec, const std::vector<Segment>& segs, c
   return (frac - max_lag) * frame_s;
 }
 
-void add(ProbeSet& ps, const std::string& probe, const std::string& key, double value, double scale, double f_lo,
-         double f_hi, SegmentType seg, Stage stage, int order = 0) {
+void add(ProbeSet& ps, const std::string& probe, const std::string& key, double value, double scale,
+         double f_lo, double f_hi, SegmentType seg, Stage stage, int order = 0) {
   if (!std::isfinite(value)) return;
   ps.elements.push_back(ProbeElement{probe, key, value, scale, f_lo, f_hi, seg, stage, order});
 }
@@ -200,8 +214,9 @@ const char* stage_name(Stage s) noexcept {
   return "?";
 }
 
-ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& segs, const std::vector<Window>& windows,
-                        const std::vector<char>& use_cycle, const ProbeContext& ctx, const ProbeSet* reference) {
+ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& segs,
+                        const std::vector<Window>& windows, const std::vector<char>& use_cycle,
+                        const ProbeContext& ctx, const ProbeSet* reference) {
   ProbeSet ps;
   const double fs = rec.fs_hz;
   const AnalysisPlan& plan = ctx.plan;
@@ -297,9 +312,10 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
       }
       const double floor_db = db(median_of(around));
       const double peak_db = db(peak);
-      add(ps, "harmonics", cls + ".k" + std::to_string(k), std::max(peak_db, floor_db + 6.0), kScaleHarmonicDb, f, f,
-          SegmentType::kConstant, Stage::kRaw, k);
-      const bool nominal = std::find(ctx.nominal_orders.begin(), ctx.nominal_orders.end(), k) != ctx.nominal_orders.end();
+      add(ps, "harmonics", cls + ".k" + std::to_string(k), std::max(peak_db, floor_db + 6.0),
+          kScaleHarmonicDb, f, f, SegmentType::kConstant, Stage::kRaw, k);
+      const bool nominal =
+          std::find(ctx.nominal_orders.begin(), ctx.nominal_orders.end(), k) != ctx.nominal_orders.end();
       if (nominal && peak_db > floor_db + 15.0) strong.push_back({k, kb, floor_db, peak_db});
     }
     if (strong.empty()) continue;
@@ -319,7 +335,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
           const double f = s.k * gmf + sign * delta;
           if (f <= 0.0) continue;
           const std::size_t b = bin_of(f, df);
-          for (std::size_t q = b > 1 ? b - 1 : 0; q <= b + 1 && q < p.size(); ++q) best = std::max(best, p[q]);
+          for (std::size_t q = b > 1 ? b - 1 : 0; q <= b + 1 && q < p.size(); ++q)
+            best = std::max(best, p[q]);
         }
         sum += std::max(0.0, db(best) - s.floor_db - 3.0);
       }
@@ -336,8 +353,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
         wide += p[q];
         if (q + 1 >= s.bin && q <= s.bin + 1) core += p[q];
       }
-      add(ps, "coherence", cls + ".k" + std::to_string(s.k), db(core / std::max(wide, kTiny)), kScaleCoherenceDb,
-          s.k * gmf, s.k * gmf, SegmentType::kConstant, Stage::kRaw, s.k);
+      add(ps, "coherence", cls + ".k" + std::to_string(s.k), db(core / std::max(wide, kTiny)),
+          kScaleCoherenceDb, s.k * gmf, s.k * gmf, SegmentType::kConstant, Stage::kRaw, s.k);
       if (s.peak_db - s.floor_db > top->peak_db - top->floor_db) top = &s;
     }
     const double f_meas = interp_peak(p, top->bin) * df;
@@ -346,7 +363,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
   }
 
   // ---- noise floor and lines per band and segment type ----------------------------------------------
-  auto band_probes = [&](SegmentType type, const std::vector<std::pair<const std::vector<double>*, std::size_t>>& spectra,
+  auto band_probes = [&](SegmentType type,
+                         const std::vector<std::pair<const std::vector<double>*, std::size_t>>& spectra,
                          const std::map<int, std::vector<std::pair<double, double>>>* excl) {
     if (spectra.empty()) return;
     const std::string tn = segment_type_name(type);
@@ -391,7 +409,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
     }
     band_probes(SegmentType::kConstant, cs, &ex);
     if (accel_acc.count > 0) band_probes(SegmentType::kAccel, {{&accel_acc.power, accel_acc.len}}, nullptr);
-    if (still_acc.count > 0) band_probes(SegmentType::kStandstill, {{&still_acc.power, still_acc.len}}, nullptr);
+    if (still_acc.count > 0)
+      band_probes(SegmentType::kStandstill, {{&still_acc.power, still_acc.len}}, nullptr);
     ps.accel_power = accel_acc.power;
     ps.still_power = still_acc.power;
   }
@@ -400,8 +419,10 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
   auto amp_probes = [&](SegmentType type, double log_kurt, double crest, std::size_t count) {
     if (count == 0) return;
     const std::string tn = segment_type_name(type);
-    add(ps, "amplitude", tn + ".log_kurtosis", log_kurt / static_cast<double>(count), kScaleLogKurtosis, 0, 0, type, Stage::kRaw);
-    add(ps, "amplitude", tn + ".crest_db", crest / static_cast<double>(count), kScaleCrestDb, 0, 0, type, Stage::kRaw);
+    add(ps, "amplitude", tn + ".log_kurtosis", log_kurt / static_cast<double>(count), kScaleLogKurtosis, 0, 0,
+        type, Stage::kRaw);
+    add(ps, "amplitude", tn + ".crest_db", crest / static_cast<double>(count), kScaleCrestDb, 0, 0, type,
+        Stage::kRaw);
   };
   {
     double lk = 0, cr = 0;
@@ -422,8 +443,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
       total += w->len;
     }
     add(ps, "amplitude", "extreme_share_log10",
-        std::log10(std::max(static_cast<double>(near) / static_cast<double>(total), 1e-6)), kScaleExtremeLog10, 0, 0,
-        SegmentType::kConstant, Stage::kRaw);
+        std::log10(std::max(static_cast<double>(near) / static_cast<double>(total), 1e-6)),
+        kScaleExtremeLog10, 0, 0, SegmentType::kConstant, Stage::kRaw);
   }
 
   // ---- residual features (PTDA, leave-one-out) and alarms ---------------------------------------------
@@ -444,14 +465,16 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
     }
     ClassReference& ref = ps.classes[static_cast<std::size_t>(c)];
     ref.mean_magnitude.resize(sum.size());
-    for (std::size_t k = 0; k < sum.size(); ++k) ref.mean_magnitude[k] = static_cast<float>(sum[k] / static_cast<double>(ws.size()));
+    for (std::size_t k = 0; k < sum.size(); ++k)
+      ref.mean_magnitude[k] = static_cast<float>(sum[k] / static_cast<double>(ws.size()));
     std::vector<float> loo(sum.size());
     std::vector<double> rms_v, ent_v;
     const double m = static_cast<double>(ws.size());
     for (std::size_t i = 0; i < ws.size(); ++i) {
-      for (std::size_t k = 0; k < sum.size(); ++k) loo[k] = static_cast<float>((sum[k] - mags[i][k]) / (m - 1.0));
-      const dsp::Features f = an.analyze_with(std::span<const float>(rec.accel_ms2.data() + ws[i]->start, n), loo, {},
-                                              dsp::Method::kPtda);
+      for (std::size_t k = 0; k < sum.size(); ++k)
+        loo[k] = static_cast<float>((sum[k] - mags[i][k]) / (m - 1.0));
+      const dsp::Features f = an.analyze_with(std::span<const float>(rec.accel_ms2.data() + ws[i]->start, n),
+                                              loo, {}, dsp::Method::kPtda);
       rms_v.push_back(f.rms_res);
       ent_v.push_back(f.entropy_res);
     }
@@ -471,24 +494,26 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
         SegmentType::kConstant, Stage::kResidual);
     add(ps, "residual", cls + ".entropy", me, kScaleEntropy, 0, 0, SegmentType::kConstant, Stage::kResidual);
     // Alarm: share of windows whose residual rms falls outside mean +- 3 sigma of the reference.
-    const ClassReference* rr = reference != nullptr && static_cast<std::size_t>(c) < reference->classes.size() &&
-                                       reference->classes[static_cast<std::size_t>(c)].mean_magnitude.size() == sum.size()
-                                   ? &reference->classes[static_cast<std::size_t>(c)]
-                                   : nullptr;
+    const ClassReference* rr =
+        reference != nullptr && static_cast<std::size_t>(c) < reference->classes.size() &&
+                reference->classes[static_cast<std::size_t>(c)].mean_magnitude.size() == sum.size()
+            ? &reference->classes[static_cast<std::size_t>(c)]
+            : nullptr;
     std::size_t alarms = 0;
     for (std::size_t i = 0; i < ws.size(); ++i) {
       double r = rms_v[i];
       double lo = mr - 3.0 * ref.rms_std, hi = mr + 3.0 * ref.rms_std;
       if (rr != nullptr) {
-        r = an.analyze_with(std::span<const float>(rec.accel_ms2.data() + ws[i]->start, n), rr->mean_magnitude, {},
-                            dsp::Method::kPtda)
+        r = an.analyze_with(std::span<const float>(rec.accel_ms2.data() + ws[i]->start, n),
+                            rr->mean_magnitude, {}, dsp::Method::kPtda)
                 .rms_res;
         lo = rr->rms_mean - 3.0 * rr->rms_std;
         hi = rr->rms_mean + 3.0 * rr->rms_std;
       }
       alarms += (r < lo || r > hi) ? 1U : 0U;
     }
-    add(ps, "alarm", cls + ".rate", static_cast<double>(alarms) / m, kScaleAlarm, 0, 0, SegmentType::kConstant, Stage::kAlarm);
+    add(ps, "alarm", cls + ".rate", static_cast<double>(alarms) / m, kScaleAlarm, 0, 0,
+        SegmentType::kConstant, Stage::kAlarm);
   }
 
   // ---- CAN speed vs vibration timing ----------------------------------------------------------------
@@ -526,7 +551,8 @@ GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim) {
   }
   g.noise_offset_db = median_of(floor_diffs);
   for (auto& [k, a] : per_order) {
-    if (k >= static_cast<int>(g.harmonic_offset_db.size())) g.harmonic_offset_db.resize(static_cast<std::size_t>(k) + 1, 0.0);
+    if (k >= static_cast<int>(g.harmonic_offset_db.size()))
+      g.harmonic_offset_db.resize(static_cast<std::size_t>(k) + 1, 0.0);
     g.harmonic_offset_db[static_cast<std::size_t>(k)] = a.first / a.second;
   }
   for (Pair& p : pairs) {
@@ -552,7 +578,8 @@ GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim) {
     g.by_stage[stage_name(p.r->stage)] += c;
     all.push_back({p.r->probe, p.r->key, p.r->value, p.s->value, z, c});
   }
-  std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.contribution > b.contribution; });
+  std::sort(all.begin(), all.end(),
+            [](const auto& a, const auto& b) { return a.contribution > b.contribution; });
   if (all.size() > 12) all.resize(12);
   g.top = std::move(all);
   return g;

@@ -14,10 +14,18 @@ std::string esc(const std::string& s) {
   std::string o;
   for (char c : s) {
     switch (c) {
-      case '"': o += "\\\""; break;
-      case '\\': o += "\\\\"; break;
-      case '\n': o += "\\n"; break;
-      case '<': o += "\\u003c"; break;
+      case '"':
+        o += "\\\"";
+        break;
+      case '\\':
+        o += "\\\\";
+        break;
+      case '\n':
+        o += "\\n";
+        break;
+      case '<':
+        o += "\\u003c";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
           char b[8];
@@ -42,7 +50,8 @@ std::string map_json(const std::map<std::string, double>& m, double total) {
   std::string s = "{";
   bool first = true;
   for (const auto& [k, v] : m) {
-    s += (first ? "" : ", ") + esc(k) + ": {\"gap\": " + num(v) + ", \"share\": " + num(total > 0 ? v / total : 0.0) + "}";
+    s += (first ? "" : ", ") + esc(k) + ": {\"gap\": " + num(v) +
+         ", \"share\": " + num(total > 0 ? v / total : 0.0) + "}";
     first = false;
   }
   return s + "}";
@@ -103,8 +112,10 @@ std::string svg_bars(const std::vector<std::pair<std::string, double>>& bars, co
     const int y = 22 + row * static_cast<int>(i);
     const double bw = (w - left - 60) * bars[i].second / mx;
     o << "<text x='4' y='" << y + 12 << "' font-size='11'>" << bars[i].first << "</text>";
-    o << "<rect x='" << left << "' y='" << y + 2 << "' width='" << bw << "' height='" << row - 5 << "' fill='#4a7ab5'/>";
-    o << "<text x='" << left + bw + 4 << "' y='" << y + 12 << "' font-size='11'>" << num(bars[i].second) << "</text>";
+    o << "<rect x='" << left << "' y='" << y + 2 << "' width='" << bw << "' height='" << row - 5
+      << "' fill='#4a7ab5'/>";
+    o << "<text x='" << left + bw + 4 << "' y='" << y + 12 << "' font-size='11'>" << num(bars[i].second)
+      << "</text>";
   }
   o << "</svg>";
   return o.str();
@@ -133,11 +144,12 @@ std::string svg_spectra(const Diagnosis& d) {
   };
   std::ostringstream o;
   o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << w << "' height='" << h << "'>";
-  o << path(d.spectrum_nominal_db, "#bbbbbb") << path(d.spectrum_final_db, "#d9822b") << path(d.spectrum_real_db, "#1f4e8c");
-  o << "<text x='" << l << "' y='" << h - 8 << "' font-size='11'>0 Hz</text><text x='" << w - 90 << "' y='" << h - 8
-    << "' font-size='11'>" << num(d.spectrum_df_hz * static_cast<double>(n - 1)) << " Hz</text>";
-  o << "<text x='4' y='20' font-size='11'>" << num(hi) << " dB</text><text x='4' y='" << h - b << "' font-size='11'>"
-    << num(lo) << " dB</text>";
+  o << path(d.spectrum_nominal_db, "#bbbbbb") << path(d.spectrum_final_db, "#d9822b")
+    << path(d.spectrum_real_db, "#1f4e8c");
+  o << "<text x='" << l << "' y='" << h - 8 << "' font-size='11'>0 Hz</text><text x='" << w - 90 << "' y='"
+    << h - 8 << "' font-size='11'>" << num(d.spectrum_df_hz * static_cast<double>(n - 1)) << " Hz</text>";
+  o << "<text x='4' y='20' font-size='11'>" << num(hi) << " dB</text><text x='4' y='" << h - b
+    << "' font-size='11'>" << num(lo) << " dB</text>";
   o << "<text x='" << l + 10 << "' y='24' font-size='11' fill='#1f4e8c'>measured (held-out)</text>";
   o << "<text x='" << l + 150 << "' y='24' font-size='11' fill='#999'>calibrated nominal</text>";
   o << "<text x='" << l + 290 << "' y='24' font-size='11' fill='#d9822b'>with chosen effects</text>";
@@ -148,10 +160,14 @@ std::string svg_spectra(const Diagnosis& d) {
 std::string html_esc(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else o += c;
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else
+      o += c;
   }
   return o;
 }
@@ -169,20 +185,22 @@ std::string diagnosis_json(const Diagnosis& d) {
   o << "{\n  \"format\": \"ptda-gap\",\n  \"version\": 1,\n";
   o << "  \"scenario\": " << esc(d.scenario) << ",\n  \"real\": " << esc(d.real_source) << ",\n";
   o << "  \"fs_hz\": " << num(d.fs_hz) << ",\n";
-  o << "  \"split\": {\"cycles\": " << d.cycles << ", \"fit_cycles\": " << d.fit_cycles << ", \"heldout_cycles\": "
-    << d.heldout_cycles << ", \"windows_fit\": " << d.windows_fit << ", \"windows_heldout\": " << d.windows_heldout
+  o << "  \"split\": {\"cycles\": " << d.cycles << ", \"fit_cycles\": " << d.fit_cycles
+    << ", \"heldout_cycles\": " << d.heldout_cycles << ", \"windows_fit\": " << d.windows_fit
+    << ", \"windows_heldout\": " << d.windows_heldout
     << ", \"class_speeds_rad_s\": " << array_json(d.class_speeds_rad_s) << "},\n";
-  o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes) << ", \"noise_rms\": "
-    << num(d.calibrated_noise_rms) << "},\n";
+  o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
+    << ", \"noise_rms\": " << num(d.calibrated_noise_rms) << "},\n";
   o << "  \"noise_gap\": " << num(d.noise_gap) << ",\n";
   o << "  \"gap_significant\": " << (d.gap_significant ? "true" : "false") << ",\n";
   o << "  \"gap\": " << breakdown_json(d.nominal_heldout, "  ") << ",\n";
   o << "  \"rounds\": [";
   for (std::size_t r = 0; r < d.rounds.size(); ++r) {
     const SelectionRound& sr = d.rounds[r];
-    o << (r ? "," : "") << "\n    {\"gap_before_heldout\": " << num(sr.gap_before_heldout) << ", \"accepted\": "
-      << sr.accepted << ", \"candidates\": [";
-    for (std::size_t i = 0; i < sr.ranked.size(); ++i) o << (i ? ",\n      " : "\n      ") << candidate_json(sr.ranked[i]);
+    o << (r ? "," : "") << "\n    {\"gap_before_heldout\": " << num(sr.gap_before_heldout)
+      << ", \"accepted\": " << sr.accepted << ", \"candidates\": [";
+    for (std::size_t i = 0; i < sr.ranked.size(); ++i)
+      o << (i ? ",\n      " : "\n      ") << candidate_json(sr.ranked[i]);
     o << "]}";
   }
   o << "\n  ],\n  \"chosen\": [";
@@ -198,15 +216,17 @@ std::string diagnosis_json(const Diagnosis& d) {
 std::string diagnosis_html(const Diagnosis& d) {
   std::ostringstream o;
   o << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>ptda gap: " << html_esc(d.scenario)
-    << "</title><style>body{font-family:sans-serif;max-width:960px;margin:auto}table{border-collapse:collapse}"
+    << "</"
+       "title><style>body{font-family:sans-serif;max-width:960px;margin:auto}table{border-collapse:collapse}"
        "td,th{border:1px solid #ccc;padding:2px 6px;font-size:12px}</style></head><body>";
   o << "<h1>Sim-to-real gap</h1><p><b>" << html_esc(d.verdict) << "</b></p>";
   o << "<p>Scenario <code>" << html_esc(d.scenario) << "</code>, recording <code>" << html_esc(d.real_source)
-    << "</code>; " << d.cycles << " cycles (" << d.fit_cycles << " fit / " << d.heldout_cycles << " held out), "
-    << d.simulations << " simulations, " << num(d.runtime_s) << " s.</p>";
-  o << "<p>Held-out gap of the calibrated nominal model: " << num(d.nominal_heldout.total) << " (sampling-noise level "
-    << num(d.noise_gap) << "); after the chosen effects: " << num(d.final_heldout.total) << " (shrink "
-    << num(d.total_shrink_pct) << " %).</p>";
+    << "</code>; " << d.cycles << " cycles (" << d.fit_cycles << " fit / " << d.heldout_cycles
+    << " held out), " << d.simulations << " simulations, " << num(d.runtime_s) << " s.</p>";
+  o << "<p>Held-out gap of the calibrated nominal model: " << num(d.nominal_heldout.total)
+    << " (sampling-noise level " << num(d.noise_gap)
+    << "); after the chosen effects: " << num(d.final_heldout.total) << " (shrink " << num(d.total_shrink_pct)
+    << " %).</p>";
   o << "<h2>Spectra (first constant-speed class)</h2>" << svg_spectra(d);
   o << "<h2>Where the gap lies (calibrated nominal, held-out)</h2>";
   o << svg_bars(sorted(d.nominal_heldout.by_probe), "by probe") << "<br>";
@@ -214,12 +234,15 @@ std::string diagnosis_html(const Diagnosis& d) {
   o << svg_bars(sorted(d.nominal_heldout.by_segment), "by segment type") << "<br>";
   o << svg_bars(sorted(d.nominal_heldout.by_stage), "by pipeline stage");
   for (std::size_t r = 0; r < d.rounds.size(); ++r) {
-    o << "<h2>Round " << r + 1 << ": candidates (held-out gap before " << num(d.rounds[r].gap_before_heldout) << ")</h2>";
+    o << "<h2>Round " << r + 1 << ": candidates (held-out gap before " << num(d.rounds[r].gap_before_heldout)
+      << ")</h2>";
     std::vector<std::pair<std::string, double>> bars;
-    o << "<table><tr><th>effect</th><th>where</th><th>fit gap</th><th>held-out gap</th><th>shrink %</th></tr>";
+    o << "<table><tr><th>effect</th><th>where</th><th>fit gap</th><th>held-out gap</th><th>shrink "
+         "%</th></tr>";
     for (const CandidateResult& c : d.rounds[r].ranked) {
-      o << "<tr><td>" << html_esc(sim::describe(c.effect)) << "</td><td>" << html_esc(c.location) << "</td><td>"
-        << num(c.gap_fit) << "</td><td>" << num(c.gap_heldout) << "</td><td>" << num(c.shrink_pct) << "</td></tr>";
+      o << "<tr><td>" << html_esc(sim::describe(c.effect)) << "</td><td>" << html_esc(c.location)
+        << "</td><td>" << num(c.gap_fit) << "</td><td>" << num(c.gap_heldout) << "</td><td>"
+        << num(c.shrink_pct) << "</td></tr>";
       if (c.fully_fitted) bars.push_back({sim::effect_info(c.effect.kind).name, std::max(0.0, c.shrink_pct)});
     }
     o << "</table>" << svg_bars(bars, "held-out shrink %");
@@ -227,8 +250,8 @@ std::string diagnosis_html(const Diagnosis& d) {
   o << "<h2>What remains</h2>" << svg_bars(sorted(d.final_heldout.by_probe), "remaining gap by probe");
   o << "<table><tr><th>probe</th><th>element</th><th>measured</th><th>model</th><th>z</th></tr>";
   for (const auto& t : d.final_heldout.top) {
-    o << "<tr><td>" << t.probe << "</td><td>" << html_esc(t.key) << "</td><td>" << num(t.real) << "</td><td>" << num(t.sim)
-      << "</td><td>" << num(t.z) << "</td></tr>";
+    o << "<tr><td>" << t.probe << "</td><td>" << html_esc(t.key) << "</td><td>" << num(t.real) << "</td><td>"
+      << num(t.sim) << "</td><td>" << num(t.z) << "</td></tr>";
   }
   o << "</table></body></html>\n";
   return o.str();

@@ -14,7 +14,7 @@
 namespace ptda::gap {
 namespace {
 
-constexpr double kMarginS = 0.02;       // kept clear of segment ends (CAN delay, jitter, blend edges)
+constexpr double kMarginS = 0.02;  // kept clear of segment ends (CAN delay, jitter, blend edges)
 constexpr double kMaxConstWindowS = 0.5;
 constexpr double kMaxOtherWindowS = 0.25;
 constexpr std::size_t kMinWindow = 256;
@@ -80,7 +80,8 @@ GapRecording recording_from_simulation(const sim::SimulatedSignals& sig, const s
   rec.fs_hz = sig.fs_nominal_hz;
   const double scale = sim::sensor_scale(s.sensor);
   rec.accel_ms2.resize(sig.codes.size());
-  for (std::size_t i = 0; i < sig.codes.size(); ++i) rec.accel_ms2[i] = static_cast<float>(sig.codes[i] * scale);
+  for (std::size_t i = 0; i < sig.codes.size(); ++i)
+    rec.accel_ms2[i] = static_cast<float>(sig.codes[i] * scale);
   config::SpeedFrameSpec spec = s.can.speed_frame;
   const std::int64_t t0_ns = seconds_to_ns(s.start_time_s);
   for (const sim::SimCanFrame& f : sig.can) {
@@ -206,12 +207,15 @@ AnalysisPlan make_plan(const GapRecording& rec, const std::vector<Segment>& segs
     const double d = std::min(kMaxConstWindowS, quantile(class_durs[c], 0.25));
     plan.const_len.push_back(fft_len_at_most(d * rec.fs_hz));
   }
-  if (!accel_durs.empty()) plan.accel_len = fft_len_at_most(std::min(kMaxOtherWindowS, quantile(accel_durs, 0.25)) * rec.fs_hz);
-  if (!still_durs.empty()) plan.still_len = fft_len_at_most(std::min(kMaxOtherWindowS, quantile(still_durs, 0.25)) * rec.fs_hz);
+  if (!accel_durs.empty())
+    plan.accel_len = fft_len_at_most(std::min(kMaxOtherWindowS, quantile(accel_durs, 0.25)) * rec.fs_hz);
+  if (!still_durs.empty())
+    plan.still_len = fft_len_at_most(std::min(kMaxOtherWindowS, quantile(still_durs, 0.25)) * rec.fs_hz);
   return plan;
 }
 
-std::vector<Window> cut_windows(const GapRecording& rec, const std::vector<Segment>& segs, const AnalysisPlan& plan) {
+std::vector<Window> cut_windows(const GapRecording& rec, const std::vector<Segment>& segs,
+                                const AnalysisPlan& plan) {
   std::vector<Window> out;
   bool block_mode = true;
   for (const Segment& s : segs) block_mode = block_mode && s.type == SegmentType::kConstant;
@@ -226,13 +230,15 @@ std::vector<Window> cut_windows(const GapRecording& rec, const std::vector<Segme
     if (s.type == SegmentType::kConstant) {
       int cls = -1;
       for (std::size_t c = 0; c < plan.speeds.size(); ++c) {
-        if (std::fabs(plan.speeds[c] - s.speed_rad_s) <= 0.02 * std::fabs(plan.speeds[c])) cls = static_cast<int>(c);
+        if (std::fabs(plan.speeds[c] - s.speed_rad_s) <= 0.02 * std::fabs(plan.speeds[c]))
+          cls = static_cast<int>(c);
       }
       if (cls < 0 || plan.const_len[static_cast<std::size_t>(cls)] == 0) continue;
       w.speed_class = cls;
       w.len = plan.const_len[static_cast<std::size_t>(cls)];
       const double avail = (s.t1_s - s.t0_s - 2 * margin) * fs;
-      const auto k = std::min(kMaxWindowsPerSegment, static_cast<std::size_t>(std::max(0.0, avail) / static_cast<double>(w.len)));
+      const auto k = std::min(kMaxWindowsPerSegment,
+                              static_cast<std::size_t>(std::max(0.0, avail) / static_cast<double>(w.len)));
       const auto first = static_cast<std::size_t>(std::ceil((s.t0_s + margin) * fs));
       for (std::size_t j = 0; j < k; ++j) {
         w.start = first + j * w.len;

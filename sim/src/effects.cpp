@@ -91,9 +91,13 @@ std::size_t param_index(const EffectInfo& info, std::string_view name) {
 
 }  // namespace
 
-std::span<const EffectInfo> effect_catalog() noexcept { return kCatalog; }
+std::span<const EffectInfo> effect_catalog() noexcept {
+  return kCatalog;
+}
 
-const EffectInfo& effect_info(EffectKind kind) noexcept { return kCatalog[static_cast<std::size_t>(kind)]; }
+const EffectInfo& effect_info(EffectKind kind) noexcept {
+  return kCatalog[static_cast<std::size_t>(kind)];
+}
 
 std::optional<EffectKind> effect_kind_from_name(std::string_view name) noexcept {
   for (const EffectInfo& e : kCatalog) {
@@ -111,7 +115,8 @@ EffectSpec EffectSpec::with_defaults(EffectKind kind) {
 
 double EffectSpec::get(std::string_view name) const {
   const std::size_t i = param_index(effect_info(kind), name);
-  if (i >= params.size()) throw Error(std::string("effect '") + effect_info(kind).name + "': parameters missing");
+  if (i >= params.size())
+    throw Error(std::string("effect '") + effect_info(kind).name + "': parameters missing");
   return params[i];
 }
 

@@ -13,7 +13,9 @@ namespace {
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
-double sign_of(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
+double sign_of(double v) {
+  return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+}
 
 /// Unit-variance Gaussian noise low-passed by a one-pole filter with corner `corner_hz`
 /// (y[n] = a y[n-1] + sqrt(1 - a^2) w[n], stationary from the first sample).
@@ -74,9 +76,10 @@ void add_other_axis(const EffectSpec& e, const Scenario& s, const MotionProfile&
     const double speed = j < 0 ? 0.0 : m.speed_rad_s[static_cast<std::size_t>(j)];
     if (speed == 0.0) continue;
     if (order * std::fabs(speed) / kTwoPi >= nyquist) continue;
-    const double sf = vs.amplitude_speed_exponent == 0.0
-                          ? 1.0
-                          : std::pow(std::fabs(speed) / vs.reference_speed_rad_s, vs.amplitude_speed_exponent);
+    const double sf =
+        vs.amplitude_speed_exponent == 0.0
+            ? 1.0
+            : std::pow(std::fabs(speed) / vs.reference_speed_rad_s, vs.amplitude_speed_exponent);
     x[static_cast<std::size_t>(i)] += amp * sf * std::sin(order * angle + 0.7);
   }
 }

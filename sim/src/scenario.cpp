@@ -381,9 +381,11 @@ void parse_effect(Reader& r, EffectSpec& e, const Scenario& s) {
   const std::optional<EffectKind> k = effect_kind_from_name(kind);
   if (!k) {
     std::string names;
-    for (const EffectInfo& info : effect_catalog()) names += std::string(names.empty() ? "" : ", ") + info.name;
-    throw r.error_at(kn != nullptr ? kn->source() : r.raw().source(),
-                     "[[effects]] kind must be one of " + names + (kind.empty() ? "" : " (got '" + kind + "')"));
+    for (const EffectInfo& info : effect_catalog())
+      names += std::string(names.empty() ? "" : ", ") + info.name;
+    throw r.error_at(
+        kn != nullptr ? kn->source() : r.raw().source(),
+        "[[effects]] kind must be one of " + names + (kind.empty() ? "" : " (got '" + kind + "')"));
   }
   const EffectInfo& info = effect_info(*k);
   e = EffectSpec::with_defaults(*k);
@@ -395,7 +397,8 @@ void parse_effect(Reader& r, EffectSpec& e, const Scenario& s) {
     if (!found) {
       std::string names;
       for (const EffectParamInfo& p : info.params) names += std::string(names.empty() ? "" : ", ") + p.name;
-      throw r.error_at(key.source(), "unknown key '" + r.full(name) + "' (" + info.name + " has " + names + ")");
+      throw r.error_at(key.source(),
+                       "unknown key '" + r.full(name) + "' (" + info.name + " has " + names + ")");
     }
   }
   for (std::size_t i = 0; i < info.params.size(); ++i) {

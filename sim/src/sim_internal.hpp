@@ -37,7 +37,8 @@ struct MeshPerturbation {
   std::vector<double> theta_in_offset_rad;  ///< added to the input angle the GMF harmonics follow
   std::vector<double> gain;                 ///< multiplies the GMF part of the mesh
 };
-[[nodiscard]] MeshPerturbation mesh_perturbation(const Scenario& s, const MotionProfile& m, std::uint64_t seed);
+[[nodiscard]] MeshPerturbation mesh_perturbation(const Scenario& s, const MotionProfile& m,
+                                                 std::uint64_t seed);
 
 /// Adds impacts, other_axis and noise_color, then applies transfer_path, then adds
 /// electrical_interference, then clamps for adc_clipping (in scenario order within each step).

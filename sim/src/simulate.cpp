@@ -142,7 +142,8 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
     const EffectInfo& info = effect_info(e.kind);
     toml::table t;
     t.insert("kind", info.name);
-    for (std::size_t i = 0; i < info.params.size() && i < e.params.size(); ++i) t.insert(info.params[i].name, e.params[i]);
+    for (std::size_t i = 0; i < info.params.size() && i < e.params.size(); ++i)
+      t.insert(info.params[i].name, e.params[i]);
     effects.push_back(std::move(t));
   }
   if (!s.effects.empty()) {  // without effects truth.toml stays as it was before the effects library
@@ -239,8 +240,8 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
   meta.start_time_s = s.start_time_s;
   meta.scale = sensor_scale(s.sensor);
   meta.unit = "m/s^2";
-  formats::write_wav(out_dir / meta.vibration_file, static_cast<std::uint32_t>(sig.fs_nominal_hz), s.sensor.format,
-                     channels);
+  formats::write_wav(out_dir / meta.vibration_file, static_cast<std::uint32_t>(sig.fs_nominal_hz),
+                     s.sensor.format, channels);
 
   std::vector<formats::CandumpRecord> records;
   records.reserve(can.size());

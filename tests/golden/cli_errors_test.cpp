@@ -3,13 +3,12 @@
 // message naming the file at fault: missing recording, missing/corrupt/truncated baseline, malformed
 // candump line, malformed CSV cell, baseline/config and baseline/recording mismatches.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <string>
-
-#include <unistd.h>
 
 #include "golden_support.hpp"
 
@@ -49,18 +48,19 @@ class CliEnd2End : public ::testing::Test {
       state = state * 1664525U + 1013904223U;
       const double noise = (static_cast<double>(state >> 8) / 16777216.0 - 0.5) * 0.4;
       const double t = i / 10000.0;
-      const double v = std::sin(2.0 * M_PI * 100.0 * t) + 0.5 * std::sin(2.0 * M_PI * 230.0 * t + 1.0) + noise;
+      const double v =
+          std::sin(2.0 * M_PI * 100.0 * t) + 0.5 * std::sin(2.0 * M_PI * 230.0 * t + 1.0) + noise;
       csv << t << "," << v << "\n";
     }
     csv.close();
     std::ofstream(dir_ / "config.toml") << kConfig;
-    const RunResult imp = run_ptda({"import", "--csv", (dir_ / "signal.csv").string(), "--column", "accel", "--rate",
-                                    "10000", "--shaft-speed", "10Hz", "--out", (dir_ / "rec").string(),
-                                    "--start-time", "1700000000"},
-                                   dir_, "import");
+    const RunResult imp =
+        run_ptda({"import", "--csv", (dir_ / "signal.csv").string(), "--column", "accel", "--rate", "10000",
+                  "--shaft-speed", "10Hz", "--out", (dir_ / "rec").string(), "--start-time", "1700000000"},
+                 dir_, "import");
     ASSERT_EQ(imp.exit_code, 0) << imp.err;
-    const RunResult tr = run_ptda({"train", "--recording", (dir_ / "rec").string(), "--config", config(), "--out",
-                                   baseline(), "--windows", "0:0.5"},
+    const RunResult tr = run_ptda({"train", "--recording", (dir_ / "rec").string(), "--config", config(),
+                                   "--out", baseline(), "--windows", "0:0.5"},
                                   dir_, "train");
     ASSERT_EQ(tr.exit_code, 0) << tr.err;
     train_out_ = tr.out;
@@ -86,12 +86,14 @@ TEST_F(CliEnd2End, ImportTrainMonitorOnImportedData) {
   // One region from sample 0 to the last frame at 6.4 s, so the 0.1 s windows tile the whole file:
   // 64 windows, the first half (32) kept for training.
   EXPECT_NE(train_out_.find("1 constant-speed regions, 64 windows"), std::string::npos) << train_out_;
-  EXPECT_NE(train_out_.find("windows 0:0.5: kept 32 of 64 windows (1 regions)"), std::string::npos) << train_out_;
-  EXPECT_NE(train_out_.find("class 0: direction +, speed 62.8319"), std::string::npos) << train_out_;  // 10 Hz
+  EXPECT_NE(train_out_.find("windows 0:0.5: kept 32 of 64 windows (1 regions)"), std::string::npos)
+      << train_out_;
+  EXPECT_NE(train_out_.find("class 0: direction +, speed 62.8319"), std::string::npos)
+      << train_out_;  // 10 Hz
 
   const fs::path jsonl = dir_ / "second_half.jsonl";
-  const RunResult m = run_ptda({"monitor", "--recording", rec(), "--config", config(), "--baseline", baseline(),
-                                "--windows", "0.5:1", "--jsonl", jsonl.string()},
+  const RunResult m = run_ptda({"monitor", "--recording", rec(), "--config", config(), "--baseline",
+                                baseline(), "--windows", "0.5:1", "--jsonl", jsonl.string()},
                                dir_, "monitor_second_half");
   ASSERT_EQ(m.exit_code, 0) << m.err;
   const auto rows = read_jsonl(jsonl);
@@ -113,8 +115,8 @@ TEST_F(CliEnd2End, ImportTrainMonitorOnImportedData) {
 
 TEST_F(CliEnd2End, MissingRecordingIsExitOneNamingIt) {
   const std::string missing = (dir_ / "no_such_recording").string();
-  const RunResult r =
-      run_ptda({"monitor", "--recording", missing, "--config", config(), "--baseline", baseline()}, dir_, "missing");
+  const RunResult r = run_ptda(
+      {"monitor", "--recording", missing, "--config", config(), "--baseline", baseline()}, dir_, "missing");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "ptda monitor: " + missing + ": recording directory does not exist\n");
   EXPECT_TRUE(r.out.empty()) << r.out;
@@ -134,8 +136,8 @@ TEST_F(CliEnd2End, MissingCorruptAndTruncatedBaselineAreExitOneNamingTheFile) {
   corrupt[bytes.size() / 2] = static_cast<char>(corrupt[bytes.size() / 2] ^ 0x5A);
   const fs::path corrupt_path = dir_ / "corrupt.bin";
   std::ofstream(corrupt_path, std::ios::binary) << corrupt;
-  r = run_ptda({"monitor", "--recording", rec(), "--config", config(), "--baseline", corrupt_path.string()}, dir_,
-               "baseline_corrupt");
+  r = run_ptda({"monitor", "--recording", rec(), "--config", config(), "--baseline", corrupt_path.string()},
+               dir_, "baseline_corrupt");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err.rfind("ptda monitor: ", 0), 0U) << r.err;
   EXPECT_NE(r.err.find(corrupt_path.string()), std::string::npos) << r.err;
@@ -143,8 +145,8 @@ TEST_F(CliEnd2End, MissingCorruptAndTruncatedBaselineAreExitOneNamingTheFile) {
 
   const fs::path short_path = dir_ / "truncated.bin";
   std::ofstream(short_path, std::ios::binary) << bytes.substr(0, bytes.size() - 7);
-  r = run_ptda({"monitor", "--recording", rec(), "--config", config(), "--baseline", short_path.string()}, dir_,
-               "baseline_truncated");
+  r = run_ptda({"monitor", "--recording", rec(), "--config", config(), "--baseline", short_path.string()},
+               dir_, "baseline_truncated");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find(short_path.string()), std::string::npos) << r.err;
 }
@@ -184,8 +186,9 @@ TEST_F(CliEnd2End, MismatchesAreExitOneNamingBothSides) {
   other.replace(other.find("window_len = 1000"), 17, "window_len = 1200");
   const fs::path other_cfg = dir_ / "config_1200.toml";
   std::ofstream(other_cfg) << other;
-  RunResult r = run_ptda({"monitor", "--recording", rec(), "--config", other_cfg.string(), "--baseline", baseline()},
-                         dir_, "mismatch_window");
+  RunResult r =
+      run_ptda({"monitor", "--recording", rec(), "--config", other_cfg.string(), "--baseline", baseline()},
+               dir_, "mismatch_window");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "ptda monitor: " + baseline() + ": baseline window length is 1000 samples but " +
                        other_cfg.string() + " sets [extraction] window_len = 1200\n");
@@ -195,8 +198,9 @@ TEST_F(CliEnd2End, MismatchesAreExitOneNamingBothSides) {
                 "--shaft-speed", "600rpm", "--out", (dir_ / "rec20k").string()},
                dir_, "import20k");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  r = run_ptda({"monitor", "--recording", (dir_ / "rec20k").string(), "--config", config(), "--baseline", baseline()},
-               dir_, "mismatch_rate");
+  r = run_ptda(
+      {"monitor", "--recording", (dir_ / "rec20k").string(), "--config", config(), "--baseline", baseline()},
+      dir_, "mismatch_rate");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "ptda monitor: " + baseline() + ": baseline was trained at 10000 Hz but recording " +
                        (dir_ / "rec20k" / "vibration.wav").string() + " is sampled at 20000 Hz\n");
@@ -205,15 +209,16 @@ TEST_F(CliEnd2End, MismatchesAreExitOneNamingBothSides) {
 TEST_F(CliEnd2End, MalformedCsvIsExitOneWithLineAndColumnAndUsageErrorsExitTwo) {
   const fs::path csv = dir_ / "bad.csv";
   std::ofstream(csv) << "a,b\n1,2\n3,4\n5,abc\n";
-  RunResult r = run_ptda({"import", "--csv", csv.string(), "--column", "a", "--rate", "1000", "--shaft-speed", "5Hz",
-                          "--out", (dir_ / "never_rec").string()},
+  RunResult r = run_ptda({"import", "--csv", csv.string(), "--column", "a", "--rate", "1000", "--shaft-speed",
+                          "5Hz", "--out", (dir_ / "never_rec").string()},
                          dir_, "bad_csv");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "ptda import: " + csv.string() + ":4:2: not a number 'abc' in column 'b'\n");
   EXPECT_FALSE(fs::exists(dir_ / "never_rec" / "recording.toml"));
 
-  r = run_ptda({"monitor", "--recording", rec(), "--config", config(), "--baseline", baseline(), "--frobnicate"},
-               dir_, "usage");
+  r = run_ptda(
+      {"monitor", "--recording", rec(), "--config", config(), "--baseline", baseline(), "--frobnicate"}, dir_,
+      "usage");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.err, "ptda monitor: unknown option --frobnicate\n(try 'ptda monitor --help')\n");
   r = run_ptda({}, dir_, "no_command");

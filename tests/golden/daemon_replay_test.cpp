@@ -71,14 +71,24 @@ Prepared prepare(const std::string& job) {
   p.faulty = p.dir / "faulty";
   p.baseline = p.dir / "baseline.bin";
   p.jsonl = p.dir / "faulty.jsonl";
-  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_healthy.toml", "--out", (p.dir / "train").string(), "--seed",
-                      "1001"}, p.dir, "sim_train").exit_code, 0);
-  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_faulty.toml", "--out", p.faulty.string(), "--seed", "3003"},
-                     p.dir, "sim_faulty").exit_code, 0);
+  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_healthy.toml", "--out", (p.dir / "train").string(),
+                      "--seed", "1001"},
+                     p.dir, "sim_train")
+                .exit_code,
+            0);
+  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_faulty.toml", "--out", p.faulty.string(), "--seed",
+                      "3003"},
+                     p.dir, "sim_faulty")
+                .exit_code,
+            0);
   EXPECT_EQ(run_ptda({"train", "--recording", (p.dir / "train").string(), "--config", cfg, "--out",
-                      p.baseline.string()}, p.dir, "train").exit_code, 0);
+                      p.baseline.string()},
+                     p.dir, "train")
+                .exit_code,
+            0);
   const RunResult m = run_ptda({"monitor", "--recording", p.faulty.string(), "--config", cfg, "--baseline",
-                                p.baseline.string(), "--jsonl", p.jsonl.string(), "--quiet"}, p.dir, "monitor");
+                                p.baseline.string(), "--jsonl", p.jsonl.string(), "--quiet"},
+                               p.dir, "monitor");
   EXPECT_EQ(m.exit_code, 0) << m.err;
   std::ifstream in(p.jsonl);
   std::string line;
@@ -89,7 +99,7 @@ Prepared prepare(const std::string& job) {
 
 struct Pinned {
   const char* job;
-  std::size_t windows;      ///< windows in the faulty recording's JSONL
+  std::size_t windows;  ///< windows in the faulty recording's JSONL
   std::size_t alarm_windows;
 };
 
@@ -157,20 +167,23 @@ RunResult run_ptdad(const std::vector<std::string>& args, const fs::path& dir, c
 
 TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
   const Prepared p = prepare("arc_welding");
-  const RunResult ok = run_ptdad({"--config", p.config.string(), "--config-dir", "", "--check-config"}, p.dir, "check");
+  const RunResult ok =
+      run_ptdad({"--config", p.config.string(), "--config-dir", "", "--check-config"}, p.dir, "check");
   EXPECT_EQ(ok.exit_code, 0) << ok.err;
   EXPECT_NE(ok.out.find("configuration is valid"), std::string::npos) << ok.out;
 
   const fs::path bad = p.dir / "bad.toml";
   std::ofstream(bad) << "[daemon]\nstatus_period_s = 0.1\n\n[adc]\nbackend = \"wave\"\n";
-  const RunResult ko = run_ptdad({"--config", bad.string(), "--config-dir", "", "--check-config"}, p.dir, "check_bad");
+  const RunResult ko =
+      run_ptdad({"--config", bad.string(), "--config-dir", "", "--check-config"}, p.dir, "check_bad");
   EXPECT_EQ(ko.exit_code, 1);
-  EXPECT_NE(ko.err.find(bad.string() + ":5:11: adc.backend must be one of \"iio\", \"wav\", \"sim\", not \"wave\""),
-            std::string::npos)
+  EXPECT_NE(
+      ko.err.find(bad.string() + ":5:11: adc.backend must be one of \"iio\", \"wav\", \"sim\", not \"wave\""),
+      std::string::npos)
       << ko.err;
 
-  const RunResult run = run_ptdad({"--config", p.config.string(), "--config-dir", "", "--exit-at-end", "--foreground"},
-                                  p.dir, "run");
+  const RunResult run = run_ptdad(
+      {"--config", p.config.string(), "--config-dir", "", "--exit-at-end", "--foreground"}, p.dir, "run");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const cli::JsonValue status = cli::parse_json(read_file(p.dir / "status" / "status.json"), "status.json");
   std::size_t scored = 0, abnormal = 0;
@@ -181,7 +194,8 @@ TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
   }
   EXPECT_EQ(status.at("pipeline").at("windows_scored").as_number(), static_cast<double>(scored));
   EXPECT_EQ(status.at("pipeline").at("windows_abnormal").as_number(), static_cast<double>(abnormal));
-  EXPECT_NE(run.err.find("replay ended: " + std::to_string(p.lines.size()) + " windows processed"), std::string::npos)
+  EXPECT_NE(run.err.find("replay ended: " + std::to_string(p.lines.size()) + " windows processed"),
+            std::string::npos)
       << run.err;
 }
 

@@ -11,16 +11,18 @@ namespace {
 TEST(GapDiagnosis, NamesTheMountResonanceAndWritesTheSchema) {
   const fs::path dir = scratch_dir("gap_diagnosis");
   const fs::path rec = dir / "rec";
-  ASSERT_EQ(run_ptda({"simulate", "--scenario", (source_dir() / "config/scenarios/effects_transfer_path.toml").string(),
-                      "--out", rec.string()},
+  ASSERT_EQ(run_ptda({"simulate", "--scenario",
+                      (source_dir() / "config/scenarios/effects_transfer_path.toml").string(), "--out",
+                      rec.string()},
                      dir, "simulate")
                 .exit_code,
             0);
   // Two candidates keep the test short; the full catalog gives the same first choice (docs/gap.md).
-  const RunResult r = run_ptda({"gap", "--scenario", (source_dir() / "config/scenarios/joint_rotation_healthy.toml").string(),
-                                "--real", rec.string(), "--json", (dir / "gap.json").string(), "--html",
-                                (dir / "gap.html").string(), "--effects", "transfer_path,electrical_interference", "--quiet"},
-                               dir, "gap");
+  const RunResult r =
+      run_ptda({"gap", "--scenario", (source_dir() / "config/scenarios/joint_rotation_healthy.toml").string(),
+                "--real", rec.string(), "--json", (dir / "gap.json").string(), "--html",
+                (dir / "gap.html").string(), "--effects", "transfer_path,electrical_interference", "--quiet"},
+               dir, "gap");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const cli::JsonValue j = cli::parse_json(read_file(dir / "gap.json"), "gap.json");
   EXPECT_EQ(j.at("format").as_string(), "ptda-gap");
@@ -28,7 +30,8 @@ TEST(GapDiagnosis, NamesTheMountResonanceAndWritesTheSchema) {
   EXPECT_EQ(j.at("split").at("cycles").as_number(), 8.0);
   EXPECT_EQ(j.at("split").at("fit_cycles").as_number(), 4.0);
   EXPECT_TRUE(j.at("gap_significant").as_bool());
-  for (const char* k : {"by_probe", "by_band", "by_segment", "by_stage", "top"}) EXPECT_NO_THROW((void)j.at("gap").at(k)) << k;
+  for (const char* k : {"by_probe", "by_band", "by_segment", "by_stage", "top"})
+    EXPECT_NO_THROW((void)j.at("gap").at(k)) << k;
   const auto& chosen = j.at("chosen").array;
   ASSERT_GE(chosen.size(), 1U);
   EXPECT_EQ(chosen[0].at("effect").at("kind").as_string(), "transfer_path");
@@ -46,9 +49,10 @@ TEST(GapDiagnosis, NamesTheMountResonanceAndWritesTheSchema) {
 TEST(GapDiagnosis, UsageErrors) {
   const fs::path dir = scratch_dir("gap_usage");
   EXPECT_EQ(run_ptda({"gap", "--real", "x"}, dir, "missing").exit_code, 2);
-  const RunResult r = run_ptda({"gap", "--scenario", (source_dir() / "config/scenarios/gfd_like.toml").string(), "--real",
-                                "x", "--effects", "warp_drive"},
-                               dir, "bad_effect");
+  const RunResult r =
+      run_ptda({"gap", "--scenario", (source_dir() / "config/scenarios/gfd_like.toml").string(), "--real",
+                "x", "--effects", "warp_drive"},
+               dir, "bad_effect");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("unknown effect 'warp_drive'"), std::string::npos) << r.err;
 }

@@ -111,7 +111,9 @@ constexpr std::array<const char*, 3> kMethods = {"raw", "tda", "ptda"};
 // The rate is assumed (--rate 64500): the data set does not state it (README). The windows are counted
 // in samples, so the features do not depend on it; only the speed labels do.
 
-fs::path data_dir() { return fs::path(PTDA_SHARED_DIR) / "data" / "gfd"; }
+fs::path data_dir() {
+  return fs::path(PTDA_SHARED_DIR) / "data" / "gfd";
+}
 
 // Brute-force Mann-Whitney 2U over all pairs, independent of ptda evaluate's sorted counting.
 std::uint64_t brute_twice_u(const std::vector<double>& h, const std::vector<double>& f) {
@@ -130,7 +132,9 @@ std::vector<double> scored_feature(const std::vector<cli::JsonValue>& rows, cons
   return v;
 }
 
-double separability(double auc) { return std::max(auc, 1.0 - auc); }
+double separability(double auc) {
+  return std::max(auc, 1.0 - auc);
+}
 
 struct Measured {
   cli::Evaluation e;
@@ -153,12 +157,13 @@ class GfdStudy : public ::testing::Test {
           ASSERT_EQ(r.exit_code, 0) << key << " " << tag << ": " << r.err;
         };
         for (const char* cond : {"h", "b"}) {
-          run({"import", "--csv", (data_dir() / (std::string(cond) + "30hz" + std::to_string(load) + ".csv.gz")).string(),
+          run({"import", "--csv",
+               (data_dir() / (std::string(cond) + "30hz" + std::to_string(load) + ".csv.gz")).string(),
                "--column", ch, "--rate", "64500", "--shaft-speed", "30Hz", "--out", (c / cond).string()},
               std::string("import_") + cond);
         }
-        run({"train", "--recording", (c / "h").string(), "--config", config, "--out", (c / "base.bin").string(),
-             "--windows", "0:0.5"},
+        run({"train", "--recording", (c / "h").string(), "--config", config, "--out",
+             (c / "base.bin").string(), "--windows", "0:0.5"},
             "train");
         for (const char* m : kMethods) {
           const std::string hj = (c / (std::string("h.") + m + ".jsonl")).string();
@@ -179,7 +184,8 @@ class GfdStudy : public ::testing::Test {
           meas.e = cli::parse_evaluation_json(text, ej);
           const auto hrows = read_jsonl(hj);
           const auto brows = read_jsonl(bj);
-          meas.rms_twice_u = brute_twice_u(scored_feature(hrows, "rms_res"), scored_feature(brows, "rms_res"));
+          meas.rms_twice_u =
+              brute_twice_u(scored_feature(hrows, "rms_res"), scored_feature(brows, "rms_res"));
           meas.entropy_twice_u =
               brute_twice_u(scored_feature(hrows, "entropy_res"), scored_feature(brows, "entropy_res"));
           results_[key + "_" + m] = meas;
@@ -194,9 +200,11 @@ class GfdStudy : public ::testing::Test {
       if (req != nullptr && std::string(req) == "1") {
         FAIL() << "PTDA_REQUIRE_SHARED_DATA=1 but the GFD data directory " << data_dir() << " is missing";
       }
-      GTEST_SKIP() << "GFD data directory " << data_dir() << " not found (set PTDA_REQUIRE_SHARED_DATA=1 to fail)";
+      GTEST_SKIP() << "GFD data directory " << data_dir()
+                   << " not found (set PTDA_REQUIRE_SHARED_DATA=1 to fail)";
     }
-    ASSERT_EQ(results_.size(), kLoads.size() * kChannels.size() * kMethods.size()) << "the study did not complete";
+    ASSERT_EQ(results_.size(), kLoads.size() * kChannels.size() * kMethods.size())
+        << "the study did not complete";
   }
 
   static const Measured& get(int load, const char* ch, const char* m) {

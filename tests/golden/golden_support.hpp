@@ -18,7 +18,9 @@ namespace ptda::golden {
 
 namespace fs = std::filesystem;
 
-inline fs::path source_dir() { return fs::path(PTDA_SOURCE_DIR); }
+inline fs::path source_dir() {
+  return fs::path(PTDA_SOURCE_DIR);
+}
 
 /// A fresh scratch directory PTDA_TEST_TMP/golden/<name> (emptied).
 inline fs::path scratch_dir(const std::string& name) {

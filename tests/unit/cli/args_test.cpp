@@ -51,7 +51,8 @@ TEST(ArgParser, UnknownOptionIsNamed) {
 }
 
 TEST(ArgParser, MissingValueIsNamed) {
-  EXPECT_EQ(usage_message(make_parser(), {"--recording", "a", "--config"}), "option --config needs a value (FILE)");
+  EXPECT_EQ(usage_message(make_parser(), {"--recording", "a", "--config"}),
+            "option --config needs a value (FILE)");
 }
 
 TEST(ArgParser, MissingRequiredOptionIsNamed) {
@@ -116,7 +117,8 @@ TEST(SpeedUnits, ErrorsSayWhatIsWrong) {
     return std::string("<no error>");
   };
   EXPECT_EQ(msg("30"), "--shaft-speed: speed '30' needs a unit (Hz, rev/s, rpm or rad/s)");
-  EXPECT_EQ(msg("30 furlongs"), "--shaft-speed: unknown speed unit 'furlongs' in '30 furlongs' (use Hz, rev/s, rpm or rad/s)");
+  EXPECT_EQ(msg("30 furlongs"),
+            "--shaft-speed: unknown speed unit 'furlongs' in '30 furlongs' (use Hz, rev/s, rpm or rad/s)");
   EXPECT_EQ(msg("Hz"), "--shaft-speed: speed does not start with a number 'Hz'");
   EXPECT_EQ(msg("0rpm"), "--shaft-speed: speed must be finite and non-zero, got '0rpm'");
 }
@@ -144,7 +146,8 @@ TEST(FractionRangeParse, Errors) {
     return std::string("<no error>");
   };
   EXPECT_EQ(msg("0.5"), "--windows: expected FROM:TO fractions such as 0:0.5, got '0.5'");
-  EXPECT_EQ(msg("0.6:0.5"), "--windows: need 0 <= FROM < TO <= 1 (fractions of the window count), got '0.6:0.5'");
+  EXPECT_EQ(msg("0.6:0.5"),
+            "--windows: need 0 <= FROM < TO <= 1 (fractions of the window count), got '0.6:0.5'");
   EXPECT_EQ(msg("0:1.5"), "--windows: need 0 <= FROM < TO <= 1 (fractions of the window count), got '0:1.5'");
   EXPECT_EQ(msg("a:1"), "--windows: not a number 'a'");
 }
@@ -160,9 +163,11 @@ int run(const std::vector<std::string>& args, std::string& out, std::string& err
 
 TEST(RunCli, UsageErrorsExitTwoWithMessage) {
   std::string out, err;
-  EXPECT_EQ(run({"monitor", "--recording", "r", "--config", "c", "--baseline", "b", "--method", "fft"}, out, err),
-            kExitUsage);
-  EXPECT_EQ(err, "ptda monitor: --method: expected ptda, tda or raw, got 'fft'\n(try 'ptda monitor --help')\n");
+  EXPECT_EQ(
+      run({"monitor", "--recording", "r", "--config", "c", "--baseline", "b", "--method", "fft"}, out, err),
+      kExitUsage);
+  EXPECT_EQ(err,
+            "ptda monitor: --method: expected ptda, tda or raw, got 'fft'\n(try 'ptda monitor --help')\n");
   EXPECT_EQ(run({"train", "--config", "c", "--out", "b"}, out, err), kExitUsage);
   EXPECT_EQ(err, "ptda train: missing required option --recording DIR\n(try 'ptda train --help')\n");
   EXPECT_EQ(run({"import", "--csv", "x.csv", "--column", "a1", "--rate", "64500", "--shaft-speed", "30",

@@ -95,7 +95,8 @@ TEST(ReadCsvColumn, GzipAndPlainGiveTheSameValues) {
 
 TEST(ReadCsvColumn, CrLfAndMissingFinalNewlineAndTrailingBlankLines) {
   const auto dir = scratch("crlf");
-  EXPECT_EQ(read_csv_column(write_text(dir / "a.csv", "x\r\n1\r\n2"), "x").values, (std::vector<float>{1.0F, 2.0F}));
+  EXPECT_EQ(read_csv_column(write_text(dir / "a.csv", "x\r\n1\r\n2"), "x").values,
+            (std::vector<float>{1.0F, 2.0F}));
   EXPECT_EQ(read_csv_column(write_text(dir / "b.csv", "x\n1\n2\n\n\n"), "x").values,
             (std::vector<float>{1.0F, 2.0F}));
 }
@@ -120,7 +121,8 @@ TEST(ReadCsvColumn, WrongCellCountAndBlankLinesInside) {
   const auto q = write_text(dir / "long.csv", "a,b\n1,2,3\n");
   EXPECT_EQ(error_of(q, "a"), q.string() + ":2:3: 3 cell(s) but the header has 2");
   const auto r = write_text(dir / "blank.csv", "a\n1\n\n2\n");
-  EXPECT_EQ(error_of(r, "a"), r.string() + ":3: blank line inside the data (only allowed at the end of the file)");
+  EXPECT_EQ(error_of(r, "a"),
+            r.string() + ":3: blank line inside the data (only allowed at the end of the file)");
 }
 
 TEST(ReadCsvColumn, EmptyFileHeaderOnlyAndMissingColumn) {
@@ -135,7 +137,8 @@ TEST(ReadCsvColumn, EmptyFileHeaderOnlyAndMissingColumn) {
   EXPECT_EQ(error_of(h, "a"), h.string() + ": no data rows after the header line");
   const auto c = write_text(dir / "cols.csv", "a1,a2\n1,2\n");
   EXPECT_EQ(error_of(c, "a9"), c.string() + ":1: no column named 'a9' (header: a1, a2)");
-  EXPECT_EQ(error_of(c, "2"), c.string() + ":1: column index 2 out of range: the header has 2 column(s) (0-based)");
+  EXPECT_EQ(error_of(c, "2"),
+            c.string() + ":1: column index 2 out of range: the header has 2 column(s) (0-based)");
   EXPECT_EQ(error_of(dir / "nope.csv", "a"), (dir / "nope.csv").string() + ": file does not exist");
 }
 
@@ -193,7 +196,8 @@ TEST(ImportCsv, WritesRecordingWithConstantSpeedCanLog) {
     EXPECT_NEAR(d.speed_rad_s, 188.4955592153876, 0.5e-4);  // 1e-4 rad/s resolution
     EXPECT_EQ(frames[i].frame.t_ns, 1'700'000'000'000'000'000LL + static_cast<std::int64_t>(i) * 4'000'000LL);
     // angle = speed * t wrapped to [0, 2 pi), 1e-5 rad resolution
-    const double expected = std::fmod(188.4955592153876 * 0.004 * static_cast<double>(i), 2.0 * std::numbers::pi);
+    const double expected =
+        std::fmod(188.4955592153876 * 0.004 * static_cast<double>(i), 2.0 * std::numbers::pi);
     EXPECT_NEAR(d.angle_rad, expected, 1e-5) << i;
   }
   EXPECT_GE(ns_to_seconds(frames.back().frame.t_ns - frames.front().frame.t_ns), 0.1);

@@ -121,8 +121,9 @@ TEST(RocAuc, RejectsEmptyAndNaN) {
 
 TEST(ReadMonitorJsonl, KeepsScoredWindowsAndCounts) {
   const fs::path dir = scratch("read");
-  const fs::path p = write_text(dir / "h.jsonl", line(0, 1.0, 0.9, false, false) + no_class_line(1) + "\n" +
-                                                     line(2, 2.0, 0.8, true, false) + line(3, 3.0, 0.7, true, true));
+  const fs::path p =
+      write_text(dir / "h.jsonl", line(0, 1.0, 0.9, false, false) + no_class_line(1) + "\n" +
+                                      line(2, 2.0, 0.8, true, false) + line(3, 3.0, 0.7, true, true));
   MonitorWindows w;
   read_monitor_jsonl(p.string(), w);
   EXPECT_EQ(w.method, "ptda");
@@ -144,28 +145,45 @@ TEST(ReadMonitorJsonl, ErrorsNameFileAndLine) {
   EXPECT_EQ(error_of([&] { read_monitor_jsonl(missing, w); }), missing + ": cannot open");
 
   const fs::path bad = write_text(dir / "bad.jsonl", line(0, 1.0, 0.9, false, false) + "{\"n\":1,\n");
-  const std::string e1 = error_of([&] { MonitorWindows x; read_monitor_jsonl(bad.string(), x); });
+  const std::string e1 = error_of([&] {
+    MonitorWindows x;
+    read_monitor_jsonl(bad.string(), x);
+  });
   EXPECT_EQ(e1.rfind(bad.string() + ":2: column ", 0), 0u) << e1;
 
   const fs::path no_status = write_text(dir / "no_status.jsonl", "{\"method\":\"ptda\"}\n");
-  EXPECT_EQ(error_of([&] { MonitorWindows x; read_monitor_jsonl(no_status.string(), x); }),
+  EXPECT_EQ(error_of([&] {
+              MonitorWindows x;
+              read_monitor_jsonl(no_status.string(), x);
+            }),
             no_status.string() + ":1: missing field \"status\"");
 
   const fs::path not_obj = write_text(dir / "array.jsonl", "[1,2]\n");
-  EXPECT_EQ(error_of([&] { MonitorWindows x; read_monitor_jsonl(not_obj.string(), x); }),
+  EXPECT_EQ(error_of([&] {
+              MonitorWindows x;
+              read_monitor_jsonl(not_obj.string(), x);
+            }),
             not_obj.string() + ":1: not a JSON object");
 
   // A scored window whose feature was NaN (written as null).
   const fs::path nan_rms =
       write_text(dir / "nan.jsonl", line(0, std::numeric_limits<double>::quiet_NaN(), 0.9, true, false));
-  EXPECT_EQ(error_of([&] { MonitorWindows x; read_monitor_jsonl(nan_rms.string(), x); }),
+  EXPECT_EQ(error_of([&] {
+              MonitorWindows x;
+              read_monitor_jsonl(nan_rms.string(), x);
+            }),
             nan_rms.string() + ":1: scored window without a finite \"rms_res\"");
 
-  const fs::path mixed = write_text(
-      dir / "mixed.jsonl", line(0, 1.0, 0.9, false, false) + line(1, 1.0, 0.9, false, false, dsp::Method::kTda));
-  EXPECT_EQ(error_of([&] { MonitorWindows x; read_monitor_jsonl(mixed.string(), x); }),
-            mixed.string() + ":2: method \"tda\" differs from \"ptda\" of the windows read before (evaluate one "
-                             "method at a time)");
+  const fs::path mixed =
+      write_text(dir / "mixed.jsonl",
+                 line(0, 1.0, 0.9, false, false) + line(1, 1.0, 0.9, false, false, dsp::Method::kTda));
+  EXPECT_EQ(error_of([&] {
+              MonitorWindows x;
+              read_monitor_jsonl(mixed.string(), x);
+            }),
+            mixed.string() +
+                ":2: method \"tda\" differs from \"ptda\" of the windows read before (evaluate one "
+                "method at a time)");
 }
 
 TEST(EvaluateSeparation, HandComputedCase) {
@@ -227,7 +245,8 @@ TEST(EvaluateSeparation, ErrorsNameTheFiles) {
             "method mismatch: h.jsonl holds \"ptda\" windows but f.jsonl holds \"raw\"");
 }
 
-// ---- the command -------------------------------------------------------------------------------------------
+// ---- the command
+// -------------------------------------------------------------------------------------------
 
 struct Files {
   fs::path healthy, faulty;
@@ -240,8 +259,8 @@ Files write_case(const std::string& name) {
   Files f;
   f.healthy = write_text(dir / "h.jsonl", line(0, 1.0, 0.9, false, false) + line(1, 2.0, 0.8, false, false) +
                                               line(2, 3.0, 0.85, true, false));
-  f.faulty = write_text(dir / "f.jsonl", no_class_line(0) + line(1, 2.5, 0.8, true, false) +
-                                             line(2, 4.0, 0.5, true, true));
+  f.faulty = write_text(dir / "f.jsonl",
+                        no_class_line(0) + line(1, 2.5, 0.8, true, false) + line(2, 4.0, 0.5, true, true));
   return f;
 }
 
@@ -256,21 +275,25 @@ TEST(CmdEvaluate, TextJsonAndMarkdown) {
   const Files f = write_case("cmd");
   std::string out;
   ASSERT_EQ(run({"--healthy", f.healthy.string(), "--faulty", f.faulty.string()}, out), kExitOk);
-  EXPECT_EQ(out,
-            "evaluate (ptda): healthy 3 scored of 3 windows, faulty 2 scored of 3\n"
-            "  rms_res     mean healthy 2, faulty 3.25, ratio 1.625, AUC 0.8333 (separability 0.8333, faulty higher)\n"
-            "  entropy_res mean healthy 0.85, faulty 0.65, ratio 0.76471, AUC 0.0833 (separability 0.9167, faulty "
-            "lower)\n"
-            "  healthy     abnormal 1 of 3 (33.3 %), alarm never raised\n"
-            "  faulty      abnormal 2 of 2 (100.0 %), alarm raised in 1 windows\n");
+  EXPECT_EQ(
+      out,
+      "evaluate (ptda): healthy 3 scored of 3 windows, faulty 2 scored of 3\n"
+      "  rms_res     mean healthy 2, faulty 3.25, ratio 1.625, AUC 0.8333 (separability 0.8333, faulty "
+      "higher)\n"
+      "  entropy_res mean healthy 0.85, faulty 0.65, ratio 0.76471, AUC 0.0833 (separability 0.9167, faulty "
+      "lower)\n"
+      "  healthy     abnormal 1 of 3 (33.3 %), alarm never raised\n"
+      "  faulty      abnormal 2 of 2 (100.0 %), alarm raised in 1 windows\n");
 
   const fs::path json = f.healthy.parent_path() / "eval.json";
   ASSERT_EQ(run({"--healthy", f.healthy.string(), "--faulty", f.faulty.string(), "--json", json.string(),
                  "--markdown", "--label", "0 %, a1", "--x", "20"},
                 out),
             kExitOk);
-  EXPECT_EQ(out, evaluation_markdown_header() +
-                     "| 0 %, a1 | ptda | 3 / 2 | 1.6250 | 0.833 | 0.7647 | 0.083 | 33.3 % | 100.0 % | no / yes |\n");
+  EXPECT_EQ(
+      out,
+      evaluation_markdown_header() +
+          "| 0 %, a1 | ptda | 3 / 2 | 1.6250 | 0.833 | 0.7647 | 0.083 | 33.3 % | 100.0 % | no / yes |\n");
   std::ifstream in(json);
   std::string text;
   std::getline(in, text);
@@ -288,8 +311,9 @@ TEST(CmdEvaluate, TextJsonAndMarkdown) {
   EXPECT_EQ(e.features[1].mean_faulty, 0.65);
   EXPECT_EQ(e.features[1].direction, Direction::kLower);
 
-  ASSERT_EQ(run({"--healthy", f.healthy.string(), "--faulty", f.faulty.string(), "--markdown", "--no-header"}, out),
-            kExitOk);
+  ASSERT_EQ(
+      run({"--healthy", f.healthy.string(), "--faulty", f.faulty.string(), "--markdown", "--no-header"}, out),
+      kExitOk);
   EXPECT_EQ(out, "|  | ptda | 3 / 2 | 1.6250 | 0.833 | 0.7647 | 0.083 | 33.3 % | 100.0 % | no / yes |\n");
 }
 
@@ -297,8 +321,8 @@ TEST(CmdEvaluate, PoolsRepeatedFiles) {
   const Files f = write_case("pool");
   std::string out;
   const fs::path json = f.healthy.parent_path() / "pooled.json";
-  ASSERT_EQ(run({"--healthy", f.healthy.string(), "--healthy", f.healthy.string(), "--faulty", f.faulty.string(),
-                 "--json", json.string()},
+  ASSERT_EQ(run({"--healthy", f.healthy.string(), "--healthy", f.healthy.string(), "--faulty",
+                 f.faulty.string(), "--json", json.string()},
                 out),
             kExitOk);
   std::ifstream in(json);
@@ -316,9 +340,12 @@ TEST(CmdEvaluate, UsageAndDataErrors) {
   EXPECT_THROW(run({"--faulty", f.faulty.string()}, out), UsageError);
   EXPECT_THROW(run({"--healthy", f.healthy.string(), "--faulty", f.faulty.string(), "--no-header"}, out),
                UsageError);
-  EXPECT_THROW(run({"--healthy", f.healthy.string(), "--faulty", f.faulty.string(), "--x", "abc"}, out), UsageError);
+  EXPECT_THROW(run({"--healthy", f.healthy.string(), "--faulty", f.faulty.string(), "--x", "abc"}, out),
+               UsageError);
   const fs::path only_no_class = write_text(f.healthy.parent_path() / "nc.jsonl", no_class_line(0));
-  EXPECT_EQ(error_of([&] { run({"--healthy", only_no_class.string(), "--faulty", f.faulty.string()}, out); }),
+  EXPECT_EQ(error_of([&] {
+              run({"--healthy", only_no_class.string(), "--faulty", f.faulty.string()}, out);
+            }),
             only_no_class.string() + ": no scored windows in the healthy set (1 windows read)");
 }
 
@@ -357,11 +384,14 @@ TEST(CmdEvaluate, PlotsAucAgainstX) {
   no_x.method = "raw";
   EXPECT_EQ(error_of([&] { (void)auc_plot_svg(std::span<const Evaluation>(&no_x, 1), "rms_res", "t", "x"); }),
             "AUC plot: result 'case' (raw) has no x value");
-  EXPECT_EQ(error_of([&] { (void)auc_plot_svg(std::span<const Evaluation>(&no_x, 1), "kurtosis", "t", "x"); }),
-            "AUC plot: unknown feature 'kurtosis' (rms_res or entropy_res)");
+  EXPECT_EQ(
+      error_of([&] { (void)auc_plot_svg(std::span<const Evaluation>(&no_x, 1), "kurtosis", "t", "x"); }),
+      "AUC plot: unknown feature 'kurtosis' (rms_res or entropy_res)");
   EXPECT_THROW(run({"--plot", svg.string()}, out), UsageError);
   const fs::path bad = write_text(dir / "bad.json", "{\"label\":\"a\"}\n");
-  EXPECT_EQ(error_of([&] { run({"--plot", svg.string(), "--results", bad.string()}, out); }),
+  EXPECT_EQ(error_of([&] {
+              run({"--plot", svg.string(), "--results", bad.string()}, out);
+            }),
             bad.string() + ":1: missing field \"x\"");
 }
 

@@ -38,18 +38,28 @@ TEST(JsonNumber, ShortestRoundTripAndNull) {
 
 TEST(JsonObject, BuildsOneLine) {
   JsonObject o;
-  o.add("n", 3).add("t", 0.25).add("ok", true).add("name", "a\"b").add_null("segment").add_pair("band", 0.5, 1.5);
+  o.add("n", 3)
+      .add("t", 0.25)
+      .add("ok", true)
+      .add("name", "a\"b")
+      .add_null("segment")
+      .add_pair("band", 0.5, 1.5);
   o.add_optional("seg2", 7).add("big", static_cast<std::uint64_t>(18446744073709551615ULL));
-  EXPECT_EQ(o.str(),
-            "{\"n\":3,\"t\":0.25,\"ok\":true,\"name\":\"a\\\"b\",\"segment\":null,\"band\":[0.5,1.5],\"seg2\":7,"
-            "\"big\":18446744073709551615}");
+  EXPECT_EQ(
+      o.str(),
+      "{\"n\":3,\"t\":0.25,\"ok\":true,\"name\":\"a\\\"b\",\"segment\":null,\"band\":[0.5,1.5],\"seg2\":7,"
+      "\"big\":18446744073709551615}");
   EXPECT_EQ(JsonObject().str(), "{}");
 }
 
 TEST(JsonRoundTrip, WriterOutputParsesBack) {
   JsonObject o;
   const std::string tricky = std::string("q\"b\\s/\n\x02 end");
-  o.add("s", tricky).add("x", 0.1 + 0.2).add("nan", std::nan("")).add_pair("band", -1e-300, 1e300).add("f", false);
+  o.add("s", tricky)
+      .add("x", 0.1 + 0.2)
+      .add("nan", std::nan(""))
+      .add_pair("band", -1e-300, 1e300)
+      .add("f", false);
   const JsonValue v = parse_json(o.str(), "test");
   EXPECT_EQ(v.at("s").as_string(), tricky);
   EXPECT_EQ(v.at("x").as_number(), 0.1 + 0.2);
@@ -93,11 +103,13 @@ TEST(WindowJson, ScoredAndUnclassifiedWindows) {
   const std::string t_end = json_number(ns_to_seconds(w.ref.t_end_ns));
   EXPECT_EQ(t_start.substr(0, 13), "1700000001.25");
   EXPECT_EQ(t_end.substr(0, 13), "1700000001.41");
-  EXPECT_EQ(window_json(w, dsp::Method::kPtda),
-            "{\"n\":12,\"t_start\":" + t_start + ",\"t_end\":" + t_end + ",\"segment\":1,\"region\":3,"
-            "\"speed_rad_s\":-1.0471975511965976,\"status\":\"scored\",\"method\":\"ptda\",\"rms_res\":0.0625,"
-            "\"entropy_res\":0.875,\"rms_band\":[0.03125,0.05],\"entropy_band\":[0.5,0.95],\"rms_out\":true,"
-            "\"entropy_out\":false,\"abnormal\":true,\"alarm\":true,\"abnormal_in_last_n\":3}");
+  EXPECT_EQ(
+      window_json(w, dsp::Method::kPtda),
+      "{\"n\":12,\"t_start\":" + t_start + ",\"t_end\":" + t_end +
+          ",\"segment\":1,\"region\":3,"
+          "\"speed_rad_s\":-1.0471975511965976,\"status\":\"scored\",\"method\":\"ptda\",\"rms_res\":0.0625,"
+          "\"entropy_res\":0.875,\"rms_band\":[0.03125,0.05],\"entropy_band\":[0.5,0.95],\"rms_out\":true,"
+          "\"entropy_out\":false,\"abnormal\":true,\"alarm\":true,\"abnormal_in_last_n\":3}");
   w.status = dsp::WindowStatus::kNoClass;
   w.class_id = -1;
   w.alarm = false;

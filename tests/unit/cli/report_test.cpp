@@ -108,7 +108,8 @@ ReportData make_data() {
 
 std::filesystem::path test_tmp_dir() {
   const char* env = std::getenv("PTDA_TEST_TMP");
-  std::filesystem::path dir = env ? std::filesystem::path(env) : std::filesystem::temp_directory_path() / "ptda-test";
+  std::filesystem::path dir =
+      env ? std::filesystem::path(env) : std::filesystem::temp_directory_path() / "ptda-test";
   std::filesystem::create_directories(dir);
   return dir;
 }
@@ -121,8 +122,9 @@ TEST(Report, StructureSectionsAndEscaping) {
   // Every plot is an outer <svg> with a nested plot-area <svg>: 6 trend plots + 3 examples x 10.
   EXPECT_EQ(count(html, "<svg "), 2U * (6U + 30U));
   EXPECT_EQ(count(html, "</svg>"), 2U * (6U + 30U));
-  for (const char* id : {"id=\"summary\">Summary", "id=\"how-to-read\">How to read this report",
-                         "id=\"trends\">Feature trends", "id=\"examples\">Example windows", "id=\"notes\">Notes"}) {
+  for (const char* id :
+       {"id=\"summary\">Summary", "id=\"how-to-read\">How to read this report",
+        "id=\"trends\">Feature trends", "id=\"examples\">Example windows", "id=\"notes\">Notes"}) {
     EXPECT_NE(html.find(id), std::string::npos) << id;
   }
   EXPECT_NE(html.find("<h1>Joint 4 &lt;cycloidal&gt; &amp; friends</h1>"), std::string::npos);
@@ -158,7 +160,8 @@ TEST(Report, ThresholdBandDrawnAtExpectedPixel) {
   } edges[] = {{0.4, "#1f77b4"}, {0.8, "#1f77b4"}, {0.45, "#ff7f0e"}, {0.85, "#ff7f0e"}};
   for (const auto& e : edges) {
     const std::string yp = svg::format_fixed(l.top_px + e.frac * l.height_px, svg::kPixelDecimals);
-    const std::string line = "y1=\"" + yp + "\" x2=\"" + right + "\" y2=\"" + yp + "\" stroke=\"" + e.color + "\"";
+    const std::string line =
+        "y1=\"" + yp + "\" x2=\"" + right + "\" y2=\"" + yp + "\" stroke=\"" + e.color + "\"";
     EXPECT_NE(html.find(line), std::string::npos) << line;
   }
 }
@@ -187,8 +190,8 @@ TEST(Report, TrendPlotMarksAbnormalWindowsAndAlarm) {
   std::size_t faulty_abnormal = 0;
   for (const auto& p : ptda.points) faulty_abnormal += (p.abnormal && p.recording == "faulty") ? 1 : 0;
   const std::string html = render_html_report(d);
-  const std::string row = "<tr><td>PTDA residual</td><td>faulty</td><td>150</td><td>" +
-                          std::to_string(faulty_abnormal) + "</td>";
+  const std::string row =
+      "<tr><td>PTDA residual</td><td>faulty</td><td>150</td><td>" + std::to_string(faulty_abnormal) + "</td>";
   EXPECT_NE(html.find(row), std::string::npos) << row;
 }
 

@@ -89,11 +89,13 @@ TEST(SvgEnvelope, KeepsSingleSpikeAndDecimates) {
   EXPECT_LE(env.size(), 800U);
   EXPECT_GE(env.size(), 400U);
   const auto has = [&env](double xv, double yv) {
-    return std::any_of(env.begin(), env.end(), [&](const auto& p) { return p.first == xv && p.second == yv; });
+    return std::any_of(env.begin(), env.end(),
+                       [&](const auto& p) { return p.first == xv && p.second == yv; });
   };
   EXPECT_TRUE(has(x[7777], 5.0));
   EXPECT_TRUE(has(x[3001], -4.0));
-  EXPECT_TRUE(std::is_sorted(env.begin(), env.end(), [](const auto& a, const auto& b) { return a.first < b.first; }));
+  EXPECT_TRUE(
+      std::is_sorted(env.begin(), env.end(), [](const auto& a, const auto& b) { return a.first < b.first; }));
 }
 
 TEST(SvgEnvelope, KeepsMinAndMaxOfEveryColumn) {
@@ -111,7 +113,8 @@ TEST(SvgEnvelope, KeepsMinAndMaxOfEveryColumn) {
   for (std::size_t c = 0; c < columns; ++c) {
     double mn = 1e9, mx = -1e9, emn = 1e9, emx = -1e9;
     for (std::size_t i = 0; i < n; ++i) {
-      const auto col = std::min(columns - 1, static_cast<std::size_t>((x[i] - x_lo) * columns / (x_hi - x_lo)));
+      const auto col =
+          std::min(columns - 1, static_cast<std::size_t>((x[i] - x_lo) * columns / (x_hi - x_lo)));
       if (col != c) continue;
       mn = std::min(mn, y[i]);
       mx = std::max(mx, y[i]);
@@ -170,14 +173,16 @@ TEST(SvgRender, EmptySeriesShowsMessage) {
   EXPECT_TRUE(compute_layout(p).empty);
 
   Plot nan_only;
-  nan_only.series.push_back(Series{"", "#000000", Series::Kind::kLine, {0.0, 1.0}, {std::nan(""), std::nan("")}, 1.0});
+  nan_only.series.push_back(
+      Series{"", "#000000", Series::Kind::kLine, {0.0, 1.0}, {std::nan(""), std::nan("")}, 1.0});
   EXPECT_NE(render_svg(nan_only).find("no data"), std::string::npos);
 }
 
 TEST(SvgRender, DeterministicAndBandsAtExpectedPixels) {
   Plot p;
   p.title = "trend";
-  p.series.push_back(Series{"class 0", "#1f77b4", Series::Kind::kMarkers, {0, 1, 2, 3}, {0.1, 0.5, 0.3, 0.9}, 2.5});
+  p.series.push_back(
+      Series{"class 0", "#1f77b4", Series::Kind::kMarkers, {0, 1, 2, 3}, {0.1, 0.5, 0.3, 0.9}, 2.5});
   p.bands.push_back(HBand{0.25, 0.75, "band", "#2ca02c"});
   p.spans.push_back(VSpan{2.5, 3.5, "alarm", "#d62728"});
   p.vlines.push_back(VLine{1.5, "faulty", "#555555"});
@@ -230,7 +235,8 @@ TEST(SvgSpectrum, SineAmplitudeAndUnsupportedLength) {
   const double fs = 1000.0;
   std::vector<float> x(n);
   for (std::size_t i = 0; i < n; ++i) {
-    x[i] = static_cast<float>(0.5 + 2.0 * std::sin(2.0 * std::numbers::pi * 40.0 * static_cast<double>(i) / fs));
+    x[i] =
+        static_cast<float>(0.5 + 2.0 * std::sin(2.0 * std::numbers::pi * 40.0 * static_cast<double>(i) / fs));
   }
   const Spectrum s = amplitude_spectrum(x, fs);
   ASSERT_EQ(s.freq_hz.size(), n / 2 + 1);

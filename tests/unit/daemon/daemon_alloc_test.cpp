@@ -20,10 +20,11 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   const fs::path dir = scratch("alloc");
   write_sim_baseline(dir / "baseline.bin");
   // The simulator at fast pace, looping: ~60 s of job per pass, as fast as the engine goes.
-  write_text(dir / "ptdad.toml",
-             sim_config(dir / "baseline.bin", dir / "status", "fast",
-                        "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\n",
-                        "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\nperiod_s = 0.05\n"));
+  write_text(
+      dir / "ptdad.toml",
+      sim_config(dir / "baseline.bin", dir / "status", "fast",
+                 "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\n",
+                 "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\nperiod_s = 0.05\n"));
   // A datagram socket for sd_notify (nobody reads it; a full queue is counted, not fatal).
   const fs::path sock = dir / "notify.sock";
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
@@ -52,7 +53,8 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   {
     ptda::test::AllocScope scope;
     // Two more passes: every class, the loop seam twice, status writes and watchdog pings.
-    wait_for([&] { return d.view().pipeline.samples > before.pipeline.samples + 2 * pass; }, std::chrono::seconds(120));
+    wait_for([&] { return d.view().pipeline.samples > before.pipeline.samples + 2 * pass; },
+             std::chrono::seconds(120));
     allocations = scope.count();
   }
   const DaemonView after = d.view();

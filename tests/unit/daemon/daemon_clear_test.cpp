@@ -35,11 +35,15 @@ std::string clear_config(const fs::path& dir) {
   // k = n = 5: only a run of abnormal windows alarms, so the healthy parts never do (checked below).
   const std::string pipe = with_decision(arc_pipeline(), 5, 5);
   return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
-         (dir / "status").string() + "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
+         (dir / "status").string() +
+         "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
          (dir / "not-opened").string() +
-         "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n[can.clear_frame]\nenabled = true\n"
-         "id = 0x3A1\ndata = \"C1\"\n\n[alarm]\nmin_hold_s = 20.0\nlatch = true\nwarning = false\n\n[alarm.can]\n"
-         "enabled = true\nid = 0x3A0\n\n" + pipe;
+         "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n[can.clear_frame]\nenabled "
+         "= true\n"
+         "id = 0x3A1\ndata = \"C1\"\n\n[alarm]\nmin_hold_s = 20.0\nlatch = true\nwarning = "
+         "false\n\n[alarm.can]\n"
+         "enabled = true\nid = 0x3A0\n\n" +
+         pipe;
 }
 
 CanFrame clear_frame(std::int64_t t_ns) {
@@ -114,7 +118,9 @@ TEST_F(Clear, LatchedAlarmClearsOnlyWhenAllowed) {
     EXPECT_EQ(d.view().counters.can_clear_frames, 2U);
     // Nothing to clear (two requests posted before one tick count once).
     EXPECT_GE(d.view().pipeline.alarm_counters.clears_nothing, 1U);
-    EXPECT_EQ(d.view().pipeline.alarm_counters.clears_accepted + d.view().pipeline.alarm_counters.clears_refused, 0U);
+    EXPECT_EQ(
+        d.view().pipeline.alarm_counters.clears_accepted + d.view().pipeline.alarm_counters.clears_refused,
+        0U);
   }
 
   FakeDevices dev(faulty_src, frames, true);
@@ -201,10 +207,11 @@ TEST_F(Clear, LatchedAlarmClearsOnlyWhenAllowed) {
   want_can.insert(want_can.end(), want.begin(), want.end());
   EXPECT_EQ(squeeze(sent), want_can) << names(squeeze(sent));
   // The GPIO line is energised only below kAlarm: off, on, off (alarm), on, off.
-  std::printf("clear: alarms %llu, clears refused %llu accepted %llu nothing %llu; outputs: %s; CAN frames %zu: %s\n",
-              static_cast<unsigned long long>(c.alarms_raised), static_cast<unsigned long long>(c.clears_refused),
-              static_cast<unsigned long long>(c.clears_accepted), static_cast<unsigned long long>(c.clears_nothing),
-              names(squeeze(shown)).c_str(), sent.size(), names(squeeze(sent)).c_str());
+  std::printf(
+      "clear: alarms %llu, clears refused %llu accepted %llu nothing %llu; outputs: %s; CAN frames %zu: %s\n",
+      static_cast<unsigned long long>(c.alarms_raised), static_cast<unsigned long long>(c.clears_refused),
+      static_cast<unsigned long long>(c.clears_accepted), static_cast<unsigned long long>(c.clears_nothing),
+      names(squeeze(shown)).c_str(), sent.size(), names(squeeze(sent)).c_str());
 }
 
 }  // namespace

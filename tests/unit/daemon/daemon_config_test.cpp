@@ -35,10 +35,10 @@ TEST(DaemonConfig, DefaultsAndOwnTablesBesideThePipeline) {
 
   const DaemonConfig d = parse_daemon_config(
       "[extraction]\nwindow_len = 4096\n"
-          "[can]\nspeed_latency_s = 0.002\nbackend = \"socketcan\"\ninterface = \"can1\"\n"
-          "[can.clear_frame]\nenabled = true\nid = 0x1A1\ndata = \"c1EA\"\n[can.speed_frame]\nid = 0x185\n"
-          "[adc]\nbackend = \"iio\"\nchannel = \"accel_z\"\nblock_len = 512\n[acquisition]\nfs_hz = 25600\n"
-          "[alarm]\nmin_hold_s = 3\n[alarm.gpio]\nenabled = true\nline = 17\nactive_low = true\n",
+      "[can]\nspeed_latency_s = 0.002\nbackend = \"socketcan\"\ninterface = \"can1\"\n"
+      "[can.clear_frame]\nenabled = true\nid = 0x1A1\ndata = \"c1EA\"\n[can.speed_frame]\nid = 0x185\n"
+      "[adc]\nbackend = \"iio\"\nchannel = \"accel_z\"\nblock_len = 512\n[acquisition]\nfs_hz = 25600\n"
+      "[alarm]\nmin_hold_s = 3\n[alarm.gpio]\nenabled = true\nline = 17\nactive_low = true\n",
       "t.toml");
   EXPECT_EQ(d.pipeline.speed_latency_s, 0.002);
   EXPECT_EQ(d.pipeline.speed_frame.id, 0x185U);
@@ -59,44 +59,55 @@ TEST(DaemonConfig, DefaultsAndOwnTablesBesideThePipeline) {
 }
 
 TEST(DaemonConfig, ErrorsAreLocated) {
-  EXPECT_EQ(error_of(kMinimal + "[daemon]\nbaselin = \"x\"\n").rfind("t.toml:6:1: unknown key 'baselin' in [daemon]", 0), 0U)
+  EXPECT_EQ(error_of(kMinimal + "[daemon]\nbaselin = \"x\"\n")
+                .rfind("t.toml:6:1: unknown key 'baselin' in [daemon]", 0),
+            0U)
       << error_of(kMinimal + "[daemon]\nbaselin = \"x\"\n");
   EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"spi\"\n"),
             "t.toml:4:11: adc.backend must be one of \"iio\", \"wav\", \"sim\", not \"spi\"");
-  const std::string big_block = "[extraction]\nwindow_len = 4096\n[adc]\nscenario = \"s\"\nblock_len = 2048\n";
+  const std::string big_block =
+      "[extraction]\nwindow_len = 4096\n[adc]\nscenario = \"s\"\nblock_len = 2048\n";
   EXPECT_EQ(error_of(big_block).rfind("t.toml:5:13: adc.block_len", 0), 0U) << error_of(big_block);
   // A daemon key misspelt in the shared [can] table is still an unknown key.
-  EXPECT_NE(error_of(kMinimal + "[can]\nbakend = \"sim\"\n").find("t.toml:6:1: unknown key 'bakend' in [can]"),
-            std::string::npos)
+  EXPECT_NE(
+      error_of(kMinimal + "[can]\nbakend = \"sim\"\n").find("t.toml:6:1: unknown key 'bakend' in [can]"),
+      std::string::npos)
       << error_of(kMinimal + "[can]\nbakend = \"sim\"\n");
   EXPECT_NE(error_of(kMinimal + "[can.clear_frame]\ndata = \"C\"\n").find("t.toml:6:8: can.clear_frame.data"),
             std::string::npos);
   EXPECT_NE(error_of(kMinimal + "[daemon]\nmetrics_path = \"/tmp/x.txt\"\n").find("must end in \".prom\""),
             std::string::npos);
   // Pipeline errors come out the same way.
-  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4097\n").rfind("t.toml:2:", 0), 0U) << error_of("[extraction]\nwindow_len = 4097\n");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4097\n").rfind("t.toml:2:", 0), 0U)
+      << error_of("[extraction]\nwindow_len = 4097\n");
 }
 
 TEST(DaemonConfig, CrossChecksPointAtTheKeyThatWasSet) {
   EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\n"),
             "t.toml:4:11: adc.backend = \"wav\" needs adc.recording (a recording directory)");
-  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"iio\"\n[can]\nbackend = \"socketcan\"\n"),
-            "t.toml:4:11: adc.backend = \"iio\" needs [acquisition] fs_hz (the ADC's sample rate)");
+  EXPECT_EQ(
+      error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"iio\"\n[can]\nbackend = \"socketcan\"\n"),
+      "t.toml:4:11: adc.backend = \"iio\" needs [acquisition] fs_hz (the ADC's sample rate)");
   // can.backend left at its default "sim": the error names the main file.
-  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\nrecording = \"r\"\n"),
-            "t.toml: can.backend = \"sim\" serves the simulator's speed frames and needs adc.backend = \"sim\" "
-            "(now \"wav\")");
-  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\nrecording = \"r\"\n[can]\nbackend = \"sim\"\n"),
-            "t.toml:7:11: can.backend = \"sim\" serves the simulator's speed frames and needs adc.backend = \"sim\" "
+  EXPECT_EQ(
+      error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\nrecording = \"r\"\n"),
+      "t.toml: can.backend = \"sim\" serves the simulator's speed frames and needs adc.backend = \"sim\" "
+      "(now \"wav\")");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\nrecording = "
+                     "\"r\"\n[can]\nbackend = \"sim\"\n"),
+            "t.toml:7:11: can.backend = \"sim\" serves the simulator's speed frames and needs adc.backend = "
+            "\"sim\" "
             "(now \"wav\")");
 }
 
 TEST(DaemonConfig, DropInsApplyInLexicalOrderKeyByKeyWithRelativePaths) {
   const fs::path dir = scratch("config_dropins");
   fs::create_directories(dir / "conf.d");
-  write_text(dir / "ptdad.toml", kMinimal + "[decision]\nk = 3\nn = 5\n[daemon]\nbaseline = \"b/base.bin\"\n");
+  write_text(dir / "ptdad.toml",
+             kMinimal + "[decision]\nk = 3\nn = 5\n[daemon]\nbaseline = \"b/base.bin\"\n");
   write_text(dir / "conf.d" / "20-later.toml", "[decision]\nk = 4\n");
-  write_text(dir / "conf.d" / "10-first.toml", "[decision]\nk = 2\nn = 6\n[adc]\nscenario = \"../sc/x.toml\"\n");
+  write_text(dir / "conf.d" / "10-first.toml",
+             "[decision]\nk = 2\nn = 6\n[adc]\nscenario = \"../sc/x.toml\"\n");
   write_text(dir / "conf.d" / "30-ignored.conf", "this is not toml");
   fs::create_directories(dir / "conf.d" / "40-dir.toml");
   const auto dropins = list_dropins(dir / "conf.d");
@@ -117,7 +128,8 @@ TEST(DaemonConfig, DropInsApplyInLexicalOrderKeyByKeyWithRelativePaths) {
     (void)load_daemon_config(dir / "ptdad.toml", list_dropins(dir / "conf.d"));
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()).rfind((dir / "conf.d" / "20-later.toml").string() + ":2:", 0), 0U) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind((dir / "conf.d" / "20-later.toml").string() + ":2:", 0), 0U)
+        << e.what();
   }
 }
 

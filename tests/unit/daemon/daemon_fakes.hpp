@@ -20,9 +20,9 @@
 #include <string>
 #include <vector>
 
+#include "alarm/recording_alarm_output.hpp"
 #include "core/pipeline.hpp"
 #include "core/sim_backends.hpp"
-#include "alarm/recording_alarm_output.hpp"
 #include "ptda/drivers/can_channel.hpp"
 #include "ptda/drivers/sample_source.hpp"
 

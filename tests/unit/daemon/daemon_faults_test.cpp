@@ -46,7 +46,9 @@ struct Sink final : WindowSink {
     x.rms_bits = std::bit_cast<std::uint64_t>(r.features.rms_res);
     x.entropy_bits = std::bit_cast<std::uint64_t>(r.features.entropy_res);
   }
-  [[nodiscard]] std::vector<Win> windows() const { return {w.begin(), w.begin() + static_cast<std::ptrdiff_t>(n)}; }
+  [[nodiscard]] std::vector<Win> windows() const {
+    return {w.begin(), w.begin() + static_cast<std::ptrdiff_t>(n)};
+  }
   const FakeDevices& dev_;
   std::vector<Win> w;
   std::size_t n = 0;
@@ -54,13 +56,15 @@ struct Sink final : WindowSink {
 
 /// A daemon configuration whose devices come from the DeviceFactory (the [adc]/[can] backends named
 /// here are never opened), fast pace.
-std::string fake_config(const fs::path& dir, const std::string& extra = "", const std::string& pipeline_edit = "") {
+std::string fake_config(const fs::path& dir, const std::string& extra = "",
+                        const std::string& pipeline_edit = "") {
   std::string pipe = arc_pipeline();
   if (!pipeline_edit.empty()) pipe.replace(pipe.find("clip_abs = 0.0"), 14, pipeline_edit);
   return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
-         (dir / "status").string() + "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
-         (dir / "not-opened").string() + "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n" +
-         extra + "\n" + pipe;
+         (dir / "status").string() +
+         "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
+         (dir / "not-opened").string() +
+         "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n" + extra + "\n" + pipe;
 }
 
 std::string read_text(const fs::path& p) {
@@ -117,7 +121,9 @@ std::array<std::size_t, 5> classify(const ChannelPlan& plan, const config::Speed
 }
 constexpr std::size_t kOk = 0, kOther = 1, kWrongDlc = 2, kRtr = 3, kError = 4;
 
-bool contains(const std::string& json, const std::string& needle) { return json.find(needle) != std::string::npos; }
+bool contains(const std::string& json, const std::string& needle) {
+  return json.find(needle) != std::string::npos;
+}
 
 class Faults : public ::testing::Test {
  protected:
@@ -155,7 +161,8 @@ TEST_F(Faults, AdcFaultsDiscardExactlyTheAffectedWindows) {
   const auto block_of = [&](std::int64_t s) { return static_cast<std::size_t>(s) / kBlock; };
   std::set<std::int64_t> bad;  // stream sample indices whose windows must go
   const auto bad_block = [&](std::size_t b) {
-    for (std::size_t i = 0; i < blocks[b].count; ++i) bad.insert(static_cast<std::int64_t>(blocks[b].first_index + i));
+    for (std::size_t i = 0; i < blocks[b].count; ++i)
+      bad.insert(static_cast<std::int64_t>(blocks[b].first_index + i));
   };
   const std::size_t b_overrun = block_of(at[0]), b_short = block_of(at[1]), b_back = block_of(at[5]);
   const std::size_t b_jump_fwd = block_of(at[6]), b_jump_back = block_of(at[7]);
@@ -224,15 +231,16 @@ TEST_F(Faults, AdcFaultsDiscardExactlyTheAffectedWindows) {
   EXPECT_TRUE(contains(faulty.status_json, "\"short_reads\":1,"));
   EXPECT_TRUE(contains(faulty.status_json, "\"time_back\":1,"));
   EXPECT_TRUE(contains(faulty.status_json, "\"windows_invalid\":" + std::to_string(missing) + ","));
-  std::printf("adc faults: clean %zu windows, faulty %zu (missing %zu); gap_samples %llu, blocks_invalid %llu, "
-              "time_jumps %llu, nonfinite %llu, clipped %llu, windows_invalid %llu, alarms %llu (clean %llu)\n",
-              clean.windows.size(), faulty.windows.size(), missing,
-              static_cast<unsigned long long>(ps.gap_samples), static_cast<unsigned long long>(ps.blocks_invalid),
-              static_cast<unsigned long long>(ps.time_jumps), static_cast<unsigned long long>(ps.slicer.samples_nonfinite),
-              static_cast<unsigned long long>(ps.slicer.samples_clipped),
-              static_cast<unsigned long long>(ps.slicer.windows_invalid),
-              static_cast<unsigned long long>(ps.alarm_counters.alarms_raised),
-              static_cast<unsigned long long>(clean.view.pipeline.alarm_counters.alarms_raised));
+  std::printf(
+      "adc faults: clean %zu windows, faulty %zu (missing %zu); gap_samples %llu, blocks_invalid %llu, "
+      "time_jumps %llu, nonfinite %llu, clipped %llu, windows_invalid %llu, alarms %llu (clean %llu)\n",
+      clean.windows.size(), faulty.windows.size(), missing, static_cast<unsigned long long>(ps.gap_samples),
+      static_cast<unsigned long long>(ps.blocks_invalid), static_cast<unsigned long long>(ps.time_jumps),
+      static_cast<unsigned long long>(ps.slicer.samples_nonfinite),
+      static_cast<unsigned long long>(ps.slicer.samples_clipped),
+      static_cast<unsigned long long>(ps.slicer.windows_invalid),
+      static_cast<unsigned long long>(ps.alarm_counters.alarms_raised),
+      static_cast<unsigned long long>(clean.view.pipeline.alarm_counters.alarms_raised));
 }
 
 CanFrame error_frame(std::int64_t t_ns, std::uint32_t cls, std::uint8_t d1) {
@@ -294,7 +302,8 @@ TEST_F(Faults, MalformedAndUnexpectedFramesAreCountedAndIgnored) {
       plan->frames.push_back(e);
       other += 2;
     }
-    if (i == src.size() / 3) plan->frames.push_back(error_frame(src[i].t_ns + 500, 0x004U /*CRTL*/, 0x10 /*RX_PASSIVE*/));
+    if (i == src.size() / 3)
+      plan->frames.push_back(error_frame(src[i].t_ns + 500, 0x004U /*CRTL*/, 0x10 /*RX_PASSIVE*/));
     if (i == src.size() / 2) plan->frames.push_back(error_frame(src[i].t_ns + 500, 0x004U, 0x40 /*ACTIVE*/));
   }
   plan->frames.push_back(error_frame(src.back().t_ns + 1000, 0x040U /*BUSOFF*/, 0));
@@ -323,22 +332,25 @@ TEST_F(Faults, MalformedAndUnexpectedFramesAreCountedAndIgnored) {
   EXPECT_EQ(c.can_frames, plan->frames.size());
   EXPECT_EQ(faulty.can.error_passive, 1U);
   EXPECT_EQ(faulty.can.bus_off, 1U);
-  EXPECT_EQ(faulty.view.pipeline.alarm_counters.alarms_raised, clean.view.pipeline.alarm_counters.alarms_raised);
-  EXPECT_TRUE(contains(faulty.status_json, "\"wrong_dlc\":" + std::to_string(wrong) + ",")) << faulty.status_json;
+  EXPECT_EQ(faulty.view.pipeline.alarm_counters.alarms_raised,
+            clean.view.pipeline.alarm_counters.alarms_raised);
+  EXPECT_TRUE(contains(faulty.status_json, "\"wrong_dlc\":" + std::to_string(wrong) + ","))
+      << faulty.status_json;
   EXPECT_TRUE(contains(faulty.status_json, "\"other_ids\":" + std::to_string(expect[kOther]) + ","));
   EXPECT_TRUE(contains(faulty.status_json, "\"error_frames\":3,"));
   EXPECT_TRUE(contains(faulty.status_json, "\"rx_overflow_drops\":17,"));
   EXPECT_TRUE(contains(faulty.status_json, "\"bus_off\":1,"));
   EXPECT_TRUE(contains(faulty.status_json, "\"bus_state\":\"bus_off\""));
-  std::printf("can faults: frames %llu, speed %llu, wrong_dlc %llu, rtr %llu, other %llu, error frames %llu, "
-              "error_passive %llu, bus_off %llu, rx_overflow_drops %llu; windows %zu = clean %zu\n",
-              static_cast<unsigned long long>(c.can_frames), static_cast<unsigned long long>(c.can_speed),
-              static_cast<unsigned long long>(c.can_wrong_dlc), static_cast<unsigned long long>(c.can_rtr),
-              static_cast<unsigned long long>(c.can_other_id), static_cast<unsigned long long>(c.can_error_frames),
-              static_cast<unsigned long long>(faulty.can.error_passive),
-              static_cast<unsigned long long>(faulty.can.bus_off),
-              static_cast<unsigned long long>(faulty.can.rx_overflow_drops), faulty.windows.size(),
-              clean.windows.size());
+  std::printf(
+      "can faults: frames %llu, speed %llu, wrong_dlc %llu, rtr %llu, other %llu, error frames %llu, "
+      "error_passive %llu, bus_off %llu, rx_overflow_drops %llu; windows %zu = clean %zu\n",
+      static_cast<unsigned long long>(c.can_frames), static_cast<unsigned long long>(c.can_speed),
+      static_cast<unsigned long long>(c.can_wrong_dlc), static_cast<unsigned long long>(c.can_rtr),
+      static_cast<unsigned long long>(c.can_other_id), static_cast<unsigned long long>(c.can_error_frames),
+      static_cast<unsigned long long>(faulty.can.error_passive),
+      static_cast<unsigned long long>(faulty.can.bus_off),
+      static_cast<unsigned long long>(faulty.can.rx_overflow_drops), faulty.windows.size(),
+      clean.windows.size());
 }
 
 TEST_F(Faults, ErrorPassiveAndBusOffReachTheStatusWhileTheyLast) {
@@ -353,7 +365,8 @@ TEST_F(Faults, ErrorPassiveAndBusOffReachTheStatusWhileTheyLast) {
     plan->frames.push_back(src[i]);
     if (i == src.size() / 4) plan->frames.push_back(error_frame(t_passive + 500, 0x004U, 0x10));
     if (i == src.size() / 2) plan->frames.push_back(error_frame(t_off + 500, 0x040U, 0));
-    if (i == src.size() / 2 + 500) plan->frames.push_back(error_frame(src[i].t_ns + 500, 0x100U /*RESTARTED*/, 0));
+    if (i == src.size() / 2 + 500)
+      plan->frames.push_back(error_frame(src[i].t_ns + 500, 0x100U /*RESTARTED*/, 0));
   }
   FakeDevices clean_dev(source, clean_frames());
   const RunResult clean = run_to_end(dir, fake_config(dir), clean_dev);
@@ -424,9 +437,10 @@ TEST_F(Faults, SpeedRangeDirectionFlipsAndCanClockJumpsBreakWindows) {
   auto& fr = plan->frames;
   std::vector<std::pair<std::int64_t, std::int64_t>> spans;  // stream time no window may overlap
   const auto frame_at = [&](std::int64_t t) {
-    return static_cast<std::size_t>(std::lower_bound(fr.begin(), fr.end(), t, [](const CanFrame& f, std::int64_t v) {
-                                      return f.t_ns < v;
-                                    }) - fr.begin());
+    return static_cast<std::size_t>(
+        std::lower_bound(fr.begin(), fr.end(), t,
+                         [](const CanFrame& f, std::int64_t v) { return f.t_ns < v; }) -
+        fr.begin());
   };
   const auto mid = [&](int k) {
     const Win& w = clean.windows[clean.windows.size() * static_cast<std::size_t>(k) / 5];
@@ -459,8 +473,9 @@ TEST_F(Faults, SpeedRangeDirectionFlipsAndCanClockJumpsBreakWindows) {
 
   for (const Win& w : faulty.windows) {
     for (const auto& [a, b] : spans) {
-      EXPECT_FALSE(w.t_start < b && a < w.t_end) << "window seq " << w.seq << " [" << w.t_start << ", " << w.t_end
-                                                 << ") overlaps the fault [" << a << ", " << b << "]";
+      EXPECT_FALSE(w.t_start < b && a < w.t_end)
+          << "window seq " << w.seq << " [" << w.t_start << ", " << w.t_end << ") overlaps the fault [" << a
+          << ", " << b << "]";
     }
   }
   // The clean windows of the faulty spans are gone; every other window is unchanged in content.
@@ -484,18 +499,20 @@ TEST_F(Faults, SpeedRangeDirectionFlipsAndCanClockJumpsBreakWindows) {
   EXPECT_EQ(s.speed_out_of_range, clean.view.pipeline.slicer.speed_out_of_range + 5);
   EXPECT_GT(s.speed_out_of_order, clean.view.pipeline.slicer.speed_out_of_order);
   EXPECT_GT(s.speed_gaps, clean.view.pipeline.slicer.speed_gaps);
-  EXPECT_EQ(faulty.view.pipeline.alarm_counters.alarms_raised, clean.view.pipeline.alarm_counters.alarms_raised);
+  EXPECT_EQ(faulty.view.pipeline.alarm_counters.alarms_raised,
+            clean.view.pipeline.alarm_counters.alarms_raised);
   EXPECT_GE(faulty.windows.size() + 8, clean.windows.size());  // only the faults' neighbourhoods are lost
-  std::printf("speed faults: clean %zu windows, faulty %zu, gone %zu; out_of_range %llu (+5), out_of_order %llu "
-              "(clean %llu), speed_gaps %llu (clean %llu), alarms %llu (clean %llu)\n",
-              clean.windows.size(), faulty.windows.size(), gone,
-              static_cast<unsigned long long>(s.speed_out_of_range),
-              static_cast<unsigned long long>(s.speed_out_of_order),
-              static_cast<unsigned long long>(clean.view.pipeline.slicer.speed_out_of_order),
-              static_cast<unsigned long long>(s.speed_gaps),
-              static_cast<unsigned long long>(clean.view.pipeline.slicer.speed_gaps),
-              static_cast<unsigned long long>(faulty.view.pipeline.alarm_counters.alarms_raised),
-              static_cast<unsigned long long>(clean.view.pipeline.alarm_counters.alarms_raised));
+  std::printf(
+      "speed faults: clean %zu windows, faulty %zu, gone %zu; out_of_range %llu (+5), out_of_order %llu "
+      "(clean %llu), speed_gaps %llu (clean %llu), alarms %llu (clean %llu)\n",
+      clean.windows.size(), faulty.windows.size(), gone,
+      static_cast<unsigned long long>(s.speed_out_of_range),
+      static_cast<unsigned long long>(s.speed_out_of_order),
+      static_cast<unsigned long long>(clean.view.pipeline.slicer.speed_out_of_order),
+      static_cast<unsigned long long>(s.speed_gaps),
+      static_cast<unsigned long long>(clean.view.pipeline.slicer.speed_gaps),
+      static_cast<unsigned long long>(faulty.view.pipeline.alarm_counters.alarms_raised),
+      static_cast<unsigned long long>(clean.view.pipeline.alarm_counters.alarms_raised));
 }
 
 TEST_F(Faults, SpeedFramesStopWhileOtherIdsContinue) {
@@ -530,9 +547,10 @@ TEST_F(Faults, SpeedFramesStopWhileOtherIdsContinue) {
   EXPECT_GT(before, 10U);
   EXPECT_EQ(inside, 0U);
   EXPECT_GT(after, 10U);
-  std::printf("speed id silent 3 s, %zu other-id frames: pauses %llu, faults_entered %llu, windows %zu/%zu/%zu\n",
-              others, static_cast<unsigned long long>(r.view.pipeline.pauses),
-              static_cast<unsigned long long>(r.view.pipeline.alarm_counters.faults_entered), before, inside, after);
+  std::printf(
+      "speed id silent 3 s, %zu other-id frames: pauses %llu, faults_entered %llu, windows %zu/%zu/%zu\n",
+      others, static_cast<unsigned long long>(r.view.pipeline.pauses),
+      static_cast<unsigned long long>(r.view.pipeline.alarm_counters.faults_entered), before, inside, after);
 }
 
 }  // namespace

@@ -5,8 +5,8 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <cstdio>
 #include <chrono>
+#include <cstdio>
 #include <thread>
 
 #include "daemon_test_support.hpp"
@@ -30,7 +30,11 @@ class Lifecycle : public ::testing::Test {
 /// Runs daemon.run() on a thread; join() returns its exit code.
 class Runner {
  public:
-  explicit Runner(Daemon& d) : thread_([this, &d] { code_ = d.run(); done_ = true; }) {}
+  explicit Runner(Daemon& d)
+      : thread_([this, &d] {
+          code_ = d.run();
+          done_ = true;
+        }) {}
   ~Runner() {
     if (thread_.joinable()) thread_.join();
   }
@@ -50,7 +54,8 @@ TEST_F(Lifecycle, ConfigureErrorsSayWhatAndWhere) {
   const fs::path dir = scratch("configure_errors");
   const fs::path cfg = dir / "ptdad.toml";
   // A typo in a daemon table: file, line and column of the key.
-  write_text(cfg, "[daemon]\nstatus_dir = \"" + (dir / "s").string() + "\"\n\n[adc]\nbackend = \"sim\"\nscenaro = \"x\"\n");
+  write_text(cfg, "[daemon]\nstatus_dir = \"" + (dir / "s").string() +
+                      "\"\n\n[adc]\nbackend = \"sim\"\nscenaro = \"x\"\n");
   DaemonOptions opt;
   opt.config_file = cfg;
   opt.config_dir = fs::path();
@@ -60,7 +65,8 @@ TEST_F(Lifecycle, ConfigureErrorsSayWhatAndWhere) {
       d.configure();
       FAIL() << "expected an error";
     } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find(cfg.string() + ":6:1: unknown key 'scenaro' in [adc]"), std::string::npos)
+      EXPECT_NE(std::string(e.what()).find(cfg.string() + ":6:1: unknown key 'scenaro' in [adc]"),
+                std::string::npos)
           << e.what();
     }
   }
@@ -198,8 +204,8 @@ TEST_F(Lifecycle, CanSilencePausesWithReasonAndResumes) {
   write_sim_baseline(dir / "baseline.bin");
   write_silent_recording(dir / "rec", 20.0, 23.0);
   std::string text = sim_config(dir / "baseline.bin", dir / "status", "fast");
-  text.replace(text.find("backend = \"sim\"\nscenario"), 15, "backend = \"wav\"\nrecording = \"" +
-                                                                  (dir / "rec").string() + "\"");
+  text.replace(text.find("backend = \"sim\"\nscenario"), 15,
+               "backend = \"wav\"\nrecording = \"" + (dir / "rec").string() + "\"");
   text.replace(text.find("backend = \"sim\"\npace"), 15, "backend = \"candump\"");
   write_text(dir / "ptdad.toml", text);
 
@@ -225,8 +231,8 @@ TEST_F(Lifecycle, CanSilencePausesWithReasonAndResumes) {
   d.activate();
   ASSERT_EQ(d.run(), 0);
   const DaemonView v = d.view();
-  EXPECT_EQ(v.pipeline.pauses, 1U);                // one pause, for the silence
-  EXPECT_EQ(v.pipeline.alarm_counters.faults_entered, 2U);  // the silence, then the end of the replay
+  EXPECT_EQ(v.pipeline.pauses, 1U);                                // one pause, for the silence
+  EXPECT_EQ(v.pipeline.alarm_counters.faults_entered, 2U);         // the silence, then the end of the replay
   EXPECT_EQ(v.pipeline.report.causes & drivers::kCauseSpeed, 0U);  // resumed: no speed fault left
   EXPECT_GT(v.pipeline.slicer.speed_gaps, 0U);
   // Windows before and after the silence (it resumed by itself), none inside it.
@@ -247,8 +253,8 @@ TEST_F(Lifecycle, CanSilenceIsReportedWhileItLasts) {
   write_sim_baseline(dir / "baseline.bin");
   write_silent_recording(dir / "rec", 0.5, 1.5);
   std::string text = sim_config(dir / "baseline.bin", dir / "status", "realtime");
-  text.replace(text.find("backend = \"sim\"\nscenario"), 15, "backend = \"wav\"\nrecording = \"" +
-                                                                  (dir / "rec").string() + "\"");
+  text.replace(text.find("backend = \"sim\"\nscenario"), 15,
+               "backend = \"wav\"\nrecording = \"" + (dir / "rec").string() + "\"");
   text.replace(text.find("backend = \"sim\"\npace"), 15, "backend = \"candump\"");
   write_text(dir / "ptdad.toml", text);
   DaemonOptions opt;
@@ -260,7 +266,8 @@ TEST_F(Lifecycle, CanSilenceIsReportedWhileItLasts) {
   Runner r(d);
   ASSERT_TRUE(wait_for([&] { return d.view().phase == Phase::kPausedSpeed; }, 5000ms));
   ASSERT_TRUE(wait_for([&] { return d.view().state == DaemonState::kPaused; }, 5000ms));
-  ASSERT_TRUE(wait_for([&] { return d.view().reason.view().find("no joint speed") != std::string_view::npos; }, 5000ms));
+  ASSERT_TRUE(wait_for(
+      [&] { return d.view().reason.view().find("no joint speed") != std::string_view::npos; }, 5000ms));
   EXPECT_EQ(d.view().pipeline.report.level, drivers::AlarmLevel::kFault);
   EXPECT_EQ(d.view().pipeline.report.causes & drivers::kCauseSpeed, drivers::kCauseSpeed);
   ASSERT_TRUE(wait_for([&] { return d.view().phase == Phase::kMonitoring; }, 5000ms));
@@ -272,7 +279,8 @@ TEST_F(Lifecycle, CanSilenceIsReportedWhileItLasts) {
 TEST_F(Lifecycle, SighupWithAnInvalidConfigKeepsTheOldOne) {
   const fs::path dir = scratch("sighup");
   write_sim_baseline(dir / "baseline.bin");
-  const std::string good = sim_config(dir / "baseline.bin", dir / "status", "fast", "", "[alarm]\nmin_hold_s = 5.0\n");
+  const std::string good =
+      sim_config(dir / "baseline.bin", dir / "status", "fast", "", "[alarm]\nmin_hold_s = 5.0\n");
   write_text(dir / "ptdad.toml", good);
   DaemonOptions opt;
   opt.config_file = dir / "ptdad.toml";

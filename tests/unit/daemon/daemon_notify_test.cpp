@@ -80,7 +80,8 @@ TEST(DaemonNotify, ReadyStatusWatchdogOnlyWhileProgressingAndStopping) {
   opt.config_file = dir / "ptdad.toml";
   opt.config_dir = fs::path();
   opt.notify_socket = (dir / "notify.sock").string();
-  opt.watchdog = parse_watchdog_settings("200000", nullptr, ::getpid());  // WatchdogSec=0.2s: ping every 0.1 s
+  opt.watchdog =
+      parse_watchdog_settings("200000", nullptr, ::getpid());  // WatchdogSec=0.2s: ping every 0.1 s
   ASSERT_TRUE(opt.watchdog.enabled);
   ASSERT_EQ(opt.watchdog.ping_period_ns, 100'000'000);
   Daemon d(opt, clock);
@@ -109,7 +110,8 @@ TEST(DaemonNotify, ReadyStatusWatchdogOnlyWhileProgressingAndStopping) {
   ASSERT_TRUE(wait_for([&] { return d.view().watchdog_skipped >= 5; }));
   EXPECT_EQ(manager.count("WATCHDOG=1"), pings_at_stall);
   EXPECT_GT(d.view().heartbeats.can, can_beats);
-  ASSERT_TRUE(wait_for([&] { return d.view().reason.view().find("stage processing made no progress") == 0; }));
+  ASSERT_TRUE(
+      wait_for([&] { return d.view().reason.view().find("stage processing made no progress") == 0; }));
 
   // Progress again: pings resume.
   d.set_processing_stall(false);

@@ -19,7 +19,8 @@ TEST(SimBackends, RecordingMatchesTheScenario) {
   EXPECT_EQ(rec->sample_offset_ns(25600), 1'000'000'000);
   EXPECT_EQ(rec->sample_offset_ns(1), 39'063);  // ceil(1e9 / 25600) = ceil(39062.5)
   ASSERT_GT(rec->frames.size(), 15000U);
-  for (std::size_t i = 1; i < rec->frames.size(); ++i) ASSERT_GE(rec->frames[i].t_ns, rec->frames[i - 1].t_ns);
+  for (std::size_t i = 1; i < rec->frames.size(); ++i)
+    ASSERT_GE(rec->frames[i].t_ns, rec->frames[i - 1].t_ns);
   EXPECT_LT(rec->frames.back().t_ns, rec->loop_ns);
   EXPECT_THROW((void)make_sim_recording(source_dir() / "no_such.toml", 0), Error);
 }
@@ -76,7 +77,8 @@ TEST(SimBackends, SharedAnchorLoopsAndPaces) {
   std::size_t got = 0;
   while (got < all.size()) {
     std::size_t k = 0;
-    ASSERT_EQ(fast.receive(std::span<CanFrame>(all.data() + got, all.size() - got), k, 0), drivers::CanStatus::kOk);
+    ASSERT_EQ(fast.receive(std::span<CanFrame>(all.data() + got, all.size() - got), k, 0),
+              drivers::CanStatus::kOk);
     got += k;
   }
   EXPECT_EQ(all.back().t_ns - all.front().t_ns, rec->loop_ns);

@@ -26,8 +26,12 @@ namespace ptda::daemon::test {
 
 namespace fs = std::filesystem;
 
-inline fs::path source_dir() { return fs::path(PTDA_SOURCE_DIR); }
-inline fs::path arc_scenario() { return source_dir() / "config" / "scenarios" / "arc_welding_healthy.toml"; }
+inline fs::path source_dir() {
+  return fs::path(PTDA_SOURCE_DIR);
+}
+inline fs::path arc_scenario() {
+  return source_dir() / "config" / "scenarios" / "arc_welding_healthy.toml";
+}
 
 /// A fresh scratch directory PTDA_TEST_TMP/daemon/<name>.
 inline fs::path scratch(const std::string& name) {
@@ -61,9 +65,11 @@ inline std::string sim_config(const fs::path& baseline, const fs::path& status_d
                               const std::string& extra_daemon = "", const std::string& extra = "") {
   std::ostringstream s;
   s << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << status_dir.string()
-    << "\"\nstatus_period_s = 0.05\n" << extra_daemon << "\n[adc]\nbackend = \"sim\"\nscenario = \""
-    << arc_scenario().string() << "\"\nseed = 7\npace = \"" << pace << "\"\n\n[can]\nbackend = \"sim\"\npace = \""
-    << pace << "\"\n\n" << extra << "\n" << arc_pipeline();
+    << "\"\nstatus_period_s = 0.05\n"
+    << extra_daemon << "\n[adc]\nbackend = \"sim\"\nscenario = \"" << arc_scenario().string()
+    << "\"\nseed = 7\npace = \"" << pace << "\"\n\n[can]\nbackend = \"sim\"\npace = \"" << pace << "\"\n\n"
+    << extra << "\n"
+    << arc_pipeline();
   return s.str();
 }
 

@@ -43,10 +43,12 @@ std::string train_config(const fs::path& dir, std::uint32_t target_cycles) {
   // k = n = 5: only a run of abnormal windows alarms.
   const std::string pipe = with_decision(arc_pipeline(), 5, 5);
   return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
-         (dir / "status").string() + "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
-         (dir / "not-opened").string() + "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n"
-         "[training]\ntarget_cycles = " + std::to_string(target_cycles) + "\noutput = \"" +
-         (dir / "trained.bin").string() + "\"\n\n" + pipe;
+         (dir / "status").string() +
+         "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
+         (dir / "not-opened").string() +
+         "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n"
+         "[training]\ntarget_cycles = " +
+         std::to_string(target_cycles) + "\noutput = \"" + (dir / "trained.bin").string() + "\"\n\n" + pipe;
 }
 
 std::shared_ptr<const SourcePlan> source_of(const SimRecording& rec, float gain_from_to[3] = nullptr) {
@@ -141,16 +143,19 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   EXPECT_EQ(dev.pipelines, 2);
   const dsp::Baseline b = formats::read_baseline(dir / "trained.bin");
   ASSERT_FALSE(b.classes.empty());
-  for (const dsp::ClassBaseline& c : b.classes) EXPECT_GE(c.segment.regions, kTarget) << "class " << c.segment.id;
+  for (const dsp::ClassBaseline& c : b.classes)
+    EXPECT_GE(c.segment.regions, kTarget) << "class " << c.segment.id;
   EXPECT_EQ(temp_files(dir), 0U);
   const DaemonView v = d.view();
   EXPECT_TRUE(v.pipeline.ended);
   EXPECT_GT(v.pipeline.scored, 0U);
   EXPECT_EQ(d.config().daemon.baseline, dir / "trained.bin");
-  std::printf("trained: %zu classes (%s); monitoring the same replay: %llu windows scored, %llu abnormal, %llu alarms\n",
-              b.classes.size(), b.source.c_str(), static_cast<unsigned long long>(v.pipeline.scored),
-              static_cast<unsigned long long>(v.pipeline.abnormal),
-              static_cast<unsigned long long>(v.pipeline.alarm_counters.alarms_raised));
+  std::printf(
+      "trained: %zu classes (%s); monitoring the same replay: %llu windows scored, %llu abnormal, %llu "
+      "alarms\n",
+      b.classes.size(), b.source.c_str(), static_cast<unsigned long long>(v.pipeline.scored),
+      static_cast<unsigned long long>(v.pipeline.abnormal),
+      static_cast<unsigned long long>(v.pipeline.alarm_counters.alarms_raised));
 
   // A later monitoring run with that baseline: a faulty replay (the vibration 4x for 20 s) alarms, a
   // fresh healthy replay (another seed) does not.
@@ -175,17 +180,19 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   const auto fresh = make_sim_recording(arc_scenario(), 8);
   const DaemonView healthy = monitor(source_of(*fresh), frames_of(*fresh));
   EXPECT_GE(faulty.pipeline.alarm_counters.alarms_raised, 1U);
-  EXPECT_EQ(faulty.pipeline.report.level == drivers::AlarmLevel::kAlarm || faulty.pipeline.alarm.latched, true);
+  EXPECT_EQ(faulty.pipeline.report.level == drivers::AlarmLevel::kAlarm || faulty.pipeline.alarm.latched,
+            true);
   EXPECT_GT(healthy.pipeline.scored, 0U);
   EXPECT_EQ(healthy.pipeline.alarm_counters.alarms_raised, 0U);
-  std::printf("faulty replay: %llu scored, %llu abnormal, %llu alarms; fresh healthy replay (seed 8): %llu scored, "
-              "%llu abnormal, %llu alarms\n",
-              static_cast<unsigned long long>(faulty.pipeline.scored),
-              static_cast<unsigned long long>(faulty.pipeline.abnormal),
-              static_cast<unsigned long long>(faulty.pipeline.alarm_counters.alarms_raised),
-              static_cast<unsigned long long>(healthy.pipeline.scored),
-              static_cast<unsigned long long>(healthy.pipeline.abnormal),
-              static_cast<unsigned long long>(healthy.pipeline.alarm_counters.alarms_raised));
+  std::printf(
+      "faulty replay: %llu scored, %llu abnormal, %llu alarms; fresh healthy replay (seed 8): %llu scored, "
+      "%llu abnormal, %llu alarms\n",
+      static_cast<unsigned long long>(faulty.pipeline.scored),
+      static_cast<unsigned long long>(faulty.pipeline.abnormal),
+      static_cast<unsigned long long>(faulty.pipeline.alarm_counters.alarms_raised),
+      static_cast<unsigned long long>(healthy.pipeline.scored),
+      static_cast<unsigned long long>(healthy.pipeline.abnormal),
+      static_cast<unsigned long long>(healthy.pipeline.alarm_counters.alarms_raised));
 }
 
 TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
@@ -270,8 +277,8 @@ TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
     EXPECT_EQ(temp_files(dir), 0U);
     EXPECT_EQ(dev.pipelines, by_signal ? 2 : 1);  // request_stop: no monitoring pipeline was started
     std::printf("stop %s right before the write: stopped %.1f ms later, baseline valid (%zu classes)\n",
-                by_signal ? "by SIGTERM" : "by request_stop()", std::chrono::duration<double, std::milli>(took).count(),
-                b.classes.size());
+                by_signal ? "by SIGTERM" : "by request_stop()",
+                std::chrono::duration<double, std::milli>(took).count(), b.classes.size());
   }
 }
 

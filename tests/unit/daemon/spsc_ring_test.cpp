@@ -135,7 +135,9 @@ struct Item {
   std::uint64_t seq;
   std::uint64_t check;  // ~seq * golden ratio: differs from seq in every byte position
 };
-constexpr std::uint64_t item_check(std::uint64_t seq) { return ~seq * 0x9E3779B97F4A7C15ULL; }
+constexpr std::uint64_t item_check(std::uint64_t seq) {
+  return ~seq * 0x9E3779B97F4A7C15ULL;
+}
 
 void run_stress(std::uint64_t start_index, std::uint64_t total_items, std::uint32_t seed) {
   using Ring = SpscRing<Item, 512>;
@@ -192,10 +194,13 @@ void run_stress(std::uint64_t start_index, std::uint64_t total_items, std::uint3
   EXPECT_EQ(ring->pushed_index() - start_index, total_items);
   EXPECT_EQ(ring->popped_index() - start_index, total_items);
   EXPECT_EQ(ring->size_approx(), 0u);
-  ::testing::Test::RecordProperty("full_events", static_cast<int>(full_events > 1000000 ? 1000000 : full_events));
+  ::testing::Test::RecordProperty("full_events",
+                                  static_cast<int>(full_events > 1000000 ? 1000000 : full_events));
 }
 
-TEST(SpscRingStress, TwoThreadsRandomBulkSizesKeepTheSequence) { run_stress(0, 10'000'000, 1234); }
+TEST(SpscRingStress, TwoThreadsRandomBulkSizesKeepTheSequence) {
+  run_stress(0, 10'000'000, 1234);
+}
 
 TEST(SpscRingStress, TwoThreadsAcrossThe2Pow64IndexWrap) {
   run_stress(std::numeric_limits<std::uint64_t>::max() - 1'000'000, 2'000'000, 99);

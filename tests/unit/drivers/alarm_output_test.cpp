@@ -1,6 +1,5 @@
-#include <unistd.h>
-
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -184,8 +183,8 @@ class CanAlarmOutputTest : public ::testing::Test {
   void SetUp() override {
     const char* base = std::getenv("PTDA_TEST_TMP");
     const fs::path root = base != nullptr ? fs::path(base) : fs::temp_directory_path();
-    dir_ = root / ("alarm_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-                   std::to_string(::getpid()));
+    dir_ = root / ("alarm_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+                   "_" + std::to_string(::getpid()));
     fs::create_directories(dir_);
     std::ofstream(dir_ / "empty.log") << "# nothing\n";
     CandumpReplayConfig rc;

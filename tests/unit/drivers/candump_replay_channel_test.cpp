@@ -1,8 +1,7 @@
 #include "can/candump_replay_channel.hpp"
 
-#include <unistd.h>
-
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdlib>

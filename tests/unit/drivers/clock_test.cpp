@@ -1,8 +1,7 @@
 #include "ptda/drivers/clock.hpp"
 
-#include <time.h>
-
 #include <gtest/gtest.h>
+#include <time.h>
 
 namespace ptda::drivers {
 namespace {

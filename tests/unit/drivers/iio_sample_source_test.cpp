@@ -4,10 +4,9 @@
 #include "adc/iio_sample_source.hpp"
 
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-#include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -65,7 +64,8 @@ class FakeIio : public ::testing::Test {
     put(sys_ / "trigger" / "current_trigger", "\n");
     for (const auto& [name, index, type, en] :
          std::vector<std::tuple<std::string, int, std::string, std::string>>{
-             {"accel_x", 0, "le:s24/32>>0", "0"}, {"accel_y", 1, "le:s24/32>>0", "1"},
+             {"accel_x", 0, "le:s24/32>>0", "0"},
+             {"accel_y", 1, "le:s24/32>>0", "1"},
              {"timestamp", 2, "le:s64/64>>0", "0"}}) {
       put(sys_ / "scan_elements" / ("in_" + name + "_en"), en + "\n");
       put(sys_ / "scan_elements" / ("in_" + name + "_index"), std::to_string(index) + "\n");
@@ -223,7 +223,8 @@ TEST_F(FakeIio, JitterWithinToleranceIsNotAGap) {
 TEST_F(FakeIio, TimestampGoingBackwardsIsFlaggedAndCounted) {
   IioSampleSource src(cfg_, clock_);
   src.configure();
-  append_dev(scans(src.layout(), {1, 2, 3, 4}, {10 * kPeriodNs, 11 * kPeriodNs, 3 * kPeriodNs, 4 * kPeriodNs}));
+  append_dev(
+      scans(src.layout(), {1, 2, 3, 4}, {10 * kPeriodNs, 11 * kPeriodNs, 3 * kPeriodNs, 4 * kPeriodNs}));
   src.activate();
   SampleBlock b;
   ASSERT_EQ(src.read(b, 0), SourceStatus::kOk);

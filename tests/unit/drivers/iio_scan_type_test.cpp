@@ -13,7 +13,9 @@
 namespace ptda::drivers {
 namespace {
 
-IioScanType parse(const std::string& s) { return parse_iio_scan_type(s, "in_test_type"); }
+IioScanType parse(const std::string& s) {
+  return parse_iio_scan_type(s, "in_test_type");
+}
 
 TEST(IioScanType, ParsesTheKernelForms) {
   const IioScanType a = parse("le:s24/32>>0");
@@ -45,15 +47,16 @@ TEST(IioScanType, ParsesTheKernelForms) {
 }
 
 TEST(IioScanType, FormatsLikeTheKernelAndRoundTrips) {
-  for (const std::string s : {"le:s24/32>>0", "be:u12/16>>4", "le:s64/64>>0", "le:s16/16X4>>0", "be:s20/32>>12"}) {
+  for (const std::string s :
+       {"le:s24/32>>0", "be:u12/16>>4", "le:s64/64>>0", "le:s16/16X4>>0", "be:s20/32>>12"}) {
     EXPECT_EQ(format_iio_scan_type(parse(s)), s);
   }
 }
 
 TEST(IioScanType, RejectsMalformedOrInconsistentTypes) {
-  for (const std::string s : {"", "xx:s12/16>>0", "le:q12/16>>0", "le:s0/16>>0", "le:s17/16>>0", "le:s12/12>>0",
-                              "le:s12/16>>5", "le:s12/16>>4junk", "le:s12-16", "le:s12/16X0>>0", "le:s/16>>0",
-                              "LE:s12/16>>0"}) {
+  for (const std::string s :
+       {"", "xx:s12/16>>0", "le:q12/16>>0", "le:s0/16>>0", "le:s17/16>>0", "le:s12/12>>0", "le:s12/16>>5",
+        "le:s12/16>>4junk", "le:s12-16", "le:s12/16X0>>0", "le:s/16>>0", "LE:s12/16>>0"}) {
     EXPECT_THROW((void)parse(s), Error) << "'" << s << "'";
   }
   try {
@@ -71,8 +74,9 @@ IioChannelSpec spec(const std::string& name, std::uint32_t index, const std::str
 }
 
 TEST(IioScanLayout, ThreeAxes24In32PlusTimestamp) {
-  const std::vector<IioChannelSpec> ch{spec("timestamp", 3, "le:s64/64>>0"), spec("accel_z", 2, "le:s24/32>>0"),
-                                       spec("accel_x", 0, "le:s24/32>>0"), spec("accel_y", 1, "le:s24/32>>0")};
+  const std::vector<IioChannelSpec> ch{spec("timestamp", 3, "le:s64/64>>0"),
+                                       spec("accel_z", 2, "le:s24/32>>0"), spec("accel_x", 0, "le:s24/32>>0"),
+                                       spec("accel_y", 1, "le:s24/32>>0")};
   const IioScanLayout l = compute_iio_scan_layout(ch);
   ASSERT_EQ(l.elements.size(), 4u);
   EXPECT_EQ(l.elements[0].name, "accel_x");
@@ -121,14 +125,15 @@ TEST(IioScanLayout, PacksLikeTheKernel) {
 
 TEST(IioScanLayout, RejectsDuplicatesAndOddTimestamps) {
   EXPECT_THROW((void)compute_iio_scan_layout(std::vector<IioChannelSpec>{}), Error);
-  EXPECT_THROW((void)compute_iio_scan_layout(std::vector<IioChannelSpec>{spec("a", 0, "le:s16/16>>0"),
-                                                                         spec("b", 0, "le:s16/16>>0")}),
+  EXPECT_THROW((void)compute_iio_scan_layout(
+                   std::vector<IioChannelSpec>{spec("a", 0, "le:s16/16>>0"), spec("b", 0, "le:s16/16>>0")}),
                Error);
-  EXPECT_THROW((void)compute_iio_scan_layout(std::vector<IioChannelSpec>{spec("a", 0, "le:s16/16>>0"),
-                                                                         spec("a", 1, "le:s16/16>>0")}),
+  EXPECT_THROW((void)compute_iio_scan_layout(
+                   std::vector<IioChannelSpec>{spec("a", 0, "le:s16/16>>0"), spec("a", 1, "le:s16/16>>0")}),
                Error);
-  EXPECT_THROW((void)compute_iio_scan_layout(std::vector<IioChannelSpec>{spec("timestamp", 1, "le:s32/32>>0")}),
-               Error);
+  EXPECT_THROW(
+      (void)compute_iio_scan_layout(std::vector<IioChannelSpec>{spec("timestamp", 1, "le:s32/32>>0")}),
+      Error);
 }
 
 IioScanElement element(const std::string& type, std::size_t offset = 0) {
@@ -151,14 +156,15 @@ TEST(IioDecode, SignExtendsShiftsAndMasks) {
     const std::array<std::uint8_t, 2> min{0x80, 0x0F};
     EXPECT_EQ(decode_iio_value(min.data(), element("be:s12/16>>4")), -2048);
   }
-  {  // ADXL355 style: be:s20/32>>12
+  {                                                                  // ADXL355 style: be:s20/32>>12
     const std::array<std::uint8_t, 4> scan{0xFF, 0xFF, 0xE0, 0x00};  // 0xFFFFE000 >> 12 = 0xFFFFE -> -2
     EXPECT_EQ(decode_iio_value(scan.data(), element("be:s20/32>>12")), -2);
   }
   {  // timestamp, at an offset
     std::array<std::uint8_t, 16> scan{};
     const std::int64_t t = 1'700'000'000'123'456'789;
-    for (int i = 0; i < 8; ++i) scan[8 + i] = static_cast<std::uint8_t>(static_cast<std::uint64_t>(t) >> (8 * i));
+    for (int i = 0; i < 8; ++i)
+      scan[8 + i] = static_cast<std::uint8_t>(static_cast<std::uint64_t>(t) >> (8 * i));
     EXPECT_EQ(decode_iio_value(scan.data(), element("le:s64/64>>0", 8)), t);
   }
   {  // repeats
@@ -170,12 +176,13 @@ TEST(IioDecode, SignExtendsShiftsAndMasks) {
 
 TEST(IioDecode, EncodeDecodeRoundTripsOverTheWholeRange) {
   std::mt19937_64 rng(7);
-  for (const std::string type : {"le:s24/32>>0", "be:s20/32>>12", "be:u12/16>>4", "le:s16/16>>0", "le:u8/8>>0",
-                                 "le:s64/64>>0", "be:s14/16>>2"}) {
+  for (const std::string type : {"le:s24/32>>0", "be:s20/32>>12", "be:u12/16>>4", "le:s16/16>>0",
+                                 "le:u8/8>>0", "le:s64/64>>0", "be:s14/16>>2"}) {
     const IioScanElement e = element(type, 8);
     const int bits = e.type.bits;
-    const std::int64_t lo = e.type.is_signed ? (bits == 64 ? INT64_MIN : -(std::int64_t{1} << (bits - 1))) : 0;
-    const std::int64_t hi = bits == 64 ? INT64_MAX
+    const std::int64_t lo =
+        e.type.is_signed ? (bits == 64 ? INT64_MIN : -(std::int64_t{1} << (bits - 1))) : 0;
+    const std::int64_t hi = bits == 64         ? INT64_MAX
                             : e.type.is_signed ? (std::int64_t{1} << (bits - 1)) - 1
                                                : (std::int64_t{1} << bits) - 1;
     std::uniform_int_distribution<std::int64_t> dist(lo, hi);

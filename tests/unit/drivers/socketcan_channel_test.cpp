@@ -3,13 +3,12 @@
 // skip with the reason otherwise (this workspace's kernel has CONFIG_CAN unset).
 #include "can/socketcan_channel.hpp"
 
+#include <gtest/gtest.h>
 #include <linux/can.h>
 #include <linux/can/error.h>
 #include <net/if.h>
 #include <sys/socket.h>
 #include <unistd.h>
-
-#include <gtest/gtest.h>
 
 #include <array>
 #include <cerrno>

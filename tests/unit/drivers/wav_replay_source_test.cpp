@@ -1,8 +1,7 @@
 #include "adc/wav_replay_source.hpp"
 
-#include <unistd.h>
-
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -24,8 +23,9 @@ class WavReplay : public ::testing::Test {
   void SetUp() override {
     const char* base = std::getenv("PTDA_TEST_TMP");
     const fs::path root = base != nullptr ? fs::path(base) : fs::temp_directory_path();
-    dir_ = root / ("wavreplay_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
-                   "_" + std::to_string(::getpid()));
+    dir_ =
+        root / ("wavreplay_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+                "_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     // 1000 samples at 1 kHz, two channels: ch0 = i, ch1 = -i (PCM16 codes).
@@ -97,7 +97,7 @@ TEST_F(WavReplay, RealTimeReleasesABlockWhenItsLastSampleIsDue) {
 
 TEST_F(WavReplay, TimelineAlignsSampleZeroWithTheRecordingStart) {
   cfg_.pace = ReplayPace::kAsFastAsPossible;
-  cfg_.start_unix_ns = 1'700'000'010'000'000'000;   // WAV starts 10 s after ...
+  cfg_.start_unix_ns = 1'700'000'010'000'000'000;            // WAV starts 10 s after ...
   cfg_.timeline.origin_unix_ns = 1'700'000'000'000'000'000;  // ... the shared origin (e.g. the CAN log's)
   cfg_.timeline.origin_mono_ns = 3'000'000'000;
   ManualClock clock(0);

@@ -129,7 +129,9 @@ void put_u32(Bytes& b, std::size_t at, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
 }
 // Recomputes the trailing CRC so a deliberately inconsistent body reaches the structural checks.
-void fix_crc(Bytes& b) { put_u32(b, b.size() - 4, crc32(b.data(), b.size() - 4)); }
+void fix_crc(Bytes& b) {
+  put_u32(b, b.size() - 4, crc32(b.data(), b.size() - 4));
+}
 
 void write_file(const fs::path& p, const Bytes& b) {
   std::ofstream out(p, std::ios::binary | std::ios::trunc);
@@ -199,23 +201,26 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
   EXPECT_EQ(bytes[8], 1);  // version 1, little-endian
   EXPECT_EQ(bytes[9] | bytes[10] | bytes[11], 0);
   std::uint64_t size = 0;
-  for (int i = 0; i < 8; ++i) size |= static_cast<std::uint64_t>(bytes[12 + static_cast<std::size_t>(i)]) << (8 * i);
+  for (int i = 0; i < 8; ++i)
+    size |= static_cast<std::uint64_t>(bytes[12 + static_cast<std::size_t>(i)]) << (8 * i);
   EXPECT_EQ(size, bytes.size());
   std::uint64_t fs_bits = 0;
-  for (int i = 0; i < 8; ++i) fs_bits |= static_cast<std::uint64_t>(bytes[20 + static_cast<std::size_t>(i)]) << (8 * i);
+  for (int i = 0; i < 8; ++i)
+    fs_bits |= static_cast<std::uint64_t>(bytes[20 + static_cast<std::size_t>(i)]) << (8 * i);
   EXPECT_EQ(std::bit_cast<double>(fs_bits), 25600.0);
   EXPECT_EQ(bytes[kOffWindowLen], 16);
-  EXPECT_EQ(bytes[32], 0);   // gearbox kind cycloidal
-  EXPECT_EQ(bytes[33], 10);  // z_in
-  EXPECT_EQ(bytes[53], 1);   // policy kind quantile
-  EXPECT_EQ(bytes[70], 3);   // class count
-  EXPECT_EQ(bytes[kOffClasses], 7);  // first class id
-  EXPECT_EQ(bytes[kOffClasses + 4], 1);  // direction +1
+  EXPECT_EQ(bytes[32], 0);                // gearbox kind cycloidal
+  EXPECT_EQ(bytes[33], 10);               // z_in
+  EXPECT_EQ(bytes[53], 1);                // policy kind quantile
+  EXPECT_EQ(bytes[70], 3);                // class count
+  EXPECT_EQ(bytes[kOffClasses], 7);       // first class id
+  EXPECT_EQ(bytes[kOffClasses + 4], 1);   // direction +1
   EXPECT_EQ(bytes[kOffClasses + 37], 9);  // mean_magnitude count N/2+1
   // Second class has direction -1, stored as the byte 0xFF.
   EXPECT_EQ(bytes[kOffClasses + per_class + 4], 0xFF);
   std::uint32_t crc = 0;
-  for (int i = 0; i < 4; ++i) crc |= static_cast<std::uint32_t>(bytes[bytes.size() - 4 + static_cast<std::size_t>(i)]) << (8 * i);
+  for (int i = 0; i < 4; ++i)
+    crc |= static_cast<std::uint32_t>(bytes[bytes.size() - 4 + static_cast<std::size_t>(i)]) << (8 * i);
   EXPECT_EQ(crc, static_cast<std::uint32_t>(::crc32(0L, bytes.data(), static_cast<uInt>(bytes.size() - 4))));
 }
 
@@ -227,7 +232,8 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   Bytes magic = good;
   magic[3] = 'X';
   EXPECT_EQ(message_of(magic), "b.bin: not a ptda baseline (bad magic, expected \"PTDABASE\")");
-  EXPECT_EQ(message_of(Bytes(good.begin(), good.begin() + 12)), "b.bin: truncated: 12 bytes, shorter than the header");
+  EXPECT_EQ(message_of(Bytes(good.begin(), good.begin() + 12)),
+            "b.bin: truncated: 12 bytes, shorter than the header");
   EXPECT_EQ(message_of(Bytes(good.begin(), good.end() - 10)),
             "b.bin: truncated: header says " + n + " bytes, file has " + std::to_string(good.size() - 10));
   Bytes longer = good;
@@ -246,9 +252,8 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   Bytes wrong_n = good;
   put_u32(wrong_n, kOffWindowLen, 10);  // N = 10 needs 6 magnitudes; the file has 5
   fix_crc(wrong_n);
-  EXPECT_EQ(message_of(wrong_n),
-            "b.bin: inconsistent baseline at byte " + std::to_string(kOffClasses + 41) +
-                ": class 0: mean_magnitude has 5 values, window_len 10 needs N/2+1 = 6");
+  EXPECT_EQ(message_of(wrong_n), "b.bin: inconsistent baseline at byte " + std::to_string(kOffClasses + 41) +
+                                     ": class 0: mean_magnitude has 5 values, window_len 10 needs N/2+1 = 6");
   Bytes dir = good;
   dir[kOffClasses + 4] = 0;
   fix_crc(dir);
@@ -257,7 +262,9 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   Bytes classes = good;
   put_u32(classes, 70, 1000000);
   fix_crc(classes);
-  EXPECT_EQ(message_of(classes).rfind("b.bin: inconsistent baseline at byte 74: 1000000 classes cannot fit", 0), 0U);
+  EXPECT_EQ(
+      message_of(classes).rfind("b.bin: inconsistent baseline at byte 74: 1000000 classes cannot fit", 0),
+      0U);
   Bytes policy = good;
   policy[53] = 9;
   fix_crc(policy);
@@ -265,7 +272,8 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   Bytes src = good;
   put_u32(src, good.size() - 4 - 4 - make_baseline(8, 2).source.size(), 5);  // source shorter than stored
   fix_crc(src);
-  EXPECT_EQ(message_of(src).find("unexpected bytes before the CRC") != std::string::npos, true) << message_of(src);
+  EXPECT_EQ(message_of(src).find("unexpected bytes before the CRC") != std::string::npos, true)
+      << message_of(src);
 
   // The same checks through the file API name the path.
   const fs::path d = temp_dir("corrupt");
@@ -274,7 +282,8 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
     (void)read_baseline(d / "c.bin");
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()).rfind((d / "c.bin").string() + ": corrupt: CRC-32 mismatch", 0), 0U) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind((d / "c.bin").string() + ": corrupt: CRC-32 mismatch", 0), 0U)
+        << e.what();
   }
   try {
     (void)read_baseline(d / "missing.bin");
@@ -299,8 +308,9 @@ TEST(BaselineFile, InconsistentBaselineIsNotWritten) {
     write_baseline(dir / "b.bin", b);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()), (dir / "b.bin").string() +
-                                         ": not written: baseline: class 1 (id 8): tda_mean has 7 values, window_len is 8");
+    EXPECT_EQ(std::string(e.what()),
+              (dir / "b.bin").string() +
+                  ": not written: baseline: class 1 (id 8): tda_mean has 7 values, window_len is 8");
   }
   EXPECT_FALSE(fs::exists(dir / "b.bin"));
   b = make_baseline(8, 3);
@@ -328,7 +338,8 @@ TEST(BaselineFile, FailedWriteLeavesPreviousFileIntact) {
     write_baseline(as_dir, b);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()).rfind(as_dir.string() + ": writing baseline failed at rename: ", 0), 0U) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind(as_dir.string() + ": writing baseline failed at rename: ", 0), 0U)
+        << e.what();
   }
   EXPECT_TRUE(fs::is_directory(as_dir / "keep"));
 
@@ -337,8 +348,9 @@ TEST(BaselineFile, FailedWriteLeavesPreviousFileIntact) {
     write_baseline(p / "x.bin", b);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()),
-              (p / "x.bin").string() + ": writing baseline failed at open of the temporary file: Not a directory");
+    EXPECT_EQ(
+        std::string(e.what()),
+        (p / "x.bin").string() + ": writing baseline failed at open of the temporary file: Not a directory");
   }
 
   // 3. A read-only directory (only meaningful when not root: root ignores the permission bits).

@@ -135,7 +135,8 @@ TEST(Candump, CommentsBlankAndXlLinesAreSkipped) {
   EXPECT_FALSE(parse_candump_line("", "x", 1).has_value());
   EXPECT_FALSE(parse_candump_line("# comment (1.0) can0 123#", "x", 1).has_value());
   EXPECT_FALSE(parse_candump_line(" (1.0) can0 123#", "x", 1).has_value());  // canplayer: must start with '('
-  EXPECT_FALSE(parse_candump_line("(1.000000) can0 45123#81:00:12345678#11223344.556677", "x", 1).has_value());
+  EXPECT_FALSE(
+      parse_candump_line("(1.000000) can0 45123#81:00:12345678#11223344.556677", "x", 1).has_value());
 }
 
 TEST(Candump, CrLfLineEndingsAccepted) {
@@ -204,7 +205,8 @@ TEST(Candump, MissingFileIsAnError) {
     (void)ptda::formats::read_candump(kData / "no_such.log");
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("no_such.log: cannot open candump log"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no_such.log: cannot open candump log"), std::string::npos)
+        << e.what();
   }
 }
 
@@ -301,7 +303,8 @@ TEST(Candump, ReaderDoesNotAllocatePerLine) {
   const fs::path dir = temp_dir("alloc");
   {
     std::ofstream out(dir / "a.log");
-    for (int i = 0; i < 500; ++i) out << "(1700000000." << 100000 + i << ") can0 12345678##1" << std::string(128, 'A') << "\n";
+    for (int i = 0; i < 500; ++i)
+      out << "(1700000000." << 100000 + i << ") can0 12345678##1" << std::string(128, 'A') << "\n";
   }
   ptda::formats::CandumpReader reader(dir / "a.log");
   CandumpRecord rec;
@@ -317,11 +320,13 @@ TEST(Candump, ReaderDoesNotAllocatePerLine) {
 
 // Random and mutated lines must either parse or throw ptda::Error: never crash, never another exception.
 TEST(Candump, GarbledLinesOnlyThrowPtdaError) {
-  const std::vector<std::string> seeds = {
-      "(1436509052.249713) vcan0 044#2A366C2BBA", "(1.000001) can0 12345678#DEADBEEF R",
-      "(1.0) can0 123#R7 T",                      "(1.0) can0 20000080#0000000000000000",
-      "(1.0) can0 123##1112233",                  "(1.0) can0 123#1122334455667788_E",
-      "(1.0) can0 45123#81:00:12345678#11223344.556677"};
+  const std::vector<std::string> seeds = {"(1436509052.249713) vcan0 044#2A366C2BBA",
+                                          "(1.000001) can0 12345678#DEADBEEF R",
+                                          "(1.0) can0 123#R7 T",
+                                          "(1.0) can0 20000080#0000000000000000",
+                                          "(1.0) can0 123##1112233",
+                                          "(1.0) can0 123#1122334455667788_E",
+                                          "(1.0) can0 45123#81:00:12345678#11223344.556677"};
   const std::string alphabet = "0123456789ABCDEFabcdefRT#._:() \t\r-xZ";
   std::mt19937 rng(1234);
   int parsed = 0;
@@ -338,10 +343,18 @@ TEST(Candump, GarbledLinesOnlyThrowPtdaError) {
       for (int e = 0; e < edits && !line.empty(); ++e) {
         const std::size_t pos = rng() % line.size();
         switch (rng() % 4) {
-          case 0: line[pos] = alphabet[rng() % alphabet.size()]; break;
-          case 1: line.insert(pos, 1, alphabet[rng() % alphabet.size()]); break;
-          case 2: line.erase(pos, 1); break;
-          default: line[pos] = static_cast<char>(rng() % 256); break;
+          case 0:
+            line[pos] = alphabet[rng() % alphabet.size()];
+            break;
+          case 1:
+            line.insert(pos, 1, alphabet[rng() % alphabet.size()]);
+            break;
+          case 2:
+            line.erase(pos, 1);
+            break;
+          default:
+            line[pos] = static_cast<char>(rng() % 256);
+            break;
         }
       }
     }

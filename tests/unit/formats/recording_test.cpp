@@ -24,13 +24,15 @@ class RecordingTest : public ::testing::Test {
  protected:
   void SetUp() override {
     const char* env = std::getenv("PTDA_TEST_TMP");
-    dir_ = (env != nullptr ? fs::path(env) : fs::temp_directory_path()) /
-           ("formats_recording_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
+    dir_ =
+        (env != nullptr ? fs::path(env) : fs::temp_directory_path()) /
+        ("formats_recording_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+         "_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     // A 2-channel WAV and an empty CAN log: the files a valid recording.toml refers to.
-    ptda::formats::write_wav(dir_ / "vibration.wav", 1000, ptda::formats::WavSampleFormat::kPcm16, {{1, 2}, {3, 4}});
+    ptda::formats::write_wav(dir_ / "vibration.wav", 1000, ptda::formats::WavSampleFormat::kPcm16,
+                             {{1, 2}, {3, 4}});
     ptda::formats::write_candump(dir_ / "can.log", {});
   }
   void TearDown() override { fs::remove_all(dir_); }
@@ -124,19 +126,24 @@ TEST_F(RecordingTest, MalformedFilesPointAtLineAndColumn) {
   const std::string f = file();
   EXPECT_EQ(error_for(replace(kValid, "format = \"ptda-recording\"", "format = \"wav\"")),
             f + ":1:10: format is 'wav', expected 'ptda-recording'");
-  EXPECT_EQ(error_for(replace(kValid, "format = \"ptda-recording\"", "")), f + ":1:1: missing key 'format' in the top level");
+  EXPECT_EQ(error_for(replace(kValid, "format = \"ptda-recording\"", "")),
+            f + ":1:1: missing key 'format' in the top level");
   EXPECT_EQ(error_for(replace(kValid, "version = 1", "version = 2")),
             f + ":2:11: unsupported version 2 (this build reads version 1)");
   EXPECT_EQ(error_for(replace(kValid, "version = 1", "version = \"1\"")),
             f + ":2:11: 'version' in the top level must be an integer");
-  EXPECT_EQ(error_for(replace(kValid, "version = 1", "version = 1\nextra = 3")), f + ":3:1: unknown key 'extra' in the top level");
+  EXPECT_EQ(error_for(replace(kValid, "version = 1", "version = 1\nextra = 3")),
+            f + ":3:1: unknown key 'extra' in the top level");
   EXPECT_EQ(error_for(replace(kValid, "unit = \"m/s^2\"", "unit = \"m/s^2\"\nchanel = 0")),
             f + ":10:1: unknown key 'chanel' in [vibration]");
-  EXPECT_EQ(error_for(replace(kValid, "[can]\nfile = \"can.log\"\n", "")), f + ":1:1: missing key 'can' in the top level");
-  EXPECT_EQ(error_for(replace(kValid, "channel = 1\n", "")), f + ":4:1: missing key 'channel' in [vibration]");
+  EXPECT_EQ(error_for(replace(kValid, "[can]\nfile = \"can.log\"\n", "")),
+            f + ":1:1: missing key 'can' in the top level");
+  EXPECT_EQ(error_for(replace(kValid, "channel = 1\n", "")),
+            f + ":4:1: missing key 'channel' in [vibration]");
   EXPECT_EQ(error_for(replace(kValid, "channel = 1", "channel = 2")),
             f + ":6:11: channel 2 out of range: vibration.wav has 2 channel(s)");
-  EXPECT_EQ(error_for(replace(kValid, "channel = 1", "channel = -1")), f + ":6:11: channel -1 must not be negative");
+  EXPECT_EQ(error_for(replace(kValid, "channel = 1", "channel = -1")),
+            f + ":6:11: channel -1 must not be negative");
   EXPECT_EQ(error_for(replace(kValid, "channel = 1", "channel = 1.0")),
             f + ":6:11: 'channel' in [vibration] must be an integer");
   EXPECT_EQ(error_for(replace(kValid, "start_time = 1700000000.5", "start_time = \"now\"")),
@@ -146,14 +153,17 @@ TEST_F(RecordingTest, MalformedFilesPointAtLineAndColumn) {
   EXPECT_EQ(error_for(replace(kValid, "start_time = 1700000000.5", "start_time = nan")),
             f + ":7:14: 'start_time' in [vibration] must be finite");
   EXPECT_EQ(error_for(replace(kValid, "scale = 0.001", "scale = 0.0")), f + ":8:9: scale must not be zero");
-  EXPECT_EQ(error_for(replace(kValid, "unit = \"m/s^2\"", "unit = \"\"")), f + ":9:8: 'unit' in [vibration] must not be empty");
-  EXPECT_EQ(error_for(replace(kValid,
-                                    "[vibration]\nfile = \"vibration.wav\"\nchannel = 1\nstart_time = 1700000000.5\n"
-                                    "scale = 0.001\nunit = \"m/s^2\"\n",
-                                    "vibration = 3\n")),
-            f + ":4:13: 'vibration' must be a table ([vibration])");
-  EXPECT_EQ(error_for(replace(kValid, "file = \"vibration.wav\"", "file = \"missing.wav\"")),
-            f + ":5:8: file '" + (dir_ / "missing.wav").string() + "' does not exist or is not a regular file");
+  EXPECT_EQ(error_for(replace(kValid, "unit = \"m/s^2\"", "unit = \"\"")),
+            f + ":9:8: 'unit' in [vibration] must not be empty");
+  EXPECT_EQ(
+      error_for(replace(kValid,
+                        "[vibration]\nfile = \"vibration.wav\"\nchannel = 1\nstart_time = 1700000000.5\n"
+                        "scale = 0.001\nunit = \"m/s^2\"\n",
+                        "vibration = 3\n")),
+      f + ":4:13: 'vibration' must be a table ([vibration])");
+  EXPECT_EQ(
+      error_for(replace(kValid, "file = \"vibration.wav\"", "file = \"missing.wav\"")),
+      f + ":5:8: file '" + (dir_ / "missing.wav").string() + "' does not exist or is not a regular file");
   EXPECT_EQ(error_for(replace(kValid, "file = \"can.log\"", "file = \"nope.log\"")),
             f + ":12:8: file '" + (dir_ / "nope.log").string() + "' does not exist or is not a regular file");
   // A TOML syntax error keeps toml++'s own position and description.
@@ -162,19 +172,21 @@ TEST_F(RecordingTest, MalformedFilesPointAtLineAndColumn) {
 }
 
 TEST_F(RecordingTest, MissingTomlAndBadWavAreErrors) {
-  EXPECT_EQ([&] {
-    try {
-      (void)read_recording_meta(dir_);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  }(),
-            file() + ": recording.toml not found");
+  EXPECT_EQ(
+      [&] {
+        try {
+          (void)read_recording_meta(dir_);
+        } catch (const Error& e) {
+          return std::string(e.what());
+        }
+        return std::string();
+      }(),
+      file() + ": recording.toml not found");
   // A referenced WAV that is not a WAV: the WAV reader's message names that file.
   {
     std::ofstream out(dir_ / "vibration.wav", std::ios::trunc);
     out << "not audio";
   }
-  EXPECT_EQ(error_for(kValid), (dir_ / "vibration.wav").string() + ": not a WAV file: shorter than the 12-byte RIFF header");
+  EXPECT_EQ(error_for(kValid),
+            (dir_ / "vibration.wav").string() + ": not a WAV file: shorter than the 12-byte RIFF header");
 }

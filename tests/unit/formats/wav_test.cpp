@@ -69,7 +69,8 @@ Bytes extensible_body(std::uint16_t ch, std::uint32_t rate, std::uint16_t bits, 
   put16(b, valid_bits);
   put32(b, 0x3);  // channel mask FL|FR
   put16(b, sub);
-  const std::uint8_t tail[14] = {0x00, 0x00, 0x00, 0x00, 0x10, 0x00, 0x80, 0x00, 0x00, 0xAA, 0x00, 0x38, 0x9B, 0x71};
+  const std::uint8_t tail[14] = {0x00, 0x00, 0x00, 0x00, 0x10, 0x00, 0x80,
+                                 0x00, 0x00, 0xAA, 0x00, 0x38, 0x9B, 0x71};
   b.insert(b.end(), tail, tail + 14);
   return b;
 }
@@ -120,11 +121,19 @@ std::vector<float> test_values(WavSampleFormat f, std::size_t n, std::uint32_t s
   std::vector<float> v(n);
   for (std::size_t i = 0; i < n; ++i) {
     switch (f) {
-      case WavSampleFormat::kPcm16: v[i] = static_cast<float>(static_cast<int>(rng() % 65536) - 32768); break;
-      case WavSampleFormat::kPcm24: v[i] = static_cast<float>(static_cast<int>(rng() % 16777216) - 8388608); break;
+      case WavSampleFormat::kPcm16:
+        v[i] = static_cast<float>(static_cast<int>(rng() % 65536) - 32768);
+        break;
+      case WavSampleFormat::kPcm24:
+        v[i] = static_cast<float>(static_cast<int>(rng() % 16777216) - 8388608);
+        break;
       // float holds integers exactly up to 2^24; scale so the codes are exact and span the range.
-      case WavSampleFormat::kPcm32: v[i] = static_cast<float>((static_cast<int>(rng() % 65536) - 32768) * 65536); break;
-      case WavSampleFormat::kFloat32: v[i] = std::uniform_real_distribution<float>(-1e3F, 1e3F)(rng); break;
+      case WavSampleFormat::kPcm32:
+        v[i] = static_cast<float>((static_cast<int>(rng() % 65536) - 32768) * 65536);
+        break;
+      case WavSampleFormat::kFloat32:
+        v[i] = std::uniform_real_distribution<float>(-1e3F, 1e3F)(rng);
+        break;
     }
   }
   if (n >= 4 && f == WavSampleFormat::kPcm16) {
@@ -155,7 +164,8 @@ std::vector<float> test_values(WavSampleFormat f, std::size_t n, std::uint32_t s
 
 TEST(Wav, RoundTripEveryFormatAndChannelCount) {
   const fs::path dir = temp_dir("roundtrip");
-  for (const auto f : {WavSampleFormat::kPcm16, WavSampleFormat::kPcm24, WavSampleFormat::kPcm32, WavSampleFormat::kFloat32}) {
+  for (const auto f : {WavSampleFormat::kPcm16, WavSampleFormat::kPcm24, WavSampleFormat::kPcm32,
+                       WavSampleFormat::kFloat32}) {
     for (std::uint16_t ch = 1; ch <= 8; ++ch) {
       SCOPED_TRACE("format " + std::to_string(static_cast<int>(f)) + " channels " + std::to_string(ch));
       std::vector<std::vector<float>> chans;
@@ -175,8 +185,8 @@ TEST(Wav, RoundTripEveryFormatAndChannelCount) {
         ASSERT_EQ(back.size(), chans[c].size());
         for (std::size_t i = 0; i < back.size(); ++i) {
           // Bitwise: -0.0 and denormals must survive too.
-          EXPECT_EQ(std::memcmp(&back[i], &chans[c][i], sizeof(float)), 0) << "frame " << i << ": " << back[i]
-                                                                          << " vs " << chans[c][i];
+          EXPECT_EQ(std::memcmp(&back[i], &chans[c][i], sizeof(float)), 0)
+              << "frame " << i << ": " << back[i] << " vs " << chans[c][i];
         }
       }
     }
@@ -202,7 +212,8 @@ TEST(Wav, PcmWritesRoundAndSaturate) {
   const fs::path dir = temp_dir("saturate");
   const std::vector<float> in = {40000.0F, -40000.0F, 1.5F, -1.5F, 2.4F, -2.6F, 32767.4F, -32768.5F};
   write_wav(dir / "a.wav", 100, WavSampleFormat::kPcm16, {in});
-  EXPECT_EQ(read_wav_channel(dir / "a.wav", 0), (std::vector<float>{32767, -32768, 2, -2, 2, -3, 32767, -32768}));
+  EXPECT_EQ(read_wav_channel(dir / "a.wav", 0),
+            (std::vector<float>{32767, -32768, 2, -2, 2, -3, 32767, -32768}));
   write_wav(dir / "b.wav", 100, WavSampleFormat::kPcm24, {{1e9F, -1e9F, -0.5F}});
   EXPECT_EQ(read_wav_channel(dir / "b.wav", 0), (std::vector<float>{8388607, -8388608, -1}));
   write_wav(dir / "c.wav", 100, WavSampleFormat::kPcm32, {{1e12F, -1e12F}});
@@ -263,13 +274,16 @@ TEST(Wav, StreamedDataSizeUsesFileSize) {
 TEST(Wav, BlockReadsAndSeekMatchWholeRead) {
   const fs::path dir = temp_dir("blocks");
   std::vector<std::vector<float>> chans(3);
-  for (int c = 0; c < 3; ++c) chans[static_cast<std::size_t>(c)] = test_values(WavSampleFormat::kPcm24, 10007, 5U + static_cast<unsigned>(c));
+  for (int c = 0; c < 3; ++c)
+    chans[static_cast<std::size_t>(c)] =
+        test_values(WavSampleFormat::kPcm24, 10007, 5U + static_cast<unsigned>(c));
   write_wav(dir / "b.wav", 51200, WavSampleFormat::kPcm24, chans);
   WavReader r(dir / "b.wav");
   std::vector<float> got;
   std::vector<float> buf(777);
   std::size_t n = 0;
-  while ((n = r.read(2, buf)) > 0) got.insert(got.end(), buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(n));
+  while ((n = r.read(2, buf)) > 0)
+    got.insert(got.end(), buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(n));
   EXPECT_EQ(got, chans[2]);
   EXPECT_EQ(r.position(), 10007U);
   r.seek(5000);
@@ -282,7 +296,8 @@ TEST(Wav, BlockReadsAndSeekMatchWholeRead) {
     (void)r.read(3, buf);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("channel 3 out of range (file has 3 channels)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("channel 3 out of range (file has 3 channels)"), std::string::npos)
+        << e.what();
   }
   fs::remove_all(dir);
 }
@@ -353,8 +368,9 @@ TEST(Wav, MalformedFilesGiveClearErrors) {
     add_chunk(c, "LIST", Bytes{1, 2}, 5000);
     check(riff(c), "truncated: 'LIST' chunk at offset 12 says 5000 bytes, file has 2");
   }
-  EXPECT_NE(error_of(dir / "missing.wav").find("missing.wav: cannot open WAV file: No such file or directory"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of(dir / "missing.wav").find("missing.wav: cannot open WAV file: No such file or directory"),
+      std::string::npos);
   fs::remove_all(dir);
 }
 
@@ -369,16 +385,24 @@ TEST(Wav, WriterRejectsBadInput) {
     }
     return "";
   };
-  EXPECT_EQ(err([&] { write_wav(p, 100, WavSampleFormat::kPcm16, {}); }), p.string() + ": cannot write 0 channels (1..8)");
-  EXPECT_EQ(err([&] { write_wav(p, 100, WavSampleFormat::kPcm16, std::vector<std::vector<float>>(9, {1.0F})); }),
-            p.string() + ": cannot write 9 channels (1..8)");
+  EXPECT_EQ(err([&] { write_wav(p, 100, WavSampleFormat::kPcm16, {}); }),
+            p.string() + ": cannot write 0 channels (1..8)");
+  EXPECT_EQ(
+      err([&] { write_wav(p, 100, WavSampleFormat::kPcm16, std::vector<std::vector<float>>(9, {1.0F})); }),
+      p.string() + ": cannot write 9 channels (1..8)");
   EXPECT_EQ(err([&] { write_wav(p, 0, WavSampleFormat::kPcm16, {{1.0F}}); }),
             p.string() + ": cannot write sample rate 0 Hz (1..200000)");
-  EXPECT_EQ(err([&] { write_wav(p, 100, WavSampleFormat::kPcm16, {{1.0F, 2.0F}, {1.0F}}); }),
+  EXPECT_EQ(err([&] {
+              write_wav(p, 100, WavSampleFormat::kPcm16, {{1.0F, 2.0F}, {1.0F}});
+            }),
             p.string() + ": channel 1 has 1 samples, channel 0 has 2");
-  EXPECT_EQ(err([&] { write_wav(p, 100, WavSampleFormat::kPcm24, {{1.0F, std::nanf("")}}); }),
+  EXPECT_EQ(err([&] {
+              write_wav(p, 100, WavSampleFormat::kPcm24, {{1.0F, std::nanf("")}});
+            }),
             p.string() + ": NaN sample at channel 0 frame 1 cannot be stored as PCM");
-  EXPECT_NE(err([&] { write_wav(dir / "no" / "w.wav", 100, WavSampleFormat::kPcm16, {{1.0F}}); }).find("cannot create WAV file"),
+  EXPECT_NE(err([&] {
+              write_wav(dir / "no" / "w.wav", 100, WavSampleFormat::kPcm16, {{1.0F}});
+            }).find("cannot create WAV file"),
             std::string::npos);
   fs::remove_all(dir);
 }
@@ -404,7 +428,8 @@ TEST(Wav, RandomHeadersOnlyThrowPtdaError) {
   for (int iter = 0; iter < 3000; ++iter) {
     Bytes b = seeds[static_cast<std::size_t>(iter) % seeds.size()];
     const int edits = 1 + static_cast<int>(rng() % 6);
-    for (int e = 0; e < edits; ++e) b[rng() % std::min<std::size_t>(b.size(), 80)] = static_cast<std::uint8_t>(rng());
+    for (int e = 0; e < edits; ++e)
+      b[rng() % std::min<std::size_t>(b.size(), 80)] = static_cast<std::uint8_t>(rng());
     if (rng() % 4 == 0) b.resize(rng() % b.size());
     write_bytes(dir / "f.wav", b);
     try {

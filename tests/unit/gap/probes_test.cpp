@@ -1,12 +1,13 @@
 // Gap probes on simulated recordings: segmentation, zero gap against itself, and the signature each
 // effect leaves in its probe.
+#include "ptda/gap/probes.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 #include <string>
 
-#include "ptda/gap/probes.hpp"
 #include "ptda/gap/signals.hpp"
 #include "ptda/sim/simulator.hpp"
 
@@ -127,7 +128,8 @@ TEST(Probes, ClockLatencyAndClippingShowInTheirProbes) {
   s.effects = {clock, lat};
   const Measured b = measure(s, 16, &a.plan);
   // A fast ADC puts the mesh at GMF / (1 + e) on the nominal grid: -1500 ppm (parabolic peak estimate).
-  EXPECT_NEAR(element(b.probes, "tracking", "c0.gmf_ppm") - element(a.probes, "tracking", "c0.gmf_ppm"), -1500.0, 100.0);
+  EXPECT_NEAR(element(b.probes, "tracking", "c0.gmf_ppm") - element(a.probes, "tracking", "c0.gmf_ppm"),
+              -1500.0, 100.0);
   // The CAN speed arrives 30 ms later, so the vibration envelope leads it. The envelope-vs-|speed|
   // correlation peak is biased towards zero (the envelope is not linear in the speed: noise floor,
   // reversals): measured -23.0 ms with seed 16. The fit compares against simulations with the same

@@ -1,4 +1,6 @@
 // Sim-to-real effects: scenario keys and each effect's signature in the simulated signals.
+#include "ptda/sim/effects.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
-#include "ptda/sim/effects.hpp"
 #include "ptda/sim/simulator.hpp"
 
 namespace ptda::sim {
@@ -99,15 +100,20 @@ void expect_error(const std::string& text, const std::string& needle) {
 TEST(EffectsScenario, ErrorsNameTheKeyAndLine) {
   const std::string head = "[motion]\nvia_points_rad = [0.0, 1.0]\nmax_speed_rad_s = 1.0\n[[effects]]\n";
   expect_error(head + "kind = \"warp_drive\"\n", "t.toml:5:8: [[effects]] kind must be one of transfer_path");
-  expect_error(head + "kind = \"impacts\"\nresonanse_hz = 100.0\n", "t.toml:6:1: unknown key 'effects[0].resonanse_hz'");
-  expect_error(head + "kind = \"adc_clipping\"\nlevel_ms2 = -1.0\n", "t.toml:6:13: effects[0].level_ms2: must be in");
-  expect_error(head + "kind = \"transfer_path\"\nfrequency_hz = 20000.0\n", "frequency_hz: must be below 0.49 fs_hz");
-  expect_error(head + "kind = \"speed_latency\"\njitter_s = 0.0045\n", "jitter_s: plus [can] jitter_s must stay below");
+  expect_error(head + "kind = \"impacts\"\nresonanse_hz = 100.0\n",
+               "t.toml:6:1: unknown key 'effects[0].resonanse_hz'");
+  expect_error(head + "kind = \"adc_clipping\"\nlevel_ms2 = -1.0\n",
+               "t.toml:6:13: effects[0].level_ms2: must be in");
+  expect_error(head + "kind = \"transfer_path\"\nfrequency_hz = 20000.0\n",
+               "frequency_hz: must be below 0.49 fs_hz");
+  expect_error(head + "kind = \"speed_latency\"\njitter_s = 0.0045\n",
+               "jitter_s: plus [can] jitter_s must stay below");
 }
 
 TEST(EffectsScenario, EveryShippedScenarioStillParses) {
   int n = 0;
-  for (const auto& f : std::filesystem::directory_iterator(std::filesystem::path(PTDA_SOURCE_DIR) / "config" / "scenarios")) {
+  for (const auto& f :
+       std::filesystem::directory_iterator(std::filesystem::path(PTDA_SOURCE_DIR) / "config" / "scenarios")) {
     if (f.path().extension() != ".toml") continue;
     EXPECT_NO_THROW((void)load_scenario(f.path())) << f.path();
     ++n;
@@ -120,10 +126,13 @@ TEST(Effects, TransferPathBoostsItsBandOnly) {
   s.vibration.gmf_amplitudes.clear();
   s.vibration.noise_rms = 1.0;
   const SimulatedSignals a = simulate_signals(s, 5);
-  const SimulatedSignals b = simulate_signals(with(s, EffectKind::kTransferPath, {{"frequency_hz", 2000.0}, {"gain_db", 12.0}, {"q", 4.0}}), 5);
+  const SimulatedSignals b = simulate_signals(
+      with(s, EffectKind::kTransferPath, {{"frequency_hz", 2000.0}, {"gain_db", 12.0}, {"q", 4.0}}), 5);
   const double fs = s.sensor.fs_hz;
-  const double in_band = band_power(b.vibration.accel_ms2, fs, 1950, 2050) / band_power(a.vibration.accel_ms2, fs, 1950, 2050);
-  const double far = band_power(b.vibration.accel_ms2, fs, 400, 500) / band_power(a.vibration.accel_ms2, fs, 400, 500);
+  const double in_band =
+      band_power(b.vibration.accel_ms2, fs, 1950, 2050) / band_power(a.vibration.accel_ms2, fs, 1950, 2050);
+  const double far =
+      band_power(b.vibration.accel_ms2, fs, 400, 500) / band_power(a.vibration.accel_ms2, fs, 400, 500);
   // Peak gain 12 dB = x15.8 in power; over +-50 Hz (a fifth of the 500 Hz bandwidth) nearly all of it.
   EXPECT_GT(10.0 * std::log10(in_band), 11.0);
   EXPECT_LT(10.0 * std::log10(in_band), 12.5);
@@ -131,7 +140,8 @@ TEST(Effects, TransferPathBoostsItsBandOnly) {
 }
 
 TEST(Effects, MeshModulationMakesSidebandsAtItsRate) {
-  const Scenario s = with(rig(), EffectKind::kMeshModulation, {{"rate_order", 1.5}, {"am_depth", 0.4}, {"pm_rad", 0.0}});
+  const Scenario s =
+      with(rig(), EffectKind::kMeshModulation, {{"rate_order", 1.5}, {"am_depth", 0.4}, {"pm_rad", 0.0}});
   const SimulatedSignals sig = simulate_signals(s, 1);
   const double fs = s.sensor.fs_hz;
   const auto n = static_cast<std::size_t>(fs);  // 1 s: whole periods of 600 and 600 +- 30 Hz
@@ -173,8 +183,9 @@ TEST(Effects, AdcClippingCapsTheSignal) {
   int above = 0;
   for (int k = 0; k < 40; ++k) above += std::fabs(std::sin(2.0 * kPi * 3.0 * k / 40.0)) > 0.7 ? 1 : 0;
   EXPECT_EQ(above, 22);
-  EXPECT_DOUBLE_EQ(static_cast<double>(sig.vibration.effect_clipped_samples) / static_cast<double>(sig.codes.size()),
-                   above / 40.0);
+  EXPECT_DOUBLE_EQ(
+      static_cast<double>(sig.vibration.effect_clipped_samples) / static_cast<double>(sig.codes.size()),
+      above / 40.0);
 }
 
 TEST(Effects, ElectricalInterferenceAtFixedFrequencies) {
@@ -191,7 +202,8 @@ TEST(Effects, ElectricalInterferenceAtFixedFrequencies) {
 }
 
 TEST(Effects, OtherAxisAddsAnOffOrderMesh) {
-  const Scenario s = with(rig(), EffectKind::kOtherAxis, {{"amplitude_ms2", 0.4}, {"frequency_ratio", 1.25}, {"lag_s", 0.0}});
+  const Scenario s = with(rig(), EffectKind::kOtherAxis,
+                          {{"amplitude_ms2", 0.4}, {"frequency_ratio", 1.25}, {"lag_s", 0.0}});
   const SimulatedSignals sig = simulate_signals(s, 1);
   const auto n = static_cast<std::size_t>(s.sensor.fs_hz);
   EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 750, 0, n), 0.4, 1e-3);  // 1.25 x 600 Hz
@@ -218,7 +230,8 @@ Scenario reciprocating(std::uint32_t cycles) {
 TEST(Effects, ImpactsAtTorqueReversals) {
   Scenario s = reciprocating(2);
   s.vibration.gmf_amplitudes.clear();
-  s = with(s, EffectKind::kImpacts, {{"amplitude_ms2", 4.0}, {"resonance_hz", 3000.0}, {"damping_ratio", 0.05}});
+  s = with(s, EffectKind::kImpacts,
+           {{"amplitude_ms2", 4.0}, {"resonance_hz", 3000.0}, {"damping_ratio", 0.05}});
   const SimulatedSignals sig = simulate_signals(s, 1);
   // Accel signs per cycle: + (start), - (braking and reversal at pi), + (braking back). The second
   // cycle starts with + after +: no reversal. 3 + 2 knocks.
@@ -226,14 +239,16 @@ TEST(Effects, ImpactsAtTorqueReversals) {
   // The first knock rings right at the start of the motion (after the 0.2 s lead-in).
   double before = 0, after = 0;
   const auto i0 = static_cast<std::size_t>(0.2 * s.sensor.fs_hz);
-  for (std::size_t i = i0 - 100; i < i0; ++i) before = std::max(before, std::fabs(sig.vibration.accel_ms2[i]));
+  for (std::size_t i = i0 - 100; i < i0; ++i)
+    before = std::max(before, std::fabs(sig.vibration.accel_ms2[i]));
   for (std::size_t i = i0; i < i0 + 100; ++i) after = std::max(after, std::fabs(sig.vibration.accel_ms2[i]));
   EXPECT_EQ(before, 0.0);
   EXPECT_GT(after, 3.0);
 }
 
 TEST(Effects, LoadDependenceScalesTheMeshByDirection) {
-  const Scenario s = with(reciprocating(1), EffectKind::kLoadDependence, {{"direction_gain", 0.5}, {"accel_gain", 0.0}});
+  const Scenario s =
+      with(reciprocating(1), EffectKind::kLoadDependence, {{"direction_gain", 0.5}, {"accel_gain", 0.0}});
   const SimulatedSignals sig = simulate_signals(s, 1);
   double pos = 0, neg = 0;
   for (std::size_t i = 0; i < sig.codes.size(); ++i) {
@@ -248,7 +263,8 @@ TEST(Effects, LoadDependenceScalesTheMeshByDirection) {
 TEST(Effects, SpeedLatencyDelaysOnlyTheCanFrames) {
   const Scenario s = reciprocating(1);
   const SimulatedSignals a = simulate_signals(s, 3);
-  const SimulatedSignals b = simulate_signals(with(s, EffectKind::kSpeedLatency, {{"delay_s", 0.025}, {"jitter_s", 0.0}}), 3);
+  const SimulatedSignals b =
+      simulate_signals(with(s, EffectKind::kSpeedLatency, {{"delay_s", 0.025}, {"jitter_s", 0.0}}), 3);
   ASSERT_EQ(a.can.size(), b.can.size());
   for (std::size_t i = 0; i < a.can.size(); i += 97) {
     EXPECT_NEAR(static_cast<double>(b.can[i].frame.t_ns - a.can[i].frame.t_ns), 25e6, 1000.0);
@@ -261,7 +277,8 @@ TEST(Effects, SpeedRippleSmearsTheMeshLine) {
   const SimulatedSignals sig = simulate_signals(s, 2);
   const auto n = static_cast<std::size_t>(s.sensor.fs_hz);
   double mean = 0;
-  for (int b = 0; b < 4; ++b) mean += tone_amplitude(sig.vibration.accel_ms2, 8000, 600, static_cast<std::size_t>(b) * n, n) / 4;
+  for (int b = 0; b < 4; ++b)
+    mean += tone_amplitude(sig.vibration.accel_ms2, 8000, 600, static_cast<std::size_t>(b) * n, n) / 4;
   // Gaussian phase jitter of 0.5 rad rms keeps exp(-0.5^2 / 2) = 0.8825 of the line coherent.
   EXPECT_NEAR(mean, 0.8825, 0.04);
   const SimulatedSignals plain = simulate_signals(rig(4.0), 2);
@@ -274,9 +291,12 @@ TEST(Effects, NoiseColorRaisesLowFrequencies) {
   s.vibration.gmf_amplitudes.clear();
   s.vibration.noise_rms = 0.1;
   const SimulatedSignals a = simulate_signals(s, 4);
-  const SimulatedSignals b = simulate_signals(with(s, EffectKind::kNoiseColor, {{"rms_ms2", 0.5}, {"corner_hz", 50.0}}), 4);
-  const double low = band_power(b.vibration.accel_ms2, 8000, 10, 40) / band_power(a.vibration.accel_ms2, 8000, 10, 40);
-  const double high = band_power(b.vibration.accel_ms2, 8000, 3000, 3100) / band_power(a.vibration.accel_ms2, 8000, 3000, 3100);
+  const SimulatedSignals b =
+      simulate_signals(with(s, EffectKind::kNoiseColor, {{"rms_ms2", 0.5}, {"corner_hz", 50.0}}), 4);
+  const double low =
+      band_power(b.vibration.accel_ms2, 8000, 10, 40) / band_power(a.vibration.accel_ms2, 8000, 10, 40);
+  const double high = band_power(b.vibration.accel_ms2, 8000, 3000, 3100) /
+                      band_power(a.vibration.accel_ms2, 8000, 3000, 3100);
   // Expected power ratio 1 + rms^2 |H(f)|^2 / sigma^2 for the one-pole y = a y + sqrt(1 - a^2) w:
   // |H|^2 = (1 - a^2) / |1 - a e^{-j w}|^2 (both noises are white before filtering, same bin scaling).
   auto expected_db = [](double f) {
@@ -292,7 +312,8 @@ TEST(Effects, NoiseColorRaisesLowFrequencies) {
 }
 
 TEST(Effects, DeterministicForASeed) {
-  const Scenario s = with(with(rig(), EffectKind::kSpeedRipple, {}), EffectKind::kImpacts, {{"rate_hz", 3.0}});
+  const Scenario s =
+      with(with(rig(), EffectKind::kSpeedRipple, {}), EffectKind::kImpacts, {{"rate_hz", 3.0}});
   EXPECT_EQ(simulate_signals(s, 9).codes, simulate_signals(s, 9).codes);
   EXPECT_NE(simulate_signals(s, 9).codes, simulate_signals(s, 10).codes);
 }

@@ -14,10 +14,10 @@ namespace ptda::cli {
 
 /// One numeric column of a CSV file.
 struct CsvColumn {
-  std::string name;            ///< header name of the column
-  std::size_t index = 0;       ///< 0-based
-  std::vector<float> values;   ///< one per data row, in file order
-  std::size_t columns = 0;     ///< columns in the header
+  std::string name;           ///< header name of the column
+  std::size_t index = 0;      ///< 0-based
+  std::vector<float> values;  ///< one per data row, in file order
+  std::size_t columns = 0;    ///< columns in the header
   long data_rows = 0;
 };
 
@@ -32,12 +32,12 @@ struct CsvColumn {
 struct ImportOptions {
   std::filesystem::path csv;
   std::string column;
-  double rate_hz = 0.0;             ///< must be a positive integer (WAV stores integer rates)
-  double shaft_speed_rad_s = 0.0;   ///< the measured shaft's speed, written as the CAN "joint" speed
+  double rate_hz = 0.0;            ///< must be a positive integer (WAV stores integer rates)
+  double shaft_speed_rad_s = 0.0;  ///< the measured shaft's speed, written as the CAN "joint" speed
   std::filesystem::path out_dir;
   std::string unit = "m/s^2";
-  double scale = 1.0;               ///< stored value * scale = value in unit
-  double start_time_s = 0.0;        ///< UNIX seconds of sample 0
+  double scale = 1.0;                  ///< stored value * scale = value in unit
+  double start_time_s = 0.0;           ///< UNIX seconds of sample 0
   config::SpeedFrameSpec speed_frame;  ///< default: 0x184 every 4 ms
 };
 
@@ -49,7 +49,7 @@ struct ImportSummary {
   std::uint64_t speed_frames = 0;
   float min_value = 0.0F;
   float max_value = 0.0F;
-  double rms = 0.0;   ///< of the stored values
+  double rms = 0.0;  ///< of the stored values
 };
 
 /// Reads the column and writes out_dir/{recording.toml, vibration.wav, can.log}. The CAN log holds a

@@ -44,9 +44,9 @@ struct FeatureSeparation {
   std::string feature;  ///< "rms_res" or "entropy_res"
   double mean_healthy = 0.0;
   double mean_faulty = 0.0;
-  double ratio = 0.0;           ///< mean_faulty / mean_healthy (inf/NaN when mean_healthy == 0)
-  double auc = 0.5;             ///< P(faulty > healthy) + P(equal)/2
-  double separability = 0.5;    ///< max(auc, 1 - auc): 1 = perfectly separated either way
+  double ratio = 0.0;                      ///< mean_faulty / mean_healthy (inf/NaN when mean_healthy == 0)
+  double auc = 0.5;                        ///< P(faulty > healthy) + P(equal)/2
+  double separability = 0.5;               ///< max(auc, 1 - auc): 1 = perfectly separated either way
   Direction direction = Direction::kNone;  ///< kHigher when auc > 0.5, kLower when < 0.5
 };
 
@@ -63,8 +63,8 @@ struct SetSummary {
 };
 
 struct Evaluation {
-  std::string label;          ///< free text naming the case (may be empty)
-  std::optional<double> x;    ///< numeric position for plots (e.g. the load in %)
+  std::string label;        ///< free text naming the case (may be empty)
+  std::optional<double> x;  ///< numeric position for plots (e.g. the load in %)
   std::string method;
   SetSummary healthy, faulty;
   std::array<FeatureSeparation, 2> features;  ///< rms_res, entropy_res
@@ -73,7 +73,8 @@ struct Evaluation {
 /// Evaluates the scored windows. Throws ptda::Error when the methods differ (naming both) or a set has no
 /// scored window (`healthy_source`/`faulty_source` name the files in the message).
 [[nodiscard]] Evaluation evaluate_separation(const MonitorWindows& healthy, const MonitorWindows& faulty,
-                                             const std::string& healthy_source, const std::string& faulty_source);
+                                             const std::string& healthy_source,
+                                             const std::string& faulty_source);
 
 /// One-line JSON object of the evaluation (numbers round-trip; non-finite as null).
 [[nodiscard]] std::string evaluation_json(const Evaluation& e);

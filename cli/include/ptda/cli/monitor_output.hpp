@@ -22,7 +22,8 @@ namespace ptda::cli {
 
 [[nodiscard]] std::string window_table_header();
 /// One table row; times relative to t0_ns (the recording's sample 0); decision_n: the alarm's n.
-[[nodiscard]] std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std::uint32_t decision_n);
+[[nodiscard]] std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns,
+                                           std::uint32_t decision_n);
 
 struct MonitorSummary {
   std::uint64_t windows = 0, scored = 0, no_class = 0;

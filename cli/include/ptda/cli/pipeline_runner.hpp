@@ -28,8 +28,8 @@ struct RecordingInfo {
   formats::WavInfo wav;
   std::filesystem::path wav_path;
   std::filesystem::path can_path;
-  std::int64_t t0_ns = 0;     ///< UNIX ns of sample 0
-  double duration_s = 0.0;    ///< frames / rate
+  std::int64_t t0_ns = 0;   ///< UNIX ns of sample 0
+  double duration_s = 0.0;  ///< frames / rate
 };
 
 /// Reads DIR/recording.toml and the WAV header. Throws ptda::Error (missing directory, bad toml,
@@ -91,7 +91,8 @@ struct CollectResult {
 void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more);
 
 /// Keeps the windows [range.first(count), range.last(count)) in cut order and the regions they lie in.
-[[nodiscard]] dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const FractionRange& range);
+[[nodiscard]] dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all,
+                                                   const FractionRange& range);
 
 /// Monitoring results of one recording with one method.
 struct MonitorResult {
@@ -107,8 +108,8 @@ using WindowObserver = std::function<void(const dsp::WindowResult&, const dsp::M
 /// Checks that baseline and configuration/recording agree (sample rate, window length); throws
 /// ptda::Error naming the baseline file and the disagreeing values.
 void check_baseline_matches(const dsp::Baseline& baseline, const std::string& baseline_source,
-                            const config::PipelineConfig& cfg, const std::string& config_source,
-                            double fs_hz, const std::string& recording_source);
+                            const config::PipelineConfig& cfg, const std::string& config_source, double fs_hz,
+                            const std::string& recording_source);
 
 [[nodiscard]] MonitorResult monitor_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg,
                                               const dsp::Baseline& baseline, dsp::Method method, double fs_hz,

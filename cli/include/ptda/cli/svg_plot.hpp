@@ -37,9 +37,8 @@ struct Ticks {
 /// one or two points keep them. Points outside [x_lo, x_hi] or not finite are dropped.
 /// Throws ptda::Error when x and y differ in size, columns == 0, or x_hi <= x_lo.
 [[nodiscard]] std::vector<std::pair<double, double>> min_max_envelope(std::span<const double> x,
-                                                                      std::span<const double> y,
-                                                                      double x_lo, double x_hi,
-                                                                      std::size_t columns);
+                                                                      std::span<const double> y, double x_lo,
+                                                                      double x_hi, std::size_t columns);
 
 /// One-sided amplitude spectrum of a real signal via ptda::dsp::RealFft: amplitude[k] = 2|X[k]|/N
 /// (|X[0]|/N at DC and Nyquist), so a sine of amplitude A shows a peak of A; freq_hz[k] = k fs / N.
@@ -93,7 +92,7 @@ struct Plot {
   std::vector<VLine> vlines;
   std::string legend_span_label;  ///< unused unless non-empty: legend entry for the spans' color
   std::optional<double> x_min, x_max, y_min, y_max;  ///< fixed axis limits; unset: from the data
-  std::string empty_message = "no data";            ///< shown when there is nothing to draw
+  std::string empty_message = "no data";             ///< shown when there is nothing to draw
 };
 
 struct PlotStyle {
@@ -112,9 +111,13 @@ struct Layout {
   double x_lo = 0.0, x_hi = 1.0, y_lo = 0.0, y_hi = 1.0;
   Ticks x_ticks, y_ticks;
   double left_px = 0.0, top_px = 0.0, width_px = 1.0, height_px = 1.0;  ///< plot area
-  bool empty = true;  ///< nothing finite to draw
-  [[nodiscard]] double x_px(double x) const noexcept { return left_px + (x - x_lo) / (x_hi - x_lo) * width_px; }
-  [[nodiscard]] double y_px(double y) const noexcept { return top_px + (y_hi - y) / (y_hi - y_lo) * height_px; }
+  bool empty = true;                                                    ///< nothing finite to draw
+  [[nodiscard]] double x_px(double x) const noexcept {
+    return left_px + (x - x_lo) / (x_hi - x_lo) * width_px;
+  }
+  [[nodiscard]] double y_px(double y) const noexcept {
+    return top_px + (y_hi - y) / (y_hi - y_lo) * height_px;
+  }
 };
 [[nodiscard]] Layout compute_layout(const Plot& plot, const PlotStyle& style = {});
 

@@ -22,10 +22,14 @@ enum class AlarmLevel : std::uint8_t { kNormal = 0, kWarning = 1, kAlarm = 2, kF
 
 [[nodiscard]] constexpr std::string_view alarm_level_name(AlarmLevel l) noexcept {
   switch (l) {
-    case AlarmLevel::kNormal: return "normal";
-    case AlarmLevel::kWarning: return "warning";
-    case AlarmLevel::kAlarm: return "alarm";
-    case AlarmLevel::kFault: return "fault";
+    case AlarmLevel::kNormal:
+      return "normal";
+    case AlarmLevel::kWarning:
+      return "warning";
+    case AlarmLevel::kAlarm:
+      return "alarm";
+    case AlarmLevel::kFault:
+      return "fault";
   }
   return "?";
 }

@@ -35,19 +35,19 @@ enum class CanBusState : std::uint8_t {
 };
 
 struct CanCounters {
-  std::uint64_t rx_frames = 0;          ///< frames handed to the caller (error frames included)
+  std::uint64_t rx_frames = 0;  ///< frames handed to the caller (error frames included)
   std::uint64_t rx_error_frames = 0;
   std::uint64_t rx_overflow_drops = 0;  ///< frames the kernel dropped on a full socket queue (SO_RXQ_OVFL)
   std::uint64_t rx_errors = 0;          ///< failed or malformed reads
   std::uint64_t tx_frames = 0;
-  std::uint64_t tx_full = 0;            ///< ENOBUFS / EAGAIN on send
-  std::uint64_t tx_errors = 0;          ///< other send failures
-  std::uint64_t bus_off = 0;            ///< transitions into bus-off
-  std::uint64_t error_passive = 0;      ///< transitions into error-passive
-  std::uint64_t error_warning = 0;      ///< transitions into error-warning
-  std::uint64_t restarts = 0;           ///< controller restarted after bus-off (CAN_ERR_RESTARTED)
+  std::uint64_t tx_full = 0;               ///< ENOBUFS / EAGAIN on send
+  std::uint64_t tx_errors = 0;             ///< other send failures
+  std::uint64_t bus_off = 0;               ///< transitions into bus-off
+  std::uint64_t error_passive = 0;         ///< transitions into error-passive
+  std::uint64_t error_warning = 0;         ///< transitions into error-warning
+  std::uint64_t restarts = 0;              ///< controller restarted after bus-off (CAN_ERR_RESTARTED)
   std::uint64_t controller_overflows = 0;  ///< controller rx/tx buffer overflow reported in error frames
-  std::uint64_t protocol_errors = 0;    ///< bus errors (CAN_ERR_PROT / BUSERROR / ACK / TRX)
+  std::uint64_t protocol_errors = 0;       ///< bus errors (CAN_ERR_PROT / BUSERROR / ACK / TRX)
 };
 
 /// The live counters and bus state: written by the receiving thread, read by any.
@@ -57,9 +57,9 @@ struct CanChannelStats {
   std::atomic<CanBusState> state{CanBusState::kErrorActive};
 
   [[nodiscard]] CanCounters snapshot() const noexcept {
-    return {rx_frames.get(), rx_error_frames.get(), rx_overflow_drops.get(), rx_errors.get(),
-            tx_frames.get(), tx_full.get(),         tx_errors.get(),         bus_off.get(),
-            error_passive.get(), error_warning.get(), restarts.get(),      controller_overflows.get(),
+    return {rx_frames.get(),      rx_error_frames.get(), rx_overflow_drops.get(), rx_errors.get(),
+            tx_frames.get(),      tx_full.get(),         tx_errors.get(),         bus_off.get(),
+            error_passive.get(),  error_warning.get(),   restarts.get(),          controller_overflows.get(),
             protocol_errors.get()};
   }
 };
@@ -83,7 +83,8 @@ class CanChannel {
   /// Receives up to out.size() frames into out[0..received), waiting at most timeout_ns for the first
   /// (the receiving thread's one wait). Timestamps are on the daemon's clock. Thread: the one receiving
   /// thread. Never allocates, throws or logs.
-  virtual CanStatus receive(std::span<CanFrame> out, std::size_t& received, std::int64_t timeout_ns) noexcept = 0;
+  virtual CanStatus receive(std::span<CanFrame> out, std::size_t& received,
+                            std::int64_t timeout_ns) noexcept = 0;
   /// Queues one frame for transmission without waiting. Thread: one sending thread (may differ from the
   /// receiving one). Never blocks, allocates or throws.
   virtual CanStatus send(const CanFrame& frame) noexcept = 0;
@@ -91,7 +92,9 @@ class CanChannel {
   virtual void deactivate() noexcept = 0;
 
   /// Thread: any. Never blocks.
-  [[nodiscard]] CanBusState bus_state() const noexcept { return stats_.state.load(std::memory_order_relaxed); }
+  [[nodiscard]] CanBusState bus_state() const noexcept {
+    return stats_.state.load(std::memory_order_relaxed);
+  }
   /// Thread: any. Never blocks or allocates.
   [[nodiscard]] CanCounters counters() const noexcept { return stats_.snapshot(); }
 

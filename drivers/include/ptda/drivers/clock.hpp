@@ -35,7 +35,9 @@ class MonotonicClock final : public Clock {
 class ManualClock final : public Clock {
  public:
   explicit ManualClock(std::int64_t start_ns = 0) noexcept : t_ns_(start_ns) {}
-  [[nodiscard]] std::int64_t now_ns() const noexcept override { return t_ns_.load(std::memory_order_acquire); }
+  [[nodiscard]] std::int64_t now_ns() const noexcept override {
+    return t_ns_.load(std::memory_order_acquire);
+  }
   /// Jumps to t_ns when that is later than now (never goes back). Thread: any. Never blocks.
   void sleep_until_ns(std::int64_t t_ns) noexcept override {
     std::int64_t cur = t_ns_.load(std::memory_order_relaxed);
@@ -56,8 +58,8 @@ class ManualClock final : public Clock {
 
 /// How a replay source releases data.
 enum class ReplayPace : std::uint8_t {
-  kRealTime = 0,         ///< each sample/frame is released when the clock reaches its mapped time
-  kAsFastAsPossible = 1, ///< everything is released at once; timestamps are still the mapped times
+  kRealTime = 0,          ///< each sample/frame is released when the clock reaches its mapped time
+  kAsFastAsPossible = 1,  ///< everything is released at once; timestamps are still the mapped times
 };
 
 /// How a replay source maps the log's clock (UNIX ns, CanFrame::t_ns in a candump log, a recording's

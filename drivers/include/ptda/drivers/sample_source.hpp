@@ -27,12 +27,12 @@ enum SampleBlockFlag : std::uint32_t {
 
 /// Contiguous, uniformly spaced samples (1 / fs_hz apart). A gap always starts a new block.
 struct SampleBlock {
-  std::int64_t t_mono_ns = 0;      ///< time of samples[0] on the daemon's monotonic clock
-  std::uint64_t first_index = 0;   ///< index of samples[0] since activate(), counting lost samples too
-  std::uint32_t count = 0;         ///< valid samples in samples[0..count)
-  std::uint32_t flags = 0;         ///< SampleBlockFlag bits
-  std::uint32_t gap_samples = 0;   ///< estimated samples lost before samples[0] (0 unless kBlockGap)
-  float samples[kMaxBlock] = {};   ///< stored values (raw ADC codes * configured scale)
+  std::int64_t t_mono_ns = 0;     ///< time of samples[0] on the daemon's monotonic clock
+  std::uint64_t first_index = 0;  ///< index of samples[0] since activate(), counting lost samples too
+  std::uint32_t count = 0;        ///< valid samples in samples[0..count)
+  std::uint32_t flags = 0;        ///< SampleBlockFlag bits
+  std::uint32_t gap_samples = 0;  ///< estimated samples lost before samples[0] (0 unless kBlockGap)
+  float samples[kMaxBlock] = {};  ///< stored values (raw ADC codes * configured scale)
 };
 
 enum class SourceStatus : std::uint8_t {
@@ -60,7 +60,7 @@ struct SampleSourceCounters {
 struct SampleSourceStats {
   Counter blocks, samples, timeouts, short_reads, gaps, lost_samples, time_back, read_errors, end_of_stream;
   [[nodiscard]] SampleSourceCounters snapshot() const noexcept {
-    return {blocks.get(),    samples.get(),   timeouts.get(),    short_reads.get(),  gaps.get(),
+    return {blocks.get(),       samples.get(),   timeouts.get(),    short_reads.get(),  gaps.get(),
             lost_samples.get(), time_back.get(), read_errors.get(), end_of_stream.get()};
   }
 };

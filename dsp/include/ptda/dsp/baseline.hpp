@@ -46,19 +46,19 @@ struct ThresholdPolicy {
 /// A recurring constant-speed segment of the job: a window is only compared with its own class.
 struct SegmentClass {
   std::uint32_t id = 0;
-  std::int8_t direction = 1;       ///< +1 or -1 (sign of the joint speed)
-  double speed_rad_s = 0.0;        ///< mean |speed| of the class's regions
-  double speed_tol_rad_s = 0.0;    ///< a window matches when | |speed| - speed_rad_s | <= this
-  double duration_s = 0.0;         ///< median constant-speed region length seen in training
-  std::uint32_t regions = 0;       ///< training regions (cycles) in the class
+  std::int8_t direction = 1;     ///< +1 or -1 (sign of the joint speed)
+  double speed_rad_s = 0.0;      ///< mean |speed| of the class's regions
+  double speed_tol_rad_s = 0.0;  ///< a window matches when | |speed| - speed_rad_s | <= this
+  double duration_s = 0.0;       ///< median constant-speed region length seen in training
+  std::uint32_t regions = 0;     ///< training regions (cycles) in the class
 };
 
 /// Healthy reference of one segment class, for every method.
 struct ClassBaseline {
   SegmentClass segment;
-  std::uint32_t n_windows = 0;               ///< healthy windows M averaged
-  std::vector<float> mean_magnitude;         ///< |D_avg[k]| (eq. 7), k = 0..N/2
-  std::vector<float> tda_mean;               ///< d[n] (eq. 5), n = 0..N-1
+  std::uint32_t n_windows = 0;                               ///< healthy windows M averaged
+  std::vector<float> mean_magnitude;                         ///< |D_avg[k]| (eq. 7), k = 0..N/2
+  std::vector<float> tda_mean;                               ///< d[n] (eq. 5), n = 0..N-1
   std::array<FeatureThresholds, kMethodCount> thresholds{};  ///< indexed by Method
   std::array<FeatureStats, kMethodCount> rms_stats{};        ///< leave-one-out, indexed by Method
   std::array<FeatureStats, kMethodCount> entropy_stats{};
@@ -91,7 +91,8 @@ struct Baseline {
     const double mag = speed_rad_s < 0.0 ? -speed_rad_s : speed_rad_s;
     for (const auto& c : classes) {
       if (c.segment.direction != dir) continue;
-      const double d = mag > c.segment.speed_rad_s ? mag - c.segment.speed_rad_s : c.segment.speed_rad_s - mag;
+      const double d =
+          mag > c.segment.speed_rad_s ? mag - c.segment.speed_rad_s : c.segment.speed_rad_s - mag;
       if (d <= c.segment.speed_tol_rad_s && (best == nullptr || d < best_d)) {
         best = &c;
         best_d = d;

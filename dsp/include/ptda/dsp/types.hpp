@@ -9,9 +9,9 @@ namespace ptda::dsp {
 
 /// One joint speed measurement from the robot controller (decoded CAN frame).
 struct SpeedSample {
-  std::int64_t t_ns = 0;      ///< time on the vibration clock (latency offset already applied)
-  double speed_rad_s = 0.0;   ///< joint (output shaft) angular speed, signed
-  double angle_rad = 0.0;     ///< joint angle, valid when has_angle
+  std::int64_t t_ns = 0;     ///< time on the vibration clock (latency offset already applied)
+  double speed_rad_s = 0.0;  ///< joint (output shaft) angular speed, signed
+  double angle_rad = 0.0;    ///< joint angle, valid when has_angle
   bool has_angle = false;
 };
 
@@ -25,9 +25,12 @@ inline constexpr std::size_t kMethodCount = 3;
 
 [[nodiscard]] constexpr std::string_view method_name(Method m) noexcept {
   switch (m) {
-    case Method::kRaw: return "raw";
-    case Method::kTda: return "tda";
-    case Method::kPtda: return "ptda";
+    case Method::kRaw:
+      return "raw";
+    case Method::kTda:
+      return "tda";
+    case Method::kPtda:
+      return "ptda";
   }
   return "?";
 }

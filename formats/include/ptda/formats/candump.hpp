@@ -20,20 +20,21 @@
 namespace ptda::formats {
 
 struct CandumpRecord {
-  CanFrame frame;       ///< frame.t_ns = UNIX ns from the log timestamp
+  CanFrame frame;  ///< frame.t_ns = UNIX ns from the log timestamp
   std::string iface;
-  char direction = 0;   ///< 'R', 'T' or 0 when absent
+  char direction = 0;  ///< 'R', 'T' or 0 when absent
 };
 
 /// Parses one line. Returns std::nullopt for comment/blank lines (and CAN XL lines). Throws ptda::Error
 /// "<source>:<line_no>: <what>" for a malformed line. Thread: any. Does not block; allocates only when
 /// the iface name outgrows the capacity of `out.iface` (see the overload below).
-[[nodiscard]] std::optional<CandumpRecord> parse_candump_line(std::string_view line, const std::string& source,
-                                                              long line_no);
+[[nodiscard]] std::optional<CandumpRecord> parse_candump_line(std::string_view line,
+                                                              const std::string& source, long line_no);
 
 /// Parses into `out` (reusing its iface capacity). Returns false for comment/blank/CAN XL lines, leaving
 /// `out` unspecified. Throws like parse_candump_line.
-bool parse_candump_line_into(std::string_view line, const std::string& source, long line_no, CandumpRecord& out);
+bool parse_candump_line_into(std::string_view line, const std::string& source, long line_no,
+                             CandumpRecord& out);
 
 /// Streaming reader: next() returns false at the end. Throws ptda::Error on a malformed line or a read
 /// error. Thread: the owner's. Blocks on file I/O; after warm-up next() does not allocate.

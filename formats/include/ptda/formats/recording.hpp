@@ -12,10 +12,10 @@ namespace ptda::formats {
 struct RecordingMeta {
   std::string vibration_file = "vibration.wav";  ///< relative to the directory
   std::uint16_t channel = 0;                     ///< 0-based
-  double start_time_s = 0.0;   ///< UNIX seconds of sample 0 (CAN log clock)
-  double scale = 1.0;          ///< stored sample value * scale = value in `unit`
+  double start_time_s = 0.0;                     ///< UNIX seconds of sample 0 (CAN log clock)
+  double scale = 1.0;                            ///< stored sample value * scale = value in `unit`
   std::string unit = "m/s^2";
-  std::string can_file = "can.log";              ///< relative to the directory
+  std::string can_file = "can.log";  ///< relative to the directory
 };
 
 /// Reads and validates DIR/recording.toml (format = "ptda-recording", version = 1; every key checked,

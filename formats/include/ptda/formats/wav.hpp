@@ -19,7 +19,7 @@ struct WavInfo {
   std::uint32_t sample_rate_hz = 0;  ///< nominal rate from the header
   std::uint16_t channels = 0;
   WavSampleFormat format = WavSampleFormat::kFloat32;
-  std::uint64_t frames = 0;          ///< samples per channel
+  std::uint64_t frames = 0;  ///< samples per channel
 };
 
 /// Streaming reader of one channel as float "stored sample values": PCM is returned as the integer

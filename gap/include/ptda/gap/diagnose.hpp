@@ -17,13 +17,13 @@
 namespace ptda::gap {
 
 struct DiagnoseOptions {
-  std::uint64_t sim_seed = 9001;       ///< seed of the model's simulations (common random numbers)
-  std::uint32_t max_effects = 2;       ///< greedy rounds
-  std::uint32_t full_fits = 4;         ///< candidates fitted fully per round (after a one-stage screen)
-  double min_gain_share = 0.15;        ///< accept an effect when it removes this share of the current gap...
-  double min_gain_noise = 2.0;         ///< ... and at least this many times the sim-vs-sim noise gap
-  double min_gap_noise = 3.0;          ///< no diagnosis when the gap is below this many noise gaps
-  std::vector<sim::EffectKind> candidates;  ///< empty: the whole catalog
+  std::uint64_t sim_seed = 9001;  ///< seed of the model's simulations (common random numbers)
+  std::uint32_t max_effects = 2;  ///< greedy rounds
+  std::uint32_t full_fits = 4;    ///< candidates fitted fully per round (after a one-stage screen)
+  double min_gain_share = 0.15;   ///< accept an effect when it removes this share of the current gap...
+  double min_gain_noise = 2.0;    ///< ... and at least this many times the sim-vs-sim noise gap
+  double min_gap_noise = 3.0;     ///< no diagnosis when the gap is below this many noise gaps
+  std::vector<sim::EffectKind> candidates;      ///< empty: the whole catalog
   std::function<void(const std::string&)> log;  ///< progress lines (optional)
 };
 
@@ -34,7 +34,8 @@ struct CandidateResult {
   double shrink_pct = 0.0;   ///< held-out gap reduction against the round's starting point
   bool fully_fitted = false;
   std::uint32_t evaluations = 0;
-  std::string location;  ///< where the fitted effect acts ("resonance 3012 Hz", "sidebands every 1.25 x f_in")
+  std::string
+      location;  ///< where the fitted effect acts ("resonance 3012 Hz", "sidebands every 1.25 x f_in")
 };
 
 struct SelectionRound {
@@ -72,7 +73,8 @@ struct Diagnosis {
 
 /// Runs the diagnosis of `real` against `nominal`. Throws ptda::Error when the recording has too few
 /// cycles or windows to split.
-[[nodiscard]] Diagnosis diagnose(const sim::Scenario& nominal, const GapRecording& real, const DiagnoseOptions& opt);
+[[nodiscard]] Diagnosis diagnose(const sim::Scenario& nominal, const GapRecording& real,
+                                 const DiagnoseOptions& opt);
 
 /// JSON document (schema "ptda-gap" version 1, docs/gap.md).
 [[nodiscard]] std::string diagnosis_json(const Diagnosis& d);

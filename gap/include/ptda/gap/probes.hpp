@@ -16,10 +16,11 @@ enum class Stage : std::uint8_t { kRaw = 0, kResidual = 1, kAlarm = 2 };
 [[nodiscard]] const char* stage_name(Stage s) noexcept;
 
 struct ProbeElement {
-  std::string probe;  ///< harmonics, sidebands, coherence, noise_floor, lines, amplitude, residual, alarm, tracking
-  std::string key;    ///< unique within the probe, e.g. "c0.k5" or "constant.b12"
+  std::string
+      probe;  ///< harmonics, sidebands, coherence, noise_floor, lines, amplitude, residual, alarm, tracking
+  std::string key;  ///< unique within the probe, e.g. "c0.k5" or "constant.b12"
   double value = 0.0;
-  double scale = 1.0;  ///< normalisation: z = (real - sim) / scale
+  double scale = 1.0;    ///< normalisation: z = (real - sim) / scale
   double f_lo_hz = 0.0;  ///< frequency range the element describes (0, 0: not frequency-specific)
   double f_hi_hz = 0.0;
   SegmentType segment = SegmentType::kConstant;
@@ -63,7 +64,8 @@ struct ProbeContext {
 struct GapBreakdown {
   double total = 0.0;
   std::map<std::string, double> by_probe;
-  std::map<std::string, double> by_band;  ///< octave bands "lo-hi Hz" by element centre; "broadband" otherwise
+  std::map<std::string, double>
+      by_band;  ///< octave bands "lo-hi Hz" by element centre; "broadband" otherwise
   std::map<std::string, double> by_segment;
   std::map<std::string, double> by_stage;
   struct Top {
@@ -74,7 +76,7 @@ struct GapBreakdown {
     double z = 0.0;
     double contribution = 0.0;
   };
-  std::vector<Top> top;  ///< largest contributions, descending (at most 12)
+  std::vector<Top> top;                    ///< largest contributions, descending (at most 12)
   std::vector<double> harmonic_offset_db;  ///< profiled-out per-order level offsets (real - sim), by order
   double noise_offset_db = 0.0;            ///< profiled-out overall noise-floor offset
 };

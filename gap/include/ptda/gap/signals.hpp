@@ -28,10 +28,11 @@ struct GapRecording {
 
 /// Reads DIR (recording.toml, WAV, candump) decoding speed frames with `frame`; `can_delay_s` (the
 /// nominal scenario's [can] delay_s) is subtracted from the log times. Throws ptda::Error.
-[[nodiscard]] GapRecording load_recording(const std::filesystem::path& dir, const config::SpeedFrameSpec& frame,
-                                          double can_delay_s);
+[[nodiscard]] GapRecording load_recording(const std::filesystem::path& dir,
+                                          const config::SpeedFrameSpec& frame, double can_delay_s);
 /// The same view of an in-memory simulation of scenario `s` (decoding its own speed frames).
-[[nodiscard]] GapRecording recording_from_simulation(const sim::SimulatedSignals& sig, const sim::Scenario& s);
+[[nodiscard]] GapRecording recording_from_simulation(const sim::SimulatedSignals& sig,
+                                                     const sim::Scenario& s);
 
 enum class SegmentType : std::uint8_t { kConstant = 0, kAccel = 1, kStandstill = 2 };
 [[nodiscard]] const char* segment_type_name(SegmentType t) noexcept;

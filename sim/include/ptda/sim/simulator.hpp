@@ -251,8 +251,8 @@ struct SimCanFrame {
 
 /// Everything a simulation produces, in memory (what simulate_to_directory writes, plus the truth).
 struct SimulatedSignals {
-  MotionProfile motion;  ///< on the ADC's true sample grid (differs from nominal with sample_clock_error)
-  Vibration vibration;   ///< m/s^2 before quantisation (effects included)
+  MotionProfile motion;      ///< on the ADC's true sample grid (differs from nominal with sample_clock_error)
+  Vibration vibration;       ///< m/s^2 before quantisation (effects included)
   std::vector<float> codes;  ///< stored sample values (quantize()); codes * sensor_scale = m/s^2
   std::uint64_t clipped_samples = 0;  ///< by the sensor range
   std::vector<SimCanFrame> can;
