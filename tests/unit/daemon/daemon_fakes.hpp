@@ -16,7 +16,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
-#include <regex>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -59,9 +59,18 @@ inline SourcePlan plan_blocks(const SimRecording& rec, std::size_t block_len) {
 }
 
 /// Sets [decision] k and n in a pipeline text (whatever the example file sets them to).
+/// (Plain string search: GCC 12's <regex> trips -Wmaybe-uninitialized under ASan + -Werror.)
 inline std::string with_decision(std::string pipeline, int k, int n) {
-  pipeline = std::regex_replace(pipeline, std::regex("\nk = [0-9]+\n"), "\nk = " + std::to_string(k) + "\n");
-  return std::regex_replace(pipeline, std::regex("\nn = [0-9]+\n"), "\nn = " + std::to_string(n) + "\n");
+  const auto set_line = [&pipeline](const std::string& key, int value) {
+    const std::string prefix = "\n" + key + " = ";
+    const std::size_t pos = pipeline.find(prefix);
+    if (pos == std::string::npos) throw std::runtime_error("with_decision: no '" + key + " = ' line");
+    const std::size_t end = pipeline.find('\n', pos + 1);
+    pipeline.replace(pos + 1, end - (pos + 1), key + " = " + std::to_string(value));
+  };
+  set_line("k", k);
+  set_line("n", n);
+  return pipeline;
 }
 
 inline void nap_ms(int ms) {
