@@ -63,9 +63,11 @@ struct Prepared {
   std::vector<std::string> lines;
 };
 
-Prepared prepare(const std::string& job) {
+// `tag` keeps each test's scratch directory its own: ctest runs the tests of this binary as separate
+// processes in parallel, and a shared directory would be wiped by the other test mid-run.
+Prepared prepare(const std::string& job, const std::string& tag = "threads") {
   Prepared p;
-  p.dir = scratch_dir("daemon_replay_" + job);
+  p.dir = scratch_dir("daemon_replay_" + tag + "_" + job);
   const std::string scen = (source_dir() / "config" / "scenarios").string() + "/" + job;
   const std::string cfg = (source_dir() / "config" / "examples" / (job + ".toml")).string();
   p.faulty = p.dir / "faulty";
@@ -166,7 +168,7 @@ RunResult run_ptdad(const std::vector<std::string>& args, const fs::path& dir, c
 }
 
 TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
-  const Prepared p = prepare("arc_welding");
+  const Prepared p = prepare("arc_welding", "binary");
   const RunResult ok =
       run_ptdad({"--config", p.config.string(), "--config-dir", "", "--check-config"}, p.dir, "check");
   EXPECT_EQ(ok.exit_code, 0) << ok.err;

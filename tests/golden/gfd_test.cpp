@@ -7,6 +7,7 @@
 // both features and the alarms, and the counts behind the claims of docs/results-gfd.md.
 // Without the data: GTEST_SKIP naming the path, or a failure when PTDA_REQUIRE_SHARED_DATA=1 (CI).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -145,7 +146,8 @@ class GfdStudy : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (!fs::is_directory(data_dir())) return;
-    const fs::path dir = scratch_dir("gfd");
+    // Per process: ctest runs this suite's tests as parallel processes, each with its own SetUpTestSuite.
+    const fs::path dir = scratch_dir("gfd_" + std::to_string(::getpid()));
     const std::string config = (source_dir() / "config/examples/gfd.toml").string();
     for (const int load : kLoads) {
       for (const char* ch : kChannels) {
