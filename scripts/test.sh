@@ -1,23 +1,37 @@
 #!/usr/bin/env bash
 # The README's test command: installs what is missing (apt), builds with warnings as errors and runs
-# the whole suite in three configurations:
+# the whole suite:
 #   release - every test (RelWithDebInfo)
 #   asan    - every test under AddressSanitizer + UndefinedBehaviorSanitizer
 #   tsan    - the threaded daemon tests (ring, pipeline) under ThreadSanitizer
-# Usage: scripts/test.sh [all|release|asan|tsan]   (default: all)
+#   aarch64 - the unit suite cross-built for arm64, run under qemu-user      (scripts/cross_test.sh)
+#   armhf   - the same for armhf (not in 'all': run it before a release)    (scripts/cross_test.sh)
+#   package - the .deb built and installed, upgraded, removed in a Debian 12 chroot (scripts/package_test.sh)
+#   vm      - ptdad against real kernels: x86_64 and aarch64 guests under qemu-system (scripts/vm_test.sh)
+# Usage: scripts/test.sh [all|release|asan|tsan|aarch64|armhf|package|vm]   (default: all)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 what="${1:-all}"
-scripts/bootstrap.sh
+case "$what" in
+  release|asan|tsan) scripts/bootstrap.sh base ;;
+  aarch64|armhf) scripts/bootstrap.sh base cross ;;
+  package) scripts/bootstrap.sh base pkg ;;
+  vm) scripts/bootstrap.sh base cross vm ;;
+  all) scripts/bootstrap.sh base cross vm pkg ;;
+  *) echo "usage: scripts/test.sh [all|release|asan|tsan|aarch64|armhf|package|vm]" >&2; exit 2 ;;
+esac
 scripts/lint.sh   # clang-format gate (naming: scripts/lint.sh <build_dir>)
 jobs="$(nproc 2>/dev/null || echo 2)"
 
+stage_start=$SECONDS
+stage() { echo "=== $1 ($((SECONDS - stage_start)) s since start) ==="; }
+
 run_preset() {  # preset [build target] [ctest label]
   local preset="$1" target="${2:-all}" label="${3:-}"
-  echo "=== ${preset}: configure + build (${target}) ==="
+  stage "${preset}: configure + build (${target})"
   cmake --preset "$preset" >/dev/null
   cmake --build --preset "$preset" -j "$jobs" --target "$target"
-  echo "=== ${preset}: ctest ${label:+-L $label} ==="
+  stage "${preset}: ctest ${label:+-L $label}"
   if [ -n "$label" ]; then
     ctest --preset "$preset" -j "$jobs" -L "$label"
   else
@@ -25,14 +39,20 @@ run_preset() {  # preset [build target] [ctest label]
   fi
 }
 
-case "$what" in
-  release) run_preset release ;;
-  asan) run_preset asan ;;
-  tsan) run_preset tsan tests_daemon daemon ;;
-  all)
-    run_preset release
-    run_preset asan
-    run_preset tsan tests_daemon daemon
-    ;;
-  *) echo "usage: scripts/test.sh [all|release|asan|tsan]" >&2; exit 2 ;;
-esac
+run_stage() {
+  case "$1" in
+    release) run_preset release ;;
+    asan) run_preset asan ;;
+    tsan) run_preset tsan tests_daemon daemon ;;
+    aarch64|armhf) stage "$1: cross build + qemu-user"; scripts/cross_test.sh "$1" ;;
+    package) stage "package"; scripts/package_test.sh ;;
+    vm) stage "vm"; scripts/vm_test.sh all ;;
+  esac
+}
+
+if [ "$what" = all ]; then
+  for s in release asan tsan aarch64 package vm; do run_stage "$s"; done
+  stage "all stages passed"
+else
+  run_stage "$what"
+fi
