@@ -313,6 +313,7 @@ void Pipeline::activate() {
 void Pipeline::deactivate() noexcept {
   if (!active_) return;
   stop_.store(true, std::memory_order_relaxed);
+  work_signal_.ring();
   if (acq_thread_.joinable()) acq_thread_.join();
   if (can_thread_.joinable()) can_thread_.join();
   if (proc_thread_.joinable()) proc_thread_.join();
@@ -324,6 +325,7 @@ void Pipeline::deactivate() noexcept {
 
 void Pipeline::post_clear() noexcept {
   if (alarm_) alarm_->post_clear_request(ClearSource::kLocal);
+  work_signal_.ring();
 }
 
 StageHeartbeats Pipeline::heartbeats() const noexcept {
@@ -386,11 +388,13 @@ void Pipeline::acquisition_loop() noexcept {
           sleep_ns(200'000);
         }
         if (probe_ != nullptr) probe_->on_block_pushed(block);  // a dropped block is reported too
+        work_signal_.ring();
         break;
       case SourceStatus::kTimeout:
         break;
       case SourceStatus::kEndOfStream:
         acq_end_.store(true, std::memory_order_release);
+        work_signal_.ring();
         break;
       case SourceStatus::kError:
       case SourceStatus::kNotActive:
@@ -416,6 +420,7 @@ void Pipeline::can_loop() noexcept {
     const CanStatus st = channel_->receive(std::span<CanFrame>(can_frames_), n, kStageWaitNs);
     if (st == CanStatus::kEndOfStream) {
       can_end_.store(true, std::memory_order_release);
+      work_signal_.ring();
       continue;
     }
     if (st == CanStatus::kError || st == CanStatus::kNotActive) {
@@ -461,6 +466,7 @@ void Pipeline::can_loop() noexcept {
           break;
       }
     }
+    if (n > 0) work_signal_.ring();  // speed samples, a clear request or error frames to look at
   }
 }
 
@@ -717,6 +723,8 @@ void Pipeline::processing_loop() noexcept {
       continue;
     }
     proc_beat_.fetch_add(1, std::memory_order_relaxed);
+    // The ticket is taken before looking at the rings, so work published from here on ends the wait.
+    const std::uint32_t ticket = work_signal_.ticket();
     now = clock_.now_ns();
     bool work = false;
     for (int i = 0; i < 64; ++i) {
@@ -727,7 +735,7 @@ void Pipeline::processing_loop() noexcept {
     alarm_->tick(alarm_time(fast_ ? st_.data_time_ns : now));
     drive_outputs(now, false);
     publish(now, false);
-    if (!work) sleep_ns(1'000'000);
+    if (!work) work_signal_.wait(ticket, kProcessingIdleWaitNs);
   }
   publish(clock_.now_ns(), true);
 }

@@ -45,6 +45,7 @@
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "rt/spsc_ring.hpp"
+#include "rt/wake_signal.hpp"
 #include "training/field_trainer.hpp"
 
 namespace ptda::daemon {
@@ -53,6 +54,10 @@ inline constexpr std::size_t kSampleRingBlocks = 64;      ///< 64 x 1024 samples
 inline constexpr std::size_t kSpeedRingSamples = 4096;    ///< 16 s of 4 ms speed frames
 inline constexpr std::size_t kCanBatch = 64;              ///< frames per receive() call
 inline constexpr std::int64_t kStageWaitNs = 50'000'000;  ///< longest wait of a stage before it re-checks
+/// The processing thread sleeps on its doorbell (rt/wake_signal.hpp) at most this long when it has no
+/// work: new blocks and speed samples wake it at once; the timeout paces what depends on time alone
+/// (status publication every 20 ms, a block's 50 ms wait for speed, staleness, alarm hold times).
+inline constexpr std::int64_t kProcessingIdleWaitNs = 5'000'000;
 /// A block stamp that moves more than this against the sample index since the previous block is a clock
 /// jump: the block's samples are declared invalid (the index stays the time base).
 inline constexpr std::int64_t kTimeJumpNs = 100'000'000;
@@ -296,6 +301,7 @@ class Pipeline {
 
   Seqlock<PipelineStatus> published_;
   std::atomic<bool> stop_{false};
+  WakeSignal work_signal_;  ///< rung by the acquisition and CAN threads, waited on by processing
   std::thread acq_thread_, can_thread_, proc_thread_;
   bool configured_ = false;
   bool active_ = false;
