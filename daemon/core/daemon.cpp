@@ -462,6 +462,7 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.can_speed_frames = c.can_speed;
   s.can_other_ids = c.can_other_id;
   s.can_wrong_dlc = c.can_wrong_dlc;
+  s.can_remote_frames = c.can_rtr;
   s.can_error_frames = c.can_error_frames;
   s.can_rx_overflow_drops = cc.rx_overflow_drops;
   s.can_bus_off = cc.bus_off;

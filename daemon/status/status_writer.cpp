@@ -8,6 +8,8 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <span>
+#include <string_view>
 
 #include "ptda/common/error.hpp"
 
@@ -211,6 +213,79 @@ class Json {
   bool first_ = true;
 };
 
+// The counters of status.json and the Prometheus file, from one table so the two cannot drift apart:
+// status.json groups them ({"acquisition": {...}, "can": {...}, ...}), Prometheus prints each as a
+// `counter` family in the same order.
+struct CounterDesc {
+  std::string_view json_key;
+  std::string_view prom_name;
+  std::string_view help;
+  std::uint64_t StatusSnapshot::*field;
+};
+struct CounterGroup {
+  std::string_view json_key;
+  std::span<const CounterDesc> counters;
+  bool with_bus_state;  ///< status.json adds "bus_state" after the counters (Prometheus: a gauge family)
+};
+
+constexpr CounterDesc kAcquisitionCounters[] = {
+    {"blocks", "ptda_acquisition_blocks_total", "Sample blocks read.", &StatusSnapshot::acq_blocks},
+    {"samples", "ptda_acquisition_samples_total", "Vibration samples read.", &StatusSnapshot::acq_samples},
+    {"gaps", "ptda_acquisition_gaps_total", "Discontinuities in the sample stream.",
+     &StatusSnapshot::acq_gaps},
+    {"lost_samples", "ptda_acquisition_lost_samples_total", "Samples estimated lost in gaps.",
+     &StatusSnapshot::acq_lost_samples},
+    {"short_reads", "ptda_acquisition_short_reads_total", "Reads that ended inside a scan.",
+     &StatusSnapshot::acq_short_reads},
+    {"time_back", "ptda_acquisition_time_back_total", "Device timestamps that went backwards.",
+     &StatusSnapshot::acq_time_back},
+    {"timeouts", "ptda_acquisition_timeouts_total", "Reads that timed out.", &StatusSnapshot::acq_timeouts},
+    {"read_errors", "ptda_acquisition_read_errors_total", "Failed reads.", &StatusSnapshot::acq_read_errors},
+};
+constexpr CounterDesc kCanCounters[] = {
+    {"frames", "ptda_can_frames_total", "CAN frames received (error frames included).",
+     &StatusSnapshot::can_frames},
+    {"speed_frames", "ptda_can_speed_frames_total", "Speed frames decoded.",
+     &StatusSnapshot::can_speed_frames},
+    {"other_ids", "ptda_can_other_id_frames_total", "Frames with another id.",
+     &StatusSnapshot::can_other_ids},
+    {"wrong_dlc", "ptda_can_wrong_dlc_frames_total", "Speed frames with a wrong length.",
+     &StatusSnapshot::can_wrong_dlc},
+    {"remote_frames", "ptda_can_remote_frames_total", "Remote (RTR) frames with the speed id (no data).",
+     &StatusSnapshot::can_remote_frames},
+    {"error_frames", "ptda_can_error_frames_total", "CAN error frames.", &StatusSnapshot::can_error_frames},
+    {"rx_overflow_drops", "ptda_can_rx_overflow_drops_total",
+     "Frames dropped by the kernel on a full socket queue.", &StatusSnapshot::can_rx_overflow_drops},
+    {"bus_off", "ptda_can_bus_off_total", "Transitions into bus-off.", &StatusSnapshot::can_bus_off},
+};
+constexpr CounterDesc kSlicerCounters[] = {
+    {"regions", "ptda_slicer_regions_total", "Constant-speed regions found.",
+     &StatusSnapshot::slicer_regions},
+    {"windows", "ptda_slicer_windows_total", "Windows cut.", &StatusSnapshot::slicer_windows},
+    {"windows_invalid", "ptda_slicer_windows_invalid_total", "Windows discarded: invalid samples inside.",
+     &StatusSnapshot::slicer_windows_invalid},
+    {"windows_lost", "ptda_slicer_windows_lost_total", "Windows discarded: samples already overwritten.",
+     &StatusSnapshot::slicer_windows_lost},
+};
+constexpr CounterDesc kPipelineCounters[] = {
+    {"ring_overflows", "ptda_ring_overflows_total", "Items dropped on full inter-thread rings.",
+     &StatusSnapshot::ring_overflows},
+    {"windows_scored", "ptda_windows_scored_total", "Windows judged against the baseline.",
+     &StatusSnapshot::windows_scored},
+    {"windows_abnormal", "ptda_windows_abnormal_total", "Judged windows outside a band.",
+     &StatusSnapshot::windows_abnormal},
+    {"alarms_raised", "ptda_alarms_raised_total", "Alarms raised (k-of-n confirmed).",
+     &StatusSnapshot::alarms_raised},
+    {"watchdog_pings", "ptda_watchdog_pings_total", "systemd watchdog pings sent.",
+     &StatusSnapshot::watchdog_pings},
+};
+constexpr CounterGroup kCounterGroups[] = {
+    {"acquisition", kAcquisitionCounters, false},
+    {"can", kCanCounters, true},
+    {"slicer", kSlicerCounters, false},
+    {"pipeline", kPipelineCounters, false},
+};
+
 void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   Json j(b);
   j.open('{');
@@ -310,46 +385,13 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
     j.null("training");
   }
 
-  j.key("acquisition");
-  j.open('{');
-  j.u64("blocks", s.acq_blocks);
-  j.u64("samples", s.acq_samples);
-  j.u64("gaps", s.acq_gaps);
-  j.u64("lost_samples", s.acq_lost_samples);
-  j.u64("short_reads", s.acq_short_reads);
-  j.u64("time_back", s.acq_time_back);
-  j.u64("timeouts", s.acq_timeouts);
-  j.u64("read_errors", s.acq_read_errors);
-  j.close('}');
-
-  j.key("can");
-  j.open('{');
-  j.u64("frames", s.can_frames);
-  j.u64("speed_frames", s.can_speed_frames);
-  j.u64("other_ids", s.can_other_ids);
-  j.u64("wrong_dlc", s.can_wrong_dlc);
-  j.u64("error_frames", s.can_error_frames);
-  j.u64("rx_overflow_drops", s.can_rx_overflow_drops);
-  j.u64("bus_off", s.can_bus_off);
-  j.str("bus_state", can_bus_state_name(s.can_bus_state));
-  j.close('}');
-
-  j.key("slicer");
-  j.open('{');
-  j.u64("regions", s.slicer_regions);
-  j.u64("windows", s.slicer_windows);
-  j.u64("windows_invalid", s.slicer_windows_invalid);
-  j.u64("windows_lost", s.slicer_windows_lost);
-  j.close('}');
-
-  j.key("pipeline");
-  j.open('{');
-  j.u64("ring_overflows", s.ring_overflows);
-  j.u64("windows_scored", s.windows_scored);
-  j.u64("windows_abnormal", s.windows_abnormal);
-  j.u64("alarms_raised", s.alarms_raised);
-  j.u64("watchdog_pings", s.watchdog_pings);
-  j.close('}');
+  for (const CounterGroup& g : kCounterGroups) {
+    j.key(g.json_key);
+    j.open('{');
+    for (const CounterDesc& c : g.counters) j.u64(c.json_key, s.*c.field);
+    if (g.with_bus_state) j.str("bus_state", can_bus_state_name(s.can_bus_state));
+    j.close('}');
+  }
   j.close('}');
   b.append_char('\n');
 }
@@ -504,41 +546,15 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
               s.training_dropped);
   }
 
-  p.counter("ptda_acquisition_blocks_total", "Sample blocks read.", s.acq_blocks);
-  p.counter("ptda_acquisition_samples_total", "Vibration samples read.", s.acq_samples);
-  p.counter("ptda_acquisition_gaps_total", "Discontinuities in the sample stream.", s.acq_gaps);
-  p.counter("ptda_acquisition_lost_samples_total", "Samples estimated lost in gaps.", s.acq_lost_samples);
-  p.counter("ptda_acquisition_short_reads_total", "Reads that ended inside a scan.", s.acq_short_reads);
-  p.counter("ptda_acquisition_time_back_total", "Device timestamps that went backwards.", s.acq_time_back);
-  p.counter("ptda_acquisition_timeouts_total", "Reads that timed out.", s.acq_timeouts);
-  p.counter("ptda_acquisition_read_errors_total", "Failed reads.", s.acq_read_errors);
-
-  p.counter("ptda_can_frames_total", "CAN frames received (error frames included).", s.can_frames);
-  p.counter("ptda_can_speed_frames_total", "Speed frames decoded.", s.can_speed_frames);
-  p.counter("ptda_can_other_id_frames_total", "Frames with another id.", s.can_other_ids);
-  p.counter("ptda_can_wrong_dlc_frames_total", "Speed frames with a wrong length.", s.can_wrong_dlc);
-  p.counter("ptda_can_error_frames_total", "CAN error frames.", s.can_error_frames);
-  p.counter("ptda_can_rx_overflow_drops_total", "Frames dropped by the kernel on a full socket queue.",
-            s.can_rx_overflow_drops);
-  p.counter("ptda_can_bus_off_total", "Transitions into bus-off.", s.can_bus_off);
+  for (const CounterGroup& g : kCounterGroups) {
+    for (const CounterDesc& c : g.counters) p.counter(c.prom_name, c.help, s.*c.field);
+  }
   p.family("ptda_can_bus_state", "gauge", "1 for the CAN controller's current state.");
   for (const drivers::CanBusState st :
        {drivers::CanBusState::kErrorActive, drivers::CanBusState::kErrorWarning,
         drivers::CanBusState::kErrorPassive, drivers::CanBusState::kBusOff}) {
     p.sample("ptda_can_bus_state", {{"state", can_bus_state_name(st)}}, st == s.can_bus_state ? 1.0 : 0.0);
   }
-
-  p.counter("ptda_slicer_regions_total", "Constant-speed regions found.", s.slicer_regions);
-  p.counter("ptda_slicer_windows_total", "Windows cut.", s.slicer_windows);
-  p.counter("ptda_slicer_windows_invalid_total", "Windows discarded: invalid samples inside.",
-            s.slicer_windows_invalid);
-  p.counter("ptda_slicer_windows_lost_total", "Windows discarded: samples already overwritten.",
-            s.slicer_windows_lost);
-  p.counter("ptda_ring_overflows_total", "Items dropped on full inter-thread rings.", s.ring_overflows);
-  p.counter("ptda_windows_scored_total", "Windows judged against the baseline.", s.windows_scored);
-  p.counter("ptda_windows_abnormal_total", "Judged windows outside a band.", s.windows_abnormal);
-  p.counter("ptda_alarms_raised_total", "Alarms raised (k-of-n confirmed).", s.alarms_raised);
-  p.counter("ptda_watchdog_pings_total", "systemd watchdog pings sent.", s.watchdog_pings);
 }
 
 }  // namespace

@@ -154,6 +154,7 @@ struct StatusSnapshot {
   std::uint64_t acq_short_reads = 0, acq_time_back = 0, acq_timeouts = 0, acq_read_errors = 0;
   // CAN.
   std::uint64_t can_frames = 0, can_speed_frames = 0, can_other_ids = 0, can_wrong_dlc = 0;
+  std::uint64_t can_remote_frames = 0;  ///< RTR frames with the speed id
   std::uint64_t can_error_frames = 0, can_rx_overflow_drops = 0, can_bus_off = 0;
   drivers::CanBusState can_bus_state = drivers::CanBusState::kErrorActive;
   // Slicer.

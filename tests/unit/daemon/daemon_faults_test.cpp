@@ -338,6 +338,8 @@ TEST_F(Faults, MalformedAndUnexpectedFramesAreCountedAndIgnored) {
       << faulty.status_json;
   EXPECT_TRUE(contains(faulty.status_json, "\"other_ids\":" + std::to_string(expect[kOther]) + ","));
   EXPECT_TRUE(contains(faulty.status_json, "\"error_frames\":3,"));
+  EXPECT_TRUE(contains(faulty.status_json, "\"remote_frames\":" + std::to_string(rtr) + ","))
+      << faulty.status_json;
   EXPECT_TRUE(contains(faulty.status_json, "\"rx_overflow_drops\":17,"));
   EXPECT_TRUE(contains(faulty.status_json, "\"bus_off\":1,"));
   EXPECT_TRUE(contains(faulty.status_json, "\"bus_state\":\"bus_off\""));

@@ -201,6 +201,7 @@ StatusSnapshot known_snapshot() {
   s.can_frames = 5000;
   s.can_speed_frames = 4990;
   s.can_other_ids = 10;
+  s.can_remote_frames = 2;
   s.can_bus_state = drivers::CanBusState::kErrorPassive;
   s.slicer_regions = 24;
   s.slicer_windows = 108;
@@ -227,7 +228,7 @@ constexpr std::string_view kKnownJson =
     R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86}},"training":null,)"
     R"("acquisition":{"blocks":100,"samples":102400,"gaps":1,"lost_samples":64,"short_reads":0,)"
     R"("time_back":0,"timeouts":0,"read_errors":0},)"
-    R"("can":{"frames":5000,"speed_frames":4990,"other_ids":10,"wrong_dlc":0,"error_frames":0,)"
+    R"("can":{"frames":5000,"speed_frames":4990,"other_ids":10,"wrong_dlc":0,"remote_frames":2,"error_frames":0,)"
     R"("rx_overflow_drops":0,"bus_off":0,"bus_state":"error_passive"},)"
     R"("slicer":{"regions":24,"windows":108,"windows_invalid":0,"windows_lost":0},)"
     R"("pipeline":{"ring_overflows":0,"windows_scored":107,"windows_abnormal":4,"alarms_raised":1,)"
@@ -366,6 +367,8 @@ TEST(StatusWriter, PrometheusLines) {
   EXPECT_EQ(samples_of(text, "ptda_watchdog_pings_total"),
             std::vector<std::string>{"ptda_watchdog_pings_total 7200"});
   EXPECT_EQ(samples_of(text, "ptda_can_bus_state")[2], R"(ptda_can_bus_state{state="error_passive"} 1)");
+  EXPECT_EQ(samples_of(text, "ptda_can_remote_frames_total"),
+            std::vector<std::string>{"ptda_can_remote_frames_total 2"});
   EXPECT_TRUE(samples_of(text, "ptda_training_windows").empty());  // only while training
 
   EXPECT_NE(text.find("# HELP ptda_acquisition_samples_total Vibration samples read.\n"
