@@ -16,7 +16,7 @@ BASE=(
 )
 CROSS=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev)
 VM=(qemu-system-x86 qemu-system-arm busybox-static cpio iproute2 can-utils gpiod dpkg-dev)
-PKG=(dpkg-dev fakeroot debootstrap)
+PKG=(dpkg-dev fakeroot debootstrap file)
 
 groups=("$@")
 packages=("${BASE[@]}")
