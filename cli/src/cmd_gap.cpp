@@ -66,8 +66,8 @@ int cmd_gap(std::span<const std::string> args, std::ostream& out) {
   if (a.has("json")) write_file(a.value("json"), gap::diagnosis_json(d));
   if (a.has("html")) write_file(a.value("html"), gap::diagnosis_html(d));
   out << d.verdict << "\n";
-  out << "  held-out gap  " << d.nominal_heldout.total << " -> " << d.final_heldout.total << " (noise level "
-      << d.noise_gap << ")\n";
+  out << "  held-out gap  " << d.nominal_heldout.total << " -> " << d.final_heldout.total
+      << " (expected from sampling " << d.noise_gap << " +- " << d.noise_gap_sd << ")\n";
   out << "  where         ";
   bool first = true;
   for (const auto& [p, v] : d.nominal_heldout.by_probe) {

@@ -25,7 +25,9 @@ int cmd_gap_bench(std::span<const std::string> args, std::ostream& out) {
               "comma-separated job scenarios, used in turn (default: config/scenarios/"
               "spot_welding_healthy.toml,config/scenarios/arc_welding_healthy.toml)")
       .option("cycles", "N", "job cycles per recording (default 6)")
+      .option("only", "LIST", "comma-separated case indices to run (default: all); for reproducing a case")
       .option("work", "DIR", "directory for the temporary recordings (default: system temp)")
+      .flag("keep", "keep the case recordings in the work directory (WORK/caseN)")
       .flag("quiet", "no per-case lines on stderr");
   const ParsedArgs a = parser.parse(args);
   if (a.help()) {
@@ -42,9 +44,15 @@ int cmd_gap_bench(std::span<const std::string> args, std::ostream& out) {
                     : "config/scenarios/spot_welding_healthy.toml,config/scenarios/arc_welding_healthy.toml";
   std::stringstream ss(jobs);
   for (std::string j; std::getline(ss, j, ',');) opt.jobs.emplace_back(j);
+  if (a.has("only")) {
+    std::stringstream os(a.value("only"));
+    for (std::string j; std::getline(os, j, ',');)
+      opt.only.push_back(static_cast<std::uint32_t>(parse_u64_arg(j, "only")));
+  }
   opt.work_dir =
       a.has("work") ? std::filesystem::path(a.value("work"))
                     : std::filesystem::temp_directory_path() / ("ptda-gap-bench-" + std::to_string(opt.seed));
+  opt.keep_recordings = a.has("keep");
   if (!a.has("quiet")) opt.log = [](const std::string& s) { std::cerr << "ptda gap-bench: " << s << "\n"; };
   const gap::BenchResult r = gap::run_bench(opt);
   if (a.has("json")) {

@@ -168,6 +168,7 @@ BenchResult run_bench(const BenchOptions& opt) {
   std::vector<double> shrinks;
   std::uint32_t correct = 0, located = 0, false_attr = 0;
   for (std::uint32_t i = 0; i < opt.cases; ++i) {
+    if (!opt.only.empty() && std::find(opt.only.begin(), opt.only.end(), i) == opt.only.end()) continue;
     BenchCaseResult cr;
     cr.index = i;
     const std::filesystem::path job_path = opt.jobs[i % opt.jobs.size()];
@@ -200,6 +201,7 @@ BenchResult run_bench(const BenchOptions& opt) {
     cr.shrink_pct = d.total_shrink_pct;
     cr.gap_heldout = d.nominal_heldout.total;
     cr.noise_gap = d.noise_gap;
+    cr.noise_gap_sd = d.noise_gap_sd;
     cr.runtime_s = d.runtime_s;
     cr.verdict = d.verdict;
     const std::size_t named =
@@ -235,9 +237,10 @@ BenchResult run_bench(const BenchOptions& opt) {
       opt.log("case " + std::to_string(i) + " [" + cr.job + "] truth: " + (t.empty() ? "none " : t) +
               "| named: " + (c.empty() ? "none " : c) + "| " + (cr.top1_correct ? "OK" : "WRONG") +
               (cr.location_ok ? " located" : "") + " shrink " + num(cr.shrink_pct) + " % gap " +
-              num(cr.gap_heldout) + " noise " + num(cr.noise_gap) + " (" + num(cr.runtime_s) + " s)");
+              num(cr.gap_heldout) + " expected " + num(cr.noise_gap) + " +- " + num(cr.noise_gap_sd) + " (" +
+              num(cr.runtime_s) + " s)");
     }
-    std::filesystem::remove_all(dir);
+    if (!opt.keep_recordings) std::filesystem::remove_all(dir);
     res.cases.push_back(std::move(cr));
   }
   res.top1_accuracy = res.effect_cases ? static_cast<double>(correct) / res.effect_cases : 0.0;
@@ -282,7 +285,8 @@ std::string bench_json(const BenchResult& r) {
       << ", \"location_ok\": " << (c.location_ok ? "true" : "false")
       << ", \"false_attribution\": " << (c.false_attribution ? "true" : "false")
       << ", \"shrink_pct\": " << num(c.shrink_pct) << ", \"gap_heldout\": " << num(c.gap_heldout)
-      << ", \"noise_gap\": " << num(c.noise_gap) << ", \"runtime_s\": " << num(c.runtime_s) << "}";
+      << ", \"noise_gap\": " << num(c.noise_gap) << ", \"noise_gap_sd\": " << num(c.noise_gap_sd)
+      << ", \"runtime_s\": " << num(c.runtime_s) << "}";
   }
   o << "\n  ]\n}\n";
   return o.str();

@@ -19,9 +19,13 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr double kTiny = 1e-20;
 // Fixed normalisation scales (one "unit" of gap); docs/gap.md explains the choice.
-constexpr double kScaleHarmonicDb = 2.0;
+constexpr double kScaleHarmonicDb = 1.0;
 constexpr double kScaleSidebandDb = 2.0;
 constexpr double kScaleCoherenceDb = 1.0;
+constexpr double kScalePhaseCoherence = 0.05;
+constexpr int kLocalProbeNorm = 4;
+constexpr std::size_t kTransientLen = 512;
+constexpr int kHarmonicProbeNorm = 12;
 constexpr double kScaleFloorDb = 1.0;
 constexpr double kScaleLineDb = 3.0;
 constexpr double kScaleLogKurtosis = 0.05;
@@ -29,7 +33,6 @@ constexpr double kScaleCrestDb = 1.0;
 constexpr double kScaleExtremeLog10 = 0.3;
 constexpr double kScaleResidualRmsDb = 0.5;
 constexpr double kScaleEntropy = 0.005;
-constexpr double kScaleAlarm = 0.1;
 constexpr double kScaleGmfPpm = 100.0;
 constexpr double kScaleLagMs = 2.0;
 
@@ -210,6 +213,8 @@ const char* stage_name(Stage s) noexcept {
       return "residual_features";
     case Stage::kAlarm:
       return "alarm_decisions";
+    case Stage::kAveraging:
+      return "cycle_averaging";
   }
   return "?";
 }
@@ -225,7 +230,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
     return use_cycle.empty() || (w.cycle < use_cycle.size() && use_cycle[w.cycle] != 0);
   };
 
-  std::map<int, Accum> const_acc;  // per class
+  std::map<int, Accum> const_acc;                                           // per class
+  std::map<int, std::vector<std::vector<std::complex<float>>>> const_spec;  // per class: window spectra
   Accum accel_acc, still_acc;
   std::size_t min_len = std::numeric_limits<std::size_t>::max();
   std::vector<float> buf;
@@ -255,6 +261,7 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
     }
     const double norm = 2.0 / (0.5 * static_cast<double>(w.len));  // amplitude of a sine
     for (std::size_t k = 0; k < spec.size(); ++k) acc.power[k] += std::norm(spec[k]) * norm * norm;
+    if (w.type == SegmentType::kConstant) const_spec[w.speed_class].push_back(spec);
     double kurt = 3.0, crest = 0.0;
     window_stats(x, w.len, kurt, crest);
     acc.log_kurt += std::log(kurt);
@@ -294,6 +301,7 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
       double peak_db;
     };
     std::vector<Strong> strong;
+    std::map<int, std::size_t> nominal_bins;  // peak bin per nominal order
     for (int k = 1; k <= k_limit && k * gmf < 0.45 * fs; ++k) {
       const double f = k * gmf;
       class_exclusions[c].push_back({f - 3.6 * f_in - 3 * df, f + 3.6 * f_in + 3 * df});
@@ -316,7 +324,37 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
           kScaleHarmonicDb, f, f, SegmentType::kConstant, Stage::kRaw, k);
       const bool nominal =
           std::find(ctx.nominal_orders.begin(), ctx.nominal_orders.end(), k) != ctx.nominal_orders.end();
+      if (nominal) nominal_bins[k] = kb;
       if (nominal && peak_db > floor_db + 15.0) strong.push_back({k, kb, floor_db, peak_db});
+    }
+    // Cross-cycle phase coherence per nominal order: in each window the phase of order k relative to
+    // k / k0 times that of the lowest nominal order k0 (k a multiple of k0), psi = arg X_k -
+    // (k / k0) arg X_k0, does not depend on where the window starts (the windows of a plateau are not
+    // aligned to the shaft angle), only on whether the mesh waveform repeats. Unbiased mean resultant
+    // length^2 over the n windows, (|sum e^{i psi}|^2 - n) / (n (n - 1)): 1 when the relative phases
+    // repeat from cycle to cycle (time-domain averaging keeps the harmonics), 0 in expectation when they
+    // are random (TDA loses them, PTDA's magnitude average does not). Scale: 0.05 widened by the spread
+    // of the estimator for random phases, 1 / (n (n - 1)), counted for the measured and simulated side.
+    if (!nominal_bins.empty() && const_spec[c].size() >= 2) {
+      const int k0 = nominal_bins.begin()->first;
+      const std::size_t b0 = nominal_bins.begin()->second;
+      const auto& specs = const_spec[c];
+      const double n = static_cast<double>(specs.size());
+      for (const auto& [k, bk] : nominal_bins) {
+        if (k == k0 || k % k0 != 0) continue;
+        const double mult = static_cast<double>(k / k0);
+        std::complex<double> sum = 0.0;
+        for (const auto& sv : specs) {
+          if (bk >= sv.size() || b0 >= sv.size()) continue;
+          const double psi =
+              std::arg(std::complex<double>(sv[bk])) - mult * std::arg(std::complex<double>(sv[b0]));
+          sum += std::polar(1.0, psi);
+        }
+        const double coh = (std::norm(sum) - n) / (n * (n - 1.0));
+        const double scale = std::sqrt(kScalePhaseCoherence * kScalePhaseCoherence + 2.0 / (n * (n - 1.0)));
+        add(ps, "phase_coherence", cls + ".k" + std::to_string(k), coh, scale, k * gmf, k * gmf,
+            SegmentType::kConstant, Stage::kAveraging, k);
+      }
     }
     if (strong.empty()) continue;
     double f_lo = 1e300, f_hi = 0.0;
@@ -413,6 +451,65 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
       band_probes(SegmentType::kStandstill, {{&still_acc.power, still_acc.len}}, nullptr);
     ps.accel_power = accel_acc.power;
     ps.still_power = still_acc.power;
+  }
+
+  // ---- transitions: +-50 ms around every segment boundary (outside the analysis windows' margins, where
+  // knocks at torque reversals sit): mean crest factor and log kurtosis, and octave levels of the
+  // kTransientLen samples around each interval's largest sample (where the knock rings).
+  {
+    const auto half = static_cast<std::size_t>(0.05 * fs);
+    std::vector<double> tpow;
+    std::vector<float> tbuf(kTransientLen);
+    std::vector<std::complex<float>> tspec(kTransientLen / 2 + 1);
+    double crest_sum = 0.0, lk_sum = 0.0;
+    std::size_t count = 0;
+    for (std::size_t i = 1; i < segs.size(); ++i) {
+      const std::uint32_t c = segs[i].cycle;
+      if (!use_cycle.empty() && (c >= use_cycle.size() || use_cycle[c] == 0)) continue;
+      const auto mid = static_cast<std::size_t>(std::max(0.0, segs[i].t0_s * fs));
+      if (mid < half || mid + half > rec.accel_ms2.size() || 2 * half < kTransientLen) continue;
+      const float* x = rec.accel_ms2.data() + (mid - half);
+      const std::size_t n = 2 * half;
+      double kurt = 3.0, crest = 0.0;
+      window_stats(x, n, kurt, crest);
+      crest_sum += crest;
+      lk_sum += std::log(kurt);
+      double mean = 0.0;
+      for (std::size_t j = 0; j < n; ++j) mean += x[j];
+      mean /= static_cast<double>(n);
+      std::size_t imax = 0;
+      for (std::size_t j = 1; j < n; ++j) {
+        if (std::fabs(x[j] - mean) > std::fabs(x[imax] - mean)) imax = j;
+      }
+      const std::size_t t0 =
+          std::min(imax > kTransientLen / 4 ? imax - kTransientLen / 4 : 0, n - kTransientLen);
+      const std::vector<float>& th = cache.hann(kTransientLen);
+      for (std::size_t j = 0; j < kTransientLen; ++j)
+        tbuf[j] = static_cast<float>((x[t0 + j] - mean) * th[j]);
+      cache.fft(kTransientLen).forward(tbuf, tspec);
+      if (tpow.empty()) tpow.assign(tspec.size(), 0.0);
+      for (std::size_t k = 0; k < tspec.size(); ++k) tpow[k] += std::norm(tspec[k]);
+      ++count;
+    }
+    if (count > 0) {
+      add(ps, "transients", "crest_db", crest_sum / static_cast<double>(count), kScaleCrestDb, 0, 0,
+          SegmentType::kAccel, Stage::kRaw);
+      add(ps, "transients", "log_kurtosis", lk_sum / static_cast<double>(count), kScaleLogKurtosis, 0, 0,
+          SegmentType::kAccel, Stage::kRaw);
+      const double df = fs / static_cast<double>(kTransientLen);
+      int bi = 0;
+      for (double lo = 500.0; 2.0 * lo <= 0.45 * fs; lo *= 2.0, ++bi) {
+        double sum = 0.0;
+        int nb = 0;
+        for (std::size_t q = bin_of(lo, df); q < bin_of(2.0 * lo, df) && q < tpow.size(); ++q) {
+          sum += tpow[q];
+          ++nb;
+        }
+        if (nb < 3) continue;
+        add(ps, "transients", "oct" + std::to_string(bi), db(sum / (nb * static_cast<double>(count))),
+            kScaleFloorDb, lo, 2.0 * lo, SegmentType::kAccel, Stage::kRaw);
+      }
+    }
   }
 
   // ---- amplitude statistics ----------------------------------------------------------------------------
@@ -512,8 +609,9 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
       }
       alarms += (r < lo || r > hi) ? 1U : 0U;
     }
-    add(ps, "alarm", cls + ".rate", static_cast<double>(alarms) / m, kScaleAlarm, 0, 0,
-        SegmentType::kConstant, Stage::kAlarm);
+    // Reported, not part of the gap: with a handful of windows the rate is too coarse and too sensitive
+    // to the reference's spread to be fitted (docs/gap.md).
+    ps.alarm_rate[c] = static_cast<double>(alarms) / m;
   }
 
   // ---- CAN speed vs vibration timing ----------------------------------------------------------------
@@ -522,15 +620,52 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
   return ps;
 }
 
-GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim) {
-  GapBreakdown g;
+ProbeSet average_probes(const ProbeSet& a, const ProbeSet& b) {
+  ProbeSet out;
+  std::map<std::string, const ProbeElement*> bk;
+  for (const ProbeElement& e : b.elements) bk[e.probe + "/" + e.key] = &e;
+  for (const ProbeElement& e : a.elements) {
+    auto it = bk.find(e.probe + "/" + e.key);
+    if (it == bk.end()) continue;
+    ProbeElement m = e;
+    m.value = 0.5 * (e.value + it->second->value);
+    out.elements.push_back(std::move(m));
+  }
+  out.classes = a.classes;
+  out.windows = a.windows + b.windows;
+  auto mean_vec = [](const std::vector<double>& x, const std::vector<double>& y) {
+    if (x.size() != y.size()) return x.empty() ? y : x;
+    std::vector<double> v(x.size());
+    for (std::size_t i = 0; i < x.size(); ++i) v[i] = 0.5 * (x[i] + y[i]);
+    return v;
+  };
+  out.class_power = a.class_power;
+  for (auto& [c, p] : out.class_power) {
+    auto it = b.class_power.find(c);
+    if (it != b.class_power.end()) p = mean_vec(p, it->second);
+  }
+  for (const auto& [c, p] : b.class_power) out.class_power.emplace(c, p);
+  out.accel_power = mean_vec(a.accel_power, b.accel_power);
+  out.still_power = mean_vec(a.still_power, b.still_power);
+  out.max_abs_ms2 = std::max(a.max_abs_ms2, b.max_abs_ms2);
+  out.lag_s = std::isfinite(a.lag_s) && std::isfinite(b.lag_s) ? 0.5 * (a.lag_s + b.lag_s)
+              : std::isfinite(a.lag_s)                         ? a.lag_s
+                                                               : b.lag_s;
+  return out;
+}
+
+namespace {
+
+struct Pair {
+  const ProbeElement* r;
+  const ProbeElement* s;
+  double diff;
+};
+
+/// Matched elements with the free parameters profiled out; fills the offsets of `g`.
+std::vector<Pair> profiled_pairs(const ProbeSet& real, const ProbeSet& sim, GapBreakdown& g) {
   std::map<std::string, const ProbeElement*> sim_by_key;
   for (const ProbeElement& e : sim.elements) sim_by_key[e.probe + "/" + e.key] = &e;
-  struct Pair {
-    const ProbeElement* r;
-    const ProbeElement* s;
-    double diff;
-  };
   std::vector<Pair> pairs;
   for (const ProbeElement& e : real.elements) {
     auto it = sim_by_key.find(e.probe + "/" + e.key);
@@ -557,13 +692,74 @@ GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim) {
   }
   for (Pair& p : pairs) {
     if (p.r->probe == "harmonics") p.diff -= g.harmonic_offset_db[static_cast<std::size_t>(p.r->order)];
-    if (p.r->probe == "noise_floor") p.diff -= g.noise_offset_db;
+    if (p.r->probe == "noise_floor" || (p.r->probe == "transients" && p.r->key.rfind("oct", 0) == 0))
+      p.diff -= g.noise_offset_db;
   }
+  return pairs;
+}
+
+}  // namespace
+
+std::map<std::string, double> profiled_differences(const ProbeSet& real, const ProbeSet& sim) {
+  GapBreakdown g;
+  std::map<std::string, double> out;
+  for (const Pair& p : profiled_pairs(real, sim, g)) out[p.r->probe + "/" + p.r->key] = p.diff;
+  return out;
+}
+
+ElementVariance jackknife_variance(const GapRecording& rec, const std::vector<Segment>& segs,
+                                   const std::vector<Window>& windows, std::uint32_t cycles,
+                                   const ProbeContext& ctx) {
+  ElementVariance var;
+  if (cycles < 3) return var;
+  const ProbeSet all = compute_probes(rec, segs, windows, {}, ctx);
+  std::map<std::string, std::vector<double>> reps;
+  for (std::uint32_t j = 0; j < cycles; ++j) {
+    std::vector<char> use(cycles, 1);
+    use[j] = 0;
+    const ProbeSet part = compute_probes(rec, segs, windows, use, ctx, &all);
+    for (const auto& [k, d] : profiled_differences(part, all)) reps[k].push_back(d);
+  }
+  const double n = static_cast<double>(cycles);
+  for (const auto& [k, v] : reps) {
+    if (v.size() != cycles) continue;  // not defined in every replicate: no estimate
+    double m = 0.0;
+    for (double x : v) m += x;
+    m /= n;
+    double ss = 0.0;
+    for (double x : v) ss += (x - m) * (x - m);
+    var[k] = (n - 1.0) / n * ss;
+  }
+  return var;
+}
+
+GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim, const ElementVariance* noise) {
+  GapBreakdown g;
+  std::vector<Pair> pairs = profiled_pairs(real, sim, g);
   std::map<std::string, int> count;
   for (const Pair& p : pairs) ++count[p.r->probe];
+  // Local probes: a single strong line is what they look for, so their sum is divided by at most
+  // kLocalProbeNorm elements instead of averaging it away over every band.
+  for (auto& [probe, n] : count) {
+    if (probe == "lines") n = std::min(n, kLocalProbeNorm);
+    // Most harmonic elements are orders the nominal model does not have (at the floor clamp on both
+    // sides); the sum is divided by at most a dozen so that a level pattern across classes counts.
+    if (probe == "harmonics") n = std::min(n, kHarmonicProbeNorm);
+  }
+  std::map<std::string, double> w2_sum;  // per probe: sum of squared noise weights (chi-square variance)
   std::vector<GapBreakdown::Top> all;
   for (const Pair& p : pairs) {
-    const double z = p.diff / p.r->scale;
+    double scale2 = p.r->scale * p.r->scale;
+    if (noise != nullptr) {
+      auto it = noise->find(p.r->probe + "/" + p.r->key);
+      if (it != noise->end()) {
+        const double w = it->second / (scale2 + it->second);  // share of the scale that is sampling noise
+        scale2 += it->second;
+        g.expected += w / count[p.r->probe];
+        w2_sum[p.r->probe] += w * w;
+      }
+    }
+    const double z = p.diff / std::sqrt(scale2);
     const double c = z * z / count[p.r->probe];
     g.total += c;
     g.by_probe[p.r->probe] += c;
@@ -582,6 +778,9 @@ GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim) {
             [](const auto& a, const auto& b) { return a.contribution > b.contribution; });
   if (all.size() > 12) all.resize(12);
   g.top = std::move(all);
+  double var = 0.0;
+  for (const auto& [probe, w2] : w2_sum) var += 2.0 * w2 / (static_cast<double>(count[probe]) * count[probe]);
+  g.expected_sd = std::sqrt(var);
   return g;
 }
 

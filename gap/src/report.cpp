@@ -192,6 +192,9 @@ std::string diagnosis_json(const Diagnosis& d) {
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
     << ", \"noise_rms\": " << num(d.calibrated_noise_rms) << "},\n";
   o << "  \"noise_gap\": " << num(d.noise_gap) << ",\n";
+  o << "  \"noise_gap_sd\": " << num(d.noise_gap_sd) << ",\n";
+  o << "  \"alarm_rate_heldout\": {\"nominal\": " << num(d.alarm_rate_nominal)
+    << ", \"final\": " << num(d.alarm_rate_final) << "},\n";
   o << "  \"gap_significant\": " << (d.gap_significant ? "true" : "false") << ",\n";
   o << "  \"gap\": " << breakdown_json(d.nominal_heldout, "  ") << ",\n";
   o << "  \"rounds\": [";
@@ -224,9 +227,12 @@ std::string diagnosis_html(const Diagnosis& d) {
     << "</code>; " << d.cycles << " cycles (" << d.fit_cycles << " fit / " << d.heldout_cycles
     << " held out), " << d.simulations << " simulations, " << num(d.runtime_s) << " s.</p>";
   o << "<p>Held-out gap of the calibrated nominal model: " << num(d.nominal_heldout.total)
-    << " (sampling-noise level " << num(d.noise_gap)
-    << "); after the chosen effects: " << num(d.final_heldout.total) << " (shrink " << num(d.total_shrink_pct)
-    << " %).</p>";
+    << " (expected from the measured cycles' own spread: " << num(d.noise_gap) << " &plusmn; "
+    << num(d.noise_gap_sd) << "); after the chosen effects: " << num(d.final_heldout.total) << " (shrink "
+    << num(d.total_shrink_pct) << " %).</p>";
+  o << "<p>Alarm stage: a PTDA baseline trained on the model flags " << num(100.0 * d.alarm_rate_nominal)
+    << " % of the held-out constant-speed windows (calibrated nominal), " << num(100.0 * d.alarm_rate_final)
+    << " % with the chosen effects.</p>";
   o << "<h2>Spectra (first constant-speed class)</h2>" << svg_spectra(d);
   o << "<h2>Where the gap lies (calibrated nominal, held-out)</h2>";
   o << svg_bars(sorted(d.nominal_heldout.by_probe), "by probe") << "<br>";

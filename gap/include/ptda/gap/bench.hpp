@@ -20,6 +20,8 @@ struct BenchOptions {
   std::uint32_t cycles = 6;                 ///< job cycles per recording (short: the bench must be fast)
   std::vector<std::filesystem::path> jobs;  ///< job presets (scenario files), used in turn
   std::filesystem::path work_dir;           ///< temporary recordings go here (created)
+  bool keep_recordings = false;             ///< leave work_dir/caseN in place (for `ptda gap` on them)
+  std::vector<std::uint32_t> only;          ///< run only these case indices (empty: 0 .. cases-1)
   std::function<void(const std::string&)> log;
 };
 
@@ -34,7 +36,8 @@ struct BenchCaseResult {
   bool false_attribution = false;       ///< none case: something was named
   double shrink_pct = 0.0;              ///< held-out shrink with the chosen effects
   double gap_heldout = 0.0;             ///< calibrated nominal
-  double noise_gap = 0.0;
+  double noise_gap = 0.0;               ///< held-out gap expected from sampling
+  double noise_gap_sd = 0.0;            ///< its standard deviation
   double runtime_s = 0.0;
   std::string verdict;
 };

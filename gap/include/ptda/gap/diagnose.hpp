@@ -21,8 +21,8 @@ struct DiagnoseOptions {
   std::uint32_t max_effects = 2;  ///< greedy rounds
   std::uint32_t full_fits = 4;    ///< candidates fitted fully per round (after a one-stage screen)
   double min_gain_share = 0.15;   ///< accept an effect when it removes this share of the current gap...
-  double min_gain_noise = 2.0;    ///< ... and at least this many times the sim-vs-sim noise gap
-  double min_gap_noise = 3.0;     ///< no diagnosis when the gap is below this many noise gaps
+  double min_gain_sd = 3.0;       ///< ... and this many standard deviations of the sampling gap
+  double min_gap_sd = 3.0;        ///< no diagnosis when the gap is within expected + this many sd
   std::vector<sim::EffectKind> candidates;      ///< empty: the whole catalog
   std::function<void(const std::string&)> log;  ///< progress lines (optional)
 };
@@ -57,10 +57,15 @@ struct Diagnosis {
   std::vector<double> calibrated_gmf_amplitudes;
   double calibrated_noise_rms = 0.0;
   GapBreakdown nominal_heldout;  ///< calibrated nominal model vs held-out cycles
-  double noise_gap = 0.0;        ///< simulation vs an independent simulation (sampling noise level)
+  double noise_gap = 0.0;        ///< held-out gap expected from sampling alone (measured cycles' spread)
+  double noise_gap_sd = 0.0;     ///< its standard deviation
   std::vector<SelectionRound> rounds;
   std::vector<CandidateResult> chosen;
   GapBreakdown final_heldout;
+  /// Alarm stage: share of the held-out constant-speed windows a PTDA baseline trained on the model
+  /// (calibrated nominal / final) flags (mean over classes); NaN when there are too few windows.
+  double alarm_rate_nominal = 0.0;
+  double alarm_rate_final = 0.0;
   double total_shrink_pct = 0.0;
   bool gap_significant = false;
   std::string verdict;  ///< one plain sentence

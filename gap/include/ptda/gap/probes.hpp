@@ -12,12 +12,13 @@
 
 namespace ptda::gap {
 
-enum class Stage : std::uint8_t { kRaw = 0, kResidual = 1, kAlarm = 2 };
+enum class Stage : std::uint8_t { kRaw = 0, kResidual = 1, kAlarm = 2, kAveraging = 3 };
 [[nodiscard]] const char* stage_name(Stage s) noexcept;
 
 struct ProbeElement {
-  std::string
-      probe;  ///< harmonics, sidebands, coherence, noise_floor, lines, amplitude, residual, alarm, tracking
+  /// harmonics, sidebands, coherence, phase_coherence, noise_floor, lines, transients, amplitude,
+  /// residual, tracking
+  std::string probe;
   std::string key;  ///< unique within the probe, e.g. "c0.k5" or "constant.b12"
   double value = 0.0;
   double scale = 1.0;    ///< normalisation: z = (real - sim) / scale
@@ -45,6 +46,9 @@ struct ProbeSet {
   std::vector<double> still_power;
   double max_abs_ms2 = 0.0;
   double lag_s = 0.0;  ///< envelope-vs-CAN lag (NaN when the speed does not vary)
+  /// Per constant class: share of windows whose PTDA residual rms is outside the reference's mean +- 3 sd
+  /// (with a reference: the measured windows judged by the simulation's baseline). Not a gap element.
+  std::map<int, double> alarm_rate;
 };
 
 struct ProbeContext {
@@ -59,6 +63,10 @@ struct ProbeContext {
 [[nodiscard]] ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& segs,
                                       const std::vector<Window>& windows, const std::vector<char>& use_cycle,
                                       const ProbeContext& ctx, const ProbeSet* reference = nullptr);
+
+/// Element-wise mean of two probe sets of the same recording (e.g. its even and odd cycles): values of
+/// elements present in both, averaged spectra, the first set's class references. Any thread; allocates.
+[[nodiscard]] ProbeSet average_probes(const ProbeSet& a, const ProbeSet& b);
 
 /// Where a gap lies.
 struct GapBreakdown {
@@ -79,11 +87,30 @@ struct GapBreakdown {
   std::vector<Top> top;                    ///< largest contributions, descending (at most 12)
   std::vector<double> harmonic_offset_db;  ///< profiled-out per-order level offsets (real - sim), by order
   double noise_offset_db = 0.0;            ///< profiled-out overall noise-floor offset
+  double expected = 0.0;                   ///< gap expected from sampling alone (0 without a noise model)
+  double expected_sd = 0.0;                ///< its standard deviation
 };
+
+/// Sampling variance per element ("probe/key" -> variance in the element's units) to add to its fixed
+/// scale: z = diff / sqrt(scale^2 + variance).
+using ElementVariance = std::map<std::string, double>;
 
 /// gap = sum over probes of mean z^2 over the probe's elements, after profiling out the nominal model's
 /// free parameters: per-order harmonic level offsets (mean over classes) and one noise-floor offset
-/// (median over constant-speed bands). Elements present on one side only are skipped.
-[[nodiscard]] GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim);
+/// (median over constant-speed bands). Elements present on one side only are skipped. With `noise`,
+/// each element's scale is widened by its sampling variance, and the breakdown carries the gap expected
+/// from sampling alone and its standard deviation (chi-square approximation).
+[[nodiscard]] GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim,
+                                          const ElementVariance* noise = nullptr);
+
+/// The per-element differences real - sim after profiling out the free parameters (as compare_probes
+/// uses them), keyed "probe/key".
+[[nodiscard]] std::map<std::string, double> profiled_differences(const ProbeSet& real, const ProbeSet& sim);
+
+/// Jackknife over cycles: the sampling variance of each element's profiled value when the probes use
+/// all `cycles` cycles of `rec` (leave-one-cycle-out replicates compared with the all-cycle set).
+[[nodiscard]] ElementVariance jackknife_variance(const GapRecording& rec, const std::vector<Segment>& segs,
+                                                 const std::vector<Window>& windows, std::uint32_t cycles,
+                                                 const ProbeContext& ctx);
 
 }  // namespace ptda::gap
