@@ -15,7 +15,7 @@ BASE=(
   libgpiod-dev libsystemd-dev can-utils
 )
 CROSS=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev)
-VM=(qemu-system-x86 qemu-system-arm busybox-static cpio iproute2 can-utils gpiod dpkg-dev)
+VM=(qemu-system-x86 qemu-system-arm busybox-static cpio iproute2 can-utils gpiod dpkg-dev xz-utils)
 PKG=(dpkg-dev fakeroot debootstrap file)
 
 groups=("$@")

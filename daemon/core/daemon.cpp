@@ -66,6 +66,16 @@ class DeltaLine {
   std::size_t len_ = 0;
 };
 
+// Where a replay starts on the wall clock, to line it up with other records of the same run (a bus
+// capture, a live bus fed from the recording's CAN log): sample 0 of the WAV maps to this instant.
+void log_replay_origin(const Pipeline& p, const drivers::Clock& clock) {
+  const std::optional<std::int64_t> origin = p.replay_origin_mono_ns();
+  if (!origin) return;
+  const std::int64_t real = *origin + drivers::realtime_offset_ns(clock);
+  spdlog::info("replay timeline: sample 0 at {}.{:09} (CLOCK_REALTIME), {} ns on the daemon clock",
+               real / 1'000'000'000, real % 1'000'000'000, *origin);
+}
+
 }  // namespace
 
 Daemon::Daemon(DaemonOptions options, drivers::Clock& clock) : options_(std::move(options)), clock_(clock) {}
@@ -151,6 +161,7 @@ void Daemon::configure() {
 void Daemon::activate() {
   if (!pipeline_) throw Error("ptdad: activate() before configure()");
   pipeline_->activate();
+  log_replay_origin(*pipeline_, clock_);
   active_ = true;
   started_ns_ = clock_.now_ns();
   training_started_ns_ = started_ns_;
@@ -243,6 +254,7 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   }
   fresh->configure();
   fresh->activate();
+  log_replay_origin(*fresh, clock_);
   if (stall_.load(std::memory_order_relaxed)) fresh->set_processing_stall(true);
   if (fresh->refused()) spdlog::error("monitoring refused: {}", fresh->refusal());
   std::lock_guard lock(pipeline_mutex_);
@@ -251,6 +263,7 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   last_seen_beats_ = StageHeartbeats{};
   last_counters_ = PipelineCounters{};
   last_source_ = drivers::SampleSourceCounters{};
+  last_slicer_ = dsp::SlicerCounters{};
 }
 
 void Daemon::reload() {
@@ -483,6 +496,7 @@ void Daemon::log_counter_changes() noexcept {
   if (p == nullptr) return;
   const PipelineCounters c = p->counters();
   const drivers::SampleSourceCounters a = p->source_counters();
+  const dsp::SlicerCounters sc = p->status().slicer;
   DeltaLine line;
   line.add("sample ring overruns", c.acq_ring_full_blocks, last_counters_.acq_ring_full_blocks);
   line.add("adc read errors", c.acq_read_errors, last_counters_.acq_read_errors);
@@ -496,11 +510,16 @@ void Daemon::log_counter_changes() noexcept {
   line.add("CAN receive errors", c.can_receive_errors, last_counters_.can_receive_errors);
   line.add("CAN clear frames", c.can_clear_frames, last_counters_.can_clear_frames);
   line.add("alarm output errors", c.output_errors, last_counters_.output_errors);
+  // Speed samples the slicer refused: each one ends the constant-speed run (a window may be lost).
+  line.add("speed samples out of order", sc.speed_out_of_order, last_slicer_.speed_out_of_order);
+  line.add("speed gaps", sc.speed_gaps, last_slicer_.speed_gaps);
+  line.add("speed out of range", sc.speed_out_of_range, last_slicer_.speed_out_of_range);
   if (!line.empty()) spdlog::warn("counters: {}", line.view());
   if (c.acq_end && !last_counters_.acq_end) spdlog::info("vibration source: end of stream");
   if (c.can_end && !last_counters_.can_end) spdlog::info("CAN source: end of stream");
   last_counters_ = c;
   last_source_ = a;
+  last_slicer_ = sc;
 }
 
 void Daemon::check_training(std::int64_t now) {

@@ -164,6 +164,7 @@ class Daemon {
   StatusSnapshot snapshot_;
   PipelineCounters last_counters_{};
   drivers::SampleSourceCounters last_source_{};
+  dsp::SlicerCounters last_slicer_{};
   Phase last_phase_ = Phase::kStarting;
   DaemonState last_state_ = DaemonState::kConfigured;
   FixedString<kStatusTextBytes> reason_;

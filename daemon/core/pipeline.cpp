@@ -86,7 +86,6 @@ Pipeline::~Pipeline() {
 
 void Pipeline::configure() {
   const config::PipelineConfig& pc = cfg_.pipeline;
-  const std::int64_t origin_mono = clock_.now_ns();
 
   // ---- vibration source
   std::optional<std::int64_t> recording_start_unix;
@@ -121,11 +120,12 @@ void Pipeline::configure() {
         wc.pace = cfg_.adc.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible
                                                : drivers::ReplayPace::kRealTime;
         wc.start_unix_ns = seconds_to_ns(meta.start_time_s);
-        wc.timeline.origin_unix_ns = wc.start_unix_ns;
-        wc.timeline.origin_mono_ns = origin_mono;
+        wc.timeline.origin_unix_ns = wc.start_unix_ns;  // origin_mono_ns: set by activate()
         recording_start_unix = wc.start_unix_ns;
         recording_can = cfg_.adc.recording / meta.can_file;
-        source_ = std::make_unique<drivers::WavReplaySource>(wc, clock_);
+        auto wav = std::make_unique<drivers::WavReplaySource>(wc, clock_);
+        wav_replay_ = wav.get();
+        source_ = std::move(wav);
         source_fast_ = cfg_.adc.pace == Pace::kFast;
         inputs_text_ = "adc wav (" + cfg_.adc.recording.string() + ", " + pace_name(cfg_.adc.pace) + ")";
         break;
@@ -176,8 +176,9 @@ void Pipeline::configure() {
         cc.pace = cfg_.can.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible
                                                : drivers::ReplayPace::kRealTime;
         if (recording_start_unix) cc.timeline.origin_unix_ns = *recording_start_unix;
-        cc.timeline.origin_mono_ns = origin_mono;
-        channel_ = std::make_unique<drivers::CandumpReplayChannel>(cc, clock_);
+        auto candump = std::make_unique<drivers::CandumpReplayChannel>(cc, clock_);
+        candump_replay_ = candump.get();
+        channel_ = std::move(candump);
         can_fast_ = cfg_.can.pace == Pace::kFast;
         inputs_text_ += ", can candump (" + cc.path.string() + ", " + pace_name(cfg_.can.pace) + ")";
         break;
@@ -286,6 +287,15 @@ void Pipeline::activate() {
   if (!configured_) throw Error("pipeline: activate() before configure()");
   if (active_) return;
   std::size_t outputs_started = 0;
+  // Replays start at activation, as a device starts delivering then: sample 0 of the WAV and the log's
+  // start map to this instant (one origin for both, so they stay aligned exactly). Taken at configure()
+  // instead, the configure time would be released as a burst of overdue blocks, and the start of a WAV
+  // replay could not be lined up with a live bus: the CAN verdict output's first frame, sent below,
+  // follows it by the time the activations take (docs/daemon.md, "Time alignment").
+  const std::int64_t origin_mono = clock_.now_ns();
+  if (wav_replay_ != nullptr) wav_replay_->set_origin_mono_ns(origin_mono);
+  if (candump_replay_ != nullptr) candump_replay_->set_origin_mono_ns(origin_mono);
+  if (wav_replay_ != nullptr || candump_replay_ != nullptr) replay_origin_mono_ns_ = origin_mono;
   try {
     source_->activate();
     channel_->activate();
@@ -473,12 +483,15 @@ void Pipeline::can_loop() noexcept {
 // ---- processing thread --------------------------------------------------------------------------
 
 std::int64_t Pipeline::sample_time(std::uint64_t index) const noexcept {
-  // ceil(index * 1e12 / fs_mhz), exact (the slicer's convention for sample times).
+  // ceil(index * 1e12 / fs_mhz), exact (the slicer's convention for sample times), in 64 bits (no
+  // unsigned __int128 on 32-bit targets), as WindowSlicer::offset_ns: index = q * F + m, whole multiples
+  // of F samples are 1000 s, and m * 1e9 = c * F + e.
   const auto f = static_cast<std::uint64_t>(fs_mhz_);
-  const std::uint64_t whole = index / f;
-  __extension__ using U128 = unsigned __int128;
-  const U128 num = static_cast<U128>(index % f) * 1'000'000'000'000ULL;
-  return static_cast<std::int64_t>(whole * 1'000'000'000ULL + static_cast<std::uint64_t>((num + f - 1) / f));
+  const std::uint64_t q = index / f;
+  const std::uint64_t m = index % f;
+  const std::uint64_t c = m * 1'000'000'000ULL / f;
+  const std::uint64_t e = m * 1'000'000'000ULL - c * f;
+  return static_cast<std::int64_t>(q * 1'000'000'000'000ULL + c * 1000 + (e * 1000 + f - 1) / f);
 }
 
 void Pipeline::push_block(const drivers::SampleBlock& b) noexcept {

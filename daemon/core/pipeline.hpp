@@ -29,6 +29,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -47,6 +48,11 @@
 #include "rt/spsc_ring.hpp"
 #include "rt/wake_signal.hpp"
 #include "training/field_trainer.hpp"
+
+namespace ptda::drivers {
+class WavReplaySource;
+class CandumpReplayChannel;
+}  // namespace ptda::drivers
 
 namespace ptda::daemon {
 
@@ -209,6 +215,11 @@ class Pipeline {
   [[nodiscard]] const FieldTrainer* trainer() const noexcept { return trainer_.get(); }
   /// A one-line description of the inputs, e.g. "adc sim (scenario ...), can sim". Thread: any.
   [[nodiscard]] const std::string& inputs_text() const noexcept { return inputs_text_; }
+  /// Daemon-clock time that sample 0 of a WAV replay and the start of a candump replay map to; unset
+  /// for devices and the simulator. Thread: main, after activate().
+  [[nodiscard]] std::optional<std::int64_t> replay_origin_mono_ns() const noexcept {
+    return replay_origin_mono_ns_;
+  }
 
  private:
   void acquisition_loop() noexcept;
@@ -237,6 +248,9 @@ class Pipeline {
   SimAnchor sim_anchor_;
   std::unique_ptr<drivers::SampleSource> source_;
   std::unique_ptr<drivers::CanChannel> channel_;
+  drivers::WavReplaySource* wav_replay_ = nullptr;           ///< source_, when it is a WAV replay
+  drivers::CandumpReplayChannel* candump_replay_ = nullptr;  ///< channel_, when it is a candump replay
+  std::optional<std::int64_t> replay_origin_mono_ns_;
   std::vector<std::unique_ptr<drivers::AlarmOutput>> outputs_;
   bool source_fast_ = false, can_fast_ = false, fast_ = false;
   double fs_hz_ = 0.0;

@@ -39,6 +39,11 @@ class WavReplaySource final : public SampleSource {
   void configure() override;
   /// Rewinds to sample 0 and anchors the timeline. Throws ptda::Error.
   void activate() override;
+  /// Sets the timeline's daemon-clock origin (ReplayTimeline::origin_mono_ns) for the next activate().
+  /// Thread: main, while not active.
+  void set_origin_mono_ns(std::int64_t origin_mono_ns) noexcept {
+    config_.timeline.origin_mono_ns = origin_mono_ns;
+  }
   /// Real-time pace: sleeps on the clock (at most timeout_ns) until the block's last sample is due.
   /// kEndOfStream after the last sample. File errors return kError (counted).
   SourceStatus read(SampleBlock& out, std::int64_t timeout_ns) noexcept override;

@@ -35,6 +35,11 @@ class CandumpReplayChannel final : public CanChannel {
   void configure() override;
   /// Anchors the timeline and rewinds to the first frame. Throws ptda::Error before configure().
   void activate() override;
+  /// Sets the timeline's daemon-clock origin (ReplayTimeline::origin_mono_ns) for the next activate().
+  /// Thread: main, while not active.
+  void set_origin_mono_ns(std::int64_t origin_mono_ns) noexcept {
+    config_.timeline.origin_mono_ns = origin_mono_ns;
+  }
   /// Releases the next frames. Real-time pace: only frames whose mapped time has come, sleeping on the
   /// clock up to timeout_ns for the first; kEndOfStream once every frame was released.
   CanStatus receive(std::span<CanFrame> out, std::size_t& received,

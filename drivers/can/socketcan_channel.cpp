@@ -24,12 +24,6 @@ bool valid_fd_len(std::size_t len) noexcept {
   return len <= 8 || len == 12 || len == 16 || len == 20 || len == 24 || len == 32 || len == 48 || len == 64;
 }
 
-std::int64_t realtime_now_ns() noexcept {
-  timespec ts{};
-  ::clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 std::string hex(std::uint32_t v) {
   char buf[16];
   std::snprintf(buf, sizeof buf, "0x%X", v);
@@ -276,10 +270,12 @@ CanStatus SocketCanChannel::receive(std::span<CanFrame> out, std::size_t& receiv
     }
   }
 
-  // Kernel stamps are CLOCK_REALTIME; map them onto the daemon clock with the offset sampled now. A
-  // wall-clock step between the frame's arrival and this line misplaces only this batch.
+  // Kernel stamps are CLOCK_REALTIME; map them onto the daemon clock with the offset sampled now
+  // (bracketed: a preemption between two plain clock reads would shift the whole batch, and frames out of
+  // order end the slicer's constant-speed run). A wall-clock step between the frame's arrival and this
+  // line misplaces only this batch.
+  const std::int64_t offset = realtime_offset_ns(clock_);
   const std::int64_t mono_now = clock_.now_ns();
-  const std::int64_t offset = realtime_now_ns() - mono_now;
   for (int i = 0; i < n; ++i) {
     const msghdr& h = msgs_[static_cast<std::size_t>(i)].msg_hdr;
     const CanRxMeta meta = parse_rx_cmsgs(h);

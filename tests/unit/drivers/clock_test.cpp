@@ -30,6 +30,28 @@ TEST(MonotonicClock, SleepUntilThePastReturnsAtOnceAndTheTargetIsReached) {
   EXPECT_GE(c.now_ns(), target);
 }
 
+TEST(RealtimeOffset, MapsTheDaemonClockOntoClockRealtime) {
+  const auto realtime = [] {
+    timespec ts{};
+    ::clock_gettime(CLOCK_REALTIME, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+  };
+  // A clock that stands still: the bracket is 0, so the offset is realtime minus its reading exactly.
+  ManualClock manual(5'000'000'000);
+  const std::int64_t before = realtime();
+  const std::int64_t offset = realtime_offset_ns(manual);
+  const std::int64_t after = realtime();
+  EXPECT_GE(offset, before - 5'000'000'000);
+  EXPECT_LE(offset, after - 5'000'000'000);
+  // The monotonic clock: realtime = monotonic + offset, within the reads' own spread.
+  MonotonicClock mono;
+  const std::int64_t r0 = realtime();
+  const std::int64_t mapped = mono.now_ns() + realtime_offset_ns(mono);
+  const std::int64_t r1 = realtime();
+  EXPECT_GE(mapped, r0 - 1'000'000);
+  EXPECT_LE(mapped, r1 + 1'000'000);
+}
+
 TEST(ManualClock, SleepJumpsForwardOnlyAndIsCounted) {
   ManualClock c(100);
   EXPECT_EQ(c.now_ns(), 100);

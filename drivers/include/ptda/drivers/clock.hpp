@@ -30,6 +30,12 @@ class MonotonicClock final : public Clock {
   void sleep_until_ns(std::int64_t t_ns) noexcept override;
 };
 
+/// CLOCK_REALTIME minus `clock`, in ns, for mapping kernel stamps (CLOCK_REALTIME) onto the daemon clock
+/// and back: a realtime read bracketed by two reads of `clock`, the tightest of up to three brackets (one
+/// within 100 us is taken at once). A thread preempted between two plain reads would be off by the whole
+/// preemption (seen under emulation: tens of ms). Thread: any. Never blocks or allocates.
+[[nodiscard]] std::int64_t realtime_offset_ns(const Clock& clock) noexcept;
+
 /// A clock that only moves when told. sleep_until_ns() jumps the clock forward to the target instead
 /// of waiting, so paced replays run instantly and deterministically in tests.
 class ManualClock final : public Clock {
