@@ -22,14 +22,15 @@ using drivers::CanStatus;
 using drivers::SourceStatus;
 
 std::int64_t SimRecording::sample_offset_ns(std::uint64_t index) const noexcept {
-  // ceil(index * 1e12 / fs_mhz) without overflow: whole multiples of fs_mhz are whole seconds.
+  // ceil(index * 1e12 / fs_mhz) without overflow, in 64 bits (no unsigned __int128 on 32-bit targets),
+  // as WindowSlicer::offset_ns: index = q * F + m, whole multiples of F samples are 1000 s, and
+  // m * 1e9 = c * F + e.
   const auto f = static_cast<std::uint64_t>(fs_mhz);
-  const std::uint64_t whole = index / f;
-  const std::uint64_t rem = index % f;
-  __extension__ using U128 = unsigned __int128;
-  const U128 num = static_cast<U128>(rem) * 1'000'000'000'000ULL;
-  const auto frac = static_cast<std::uint64_t>((num + f - 1) / f);
-  return static_cast<std::int64_t>(whole * 1'000'000'000ULL + frac);
+  const std::uint64_t q = index / f;
+  const std::uint64_t m = index % f;
+  const std::uint64_t c = m * 1'000'000'000ULL / f;
+  const std::uint64_t e = m * 1'000'000'000ULL - c * f;
+  return static_cast<std::int64_t>(q * 1'000'000'000'000ULL + c * 1000 + (e * 1000 + f - 1) / f);
 }
 
 namespace {

@@ -10,10 +10,12 @@
 #include <bit>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 
 #include "ptda/common/error.hpp"
 
@@ -137,7 +139,10 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
       throw Error(cls + ": tda_mean has " + std::to_string(c.tda_mean.size()) + " values, window_len is " +
                   std::to_string(b.window_len));
   }
-  if (b.source.size() > 0xFFFFFFFFULL) throw Error(where + ": source text too long");
+  // Widened first: on 32-bit targets (armhf) size_t cannot exceed the u32 length field, and comparing
+  // it directly is an always-false -Wtype-limits error there.
+  if (std::uint64_t{b.source.size()} > std::numeric_limits<std::uint32_t>::max())
+    throw Error(where + ": source text too long");
 }
 
 void put_stats(Writer& w, const dsp::FeatureStats& s) {

@@ -108,5 +108,16 @@ TEST(SimBackends, ReadAndReceiveDoNotAllocate) {
   EXPECT_EQ(can.sent_count(), 20000U);
 }
 
+TEST(SimBackends, SampleTimesStayExactPastAThousandSeconds) {
+  SimRecording rec;
+  rec.fs_hz = 25600.0;
+  rec.fs_mhz = 25'600'000;
+  // fs_mhz samples are 1000 s: where the 64-bit arithmetic splits the index (it once added 1 s there).
+  EXPECT_EQ(rec.sample_offset_ns(25'599'999), 999'999'960'938);  // ceil(999'999'960'937.5)
+  EXPECT_EQ(rec.sample_offset_ns(25'600'000), 1'000'000'000'000);
+  EXPECT_EQ(rec.sample_offset_ns(25'600'001), 1'000'000'039'063);
+  EXPECT_EQ(rec.sample_offset_ns(25'600ULL * 86'400), 86'400'000'000'000);  // a day
+}
+
 }  // namespace
 }  // namespace ptda::daemon::test

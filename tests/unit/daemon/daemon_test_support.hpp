@@ -129,10 +129,21 @@ inline void block_daemon_signals() {
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
 }
 
-/// Polls `pred` every 5 ms until it holds or `limit` passed (a failure guard, not a timing claim).
+/// Multiplier for failure-guard deadlines: PTDA_TEST_TIME_SCALE, which the cross test presets set
+/// (CMakePresets.json) because everything runs 5-20x slower under qemu-user; 1 when unset.
+inline double test_time_scale() {
+  const char* env = std::getenv("PTDA_TEST_TIME_SCALE");
+  const double scale = env != nullptr ? std::atof(env) : 1.0;
+  return scale > 1.0 ? scale : 1.0;
+}
+
+/// Polls `pred` every 5 ms until it holds or `limit` (times test_time_scale()) passed: a failure
+/// guard, not a timing claim.
 template <typename Pred>
 bool wait_for(Pred pred, std::chrono::milliseconds limit = std::chrono::milliseconds(10000)) {
-  const auto deadline = std::chrono::steady_clock::now() + limit;
+  const auto deadline =
+      std::chrono::steady_clock::now() +
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(limit * test_time_scale());
   while (!pred()) {
     if (std::chrono::steady_clock::now() > deadline) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
