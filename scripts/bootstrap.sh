@@ -48,7 +48,9 @@ done
 
 missing=()
 for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  # Captured first: `dpkg-query | grep -q` under pipefail fails when grep's early exit SIGPIPEs dpkg.
+  status="$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)"
+  [ "$status" = "install ok installed" ] || missing+=("$p")
 done
 if [ ${#missing[@]} -gt 0 ] || [ $need_update -eq 1 ]; then
   # A mirror that is mid-sync can fail one foreign index (seen: bookworm-security armhf); the other

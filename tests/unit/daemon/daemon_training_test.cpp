@@ -230,7 +230,11 @@ TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
     runner.join();
     ASSERT_TRUE(stopped);
     EXPECT_EQ(code, 0);
-    EXPECT_LT(took, 1000ms) << "delay " << delay.count() << " ms";
+    // The stop-latency promise (< 1 s) is checked natively (release, sanitizers); under qemu-user the
+    // emulated training write alone takes about that long, so there only the no-partial-file part holds.
+    if (test_time_scale() == 1.0) {
+      EXPECT_LT(took, 1000ms) << "delay " << delay.count() << " ms";
+    }
     const std::string when = "SIGTERM " + std::to_string(delay.count()) + " ms after start";
     expect_absent_or_valid(dir / "trained.bin", when);
     EXPECT_EQ(temp_files(dir), 0U) << when;

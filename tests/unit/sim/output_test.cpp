@@ -214,8 +214,12 @@ TEST(Presets, EveryPresetSimulatesQuickly) {
     EXPECT_EQ(sum.clipped_samples, 0U) << f;
     EXPECT_EQ(sum.harmonics_above_nyquist, 0U) << f;
     EXPECT_GE(sum.cycles, 20U) << f;
-    // Generous bound (shared 2-core machine, sanitizer builds); the target is < 2 s in release.
-    EXPECT_LT(elapsed_s, 20.0) << f;
+    // Generous bound (shared 2-core machine, sanitizer builds); the target is < 2 s in release. Under
+    // qemu-user (PTDA_TEST_TIME_SCALE set by the cross presets) it would time the emulator, not the code:
+    // the native stages check it, the emulated one records the time only.
+    if (std::getenv("PTDA_TEST_TIME_SCALE") == nullptr) {
+      EXPECT_LT(elapsed_s, 20.0) << f;
+    }
     std::filesystem::remove_all(dir);
   }
 }
