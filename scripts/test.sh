@@ -17,7 +17,7 @@ case "$what" in
   aarch64|armhf) scripts/bootstrap.sh base cross ;;
   package) scripts/bootstrap.sh base pkg ;;
   vm) scripts/bootstrap.sh base cross vm ;;
-  all) scripts/bootstrap.sh base ;;
+  all) scripts/bootstrap.sh base cross vm pkg ;;
   *) echo "usage: scripts/test.sh [all|release|asan|tsan|aarch64|armhf|package|vm]" >&2; exit 2 ;;
 esac
 scripts/lint.sh   # clang-format gate (naming: scripts/lint.sh <build_dir>)
@@ -51,8 +51,7 @@ run_stage() {
 }
 
 if [ "$what" = all ]; then
-  # Stages join this list as they land (aarch64, package, vm).
-  for s in release asan tsan; do run_stage "$s"; done
+  for s in release asan tsan aarch64 package vm; do run_stage "$s"; done
   stage "all stages passed"
 else
   run_stage "$what"
