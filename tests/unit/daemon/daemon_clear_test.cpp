@@ -129,15 +129,7 @@ TEST_F(Clear, LatchedAlarmClearsOnlyWhenAllowed) {
   d.set_device_factory(&dev);
   d.configure();
   d.activate();
-  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
-  struct StopOnExit {
-    Daemon& d;
-    std::thread& t;
-    ~StopOnExit() {
-      d.request_stop();
-      if (t.joinable()) t.join();
-    }
-  } stop_on_exit{d, runner};
+  DaemonRunThread runner(d);
   const auto reach = [&](std::int64_t t) {
     dev.gate.t_ns = t;
     // Every block up to the gate processed (the last may wait for a later speed sample: 30 ms slack).

@@ -384,15 +384,7 @@ TEST_F(Faults, ErrorPassiveAndBusOffReachTheStatusWhileTheyLast) {
   dev.gate.t_ns = t_passive + 100'000'000;
   d.configure();
   d.activate();
-  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
-  struct StopOnExit {
-    Daemon& d;
-    std::thread& t;
-    ~StopOnExit() {
-      d.request_stop();
-      if (t.joinable()) t.join();
-    }
-  } stop_on_exit{d, runner};
+  DaemonRunThread runner(d);
   const fs::path status = dir / "status" / "status.json";
   ASSERT_TRUE(wait_for([&] { return contains(read_text(status), "\"bus_state\":\"error_passive\""); }));
   // Error-passive still receives: monitoring goes on (or starts: the first window may still be on its way).

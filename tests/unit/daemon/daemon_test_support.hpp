@@ -129,6 +129,27 @@ inline void block_daemon_signals() {
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
 }
 
+/// Runs Daemon::run() on its own thread and expects exit code 0. join() waits for a run that ends by
+/// itself (--exit-at-end) or after a request_stop(); the destructor requests the stop and joins, so a
+/// failed ASSERT in the test cannot leave the thread running (or hang the test).
+class DaemonRunThread {
+ public:
+  explicit DaemonRunThread(Daemon& d) : d_(d), t_([this] { EXPECT_EQ(d_.run(), 0); }) {}
+  DaemonRunThread(const DaemonRunThread&) = delete;
+  DaemonRunThread& operator=(const DaemonRunThread&) = delete;
+  ~DaemonRunThread() {
+    d_.request_stop();
+    join();
+  }
+  void join() {
+    if (t_.joinable()) t_.join();
+  }
+
+ private:
+  Daemon& d_;
+  std::thread t_;
+};
+
 /// Multiplier for failure-guard deadlines: PTDA_TEST_TIME_SCALE, which the cross test presets set
 /// (CMakePresets.json) because everything runs 5-20x slower under qemu-user; 1 when unset.
 inline double test_time_scale() {

@@ -106,15 +106,7 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   d.set_device_factory(&dev);
   d.configure();
   d.activate();
-  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
-  struct StopOnExit {
-    Daemon& d;
-    std::thread& t;
-    ~StopOnExit() {
-      d.request_stop();
-      if (t.joinable()) t.join();
-    }
-  } stop_on_exit{d, runner};
+  DaemonRunThread runner(d);
 
   // Progress while training: state "training", windows and regions pooled, the target reported.
   const fs::path status = dir / "status" / "status.json";
