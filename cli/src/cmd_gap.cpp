@@ -41,9 +41,7 @@ int cmd_gap(std::span<const std::string> args, std::ostream& out) {
       "Diagnoses the sim-to-real gap: calibrates the nominal scenario's harmonic amplitudes and noise\n"
       "level on the even cycles of the measured recording DIR, fits each candidate effect there, and\n"
       "keeps effects that shrink the gap on the odd (held-out) cycles significantly (docs/gap.md).");
-  parser
-      .option("scenario", "FILE", "nominal scenario (what the model knows); its [[effects]] are ignored",
-              true)
+  parser.option("scenario", "FILE", "nominal scenario (what the model knows, [[effects]] included)", true)
       .option("real", "DIR", "measured recording directory (truth.toml, if any, is not read)", true)
       .option("json", "OUT", "write the diagnosis as JSON (schema ptda-gap v1)")
       .option("html", "OUT", "write an HTML report with plots")

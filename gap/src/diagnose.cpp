@@ -104,6 +104,15 @@ class Evaluator {
     return g;
   }
 
+  /// Held-out gap of `s` against a second, independent realisation of the model (seed + 2 offsets): an
+  /// effect is accepted only when its held-out gain reproduces there, so that a gain that came from the
+  /// particular noise realisation (a parameter that merely re-draws the windows) is not taken for a cause.
+  double gap_heldout_replicate(const sim::Scenario& s) {
+    ProbeSet m = model_probes(s, seed_ + 2 * kHeldoutSeedOffset);
+    const ProbeSet r = real_probes(held_, &m);
+    return compare_probes(r, m, &noise_held_).total;
+  }
+
   /// Re-fits the free parameters (GMF amplitudes per order, noise rms) of `s` on `part` by up to `passes`
   /// ratio updates; returns the gap of the final model on `part`.
   GapBreakdown calibrate(sim::Scenario& s, const std::vector<char>& part, int passes,
@@ -312,9 +321,16 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
 }
 
 struct FitStage {
+  FitStage(const char* p, std::vector<double> v, bool rel = false)
+      : param(p), values(std::move(v)), relative(rel) {}
+  FitStage(const char* p, std::vector<double> v, bool rel, const char* p2, std::vector<double> v2)
+      : param(p), values(std::move(v)), relative(rel), param2(p2), values2(std::move(v2)) {}
   const char* param;
   std::vector<double> values;
   bool relative = false;  ///< values multiply the current value
+  /// Optional second parameter searched jointly (every pair of values; absolute values).
+  const char* param2 = nullptr;
+  std::vector<double> values2;
 };
 
 std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, const sim::Scenario& nominal) {
@@ -332,9 +348,12 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
               {"frequency_hz", {0.95, 1.0, 1.05}, true},
               {"gain_db", {0.85, 1.0, 1.15}, true}};
     case EffectKind::kSpeedRipple:
-      return {{"jitter_rad", {0.05, 0.1, 0.2, 0.4, 0.8, 1.5}},
-              {"bandwidth_hz", {2, 5, 10, 20, 50, 100}},
-              {"jitter_rad", {0.8, 1.0, 1.25}, true}};
+      // Jitter strength and bandwidth trade against each other (slow jitter acts like a frequency
+      // modulation within a window, fast jitter like phase noise), so they are searched jointly first.
+      return {{"jitter_rad", {0.15, 0.3, 0.55, 1.0, 1.6}, false, "bandwidth_hz", {4, 12, 35, 100}},
+              {"jitter_rad", {0.8, 1.0, 1.25}, true},
+              {"bandwidth_hz", {0.7, 1.0, 1.4}, true},
+              {"jitter_rad", {0.9, 1.0, 1.1}, true}};
     case EffectKind::kMeshModulation:
       return {
           {"rate_order", {std::max(0.1, q.sideband_order - 0.25), q.sideband_order, q.sideband_order + 0.25}},
@@ -511,8 +530,9 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   for (const Window& w : ev.windows()) (fit[w.cycle] ? d.windows_fit : d.windows_heldout) += 1;
 
   // The model: the nominal scenario with as many cycles as were measured (or the measured duration).
+  // The nominal scenario's own [[effects]] are what the model already knows: they stay in the model
+  // (calibrated with it) and their kinds are not candidates.
   sim::Scenario model = nominal_in;
-  model.effects.clear();
   if (model.motion.kind == sim::MotionKind::kConstant) {
     model.motion.duration_s = static_cast<double>(real.accel_ms2.size()) / real.fs_hz;
     model.motion.cycles = 1;
@@ -551,6 +571,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     for (const sim::EffectInfo& info : sim::effect_catalog()) kinds.push_back(info.kind);
   }
   double current_held = d.nominal_heldout.total;
+  double current_rep = d.gap_significant ? ev.gap_heldout_replicate(model) : 0.0;
   ProbeSet cur_model = model_probes, cur_real_fit = real_fit_probes;
   GapBreakdown cur_fit_gap = g_fit0;
   sim::Scenario current = model;
@@ -572,29 +593,45 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     };
     std::vector<Work> work;
     // Each candidate model is re-calibrated (one pass) so that e.g. a resonance is not counted twice,
-    // once in the calibrated harmonic amplitudes and once in the path.
-    auto eval_fit = [&](const EffectSpec& e) {
+    // once in the calibrated harmonic amplitudes and once in the path. The calibration starts again
+    // from the nominal scenario's own amplitudes and noise level, not from the values calibrated
+    // without the candidate: those can be far off for an effect that moves energy out of the harmonics
+    // (speed ripple smears them into the floor; the calibration without it lowered the amplitudes
+    // until the model's harmonics sank into the floor too, and one pass did not recover them).
+    auto candidate_model = [&](const EffectSpec& e) {
       sim::Scenario s = current;
+      s.vibration.gmf_amplitudes = nominal_in.vibration.gmf_amplitudes;
+      s.vibration.noise_rms = nominal_in.vibration.noise_rms;
       s.effects.push_back(e);
+      return s;
+    };
+    auto eval_fit = [&](const EffectSpec& e) {
+      sim::Scenario s = candidate_model(e);
       return ev.calibrate(s, fit, 1).total;
     };
     auto run_stage = [&](Work& w, const FitStage& st) {
       double best = w.fit_gap;
       EffectSpec best_e = w.e;
+      const std::vector<double> second = st.param2 != nullptr ? st.values2 : std::vector<double>{0.0};
       for (double v : st.values) {
-        EffectSpec e = w.e;
-        e.set(st.param, st.relative ? w.e.get(st.param) * v : v);
-        clamp_params(e);
-        if (e.params == w.e.params && w.evals > 0) continue;
-        const double g = eval_fit(e);
-        ++w.evals;
-        if (g < best) {
-          best = g;
-          best_e = e;
+        for (double v2 : second) {
+          EffectSpec e = w.e;
+          e.set(st.param, st.relative ? w.e.get(st.param) * v : v);
+          if (st.param2 != nullptr) e.set(st.param2, v2);
+          clamp_params(e);
+          if (e.params == w.e.params && w.evals > 0) continue;
+          const double g = eval_fit(e);
+          ++w.evals;
+          if (g < best) {
+            best = g;
+            best_e = e;
+          }
         }
       }
+      const bool improved = best < w.fit_gap;
       w.e = best_e;
       w.fit_gap = best;
+      return improved;
     };
     for (EffectKind k : kinds) {
       bool used = false;
@@ -605,9 +642,15 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
       clamp_params(w.e);
       w.fit_gap = std::numeric_limits<double>::infinity();
       const std::vector<FitStage> stages = fit_stages(k, q, real.fs_hz, current);
-      // Screen: the first stage only.
-      if (!stages.empty()) run_stage(w, stages[0]);
+      // Screen: where the effect acts and how strong it is (the first two stages; a joint first stage
+      // covers both). A screen over the location alone at the default strength rejected weak effects
+      // whose default was far too strong.
+      if (!stages.empty()) (void)run_stage(w, stages[0]);
       w.stage = 1;
+      if (stages.size() > 1 && stages[0].param2 == nullptr) {
+        (void)run_stage(w, stages[1]);
+        w.stage = 2;
+      }
       work.push_back(w);
     }
     if (work.empty()) break;  // every candidate is already in the model
@@ -615,7 +658,14 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     for (std::size_t i = 0; i < work.size() && i < opt.full_fits; ++i) {
       Work& w = work[i];
       const std::vector<FitStage> stages = fit_stages(w.e.kind, q, real.fs_hz, current);
-      for (std::size_t s = 1; s < stages.size(); ++s) run_stage(w, stages[s]);
+      bool improved = false;
+      for (std::size_t s = w.stage; s < stages.size(); ++s) improved = run_stage(w, stages[s]) || improved;
+      // One more sweep of the refinement (relative) stages when the last one still moved the fit: the
+      // parameters are coupled, so one coordinate-descent pass does not always settle.
+      if (improved) {
+        for (const FitStage& st : stages)
+          if (st.relative) (void)run_stage(w, st);
+      }
       w.stage = stages.size();
     }
     std::vector<sim::Scenario> models;  // calibrated model per fully fitted candidate, in work order
@@ -627,36 +677,44 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
       c.evaluations = work[i].evals;
       c.location = effect_location(c.effect, current);
       if (c.fully_fitted) {
-        sim::Scenario s = current;
-        s.effects.push_back(c.effect);
-        (void)ev.calibrate(s, fit, 1);
+        sim::Scenario s = candidate_model(c.effect);
+        (void)ev.calibrate(s, fit, 2);
         models.push_back(s);
         c.gap_heldout = ev.gap(s, held).total;
+        c.gap_heldout_replicate = ev.gap_heldout_replicate(s);
       } else {
         c.gap_heldout = std::numeric_limits<double>::quiet_NaN();
+        c.gap_heldout_replicate = std::numeric_limits<double>::quiet_NaN();
       }
       c.shrink_pct = std::isfinite(c.gap_heldout)
                          ? 100.0 * (current_held - c.gap_heldout) / std::max(current_held, 1e-12)
                          : 0.0;
       sr.ranked.push_back(c);
     }
-    std::stable_sort(sr.ranked.begin(), sr.ranked.end(),
-                     [](const CandidateResult& a, const CandidateResult& b) {
-                       if (a.fully_fitted != b.fully_fitted) return a.fully_fitted;
-                       return a.gap_heldout < b.gap_heldout;
-                     });
+    // Ranked by the held-out gap averaged over both model realisations (less noisy than either).
+    std::stable_sort(
+        sr.ranked.begin(), sr.ranked.end(), [](const CandidateResult& a, const CandidateResult& b) {
+          if (a.fully_fitted != b.fully_fitted) return a.fully_fitted;
+          return a.gap_heldout + a.gap_heldout_replicate < b.gap_heldout + b.gap_heldout_replicate;
+        });
     const CandidateResult& best = sr.ranked.front();
+    sr.gap_before_heldout_replicate = current_rep;
     const double gain = current_held - best.gap_heldout;
+    const double gain_rep = current_rep - best.gap_heldout_replicate;
     log("round " + std::to_string(round + 1) + ": best " + sim::describe(best.effect) + " held-out " +
-        fmt("%.2f", best.gap_heldout) + " (from " + fmt("%.2f", current_held) + ")");
-    if (best.fully_fitted && gain >= opt.min_gain_share * current_held &&
-        gain >= opt.min_gain_sd * d.noise_gap_sd) {
+        fmt("%.2f", best.gap_heldout) + " (from " + fmt("%.2f", current_held) + "), replicate " +
+        fmt("%.2f", best.gap_heldout_replicate) + " (from " + fmt("%.2f", current_rep) + ")");
+    auto significant = [&](double g, double from) {
+      return g >= opt.min_gain_share * from && g >= opt.min_gain_sd * d.noise_gap_sd;
+    };
+    if (best.fully_fitted && significant(gain, current_held) && significant(gain_rep, current_rep)) {
       sr.accepted = 0;
       d.chosen.push_back(best);
       for (const sim::Scenario& m : models) {
         if (!m.effects.empty() && m.effects.back().kind == best.effect.kind) current = m;
       }
       current_held = best.gap_heldout;
+      current_rep = best.gap_heldout_replicate;
       cur_fit_gap = ev.gap(current, fit, &cur_model, &cur_real_fit);
     }
     d.rounds.push_back(std::move(sr));

@@ -88,8 +88,10 @@ std::string effect_json(const sim::EffectSpec& e) {
 std::string candidate_json(const CandidateResult& c) {
   return "{\"effect\": " + effect_json(c.effect) + ", \"location\": " + esc(c.location) +
          ", \"fully_fitted\": " + (c.fully_fitted ? "true" : "false") + ", \"gap_fit\": " + num(c.gap_fit) +
-         ", \"gap_heldout\": " + num(c.gap_heldout) + ", \"shrink_pct\": " + num(c.shrink_pct) +
-         ", \"evaluations\": " + std::to_string(c.evaluations) + "}";
+         ", \"gap_heldout\": " + num(c.gap_heldout) +
+         ", \"gap_heldout_replicate\": " + num(c.gap_heldout_replicate) +
+         ", \"shrink_pct\": " + num(c.shrink_pct) + ", \"evaluations\": " + std::to_string(c.evaluations) +
+         "}";
 }
 
 std::string array_json(const std::vector<double>& v) {
@@ -201,6 +203,7 @@ std::string diagnosis_json(const Diagnosis& d) {
   for (std::size_t r = 0; r < d.rounds.size(); ++r) {
     const SelectionRound& sr = d.rounds[r];
     o << (r ? "," : "") << "\n    {\"gap_before_heldout\": " << num(sr.gap_before_heldout)
+      << ", \"gap_before_heldout_replicate\": " << num(sr.gap_before_heldout_replicate)
       << ", \"accepted\": " << sr.accepted << ", \"candidates\": [";
     for (std::size_t i = 0; i < sr.ranked.size(); ++i)
       o << (i ? ",\n      " : "\n      ") << candidate_json(sr.ranked[i]);
@@ -243,12 +246,13 @@ std::string diagnosis_html(const Diagnosis& d) {
     o << "<h2>Round " << r + 1 << ": candidates (held-out gap before " << num(d.rounds[r].gap_before_heldout)
       << ")</h2>";
     std::vector<std::pair<std::string, double>> bars;
-    o << "<table><tr><th>effect</th><th>where</th><th>fit gap</th><th>held-out gap</th><th>shrink "
+    o << "<table><tr><th>effect</th><th>where</th><th>fit gap</th><th>held-out "
+         "gap</th><th>replicate</th><th>shrink "
          "%</th></tr>";
     for (const CandidateResult& c : d.rounds[r].ranked) {
       o << "<tr><td>" << html_esc(sim::describe(c.effect)) << "</td><td>" << html_esc(c.location)
         << "</td><td>" << num(c.gap_fit) << "</td><td>" << num(c.gap_heldout) << "</td><td>"
-        << num(c.shrink_pct) << "</td></tr>";
+        << num(c.gap_heldout_replicate) << "</td><td>" << num(c.shrink_pct) << "</td></tr>";
       if (c.fully_fitted) bars.push_back({sim::effect_info(c.effect.kind).name, std::max(0.0, c.shrink_pct)});
     }
     o << "</table>" << svg_bars(bars, "held-out shrink %");

@@ -19,10 +19,11 @@ namespace ptda::gap {
 struct DiagnoseOptions {
   std::uint64_t sim_seed = 9001;  ///< seed of the model's simulations (common random numbers)
   std::uint32_t max_effects = 2;  ///< greedy rounds
-  std::uint32_t full_fits = 4;    ///< candidates fitted fully per round (after a one-stage screen)
+  std::uint32_t full_fits = 4;    ///< candidates fitted fully per round (after a two-stage screen)
   double min_gain_share = 0.15;   ///< accept an effect when it removes this share of the current gap...
-  double min_gain_sd = 3.0;       ///< ... and this many standard deviations of the sampling gap
-  double min_gap_sd = 3.0;        ///< no diagnosis when the gap is within expected + this many sd
+  double min_gain_sd = 2.0;       ///< ... and this many standard deviations of the sampling gap, against
+                                  ///< two independent model realisations of the held-out part (both)
+  double min_gap_sd = 2.0;        ///< no diagnosis when the gap is within expected + this many sd
   std::vector<sim::EffectKind> candidates;      ///< empty: the whole catalog
   std::function<void(const std::string&)> log;  ///< progress lines (optional)
 };
@@ -31,7 +32,9 @@ struct CandidateResult {
   sim::EffectSpec effect;
   double gap_fit = 0.0;      ///< on the fit cycles, with the effect
   double gap_heldout = 0.0;  ///< on the held-out cycles, with the effect
-  double shrink_pct = 0.0;   ///< held-out gap reduction against the round's starting point
+  /// The same against a second, independent model realisation of the held-out part (NaN: not computed)
+  double gap_heldout_replicate = 0.0;
+  double shrink_pct = 0.0;  ///< held-out gap reduction against the round's starting point
   bool fully_fitted = false;
   std::uint32_t evaluations = 0;
   std::string
@@ -40,8 +43,9 @@ struct CandidateResult {
 
 struct SelectionRound {
   double gap_before_heldout = 0.0;
-  std::vector<CandidateResult> ranked;  ///< by held-out gap (fully fitted first)
-  int accepted = -1;                    ///< index into ranked, -1: none significant
+  double gap_before_heldout_replicate = 0.0;  ///< the round's starting model, second realisation
+  std::vector<CandidateResult> ranked;        ///< by held-out gap (fully fitted first)
+  int accepted = -1;                          ///< index into ranked, -1: none significant
 };
 
 struct Diagnosis {
