@@ -37,7 +37,9 @@ std::vector<sim::EffectKind> parse_effect_list(const std::string& text) {
 
 int cmd_gap(std::span<const std::string> args, std::ostream& out) {
   ArgParser parser(
-      "gap", "--scenario NOMINAL.toml --real DIR [--json OUT] [--html OUT] [--seed N] [--effects LIST]",
+      "gap",
+      "--scenario NOMINAL.toml --real DIR [--json OUT] [--html OUT] [--seed N] [--effects LIST] [--threads "
+      "N]",
       "Diagnoses the sim-to-real gap: calibrates the nominal scenario's harmonic amplitudes and noise\n"
       "level on the even cycles of the measured recording DIR, fits each candidate effect there, and\n"
       "keeps effects that shrink the gap on the odd (held-out) cycles significantly (docs/gap.md).");
@@ -47,6 +49,7 @@ int cmd_gap(std::span<const std::string> args, std::ostream& out) {
       .option("html", "OUT", "write an HTML report with plots")
       .option("seed", "N", "seed of the model simulations (default 9001)")
       .option("effects", "LIST", "comma-separated candidate effects (default: all)")
+      .option("threads", "N", "fitting threads (default: one per CPU; the result does not depend on it)")
       .flag("quiet", "no progress lines on stderr");
   const ParsedArgs a = parser.parse(args);
   if (a.help()) {
@@ -56,6 +59,7 @@ int cmd_gap(std::span<const std::string> args, std::ostream& out) {
   gap::DiagnoseOptions opt;  // options first: a usage error must not wait for the data
   if (a.has("seed")) opt.sim_seed = parse_u64_arg(a.value("seed"), "seed");
   if (a.has("effects")) opt.candidates = parse_effect_list(a.value("effects"));
+  if (a.has("threads")) opt.threads = static_cast<unsigned>(parse_u64_arg(a.value("threads"), "threads"));
   const sim::Scenario nominal = sim::load_scenario(a.value("scenario"));
   const gap::GapRecording real =
       gap::load_recording(a.value("real"), nominal.can.speed_frame, nominal.can.delay_s);

@@ -27,6 +27,8 @@ int cmd_gap_bench(std::span<const std::string> args, std::ostream& out) {
       .option("cycles", "N", "job cycles per recording (default 6)")
       .option("only", "LIST", "comma-separated case indices to run (default: all); for reproducing a case")
       .option("work", "DIR", "directory for the temporary recordings (default: system temp)")
+      .option("threads", "N",
+              "fitting threads per diagnosis (default: one per CPU; results do not depend on it)")
       .flag("keep", "keep the case recordings in the work directory (WORK/caseN)")
       .flag("quiet", "no per-case lines on stderr");
   const ParsedArgs a = parser.parse(args);
@@ -53,6 +55,7 @@ int cmd_gap_bench(std::span<const std::string> args, std::ostream& out) {
       a.has("work") ? std::filesystem::path(a.value("work"))
                     : std::filesystem::temp_directory_path() / ("ptda-gap-bench-" + std::to_string(opt.seed));
   opt.keep_recordings = a.has("keep");
+  if (a.has("threads")) opt.threads = static_cast<unsigned>(parse_u64_arg(a.value("threads"), "threads"));
   if (!a.has("quiet")) opt.log = [](const std::string& s) { std::cerr << "ptda gap-bench: " << s << "\n"; };
   const gap::BenchResult r = gap::run_bench(opt);
   if (a.has("json")) {

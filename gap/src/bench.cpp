@@ -196,6 +196,7 @@ BenchResult run_bench(const BenchOptions& opt) {
     const GapRecording rec = load_recording(dir, nominal.can.speed_frame, nominal.can.delay_s);
     DiagnoseOptions dopt;
     dopt.sim_seed = 424242 + opt.seed;
+    dopt.threads = opt.threads;
     const Diagnosis d = diagnose(nominal, rec, dopt);
     for (const CandidateResult& c : d.chosen) cr.chosen.push_back(c.effect);
     cr.shrink_pct = d.total_shrink_pct;

@@ -197,6 +197,7 @@ std::string diagnosis_json(const Diagnosis& d) {
   o << "  \"noise_gap_sd\": " << num(d.noise_gap_sd) << ",\n";
   o << "  \"alarm_rate_heldout\": {\"nominal\": " << num(d.alarm_rate_nominal)
     << ", \"final\": " << num(d.alarm_rate_final) << "},\n";
+  o << "  \"gap_heldout_replicate\": " << num(d.nominal_heldout_replicate) << ",\n";
   o << "  \"gap_significant\": " << (d.gap_significant ? "true" : "false") << ",\n";
   o << "  \"gap\": " << breakdown_json(d.nominal_heldout, "  ") << ",\n";
   o << "  \"rounds\": [";

@@ -21,6 +21,9 @@ struct Harmonic {
   double amplitude = 0.0;  ///< A_k at reference speed
   double phase_rad = 0.0;  ///< phi_k
   std::size_t entry = 0;   ///< index into gmf_amplitudes / dmf_amplitudes
+  int whole_order = 0;     ///< k as an integer (orders are entry + 1)
+  double cos_phase = 1.0;  ///< cos(phi_k), sin(phi_k) for the rotation form of sin(k b + phi_k)
+  double sin_phase = 0.0;
 };
 
 double speed_factor(const VibrationSpec& v, double speed_rad_s) {
@@ -87,7 +90,9 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
       ++out.harmonics_above_nyquist;
       continue;
     }
-    gmf.push_back({order, vs.gmf_amplitudes[k], vs.gmf_phases_rad.empty() ? 0.0 : vs.gmf_phases_rad[k], k});
+    const double phi = vs.gmf_phases_rad.empty() ? 0.0 : vs.gmf_phases_rad[k];
+    gmf.push_back(
+        {order, vs.gmf_amplitudes[k], phi, k, static_cast<int>(k + 1), std::cos(phi), std::sin(phi)});
   }
   std::vector<Harmonic> dmf;
   for (std::size_t k = 0; k < vs.dmf_amplitudes.size(); ++k) {
@@ -97,7 +102,7 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
       ++out.harmonics_above_nyquist;
       continue;
     }
-    dmf.push_back({order, vs.dmf_amplitudes[k], 0.0, k});
+    dmf.push_back({order, vs.dmf_amplitudes[k], 0.0, k, static_cast<int>(k + 1), 1.0, 0.0});
   }
 
   // Per-cycle gains of the faults (severity is constant within a cycle).
@@ -145,9 +150,20 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
     if (sf != 0.0) {
       // phase_k = k * Z_in * theta_in + phi_k: follows the integrated input angle, so speed changes
       // and cycle-to-cycle start differences move the phase exactly as a real mesh does.
+      // The orders are whole numbers: e^{i k b} by repeated rotation from e^{i b}, one sin/cos pair per
+      // sample instead of one sin per harmonic (the simulator's hot loop in `ptda gap`'s fits).
       const std::vector<double>& amp = gmf_amplitude[c];
+      const double b = z_in * theta_mesh;
+      const double c1 = std::cos(b), s1 = std::sin(b);
+      double ck = 1.0, sk = 0.0;
+      int k = 0;
       for (std::size_t j = 0; j < gmf.size(); ++j) {
-        mesh += amp[j] * std::sin(gmf[j].order * z_in * theta_mesh + gmf[j].phase_rad);
+        for (; k < gmf[j].whole_order; ++k) {
+          const double cn = ck * c1 - sk * s1;
+          sk = sk * c1 + ck * s1;
+          ck = cn;
+        }
+        mesh += amp[j] * (sk * gmf[j].cos_phase + ck * gmf[j].sin_phase);  // sin(k b + phi)
       }
       mesh *= harmonic_gain[c];
       if (perturbed) mesh *= pert.gain[i];

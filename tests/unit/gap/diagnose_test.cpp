@@ -48,18 +48,23 @@ GapRecording measured_with_ripple() {
 TEST(Diagnose, EffectsOfTheNominalScenarioStayInTheModel) {
   const GapRecording real = measured_with_ripple();
   DiagnoseOptions opt;
-  opt.candidates = {sim::EffectKind::kAdcClipping};  // cheap: one stage of three values
+  opt.candidates = {sim::EffectKind::kAdcClipping, sim::EffectKind::kNoiseColor};
   opt.max_effects = 1;
   const Diagnosis without = diagnose(job(), real, opt);
   sim::Scenario known = job();
   known.effects = {ripple()};
   const Diagnosis with = diagnose(known, real, opt);
   // Without the ripple the calibrated nominal is far off (smeared harmonics, PTDA residual); with it the
-  // held-out gap is at the sampling level. Measured: 254.7 vs 3.22 (expected 2.36 +- 0.59).
+  // held-out gap is near the sampling level and no candidate is accepted. Measured: 253.8 vs 2.96
+  // (second model realisation 5.35; expected from sampling 2.35 +- 0.59: the chi-square sd ignores the
+  // correlation between elements, so the significance gate alone is not trusted, see docs/gap.md).
   EXPECT_TRUE(without.gap_significant);
   EXPECT_GT(without.nominal_heldout.total, 20.0 * with.nominal_heldout.total);
-  EXPECT_FALSE(with.gap_significant) << with.nominal_heldout.total << " expected " << with.noise_gap;
-  EXPECT_TRUE(with.chosen.empty());
+  EXPECT_LT(with.nominal_heldout.total, with.noise_gap + 2.0 * with.noise_gap_sd);
+  EXPECT_TRUE(with.chosen.empty()) << with.verdict;
+  for (const SelectionRound& r : with.rounds) {
+    for (const CandidateResult& c : r.ranked) EXPECT_NE(c.effect.kind, sim::EffectKind::kSpeedRipple);
+  }
 }
 
 TEST(Diagnose, SpeedRippleIsFittedFromTheNominalAmplitudes) {
@@ -71,7 +76,7 @@ TEST(Diagnose, SpeedRippleIsFittedFromTheNominalAmplitudes) {
   ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
   EXPECT_EQ(d.chosen[0].effect.kind, sim::EffectKind::kSpeedRipple);
   // Located within a factor of 2 of the 0.5 rad simulated (the bench's criterion), and most of the gap
-  // explained. Measured: 0.44 rad, shrink 98.4 %, second realisation 5.68 from 254.2. Calibrating the
+  // explained. Measured: 0.44 rad, shrink 98.5 %, second realisation 5.31 from 253.9. Calibrating the
   // candidate from the amplitudes fitted without the ripple (the earlier code) reached only 12 % shrink
   // on development bench case 9100/1 (arc welding, 0.58 rad at 31 Hz; docs/gap.md).
   EXPECT_GT(d.chosen[0].effect.get("jitter_rad"), 0.25);

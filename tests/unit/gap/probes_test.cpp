@@ -118,6 +118,26 @@ TEST(Probes, TransferPathRaisesTheFloorOfItsBand) {
   EXPECT_LT(best, 15.0);
 }
 
+TEST(Probes, KnocksStandOutInTheDifferencedTransients) {
+  // Knocks at the torque reversals, weak against the mesh (6 m/s^2 ringing at 6 kHz, zeta 0.05, about a
+  // millisecond): the differenced signal's kurtosis around the segment boundaries rises clearly more
+  // than the raw signal's, whose largest samples are mesh peaks.
+  const Measured a = measure(job(4), 17);
+  sim::Scenario s = job(4);
+  sim::EffectSpec e = sim::EffectSpec::with_defaults(sim::EffectKind::kImpacts);
+  e.set("amplitude_ms2", 6.0);
+  e.set("resonance_hz", 6000.0);
+  s.effects = {e};
+  const Measured b = measure(s, 17, &a.plan);
+  const double raw =
+      element(b.probes, "transients", "log_kurtosis") - element(a.probes, "transients", "log_kurtosis");
+  const double diff = element(b.probes, "transients", "diff_log_kurtosis") -
+                      element(a.probes, "transients", "diff_log_kurtosis");
+  // Measured with seed 17: +0.073 raw, +0.116 differenced (the probe's scale is 0.05).
+  EXPECT_GT(diff, 0.09);
+  EXPECT_GT(diff, 1.4 * raw);
+}
+
 TEST(Probes, ClockLatencyAndClippingShowInTheirProbes) {
   const Measured a = measure(job(4), 16);
   sim::Scenario s = job(4);

@@ -205,6 +205,29 @@ INSTANTIATE_TEST_SUITE_P(PaperJobs, Preset,
                                            PresetCase{"spot_welding_healthy.toml", 194.87, 1.29, 0.48},
                                            PresetCase{"spot_welding_faulty.toml", 194.87, 1.29, 0.48}));
 
+TEST(Presets, EvaluationJobsHaveTheirOwnGearboxAndSpeeds) {
+  // The two jobs added for the withheld gap-bench evaluation (docs/gap.md): other reducers and rates.
+  // GMF by eq. 3, R = 1 + z_spur / z_in * z_pin: palletizing 24 * 51 * 3.0 / (2 pi) = 584.42 Hz,
+  // deburring 32 * 32.25 * 1.8 / (2 pi) = 295.65 Hz; plateau lengths as `ptda simulate` prints them.
+  struct Job {
+    const char* file;
+    double ratio, fs_hz, gmf_hz, speed_rad_s, duration_s;
+  };
+  for (const Job& j : {Job{"palletizing_healthy.toml", 51.0, 25600.0, 584.42, 3.0, 0.328},
+                       Job{"deburring_healthy.toml", 32.25, 20480.0, 295.65, 1.8, 0.193}}) {
+    const Scenario s = load_scenario(scenario_path(j.file));
+    EXPECT_NEAR(reduction_ratio(s.gearbox), j.ratio, 1e-9) << j.file;
+    EXPECT_EQ(s.sensor.fs_hz, j.fs_hz) << j.file;
+    EXPECT_TRUE(s.faults.empty()) << j.file;
+    const MotionProfile m = build_motion(s, s.seed);
+    ASSERT_FALSE(m.plateaus.empty()) << j.file;
+    const Plateau& p = m.plateaus.front();
+    EXPECT_NEAR(gmf_hz(s.gearbox, p.speed_rad_s), j.gmf_hz, 0.01) << j.file;
+    EXPECT_NEAR(p.speed_rad_s, j.speed_rad_s, 1e-9) << j.file;
+    EXPECT_NEAR(p.t_end_s - p.t_start_s, j.duration_s, 0.001) << j.file;
+  }
+}
+
 TEST(Presets, HealthyHaveNoFaultFaultyHaveASpurToothDefect) {
   for (const char* f : {"joint_rotation_healthy.toml", "arc_welding_healthy.toml",
                         "spot_welding_healthy.toml", "gfd_like.toml"}) {

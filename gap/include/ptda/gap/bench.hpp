@@ -21,6 +21,7 @@ struct BenchOptions {
   std::vector<std::filesystem::path> jobs;  ///< job presets (scenario files), used in turn
   std::filesystem::path work_dir;           ///< temporary recordings go here (created)
   bool keep_recordings = false;             ///< leave work_dir/caseN in place (for `ptda gap` on them)
+  unsigned threads = 0;                     ///< fitting threads per diagnosis (0: one per hardware thread)
   std::vector<std::uint32_t> only;          ///< run only these case indices (empty: 0 .. cases-1)
   std::function<void(const std::string&)> log;
 };

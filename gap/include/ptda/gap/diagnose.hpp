@@ -24,6 +24,7 @@ struct DiagnoseOptions {
   double min_gain_sd = 2.0;       ///< ... and this many standard deviations of the sampling gap, against
                                   ///< two independent model realisations of the held-out part (both)
   double min_gap_sd = 2.0;        ///< no diagnosis when the gap is within expected + this many sd
+  unsigned threads = 0;  ///< fitting threads (0: one per hardware thread); results do not depend on it
   std::vector<sim::EffectKind> candidates;      ///< empty: the whole catalog
   std::function<void(const std::string&)> log;  ///< progress lines (optional)
 };
@@ -60,9 +61,10 @@ struct Diagnosis {
   std::vector<double> class_speeds_rad_s;
   std::vector<double> calibrated_gmf_amplitudes;
   double calibrated_noise_rms = 0.0;
-  GapBreakdown nominal_heldout;  ///< calibrated nominal model vs held-out cycles
-  double noise_gap = 0.0;        ///< held-out gap expected from sampling alone (measured cycles' spread)
-  double noise_gap_sd = 0.0;     ///< its standard deviation
+  GapBreakdown nominal_heldout;            ///< calibrated nominal model vs held-out cycles
+  double nominal_heldout_replicate = 0.0;  ///< the same against a second model realisation
+  double noise_gap = 0.0;     ///< held-out gap expected from sampling alone (measured cycles' spread)
+  double noise_gap_sd = 0.0;  ///< its standard deviation
   std::vector<SelectionRound> rounds;
   std::vector<CandidateResult> chosen;
   GapBreakdown final_heldout;
