@@ -535,6 +535,22 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
   return "";
 }
 
+std::vector<std::size_t> tied_candidates(const std::vector<CandidateResult>& ranked, double before_heldout,
+                                         double before_replicate, double noise_sd, double min_gain_sd) {
+  std::vector<std::size_t> out;
+  if (ranked.empty()) return out;
+  const CandidateResult& best = ranked.front();
+  const double best_mean = 0.5 * (best.gap_heldout + best.gap_heldout_replicate);
+  const double gain = 0.5 * (before_heldout + before_replicate) - best_mean;
+  const double margin = std::max(min_gain_sd * noise_sd, 0.1 * gain);
+  for (std::size_t i = 1; i < ranked.size(); ++i) {
+    const CandidateResult& c = ranked[i];
+    if (c.fully_fitted && 0.5 * (c.gap_heldout + c.gap_heldout_replicate) - best_mean <= margin)
+      out.push_back(i);
+  }
+  return out;
+}
+
 Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, const DiagnoseOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   auto log = [&](const std::string& s) {
@@ -754,12 +770,12 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     if (best.fully_fitted && significant(gain, current_held) && significant(gain_rep, current_rep)) {
       sr.accepted = 0;
       d.chosen.push_back(best);
-      for (const sim::Scenario& m : models) {
-        if (!m.effects.empty() && m.effects.back().kind == best.effect.kind) current = m;
-      }
-      current_held = best.gap_heldout;
-      current_rep = best.gap_heldout_replicate;
-      cur_fit_gap = ev.gap(current, fit, &cur_model, &cur_real_fit);
+      // Runners-up that explain the gap about as well are reported with the choice: on this recording
+      // they are not told apart (e.g. a constant speed-scale error and a slow phase wander of the mesh).
+      for (std::size_t i :
+           tied_candidates(sr.ranked, current_held, current_rep, d.noise_gap_sd, opt.min_gain_sd))
+        d.chosen.back().alternatives.push_back(std::string(sim::effect_info(sr.ranked[i].effect.kind).name) +
+                                               " (" + sr.ranked[i].location + ")");
     }
     d.rounds.push_back(std::move(sr));
     if (d.rounds.back().accepted < 0) break;
@@ -794,6 +810,9 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     for (std::size_t i = 0; i < d.chosen.size(); ++i) {
       d.verdict += (i ? " + " : "") + std::string(sim::effect_info(d.chosen[i].effect.kind).name) + " (" +
                    d.chosen[i].location + ")";
+      for (std::size_t a = 0; a < d.chosen[i].alternatives.size(); ++a)
+        d.verdict += std::string(a ? " or " : " [about as good: ") + d.chosen[i].alternatives[a] +
+                     (a + 1 == d.chosen[i].alternatives.size() ? "]" : "");
     }
     d.verdict += "; held-out gap shrinks by " + fmt("%.0f", d.total_shrink_pct) + " %";
     if (d.final_heldout.total > d.noise_gap + opt.min_gap_sd * d.noise_gap_sd) {

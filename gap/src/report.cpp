@@ -86,12 +86,19 @@ std::string effect_json(const sim::EffectSpec& e) {
 }
 
 std::string candidate_json(const CandidateResult& c) {
+  std::string alternatives;
+  if (!c.alternatives.empty()) {
+    alternatives = ", \"alternatives\": [";
+    for (std::size_t i = 0; i < c.alternatives.size(); ++i)
+      alternatives += (i ? ", " : "") + esc(c.alternatives[i]);
+    alternatives += "]";
+  }
   return "{\"effect\": " + effect_json(c.effect) + ", \"location\": " + esc(c.location) +
          ", \"fully_fitted\": " + (c.fully_fitted ? "true" : "false") + ", \"gap_fit\": " + num(c.gap_fit) +
          ", \"gap_heldout\": " + num(c.gap_heldout) +
          ", \"gap_heldout_replicate\": " + num(c.gap_heldout_replicate) +
          ", \"shrink_pct\": " + num(c.shrink_pct) + ", \"evaluations\": " + std::to_string(c.evaluations) +
-         "}";
+         alternatives + "}";
 }
 
 std::string array_json(const std::vector<double>& v) {

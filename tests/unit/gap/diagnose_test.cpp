@@ -86,5 +86,24 @@ TEST(Diagnose, SpeedRippleIsFittedFromTheNominalAmplitudes) {
   EXPECT_LT(d.chosen[0].gap_heldout_replicate, 0.3 * d.rounds[0].gap_before_heldout_replicate);
 }
 
+TEST(Diagnose, RunnersUpWithinTheTieMarginAreAlternatives) {
+  // ranked[0] is the chosen candidate: held-out gaps 10 / 12 (mean 11) from 100 / 104 (mean 102), gain 91;
+  // tie margin max(2 x 1.5, 10 % of 91) = 9.1: a runner-up at mean 20 ties, one at mean 20.2 does not,
+  // one that was only screened never does.
+  auto cand = [](double held, double rep, bool full) {
+    CandidateResult c;
+    c.gap_heldout = held;
+    c.gap_heldout_replicate = rep;
+    c.fully_fitted = full;
+    return c;
+  };
+  const std::vector<CandidateResult> ranked{cand(10, 12, true), cand(19, 21, true), cand(20, 20.4, true),
+                                            cand(15, 15, false)};
+  EXPECT_EQ(tied_candidates(ranked, 100.0, 104.0, 1.5, 2.0), (std::vector<std::size_t>{1}));
+  // With a large sampling sd the margin is 2 sd = 10: both fully fitted runners-up tie.
+  EXPECT_EQ(tied_candidates(ranked, 100.0, 104.0, 5.0, 2.0), (std::vector<std::size_t>{1, 2}));
+  EXPECT_TRUE(tied_candidates({cand(10, 12, true)}, 100.0, 104.0, 1.5, 2.0).empty());
+}
+
 }  // namespace
 }  // namespace ptda::gap

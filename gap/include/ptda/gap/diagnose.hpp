@@ -40,6 +40,9 @@ struct CandidateResult {
   std::uint32_t evaluations = 0;
   std::string
       location;  ///< where the fitted effect acts ("resonance 3012 Hz", "sidebands every 1.25 x f_in")
+  /// Chosen effects only: other fully fitted candidates whose held-out gap (mean of both realisations) is
+  /// within max(min_gain_sd sd, 10 % of the chosen one's gain) of it: not told apart on this recording.
+  std::vector<std::string> alternatives;
 };
 
 struct SelectionRound {
@@ -86,6 +89,14 @@ struct Diagnosis {
 /// cycles or windows to split.
 [[nodiscard]] Diagnosis diagnose(const sim::Scenario& nominal, const GapRecording& real,
                                  const DiagnoseOptions& opt);
+
+/// Indices (into `ranked`, whose first entry is the chosen candidate) of fully fitted runners-up whose
+/// held-out gap, mean of both model realisations, is within max(min_gain_sd x noise_sd, 10 % of the chosen
+/// one's gain over `before_*`) of the chosen one's: candidates the recording does not tell apart from it.
+/// Any thread; allocates.
+[[nodiscard]] std::vector<std::size_t> tied_candidates(const std::vector<CandidateResult>& ranked,
+                                                       double before_heldout, double before_replicate,
+                                                       double noise_sd, double min_gain_sd);
 
 /// JSON document (schema "ptda-gap" version 1, docs/gap.md).
 [[nodiscard]] std::string diagnosis_json(const Diagnosis& d);
