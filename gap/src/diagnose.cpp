@@ -776,6 +776,12 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
            tied_candidates(sr.ranked, current_held, current_rep, d.noise_gap_sd, opt.min_gain_sd))
         d.chosen.back().alternatives.push_back(std::string(sim::effect_info(sr.ranked[i].effect.kind).name) +
                                                " (" + sr.ranked[i].location + ")");
+      for (const sim::Scenario& m : models) {
+        if (!m.effects.empty() && m.effects.back().kind == best.effect.kind) current = m;
+      }
+      current_held = best.gap_heldout;
+      current_rep = best.gap_heldout_replicate;
+      cur_fit_gap = ev.gap(current, fit, &cur_model, &cur_real_fit);
     }
     d.rounds.push_back(std::move(sr));
     if (d.rounds.back().accepted < 0) break;
