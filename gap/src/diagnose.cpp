@@ -191,6 +191,19 @@ void parallel_for(std::size_t n, unsigned threads, Fn fn) {
   if (error) std::rethrow_exception(error);
 }
 
+/// The probe holding most of a gap (for the verdict).
+std::string largest_probe(const GapBreakdown& g) {
+  std::string where;
+  double most = -1.0;
+  for (const auto& [p, v] : g.by_probe) {
+    if (v > most) {
+      most = v;
+      where = p;
+    }
+  }
+  return where;
+}
+
 /// Data-driven starting points for the fits, from the measured fit cycles vs the calibrated model.
 struct Guesses {
   double floor_peak_const_hz = 1000.0;
@@ -801,16 +814,8 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
                 fmt("%.0f", opt.min_gap_sd) + " x " + fmt("%.2f", d.noise_gap_sd) +
                 " expected from the measured cycles' own spread";
   } else if (d.chosen.empty()) {
-    std::string where;
-    double best = -1;
-    for (const auto& [p, v] : d.nominal_heldout.by_probe) {
-      if (v > best) {
-        best = v;
-        where = p;
-      }
-    }
     d.verdict = "no candidate effect explains a significant share of the gap; it lies mostly in the '" +
-                where + "' probe";
+                largest_probe(d.nominal_heldout) + "' probe";
   } else {
     d.verdict = "explained by ";
     for (std::size_t i = 0; i < d.chosen.size(); ++i) {
@@ -823,17 +828,9 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     d.verdict += "; held-out gap shrinks by " + fmt("%.0f", d.total_shrink_pct) + " %";
     if (d.final_heldout.total > d.noise_gap + opt.min_gap_sd * d.noise_gap_sd) {
       // Say what is still unexplained: the rest is itself above the sampling level.
-      std::string where;
-      double most = -1;
-      for (const auto& [p, v] : d.final_heldout.by_probe) {
-        if (v > most) {
-          most = v;
-          where = p;
-        }
-      }
       d.verdict += "; the rest (" + fmt("%.1f", d.final_heldout.total) + ", expected " +
-                   fmt("%.1f", d.noise_gap) + " from sampling) is not explained, mostly in the '" + where +
-                   "' probe";
+                   fmt("%.1f", d.noise_gap) + " from sampling) is not explained, mostly in the '" +
+                   largest_probe(d.final_heldout) + "' probe";
     }
   }
   d.simulations = ev.simulations();

@@ -5,30 +5,17 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <numbers>
 #include <string>
 
+#include "gap_test_job.hpp"
 #include "ptda/gap/signals.hpp"
 #include "ptda/sim/simulator.hpp"
 
 namespace ptda::gap {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 sim::Scenario job(std::uint32_t cycles) {
-  sim::Scenario s;
-  s.source = "test";
-  s.motion.via_points_rad = {0.0, kPi, 0.0};
-  s.motion.segment_speeds_rad_s = {3.49068, 3.49068};
-  s.motion.accel_rad_s2 = 17.45;
-  s.motion.cycles = cycles;
-  s.motion.dwell_s = 0.4;
-  s.vibration.gmf_amplitudes = {0.43, 0.0, 0.0, 0.48, 1.40, 0.0, 1.10, 1.60};
-  s.vibration.reference_speed_rad_s = 3.49068;
-  s.vibration.noise_rms = 0.3;
-  s.sensor.range_ms2 = 50.0;
-  return s;
+  return test::joint_rotation_job(cycles);
 }
 
 struct Measured {
