@@ -730,7 +730,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
       const std::vector<FitStage> stages = fit_stages(w.e.kind, q, real.fs_hz, current);
       bool improved = false;
       for (std::size_t s = w.stage; s < stages.size(); ++s) improved = run_stage(w, stages[s]) || improved;
-      // One more sweep of the refinement (relative) stages when the last one still moved the fit: the
+      // One more sweep of the refinement (relative) stages when any stage moved the fit: the
       // parameters are coupled, so one coordinate-descent pass does not always settle.
       if (improved) {
         for (const FitStage& st : stages)
