@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
 #include <string>
+#include <utility>
 
 #include "gap_test_job.hpp"
 #include "ptda/gap/signals.hpp"
@@ -16,6 +18,13 @@ namespace {
 
 sim::Scenario job(std::uint32_t cycles) {
   return test::joint_rotation_job(cycles);
+}
+
+/// One effect with some parameters set (the rest at their defaults).
+sim::EffectSpec effect(sim::EffectKind kind, std::initializer_list<std::pair<const char*, double>> params) {
+  sim::EffectSpec e = sim::EffectSpec::with_defaults(kind);
+  for (const auto& [name, value] : params) e.set(name, value);
+  return e;
 }
 
 struct Measured {
@@ -83,11 +92,8 @@ TEST(Probes, IndependentRealisationsGiveASmallGap) {
 TEST(Probes, TransferPathRaisesTheFloorOfItsBand) {
   const Measured a = measure(job(4), 15);
   sim::Scenario s = job(4);
-  sim::EffectSpec e = sim::EffectSpec::with_defaults(sim::EffectKind::kTransferPath);
-  e.set("frequency_hz", 5000.0);
-  e.set("gain_db", 15.0);
-  e.set("q", 4.0);
-  s.effects.push_back(e);
+  s.effects = {
+      effect(sim::EffectKind::kTransferPath, {{"frequency_hz", 5000.0}, {"gain_db", 15.0}, {"q", 4.0}})};
   const Measured b = measure(s, 15, &a.plan);
   double best = -1e9, best_f = 0;
   for (const ProbeElement& el : b.probes.elements) {
@@ -111,10 +117,7 @@ TEST(Probes, KnocksStandOutInTheDifferencedTransients) {
   // than the raw signal's, whose largest samples are mesh peaks.
   const Measured a = measure(job(4), 17);
   sim::Scenario s = job(4);
-  sim::EffectSpec e = sim::EffectSpec::with_defaults(sim::EffectKind::kImpacts);
-  e.set("amplitude_ms2", 6.0);
-  e.set("resonance_hz", 6000.0);
-  s.effects = {e};
+  s.effects = {effect(sim::EffectKind::kImpacts, {{"amplitude_ms2", 6.0}, {"resonance_hz", 6000.0}})};
   const Measured b = measure(s, 17, &a.plan);
   const double raw =
       element(b.probes, "transients", "log_kurtosis") - element(a.probes, "transients", "log_kurtosis");
@@ -173,9 +176,7 @@ TEST(Probes, JackknifeNoiseModelSeparatesANullPairFromAnEffect) {
   EXPECT_LT(null_gap.total, null_gap.expected + 3.0 * null_gap.expected_sd);
 
   sim::Scenario s = job(8);
-  sim::EffectSpec e = sim::EffectSpec::with_defaults(sim::EffectKind::kLoadDependence);
-  e.set("direction_gain", 0.3);
-  s.effects = {e};
+  s.effects = {effect(sim::EffectKind::kLoadDependence, {{"direction_gain", 0.3}})};
   const Measured dir = measure(s, 21, &real.plan);
   const GapBreakdown g = compare_probes(dir.probes, model.probes, &both);
   EXPECT_GT(g.total, g.expected + 3.0 * g.expected_sd);
@@ -188,10 +189,7 @@ TEST(Probes, CrossCyclePhaseCoherenceDropsWithSpeedRipple) {
   // the windows removes that coherence.
   const Measured a = measure(job(8), 23);
   sim::Scenario s = job(8);
-  sim::EffectSpec e = sim::EffectSpec::with_defaults(sim::EffectKind::kSpeedRipple);
-  e.set("jitter_rad", 0.3);
-  e.set("bandwidth_hz", 20.0);
-  s.effects = {e};
+  s.effects = {effect(sim::EffectKind::kSpeedRipple, {{"jitter_rad", 0.3}, {"bandwidth_hz", 20.0}})};
   const Measured b = measure(s, 23, &a.plan);
   // Measured with seed 23: 0.989 without, 0.522 with the jitter (order 8 sees 8 x 0.3 rad rms).
   const double ca = element(a.probes, "phase_coherence", "c0.k8");
