@@ -218,6 +218,11 @@ MotionProfile build_motion(const Scenario& s, std::uint64_t seed) {
     };
     hold(m.lead_in_s, 0);
     for (std::uint32_t c = 0; c < m.cycles; ++c) {
+      // [drift] program pause: the robot stands still before every pause_every_cycles-th cycle.
+      if (s.drift.pauses_on() && c > 0 && c % s.drift.pause_every_cycles == 0) {
+        prof.pause_start_s.push_back(t);
+        hold(s.drift.pause_s, c);
+      }
       hold(m.start_jitter_s * rng.uniform(), c);
       const double t_cycle = t;
       const double a_cycle = angle;

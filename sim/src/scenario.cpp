@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "ptda/common/error.hpp"
 #include "ptda/sim/simulator.hpp"
@@ -257,6 +258,59 @@ void parse_vibration(Reader& r, VibrationSpec& v, const GearboxSpec& g) {
   r.finish();
 }
 
+// [drift] (sim/include/ptda/sim/drift.hpp). A key that needs another one (e.g. mesh_amplitude_rel without
+// load_period_s) is an error rather than a drift that silently does nothing.
+void parse_drift(Reader& r, DriftSpec& d, const MotionSpec& m) {
+  r.known_keys({"time_offset_s", "load_period_s", "load_phase_rad", "mesh_amplitude_rel",
+                "resonance_shift_rel", "warmup_tau_s", "initial_coldness", "cold_amplitude_rel",
+                "cold_noise_rel", "cooldown_tau_s", "pause_every_cycles", "pause_s"});
+  d.time_offset_s = r.number("time_offset_s", d.time_offset_s);
+  require(d.time_offset_s >= 0.0 && d.time_offset_s <= 1.0e9, r, "time_offset_s", "must be in [0, 1e9] s");
+  d.load_period_s = r.number("load_period_s", d.load_period_s);
+  require(d.load_period_s >= 0.0, r, "load_period_s", "must be >= 0 (0 = no load cycle)");
+  d.load_phase_rad = r.number("load_phase_rad", d.load_phase_rad);
+  d.mesh_amplitude_rel = r.number("mesh_amplitude_rel", d.mesh_amplitude_rel);
+  require(d.mesh_amplitude_rel >= 0.0 && d.mesh_amplitude_rel <= 0.9, r, "mesh_amplitude_rel",
+          "must be in [0, 0.9] (0.3 = +-30 %)");
+  d.resonance_shift_rel = r.number("resonance_shift_rel", d.resonance_shift_rel);
+  require(d.resonance_shift_rel >= 0.0 && d.resonance_shift_rel <= 0.5, r, "resonance_shift_rel",
+          "must be in [0, 0.5]");
+  const std::pair<const char*, bool> load_keys[] = {{"mesh_amplitude_rel", d.mesh_amplitude_rel != 0.0},
+                                                    {"resonance_shift_rel", d.resonance_shift_rel != 0.0},
+                                                    {"load_phase_rad", d.load_phase_rad != 0.0}};
+  for (const auto& [key, set] : load_keys) {
+    require(!set || d.load_period_s > 0.0, r, key, "needs load_period_s > 0 (the load cycle)");
+  }
+  d.warmup_tau_s = r.number("warmup_tau_s", d.warmup_tau_s);
+  require(d.warmup_tau_s >= 0.0, r, "warmup_tau_s", "must be >= 0 (0 = no warm-up)");
+  d.initial_coldness = r.number("initial_coldness", d.initial_coldness);
+  require(d.initial_coldness >= 0.0 && d.initial_coldness <= 1.0, r, "initial_coldness",
+          "must be in [0, 1] (1 = cold start, 0 = warm)");
+  d.cold_amplitude_rel = r.number("cold_amplitude_rel", d.cold_amplitude_rel);
+  require(d.cold_amplitude_rel >= -0.9 && d.cold_amplitude_rel <= 2.0, r, "cold_amplitude_rel",
+          "must be in [-0.9, 2]");
+  d.cold_noise_rel = r.number("cold_noise_rel", d.cold_noise_rel);
+  require(d.cold_noise_rel >= -0.9 && d.cold_noise_rel <= 5.0, r, "cold_noise_rel", "must be in [-0.9, 5]");
+  d.cooldown_tau_s = r.number("cooldown_tau_s", d.cooldown_tau_s);
+  require(d.cooldown_tau_s >= 0.0, r, "cooldown_tau_s", "must be >= 0 (0 = no cooling in pauses)");
+  const std::pair<const char*, bool> warm_keys[] = {{"initial_coldness", d.initial_coldness != 1.0},
+                                                    {"cold_amplitude_rel", d.cold_amplitude_rel != 0.0},
+                                                    {"cold_noise_rel", d.cold_noise_rel != 0.0},
+                                                    {"cooldown_tau_s", d.cooldown_tau_s != 0.0}};
+  for (const auto& [key, set] : warm_keys) {
+    require(!set || d.warmup_tau_s > 0.0, r, key, "needs warmup_tau_s > 0 (the warm-up)");
+  }
+  d.pause_every_cycles = static_cast<std::uint32_t>(r.integer("pause_every_cycles", 0, 0, 1000000));
+  d.pause_s = r.number("pause_s", d.pause_s);
+  require(d.pause_s >= 0.0 && d.pause_s <= 86400.0, r, "pause_s", "must be in [0, 86400] s");
+  require((d.pause_every_cycles == 0) == (d.pause_s == 0.0), r,
+          r.has("pause_s") ? "pause_s" : "pause_every_cycles",
+          "pause_every_cycles and pause_s go together (both > 0 for program pauses)");
+  require(d.pause_every_cycles == 0 || m.kind == MotionKind::kLspb, r, "pause_every_cycles",
+          "program pauses need [motion] kind = \"lspb\"");
+  r.finish();
+}
+
 void parse_fault(Reader& r, FaultSpec& f, std::uint32_t cycles) {
   r.known_keys({"kind", "severity", "onset_cycle", "ramp_cycles", "impulse_amplitude_ms2", "resonance_hz",
                 "damping_ratio", "am_depth", "spur_phase_rad", "harmonic_gain", "noise_gain"});
@@ -435,7 +489,7 @@ Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
   s.source = source;
   Reader r(root, "", source);
   r.known_keys({"name", "description", "seed", "start_time_s", "motion", "gearbox", "vibration", "fault",
-                "sensor", "can", "effects"});
+                "sensor", "can", "effects", "drift"});
   s.name = r.string("name", "");
   s.description = r.string("description", "");
   s.seed = r.seed("seed", s.seed);
@@ -478,6 +532,10 @@ Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
   if (const toml::table* t = r.table("can")) {
     Reader x(*t, "can", source);
     parse_can(x, s.can, source);
+  }
+  if (const toml::table* t = r.table("drift")) {
+    Reader x(*t, "drift", source);
+    parse_drift(x, s.drift, s.motion);
   }
   // Effects last: their ranges depend on the sensor rate and the CAN timing.
   if (const toml::node* n = r.node("effects")) {

@@ -152,6 +152,40 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
     root.insert("effect_clipped_samples", static_cast<std::int64_t>(vib.effect_clipped_samples));
   }
   root.insert("impulses", static_cast<std::int64_t>(vib.impulse_times_s.size()));
+  if (s.drift.on()) {  // without [drift] truth.toml stays as it was before the drift model
+    const DriftSpec& d = s.drift;
+    const DriftModel model(d, m.pause_start_s);
+    toml::table dt;
+    dt.insert("time_offset_s", d.time_offset_s);
+    dt.insert("load_period_s", d.load_period_s);
+    dt.insert("load_phase_rad", d.load_phase_rad);
+    dt.insert("mesh_amplitude_rel", d.mesh_amplitude_rel);
+    dt.insert("resonance_shift_rel", d.resonance_shift_rel);
+    dt.insert("warmup_tau_s", d.warmup_tau_s);
+    dt.insert("initial_coldness", d.initial_coldness);
+    dt.insert("cold_amplitude_rel", d.cold_amplitude_rel);
+    dt.insert("cold_noise_rel", d.cold_noise_rel);
+    dt.insert("cooldown_tau_s", d.cooldown_tau_s);
+    dt.insert("pause_every_cycles", static_cast<std::int64_t>(d.pause_every_cycles));
+    dt.insert("pause_s", d.pause_s);
+    dt.insert("pause_start_s", to_array(m.pause_start_s));
+    // Factors at each cycle start, and the state at the end: a following recording continues the drift
+    // with time_offset_s = time_end_s and initial_coldness = coldness_at_end (scripts/drift_soak.sh).
+    std::vector<double> gain;
+    std::vector<double> cold;
+    for (double t : m.cycle_start_s) {
+      const DriftFactors f = model.at(t);
+      gain.push_back(f.mesh_gain);
+      cold.push_back(f.coldness);
+    }
+    dt.insert("mesh_gain_at_cycle_start", to_array(gain));
+    dt.insert("coldness_at_cycle_start", to_array(cold));
+    const DriftFactors end = model.at(m.duration_s);
+    dt.insert("time_end_s", d.time_offset_s + m.duration_s);
+    dt.insert("coldness_at_end", end.coldness);
+    dt.insert("load_at_end", end.load);
+    root.insert("drift", std::move(dt));
+  }
 
   toml::table se;
   se.insert("fs_hz", s.sensor.fs_hz);

@@ -139,6 +139,9 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
   const double spur_per_in = z_in / static_cast<double>(g.z_spur);  // spur turns per input turn
   const MeshPerturbation pert = mesh_perturbation(s, m, seed);
   const bool perturbed = !pert.gain.empty();
+  // [drift]: slow load/temperature and warm-up factors (off: the loop below is unchanged).
+  const DriftModel drift(s.drift, m.pause_start_s);
+  const bool drifting = s.drift.load_on() || s.drift.warmup_on();
   Rng rng(seed, kStreamNoise);
   for (std::size_t i = 0; i < n; ++i) {
     const double theta_out = m.angle_rad[i];
@@ -146,6 +149,7 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
     const double theta_mesh = perturbed ? theta_in + pert.theta_in_offset_rad[i] : theta_in;
     const std::uint32_t c = std::min(m.cycle[i], cycles - 1);
     const double sf = speed_factor(vs, m.speed_rad_s[i]);
+    const DriftFactors d = drifting ? drift.at(static_cast<double>(i) / fs) : DriftFactors{};
     double mesh = 0.0;
     if (sf != 0.0) {
       // phase_k = k * Z_in * theta_in + phi_k: follows the integrated input angle, so speed changes
@@ -174,8 +178,10 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
       for (const Harmonic& h : dmf) {
         mesh += h.amplitude * std::sin(h.order * static_cast<double>(g.z_pin) * theta_out);
       }
+      if (drifting) mesh *= d.mesh_gain;  // mesh stiffness (load, temperature) and cold oil
     }
-    const double noise = vs.noise_rms > 0.0 ? vs.noise_rms * noise_gain[c] * rng.normal() : 0.0;
+    double noise = vs.noise_rms > 0.0 ? vs.noise_rms * noise_gain[c] * rng.normal() : 0.0;
+    if (drifting) noise *= d.noise_gain;
     out.accel_ms2[i] = sf * mesh + noise;
   }
 
@@ -195,7 +201,10 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
           const double sev = fault_severity(*f, std::min(m.cycle[i], cycles - 1));
           const double amp = f->impulse_amplitude_ms2 * sev * speed_factor(vs, m.speed_rad_s[i]);
           if (amp <= 0.0) continue;
-          add_ringing(out.accel_ms2, fs, t_imp, amp, f->resonance_hz, f->damping_ratio);
+          // [drift]: the structural resonance moves with the stiffness (load/temperature cycle).
+          const double res_hz =
+              drifting ? f->resonance_hz * drift.at(t_imp).resonance_factor : f->resonance_hz;
+          add_ringing(out.accel_ms2, fs, t_imp, amp, res_hz, f->damping_ratio);
           out.impulse_times_s.push_back(t_imp);
           out.impulse_amplitudes_ms2.push_back(amp);
         }

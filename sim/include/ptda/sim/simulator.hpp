@@ -13,6 +13,7 @@
 #include "ptda/config/speed_codec.hpp"
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/formats/wav.hpp"
+#include "ptda/sim/drift.hpp"
 #include "ptda/sim/effects.hpp"
 
 namespace ptda::sim {
@@ -133,6 +134,7 @@ struct Scenario {
   VibrationSpec vibration;
   std::vector<FaultSpec> faults;
   std::vector<EffectSpec> effects;  ///< [[effects]]: sim-to-real additions (sim/include/ptda/sim/effects.hpp)
+  DriftSpec drift;  ///< [drift]: slow healthy drift (sim/include/ptda/sim/drift.hpp); off by default
   SensorSpec sensor;
   CanSpec can;
   std::string source;  ///< where it was read from (for messages)
@@ -185,7 +187,8 @@ struct MotionProfile {
       cycle;  ///< job cycle per sample (lead-in: 0; jitter wait and dwell: their cycle)
   std::vector<double> cycle_start_s;  ///< start time of each cycle's motion
   std::vector<Plateau> plateaus;
-  std::vector<MotionPiece> pieces;  ///< contiguous, covering [0, duration_s]
+  std::vector<MotionPiece> pieces;    ///< contiguous, covering [0, duration_s]
+  std::vector<double> pause_start_s;  ///< program pauses ([drift] pause_every_cycles), each pause_s long
   std::uint32_t cycles = 0;
   double duration_s = 0.0;
 };
