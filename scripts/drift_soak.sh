@@ -137,6 +137,8 @@ while awk -v t="$t" -v e="$total_s" 'BEGIN { exit !(t < e - 5) }'; do  # stop wi
   end_s=$(truth_value "$work/piece" time_end_s)
   [[ -n "$end_s" ]] || end_s=$(awk -v t="$t" -v d="$(truth_value "$work/piece" duration_s)" 'BEGIN { print t + d }')
   load_start=$(awk -v t="$t" 'BEGIN { printf "%.3f", sin(2 * 3.141592653589793 * t / 28800) }')
+  cold_text=$(printf '%.4f' "$cold")
+  if [[ ${PTDA_SOAK_NO_DRIFT:-0} == 1 ]]; then load_start="-" cold_text="-"; fi
   # Timeline from the monitor's windows: t_start is UNIX time; hours since the soak start.
   read -r windows scored abnormal alarm_windows first_abn first_alarm < <(awk -v s0="$start_unix" '
     { ++n; match($0, /"t_start":[0-9.e+]+/); t = (substr($0, RSTART + 10, RLENGTH - 10) - s0) / 3600 }
@@ -144,9 +146,9 @@ while awk -v t="$t" -v e="$total_s" 'BEGIN { exit !(t < e - 5) }'; do  # stop wi
     /"abnormal":true/ { ++ab; if (fa == "") fa = sprintf("%.4f", t) }
     /"alarm":true/ { ++al; if (fl == "") fl = sprintf("%.4f", t) }
     END { printf "%d %d %d %d %s %s\n", n, sc, ab, al, (fa == "" ? "-" : fa), (fl == "" ? "-" : fl) }' "$work/piece.jsonl")
-  printf '%d\t%.6f\t%.6f\t%s\t%.4f\t%s\t%s\t%d\t%d\t%d\t%d\t%d\t%s\t%s\t%s\t%s\t%s\t%s\n' "$piece" \
+  printf '%d\t%.6f\t%.6f\t%s\t%s\t%s\t%s\t%d\t%d\t%d\t%d\t%d\t%s\t%s\t%s\t%s\t%s\t%s\n' "$piece" \
     "$(awk -v t="$t" 'BEGIN { print t / 3600 }')" "$(awk -v t="$end_s" 'BEGIN { print t / 3600 }')" "$load_start" \
-    "$cold" "$([[ $pause_every -gt 0 ]] && echo yes || echo no)" "$severity" "$windows" \
+    "$cold_text" "$([[ $pause_every -gt 0 ]] && echo yes || echo no)" "$severity" "$windows" \
     "$(member windows_scored)" "$(member windows_abnormal)" "$(member alarms_raised)" "$alarm_windows" \
     "$first_abn" "$first_alarm" ${sim_stats% *} ${ptdad_stats% *} ${ptdad_stats#* } ${sim_stats#* } >>"$tsv"
   # The daemon and the monitor judged the same windows.

@@ -21,7 +21,8 @@ fs::path build_dir() {
 }
 
 struct Piece {
-  double t0_h = 0.0, t1_h = 0.0, coldness = 0.0;
+  double t0_h = 0.0, t1_h = 0.0;
+  std::string coldness;  ///< "-" without drift
   std::string pause;
   long windows = 0, scored = 0, abnormal = 0, ptdad_alarms = 0, monitor_alarm_windows = 0;
   double ptdad_rss_kb = 0.0;
@@ -64,7 +65,7 @@ TEST(DriftSoakSmoke, PiecesContinueTheDriftAndTheDaemonJudgesEveryWindow) {
     EXPECT_DOUBLE_EQ(p.t0_h, t_h);  // each piece starts where the previous ended
     t_h = p.t1_h;
     // Cold start, no pause in these pieces: c(t) = e^{-t / 900 s} (drift_soak.toml warmup_tau_s).
-    EXPECT_NEAR(p.coldness, std::exp(-p.t0_h * 3600.0 / 900.0), 1e-4);
+    EXPECT_NEAR(std::stod(p.coldness), std::exp(-p.t0_h * 3600.0 / 900.0), 1e-4);
     EXPECT_EQ(p.pause, "no");
     EXPECT_GT(p.windows, 0);
     EXPECT_EQ(p.scored, p.windows);  // both plateau classes were trained
@@ -83,6 +84,7 @@ TEST(DriftSoakSmoke, WithoutDriftHealthyIsQuietAndAFullDefectAlarms) {
   ASSERT_FALSE(healthy.empty());
   ASSERT_EQ(faulty.size(), healthy.size());
   for (std::size_t i = 0; i < healthy.size(); ++i) {
+    EXPECT_EQ(healthy[i].coldness, "-");  // the drift was off
     EXPECT_EQ(healthy[i].ptdad_alarms, 0) << "piece " << i;
     EXPECT_EQ(healthy[i].monitor_alarm_windows, 0) << "piece " << i;
     EXPECT_EQ(faulty[i].ptdad_alarms, 1) << "piece " << i;
