@@ -22,7 +22,9 @@
 #   build_dir  default build/release (needs cli/ptda and daemon/ptdad)
 #   out_dir    default out/drift-soak-<mode>: pieces.tsv (one row per piece), summary.md
 # Environment: PTDA_SOAK_CHUNK_CYCLES (cycles per piece, default 240), PTDA_SOAK_SEED (default 1),
-#              PTDA_SOAK_NO_DRIFT=1 (reference run: load cycle and warm-up off, pauses kept).
+#              PTDA_SOAK_NO_DRIFT=1 (reference run: load cycle and warm-up off, pauses kept),
+#              PTDA_SOAK_SUMMARY_ONLY=WALL_S (only rewrite out_dir/summary.md from its pieces.tsv, e.g. of an
+#              interrupted run; WALL_S is the wall time to report).
 # Cost: about 14 s of simulation and 1.5 s of replay per 10-minute piece (~40 min per simulated day on the
 # shared 2-core build machine); peak RSS of the simulator ~650 MB, of ptdad ~32 MB.
 set -euo pipefail
@@ -48,6 +50,49 @@ total_s=$(awk -v h="$hours" 'BEGIN { if (h + 0 <= 0) exit 1; printf "%.3f", h * 
 onset_h=${PTDA_SOAK_FAULT_ONSET_H:-$(awk -v h="$hours" 'BEGIN { print h / 4 }')}
 full_h=${PTDA_SOAK_FAULT_FULL_H:-$(awk -v h="$hours" 'BEGIN { print 3 * h / 4 }')}
 
+# summarize MODE OUT_DIR WALL_S: summary.md from OUT_DIR/pieces.tsv.
+summarize() {
+  local mode=$1 out=$2 wall=$3
+  awk -F'\t' -v mode="$mode" -v onset="$onset_h" -v full="$full_h" -v wall="$wall" '
+  NR == 1 { next }
+  {
+    ++pieces; hours = $3; win += $8; sc += $9; ab += $10; al += $11; alw += $12
+    if ($11 > 0) ++alarm_pieces
+    sim += $15; dae += $16; if ($17 > rss) rss = $17; if ($18 > simrss) simrss = $18
+    if ($6 == "yes") { if ($17 > prss) prss = $17 } else { if ($17 > nrss) nrss = $17 }
+    healthy = (mode == "healthy" || $7 + 0 == 0)
+    if (healthy) { h_al += $11; h_ab += $10; h_sc += $9; h_hours += $3 - $2 }
+    if (!healthy && fw == "" && $13 != "-") { fw = $13; fw_sev = $7 }
+    if (!healthy && fa == "" && $14 != "-") { fa = $14; fa_sev = $7 }
+  }
+  END {
+    printf "| quantity | value |\n|---|---:|\n"
+    printf "| simulated hours | %.2f (%d pieces) |\n", hours, pieces
+    printf "| windows cut / scored / abnormal | %d / %d / %d (%.2f %%) |\n", win, sc, ab, (sc ? 100 * ab / sc : 0)
+    printf "| alarms raised by ptdad (at most one per 10-minute piece) | %d (in %d pieces) |\n", al, alarm_pieces
+    if (mode == "healthy") {
+      printf "| false alarms per day | %.1f |\n", (hours > 0 ? al * 24 / hours : 0)
+      printf "| abnormal windows per day (warnings) | %.0f |\n", (hours > 0 ? ab * 24 / hours : 0)
+    } else {
+      printf "| healthy part (severity 0): hours / abnormal windows / alarms | %.2f / %d of %d / %d |\n", h_hours, h_ab, h_sc, h_al
+      printf "| fault: severity 0 until %s h, 1 at %s h (linear, per piece) | |\n", onset, full
+      printf "| first warning (abnormal window) after onset | %s h (severity %s) |\n", fw == "" ? "none" : fw, fw_sev
+      printf "| first alarm (k-of-n) after onset | %s h (severity %s) |\n", fa == "" ? "none" : fa, fa_sev
+      if (fw != "" && fa != "") printf "| warning ahead of the alarm | %.2f h |\n", fa - fw
+    }
+    printf "| peak RSS of ptdad: pieces without / with a 15-minute pause | %.1f MB / %.1f MB |\n", nrss / 1024, prss / 1024
+    printf "| peak RSS of the simulator (one piece) | %.0f MB |\n", simrss / 1024
+    printf "| wall time: simulation / ptdad replay / total | %.0f s / %.0f s / %.0f s |\n", sim, dae, wall
+    printf "| ptdad replay speed | %.0f x real time |\n", (dae > 0 ? hours * 3600 / dae : 0)
+  }' "$out/pieces.tsv" >"$out/summary.md"
+}
+
+if [[ -n ${PTDA_SOAK_SUMMARY_ONLY:-} ]]; then  # re-summarise an existing (e.g. interrupted) run
+  [[ -f "$out/pieces.tsv" ]] || { echo "drift_soak: no $out/pieces.tsv" >&2; exit 1; }
+  summarize "$mode" "$out" "$PTDA_SOAK_SUMMARY_ONLY"
+  cat "$out/summary.md"
+  exit 0
+fi
 rm -rf "$out"
 mkdir -p "$out/work"
 work=$out/work
@@ -167,34 +212,5 @@ rm -rf "$work/piece"
 wall_end=$(date +%s.%N)
 
 # --- summary -------------------------------------------------------------------------------------------
-awk -F'\t' -v mode="$mode" -v onset="$onset_h" -v full="$full_h" -v wall="$(awk -v a="$wall_start" -v b="$wall_end" 'BEGIN { print b - a }')" '
-  NR == 1 { next }
-  {
-    ++pieces; hours = $3; win += $8; sc += $9; ab += $10; al += $11; alw += $12
-    if ($11 > 0) ++alarm_pieces
-    sim += $15; dae += $16; if ($17 > rss) rss = $17; if ($18 > simrss) simrss = $18
-    healthy = (mode == "healthy" || $7 + 0 == 0)
-    if (healthy) { h_al += $11; h_ab += $10; h_sc += $9; h_hours += $3 - $2 }
-    if (!healthy && fw == "" && $13 != "-") { fw = $13; fw_sev = $7 }
-    if (!healthy && fa == "" && $14 != "-") { fa = $14; fa_sev = $7 }
-  }
-  END {
-    printf "| quantity | value |\n|---|---:|\n"
-    printf "| simulated hours | %.2f (%d pieces) |\n", hours, pieces
-    printf "| windows cut / scored / abnormal | %d / %d / %d (%.2f %%) |\n", win, sc, ab, (sc ? 100 * ab / sc : 0)
-    printf "| alarms raised by ptdad (at most one per 10-minute piece) | %d (in %d pieces) |\n", al, alarm_pieces
-    if (mode == "healthy") {
-      printf "| false alarms per day | %.1f |\n", (hours > 0 ? al * 24 / hours : 0)
-      printf "| abnormal windows per day (warnings) | %.0f |\n", (hours > 0 ? ab * 24 / hours : 0)
-    } else {
-      printf "| healthy part (severity 0): hours / abnormal windows / alarms | %.2f / %d of %d / %d |\n", h_hours, h_ab, h_sc, h_al
-      printf "| fault: severity 0 until %s h, 1 at %s h (linear, per piece) | |\n", onset, full
-      printf "| first warning (abnormal window) after onset | %s h (severity %s) |\n", fw == "" ? "none" : fw, fw_sev
-      printf "| first alarm (k-of-n) after onset | %s h (severity %s) |\n", fa == "" ? "none" : fa, fa_sev
-      if (fw != "" && fa != "") printf "| warning ahead of the alarm | %.2f h |\n", fa - fw
-    }
-    printf "| peak RSS: ptdad / simulator (one piece) | %.1f MB / %.0f MB |\n", rss / 1024, simrss / 1024
-    printf "| wall time: simulation / ptdad replay / total | %.0f s / %.0f s / %.0f s |\n", sim, dae, wall
-    printf "| ptdad replay speed | %.0f x real time |\n", (dae > 0 ? hours * 3600 / dae : 0)
-  }' "$tsv" >"$out/summary.md"
+summarize "$mode" "$out" "$(awk -v a="$wall_start" -v b="$wall_end" 'BEGIN { print b - a }')"
 cat "$out/summary.md"
