@@ -177,27 +177,37 @@ class CollectSink final : public PipelineSink {
 
 class MonitorSink final : public PipelineSink {
  public:
-  MonitorSink(dsp::MonitorEngine& engine, std::vector<dsp::WindowResult>& out, const WindowObserver& observer)
-      : engine_(engine), out_(out), observer_(observer) {}
+  MonitorSink(dsp::MonitorEngine& engine, dsp::CoverageTracker& coverage, std::vector<dsp::WindowResult>& out,
+              const WindowObserver& observer)
+      : engine_(engine), coverage_(coverage), out_(out), observer_(observer) {}
 
-  void on_speed(const dsp::SpeedSample& s) override { engine_.push_speed(s); }
+  void on_speed(const dsp::SpeedSample& s) override {
+    engine_.push_speed(s);
+    coverage_.on_speed(s);
+  }
   void on_samples(std::span<const float> block) override { engine_.push_samples(block); }
   void on_block_end() override { drain(); }
   void on_finish() override {
     engine_.finish();
     drain();
+    coverage_.finish();
   }
 
  private:
+  // As the daemon's processing thread: every window, then the slicer's discarded count.
   void drain() {
     dsp::WindowResult r;
     while (engine_.poll(r)) {
       if (observer_) observer_(r, engine_);
+      coverage_.on_window(r);
       out_.push_back(r);
     }
+    const dsp::SlicerCounters& sc = engine_.slicer().counters();
+    coverage_.on_discarded_total(sc.windows_invalid + sc.windows_lost + sc.windows_overflow);
   }
 
   dsp::MonitorEngine& engine_;
+  dsp::CoverageTracker& coverage_;
   std::vector<dsp::WindowResult>& out_;
   const WindowObserver& observer_;
 };
@@ -271,9 +281,15 @@ MonitorResult monitor_recording(const RecordingInfo& rec, const config::Pipeline
                                 const dsp::Baseline& baseline, dsp::Method method, double fs_hz,
                                 const WindowObserver& observer, const RunOptions& options) {
   dsp::MonitorEngine engine(baseline, cfg.extraction, cfg.decision, method, fs_hz, rec.t0_ns);
+  dsp::CoverageConfig cc;
+  cc.timeout_s = options.coverage_timeout_s;
+  cc.moving_speed_rad_s = cfg.extraction.min_speed_rad_s;
+  cc.max_speed_gap_s = cfg.extraction.max_speed_gap_s;
+  dsp::CoverageTracker coverage(baseline, cc);
   MonitorResult result;
-  MonitorSink sink(engine, result.windows, observer);
+  MonitorSink sink(engine, coverage, result.windows, observer);
   result.can = run_recording(rec, cfg, sink, options);
+  result.coverage = coverage.state();
   result.slicer = engine.slicer().counters();
   result.fs_hz = fs_hz;
   return result;

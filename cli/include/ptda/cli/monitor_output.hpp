@@ -36,6 +36,15 @@ struct MonitorSummary {
 void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::SlicerCounters& slicer,
                    const CanCounters& can, dsp::Method method);
 
+/// The coverage block of the summary: per class judged windows and the age of the last one, unmatched
+/// windows by reason with the speeds seen, the coverage state. t0_ns: the recording's sample 0.
+void print_coverage(std::ostream& out, const dsp::CoverageState& c, const dsp::Baseline& baseline,
+                    double timeout_s, std::int64_t t0_ns);
+/// Warnings about the coverage ("warning: ..." lines; none when every class was judged recently and at
+/// least half of the cut windows were judged). Returns how many were printed.
+std::size_t print_coverage_warnings(std::ostream& out, const dsp::CoverageState& c,
+                                    const dsp::Baseline& baseline, double timeout_s);
+
 /// Configuration, baseline and recording of a monitor/report run, checked against each other.
 struct MonitorInputs {
   std::string config_path, baseline_path;

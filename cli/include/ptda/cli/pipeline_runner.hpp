@@ -14,6 +14,7 @@
 
 #include "ptda/cli/args.hpp"
 #include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/coverage.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/types.hpp"
 #include "ptda/formats/recording.hpp"
@@ -67,6 +68,9 @@ struct RunOptions {
   std::size_t block_frames = 4096;
   bool progress = true;        ///< progress bar when stderr is a terminal
   std::string progress_label;  ///< e.g. "monitor run1"
+  /// Coverage of a monitor run (dsp/coverage.hpp): motion without a judged window before "not judging".
+  /// The daemon's [daemon] coverage_timeout_s default.
+  double coverage_timeout_s = 60.0;
 };
 
 /// Streams the recording into sink. Returns the CAN decode counters. Throws ptda::Error on unreadable
@@ -97,6 +101,7 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more);
 /// Monitoring results of one recording with one method.
 struct MonitorResult {
   std::vector<dsp::WindowResult> windows;
+  dsp::CoverageState coverage;  ///< over the whole recording, as the daemon tracks it
   dsp::SlicerCounters slicer;
   CanCounters can;
   double fs_hz = 0.0;
