@@ -357,10 +357,22 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
       std::snprintf(reason, sizeof reason, "no vibration data for more than %.3g s",
                     cfg_.daemon.sensor_stale_s);
       break;
-    case Phase::kEnded:
-      std::snprintf(reason, sizeof reason, "replay ended; %llu windows processed",
-                    static_cast<unsigned long long>(ps.windows));
+    case Phase::kEnded: {
+      const int n = std::snprintf(reason, sizeof reason, "replay ended; %llu windows processed",
+                                  static_cast<unsigned long long>(ps.windows));
+      // How well the replay was covered ("partial coverage: class 1 ..."); nothing when fully.
+      if (p->baseline() != nullptr && n > 0 && static_cast<std::size_t>(n) + 3 < sizeof reason &&
+          ps.coverage.level != dsp::CoverageLevel::kFull) {
+        const auto at = static_cast<std::size_t>(n);
+        reason[at] = ';';
+        reason[at + 1] = ' ';
+        if (dsp::describe_coverage(ps.coverage, *p->baseline(), cfg_.daemon.coverage_timeout_s,
+                                   reason + at + 2, sizeof reason - at - 2) == 0) {
+          reason[at] = '\0';
+        }
+      }
       break;
+    }
     case Phase::kNotJudging:
       if (p->baseline() != nullptr) {
         const std::size_t n = dsp::describe_coverage(ps.coverage, *p->baseline(),
