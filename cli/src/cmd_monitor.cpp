@@ -1,4 +1,5 @@
 // ptda monitor --recording DIR --config FILE --baseline BASELINE [--method M] [--jsonl OUT] [--windows F:T]
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <ostream>
@@ -210,6 +211,46 @@ std::size_t print_coverage_warnings(std::ostream& out, const dsp::CoverageState&
   return n;
 }
 
+bool print_training_overlap(std::ostream& out, const dsp::Baseline& baseline, const std::string& recording_id,
+                            const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns) {
+  if (baseline.training.empty()) {
+    out << "note: the baseline does not list its training recordings (format version 1 or field "
+           "training): in-sample use not checked\n";
+    return false;
+  }
+  if (windows.empty()) return false;
+  std::int64_t from_ns = windows.front().ref.t_start_ns;
+  std::int64_t to_ns = windows.front().ref.t_end_ns;
+  for (const auto& w : windows) {
+    from_ns = std::min(from_ns, w.ref.t_start_ns);
+    to_ns = std::max(to_ns, w.ref.t_end_ns);
+  }
+  const double t0_s = ns_to_seconds(t0_ns);
+  const auto span = [&](double a_s, double b_s) {
+    return fixed(a_s - t0_s, 1) + "-" + fixed(b_s - t0_s, 1) + " s";
+  };
+  const double from_s = ns_to_seconds(from_ns);
+  const double to_s = ns_to_seconds(to_ns);
+  bool warned = false;
+  for (const dsp::TrainingRecording& t : baseline.training) {
+    if (t.id != recording_id) continue;
+    const double lo = std::max(from_s, t.from_unix_s);
+    const double hi = std::min(to_s, t.to_unix_s);
+    if (lo < hi) {
+      out << "warning: in-sample: this recording is the baseline's training recording " << t.path << " (id "
+          << t.id << "): the windows judged (" << span(from_s, to_s) << ") overlap the " << t.windows
+          << " windows trained on (" << span(t.from_unix_s, t.to_unix_s)
+          << "); judge data the baseline did not see (e.g. train --windows 0:0.5, monitor --windows 0.5:1)\n";
+      warned = true;
+    } else {
+      out << "note: this recording is the baseline's training recording " << t.path
+          << ", but the windows judged (" << span(from_s, to_s) << ") do not overlap the ones trained on ("
+          << span(t.from_unix_s, t.to_unix_s) << "): a held-out part\n";
+    }
+  }
+  return warned;
+}
+
 MonitorInputs load_monitor_inputs(const std::string& recording, const std::string& config_path,
                                   const std::string& baseline_path) {
   MonitorInputs in;
@@ -306,6 +347,7 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   // With the JSONL on stdout the warnings go to stderr, so the JSONL stays clean.
   std::ostream& warn = jsonl_path == "-" ? std::cerr : out;
   print_coverage_warnings(warn, r.coverage, in.baseline, opts.coverage_timeout_s);
+  print_training_overlap(warn, in.baseline, recording_id(in.rec), r.windows, in.rec.t0_ns);
   std::size_t judged = 0;
   for (const auto& w : r.windows) judged += w.status == dsp::WindowStatus::kScored ? 1 : 0;
   if (judged == 0 || r.coverage.level == dsp::CoverageLevel::kNotJudging) return kExitNotJudged;

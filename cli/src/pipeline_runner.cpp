@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -13,6 +15,7 @@
 #include "ptda/config/speed_codec.hpp"
 #include "ptda/dsp/decision.hpp"
 #include "ptda/dsp/window_slicer.hpp"
+#include "ptda/formats/baseline_file.hpp"
 #include "ptda/formats/candump.hpp"
 
 namespace ptda::cli {
@@ -52,6 +55,21 @@ RecordingInfo open_recording(const fs::path& dir) {
   rec.t0_ns = seconds_to_ns(rec.meta.start_time_s);
   rec.duration_s = static_cast<double>(rec.wav.frames) / static_cast<double>(rec.wav.sample_rate_hz);
   return rec;
+}
+
+std::string recording_id(const RecordingInfo& rec) {
+  std::ifstream in(rec.wav_path, std::ios::binary);
+  if (!in) throw Error(rec.wav_path.string() + ": cannot open to fingerprint it");
+  std::vector<char> head(std::size_t{1} << 20);
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  const auto got = static_cast<std::size_t>(in.gcount());
+  if (in.bad()) throw Error(rec.wav_path.string() + ": read error while fingerprinting it");
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(rec.wav_path, ec);
+  if (ec) throw Error(rec.wav_path.string() + ": cannot read its size: " + ec.message());
+  char crc[16];
+  std::snprintf(crc, sizeof crc, "%08x", formats::crc32(head.data(), got));
+  return "wav:" + std::to_string(size) + ":" + crc + ":ch" + std::to_string(rec.meta.channel);
 }
 
 double pipeline_fs_hz(const RecordingInfo& rec, const config::PipelineConfig& cfg,

@@ -37,6 +37,12 @@ struct RecordingInfo {
 /// unreadable WAV, channel out of range), naming the file.
 [[nodiscard]] RecordingInfo open_recording(const std::filesystem::path& dir);
 
+/// A content fingerprint of the recording's vibration data: "wav:<file size>:<CRC-32 of its first
+/// 1 MiB, hex>:ch<channel>". Copies of a recording share it; other runs (another seed, another day)
+/// do not. Stored in the baseline for each training recording (docs/recording-format.md).
+/// Throws ptda::Error when the file cannot be read. Thread: any. Blocks (reads up to 1 MiB), allocates.
+[[nodiscard]] std::string recording_id(const RecordingInfo& rec);
+
 /// The sample rate the pipeline runs at: the recording's, which must equal the configuration's
 /// [acquisition] fs_hz when that is non-zero. Throws ptda::Error naming both sources on a mismatch.
 [[nodiscard]] double pipeline_fs_hz(const RecordingInfo& rec, const config::PipelineConfig& cfg,
