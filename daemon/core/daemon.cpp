@@ -378,8 +378,10 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
         const std::size_t n = dsp::describe_coverage(ps.coverage, *p->baseline(),
                                                      cfg_.daemon.coverage_timeout_s, reason, sizeof reason);
         if (ps.ended && n + 1 < sizeof reason) {
-          std::snprintf(reason + n, sizeof reason - n, "; replay ended; %llu windows processed",
-                        static_cast<unsigned long long>(ps.windows));
+          // Whole or not at all (a cut would end the text mid-word).
+          const int k = std::snprintf(reason + n, sizeof reason - n, "; replay ended; %llu windows processed",
+                                      static_cast<unsigned long long>(ps.windows));
+          if (k < 0 || static_cast<std::size_t>(k) >= sizeof reason - n) reason[n] = '\0';
         }
       }
       break;

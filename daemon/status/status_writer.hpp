@@ -88,7 +88,7 @@ enum class DaemonState : std::uint8_t {
 }
 
 inline constexpr std::size_t kStatusMaxClasses = 16;  ///< classes beyond this are not listed
-inline constexpr std::size_t kStatusTextBytes = 160;
+inline constexpr std::size_t kStatusTextBytes = 256;  ///< room for the coverage text and a suffix
 inline constexpr std::size_t kStatusPathBytes = 256;
 
 struct StatusClass {
