@@ -1,4 +1,5 @@
 // ptda monitor --recording DIR --config FILE --baseline BASELINE [--method M] [--jsonl OUT] [--windows F:T]
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <ostream>
@@ -149,6 +150,107 @@ void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::Slicer
       << " error frames\n";
 }
 
+void print_coverage(std::ostream& out, const dsp::CoverageState& c, const dsp::Baseline& baseline,
+                    double timeout_s, std::int64_t t0_ns) {
+  const std::uint64_t unmatched = c.unmatched_total();
+  out << "  coverage   " << c.judged << " windows judged, " << unmatched << " cut but not judged (speed "
+      << c.unmatched[static_cast<std::size_t>(dsp::UnmatchedReason::kSpeed)] << ", direction "
+      << c.unmatched[static_cast<std::size_t>(dsp::UnmatchedReason::kDirection)] << ", invalid "
+      << c.unmatched[static_cast<std::size_t>(dsp::UnmatchedReason::kInvalid)] << "); "
+      << fixed(c.moving_ns * 1e-9, 1) << " s of motion, " << fixed(c.moving_since_judged_s(), 1)
+      << " s since the last judged window\n";
+  for (std::size_t i = 0; i < baseline.classes.size(); ++i) {
+    const dsp::SegmentClass& seg = baseline.classes[i].segment;
+    out << "  class " << pad_right(std::to_string(seg.id), 4) << " " << (seg.direction < 0 ? "-" : "+")
+        << fixed(seg.speed_rad_s, 3) << " rad/s: ";
+    if (i >= dsp::kCoverageMaxClasses) {
+      out << "not tracked\n";
+      continue;
+    }
+    const dsp::ClassCoverage& k = c.classes[i];
+    out << k.judged << " judged";
+    if (k.have) {
+      out << ", last ending at " << fixed(ns_to_seconds(k.last_t_ns - t0_ns), 3) << " s";
+    }
+    if (!c.class_current(static_cast<std::uint32_t>(i), timeout_s)) out << "  (NOT JUDGED RECENTLY)";
+    out << "\n";
+  }
+  if (c.speed_bins > 0) {
+    out << "  unmatched  speeds seen:";
+    for (std::uint32_t i = 0; i < c.speed_bins; ++i) {
+      out << (i == 0 ? " " : ", ") << fixed(c.speeds[i].speed_rad_s, 3) << " rad/s x " << c.speeds[i].count;
+    }
+    if (c.speeds_not_binned > 0) out << ", " << c.speeds_not_binned << " more at other speeds";
+    out << "\n";
+  }
+  char text[256];
+  dsp::describe_coverage(c, baseline, timeout_s, text, sizeof text);
+  // The text starts with the state ("not judging: ...", "partial coverage: ..."); full has none.
+  out << "  state      " << (text[0] != '\0' ? std::string_view(text) : dsp::coverage_level_name(c.level))
+      << " (timeout " << general(timeout_s) << " s of motion)\n";
+}
+
+std::size_t print_coverage_warnings(std::ostream& out, const dsp::CoverageState& c,
+                                    const dsp::Baseline& baseline, double timeout_s) {
+  std::size_t n = 0;
+  char text[256];
+  dsp::describe_coverage(c, baseline, timeout_s, text, sizeof text);
+  if (c.judged == 0) {
+    out << "warning: judged nothing: no window matched a class of the baseline" << (text[0] ? " (" : "")
+        << text << (text[0] ? ")" : "") << "\n";
+    ++n;
+  } else if (c.level == dsp::CoverageLevel::kNotJudging || c.level == dsp::CoverageLevel::kPartial) {
+    out << "warning: low coverage: " << text << "\n";
+    ++n;
+  }
+  const std::uint64_t cut = c.judged + c.unmatched_total();
+  if (c.judged > 0 && 2 * c.judged < cut) {
+    out << "warning: low coverage: only " << c.judged << " of " << cut << " windows cut were judged\n";
+    ++n;
+  }
+  return n;
+}
+
+bool print_training_overlap(std::ostream& out, const dsp::Baseline& baseline, const std::string& recording_id,
+                            const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns) {
+  if (baseline.training.empty()) {
+    out << "note: the baseline does not list its training recordings (format version 1 or field "
+           "training): in-sample use not checked\n";
+    return false;
+  }
+  if (windows.empty()) return false;
+  std::int64_t from_ns = windows.front().ref.t_start_ns;
+  std::int64_t to_ns = windows.front().ref.t_end_ns;
+  for (const auto& w : windows) {
+    from_ns = std::min(from_ns, w.ref.t_start_ns);
+    to_ns = std::max(to_ns, w.ref.t_end_ns);
+  }
+  const double t0_s = ns_to_seconds(t0_ns);
+  const auto span = [&](double a_s, double b_s) {
+    return fixed(a_s - t0_s, 1) + "-" + fixed(b_s - t0_s, 1) + " s";
+  };
+  const double from_s = ns_to_seconds(from_ns);
+  const double to_s = ns_to_seconds(to_ns);
+  bool warned = false;
+  for (const dsp::TrainingRecording& t : baseline.training) {
+    if (t.id != recording_id) continue;
+    const double lo = std::max(from_s, t.from_unix_s);
+    const double hi = std::min(to_s, t.to_unix_s);
+    if (lo < hi) {
+      out << "warning: in-sample: this recording is the baseline's training recording " << t.path << " (id "
+          << t.id << "): the windows judged (" << span(from_s, to_s) << ") overlap the " << t.windows
+          << " windows trained on (" << span(t.from_unix_s, t.to_unix_s)
+          << "); judge data the baseline did not see (e.g. train --windows 0:0.5, monitor --windows 0.5:1)\n";
+      warned = true;
+    } else {
+      out << "note: this recording is the baseline's training recording " << t.path
+          << ", but the windows judged (" << span(from_s, to_s) << ") do not overlap the ones trained on ("
+          << span(t.from_unix_s, t.to_unix_s) << "): a held-out part\n";
+    }
+  }
+  return warned;
+}
+
 MonitorInputs load_monitor_inputs(const std::string& recording, const std::string& config_path,
                                   const std::string& baseline_path) {
   MonitorInputs in;
@@ -176,6 +278,8 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
       .option("method", "ptda|tda|raw", "how the deterministic part is removed (default: [monitor] method)")
       .option("jsonl", "OUT", "write one JSON object per window to OUT ('-' = stdout, then no table)")
       .option("windows", "FROM:TO", "report only this fraction of the windows (alarm recomputed over them)")
+      .option("coverage-timeout", "S",
+              "seconds of motion without a judged window before the run counts as not judging (default 60)")
       .flag("quiet", "print only the summary, not the table of windows");
   const ParsedArgs a = parser.parse(args);
   if (a.help()) {
@@ -189,6 +293,13 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   }
   FractionRange range;
   if (a.has("windows")) range = parse_fraction_range(a.value("windows"), "windows");
+  RunOptions opts;
+  if (a.has("coverage-timeout")) {
+    opts.coverage_timeout_s = parse_double_arg(a.value("coverage-timeout"), "coverage-timeout");
+    if (!(opts.coverage_timeout_s > 0.0 && opts.coverage_timeout_s <= 86400.0))
+      throw UsageError("--coverage-timeout: must be in (0, 86400] seconds, got " +
+                       a.value("coverage-timeout"));
+  }
 
   MonitorInputs in = load_monitor_inputs(a.value("recording"), a.value("config"), a.value("baseline"));
   const dsp::Method method = method_opt.value_or(in.cfg.method);
@@ -206,7 +317,6 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   }
   const bool table = jsonl_path != "-" && !a.has("quiet");
 
-  RunOptions opts;
   opts.progress_label = "monitor " + in.rec.dir.filename().string();
   MonitorResult r = monitor_recording(in.rec, in.cfg, in.baseline, method, in.fs_hz, {}, opts);
   if (!range.whole()) {
@@ -230,7 +340,17 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
     jsonl->flush();
     if (!*jsonl) throw Error(jsonl_path + ": write failed");
   }
-  if (jsonl_path != "-") print_summary(out, summarize(r.windows, in.rec.t0_ns), r.slicer, r.can, method);
+  if (jsonl_path != "-") {
+    print_summary(out, summarize(r.windows, in.rec.t0_ns), r.slicer, r.can, method);
+    print_coverage(out, r.coverage, in.baseline, opts.coverage_timeout_s, in.rec.t0_ns);
+  }
+  // With the JSONL on stdout the warnings go to stderr, so the JSONL stays clean.
+  std::ostream& warn = jsonl_path == "-" ? std::cerr : out;
+  print_coverage_warnings(warn, r.coverage, in.baseline, opts.coverage_timeout_s);
+  print_training_overlap(warn, in.baseline, recording_id(in.rec), r.windows, in.rec.t0_ns);
+  std::size_t judged = 0;
+  for (const auto& w : r.windows) judged += w.status == dsp::WindowStatus::kScored ? 1 : 0;
+  if (judged == 0 || r.coverage.level == dsp::CoverageLevel::kNotJudging) return kExitNotJudged;
   return kExitOk;
 }
 

@@ -1,4 +1,5 @@
 // ptda train --recording DIR [--recording DIR ...] --config FILE --out BASELINE [--windows FROM:TO]
+#include <algorithm>
 #include <cmath>
 #include <ostream>
 
@@ -7,6 +8,7 @@
 #include "ptda/cli/pipeline_runner.hpp"
 #include "ptda/cli/text.hpp"
 #include "ptda/common/error.hpp"
+#include "ptda/common/time.hpp"
 #include "ptda/config/pipeline_config.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/formats/baseline_file.hpp"
@@ -51,6 +53,12 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   double fs_hz = 0.0;
   std::string first_recording;
   std::string source = "ptda train";
+  // Each recording's windows are all.refs[begin, end): select_windows keeps one contiguous range.
+  struct Span {
+    dsp::TrainingRecording rec;
+    std::size_t begin = 0, end = 0;
+  };
+  std::vector<Span> spans;
   for (const auto& dir : a.values("recording")) {
     const RecordingInfo rec = open_recording(dir);
     const double fs = pipeline_fs_hz(rec, cfg, config_path);
@@ -73,7 +81,32 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
         << " speed, " << c.can.other_id << " other ids, " << c.can.wrong_dlc << " wrong DLC, "
         << c.can.error_frames << " error frames\n";
     source += " --recording " + dir;
+    Span span;
+    span.rec.id = recording_id(rec);
+    span.rec.path = dir;
+    span.begin = all.refs.size();
     append_collected(all, std::move(c.data));
+    span.end = all.refs.size();
+    spans.push_back(span);
+  }
+  // What each recording contributed after --windows, for `ptda monitor`'s in-sample warning.
+  std::vector<dsp::TrainingRecording> training;
+  {
+    const auto first = static_cast<std::size_t>(range.first(all.refs.size()));
+    const auto last = static_cast<std::size_t>(range.last(all.refs.size()));
+    for (Span& sp : spans) {
+      const std::size_t b = std::max(sp.begin, first);
+      const std::size_t e = std::min(sp.end, last);
+      if (b >= e) continue;
+      sp.rec.from_unix_s = ns_to_seconds(all.refs[b].t_start_ns);
+      sp.rec.to_unix_s = ns_to_seconds(all.refs[e - 1].t_end_ns);
+      for (std::size_t i = b; i < e; ++i) {
+        sp.rec.from_unix_s = std::min(sp.rec.from_unix_s, ns_to_seconds(all.refs[i].t_start_ns));
+        sp.rec.to_unix_s = std::max(sp.rec.to_unix_s, ns_to_seconds(all.refs[i].t_end_ns));
+      }
+      sp.rec.windows = static_cast<std::uint32_t>(e - b);
+      training.push_back(sp.rec);
+    }
   }
   source += " --config " + config_path;
   if (!range.whole()) {
@@ -91,6 +124,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
 
   dsp::Baseline baseline = dsp::train_baseline(all, cfg.classes, cfg.thresholds, fs_hz, cfg.gearbox);
   baseline.source = source;
+  baseline.training = training;
   formats::write_baseline(a.value("out"), baseline);
 
   out << "baseline " << a.value("out") << ": " << baseline.classes.size()

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -13,6 +15,7 @@
 #include "ptda/config/speed_codec.hpp"
 #include "ptda/dsp/decision.hpp"
 #include "ptda/dsp/window_slicer.hpp"
+#include "ptda/formats/baseline_file.hpp"
 #include "ptda/formats/candump.hpp"
 
 namespace ptda::cli {
@@ -52,6 +55,21 @@ RecordingInfo open_recording(const fs::path& dir) {
   rec.t0_ns = seconds_to_ns(rec.meta.start_time_s);
   rec.duration_s = static_cast<double>(rec.wav.frames) / static_cast<double>(rec.wav.sample_rate_hz);
   return rec;
+}
+
+std::string recording_id(const RecordingInfo& rec) {
+  std::ifstream in(rec.wav_path, std::ios::binary);
+  if (!in) throw Error(rec.wav_path.string() + ": cannot open to fingerprint it");
+  std::vector<char> head(std::size_t{1} << 20);
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  const auto got = static_cast<std::size_t>(in.gcount());
+  if (in.bad()) throw Error(rec.wav_path.string() + ": read error while fingerprinting it");
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(rec.wav_path, ec);
+  if (ec) throw Error(rec.wav_path.string() + ": cannot read its size: " + ec.message());
+  char crc[16];
+  std::snprintf(crc, sizeof crc, "%08x", formats::crc32(head.data(), got));
+  return "wav:" + std::to_string(size) + ":" + crc + ":ch" + std::to_string(rec.meta.channel);
 }
 
 double pipeline_fs_hz(const RecordingInfo& rec, const config::PipelineConfig& cfg,
@@ -177,27 +195,37 @@ class CollectSink final : public PipelineSink {
 
 class MonitorSink final : public PipelineSink {
  public:
-  MonitorSink(dsp::MonitorEngine& engine, std::vector<dsp::WindowResult>& out, const WindowObserver& observer)
-      : engine_(engine), out_(out), observer_(observer) {}
+  MonitorSink(dsp::MonitorEngine& engine, dsp::CoverageTracker& coverage, std::vector<dsp::WindowResult>& out,
+              const WindowObserver& observer)
+      : engine_(engine), coverage_(coverage), out_(out), observer_(observer) {}
 
-  void on_speed(const dsp::SpeedSample& s) override { engine_.push_speed(s); }
+  void on_speed(const dsp::SpeedSample& s) override {
+    engine_.push_speed(s);
+    coverage_.on_speed(s);
+  }
   void on_samples(std::span<const float> block) override { engine_.push_samples(block); }
   void on_block_end() override { drain(); }
   void on_finish() override {
     engine_.finish();
     drain();
+    coverage_.finish();
   }
 
  private:
+  // As the daemon's processing thread: every window, then the slicer's discarded count.
   void drain() {
     dsp::WindowResult r;
     while (engine_.poll(r)) {
       if (observer_) observer_(r, engine_);
+      coverage_.on_window(r);
       out_.push_back(r);
     }
+    const dsp::SlicerCounters& sc = engine_.slicer().counters();
+    coverage_.on_discarded_total(sc.windows_invalid + sc.windows_lost + sc.windows_overflow);
   }
 
   dsp::MonitorEngine& engine_;
+  dsp::CoverageTracker& coverage_;
   std::vector<dsp::WindowResult>& out_;
   const WindowObserver& observer_;
 };
@@ -271,9 +299,15 @@ MonitorResult monitor_recording(const RecordingInfo& rec, const config::Pipeline
                                 const dsp::Baseline& baseline, dsp::Method method, double fs_hz,
                                 const WindowObserver& observer, const RunOptions& options) {
   dsp::MonitorEngine engine(baseline, cfg.extraction, cfg.decision, method, fs_hz, rec.t0_ns);
+  dsp::CoverageConfig cc;
+  cc.timeout_s = options.coverage_timeout_s;
+  cc.moving_speed_rad_s = cfg.extraction.min_speed_rad_s;
+  cc.max_speed_gap_s = cfg.extraction.max_speed_gap_s;
+  dsp::CoverageTracker coverage(baseline, cc);
   MonitorResult result;
-  MonitorSink sink(engine, result.windows, observer);
+  MonitorSink sink(engine, coverage, result.windows, observer);
   result.can = run_recording(rec, cfg, sink, options);
+  result.coverage = coverage.state();
   result.slicer = engine.slicer().counters();
   result.fs_hz = fs_hz;
   return result;

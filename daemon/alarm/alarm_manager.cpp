@@ -54,7 +54,7 @@ AlarmLevel AlarmManager::on_window(const dsp::WindowResult& w, std::int64_t t_mo
   windows_scored_.add();
   if (abnormal) windows_abnormal_.add();
 
-  faults_known_ = true;
+  judged_ = true;
   state_.have_window = true;
   state_.last_window_t_ns = w.ref.t_end_ns;
   state_.last_class_id = w.class_id;
@@ -95,7 +95,6 @@ AlarmLevel AlarmManager::set_faults(std::uint8_t fault_causes, std::int64_t t_mo
   const std::uint8_t mask = fault_causes & kFaultCauseMask;
   if (state_.fault_causes == 0 && mask != 0) faults_entered_.add();
   state_.fault_causes = mask;
-  faults_known_ = true;
   apply_posted_clears(t_mono_ns);
   evaluate(t_mono_ns);
   return state_.level;
@@ -163,7 +162,7 @@ void AlarmManager::evaluate(std::int64_t t_ns) noexcept {
   AlarmLevel level = AlarmLevel::kNormal;
   if (state_.alarm_active) {
     level = AlarmLevel::kAlarm;
-  } else if (!faults_known_ || state_.fault_causes != 0) {
+  } else if (!judged_ || state_.fault_causes != 0) {  // not judged yet, or cannot judge
     level = AlarmLevel::kFault;
   } else if (warning_active_) {
     level = AlarmLevel::kWarning;

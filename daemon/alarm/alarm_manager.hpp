@@ -9,9 +9,11 @@
 //              An accepted clear needs: the hold time over, and the condition off at the last scored
 //              window. Otherwise the clear is refused (and counted) and the alarm stays.
 //   kFault   - no alarm active and the monitor cannot judge: fault causes set with set_faults()
-//              (sensor, speed, baseline, internal). A fault never raises, holds or latches kAlarm; a
-//              latched alarm stays kAlarm through a fault (the receiver keeps the confirmed verdict) and
-//              the report's causes then carry the fault bits as well.
+//              (sensor, speed, baseline, internal, coverage), or no window has been scored yet ("not
+//              judged yet": kFault with no cause; set_faults(0) alone never makes the level kNormal). A fault
+//              never raises, holds or latches kAlarm; a latched alarm stays kAlarm through a fault (the
+//              receiver keeps the confirmed verdict) and the report's causes then carry the fault bits as
+//              well.
 //   kWarning - warning enabled and at least warning_k of the debouncer's last n windows were abnormal
 //              (warning_k = 1: any abnormal window), kept for at least warning_hold_s.
 //   kNormal  - otherwise.
@@ -41,8 +43,9 @@ struct AlarmManagerConfig {
 };
 
 /// Mask of the AlarmCause bits that mean "monitoring not possible".
-inline constexpr std::uint8_t kFaultCauseMask =
-    drivers::kCauseSensor | drivers::kCauseSpeed | drivers::kCauseBaseline | drivers::kCauseInternal;
+inline constexpr std::uint8_t kFaultCauseMask = drivers::kCauseSensor | drivers::kCauseSpeed |
+                                                drivers::kCauseBaseline | drivers::kCauseInternal |
+                                                drivers::kCauseCoverage;
 /// Mask of the AlarmCause bits a window's verdict can set.
 inline constexpr std::uint8_t kFeatureCauseMask = drivers::kCauseRms | drivers::kCauseEntropy;
 
@@ -105,8 +108,8 @@ struct AlarmCounters {
 
 class AlarmManager {
  public:
-  /// Starts in kFault with no causes ("not judged yet", as drivers' activate()) until the first
-  /// set_faults() or scored window. Throws ptda::Error ("alarm: ...", naming the key) when
+  /// Starts in kFault with no causes ("not judged yet", as drivers' activate()) until the first scored
+  /// window. Throws ptda::Error ("alarm: ...", naming the key) when
   /// warning_k is 0, or a hold time is negative or not finite. Thread: any (setup). Never allocates
   /// except for the exception.
   AlarmManager(const AlarmManagerConfig& cfg, std::int64_t t_start_ns);
@@ -160,7 +163,7 @@ class AlarmManager {
   bool warning_condition_ = false;
   bool warning_active_ = false;
   std::int64_t warning_raised_ns_ = 0;
-  bool faults_known_ = false;
+  bool judged_ = false;  ///< a scored window was seen: kNormal/kWarning are possible from here on
   ClearResult last_clear_ = ClearResult::kNothingToClear;
   std::atomic<std::uint32_t> posted_clears_{0};
   std::atomic<std::uint8_t> posted_source_{0};

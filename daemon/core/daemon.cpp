@@ -43,6 +43,7 @@ DaemonState state_of(Phase phase) noexcept {
       return DaemonState::kPaused;
     case Phase::kStarting:
     case Phase::kMonitoring:
+    case Phase::kNotJudging:  // running, its own phase and fault cause say it is blind
       return DaemonState::kRunning;
   }
   return DaemonState::kRunning;
@@ -356,15 +357,45 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
       std::snprintf(reason, sizeof reason, "no vibration data for more than %.3g s",
                     cfg_.daemon.sensor_stale_s);
       break;
-    case Phase::kEnded:
-      std::snprintf(reason, sizeof reason, "replay ended; %llu windows processed",
-                    static_cast<unsigned long long>(ps.windows));
+    case Phase::kEnded: {
+      const int n = std::snprintf(reason, sizeof reason, "replay ended; %llu windows processed",
+                                  static_cast<unsigned long long>(ps.windows));
+      // How well the replay was covered ("partial coverage: class 1 ..."); nothing when fully.
+      if (p->baseline() != nullptr && n > 0 && static_cast<std::size_t>(n) + 3 < sizeof reason &&
+          ps.coverage.level != dsp::CoverageLevel::kFull) {
+        const auto at = static_cast<std::size_t>(n);
+        reason[at] = ';';
+        reason[at + 1] = ' ';
+        if (dsp::describe_coverage(ps.coverage, *p->baseline(), cfg_.daemon.coverage_timeout_s,
+                                   reason + at + 2, sizeof reason - at - 2) == 0) {
+          reason[at] = '\0';
+        }
+      }
+      break;
+    }
+    case Phase::kNotJudging:
+      if (p->baseline() != nullptr) {
+        const std::size_t n = dsp::describe_coverage(ps.coverage, *p->baseline(),
+                                                     cfg_.daemon.coverage_timeout_s, reason, sizeof reason);
+        if (ps.ended && n + 1 < sizeof reason) {
+          // Whole or not at all (a cut would end the text mid-word).
+          const int k = std::snprintf(reason + n, sizeof reason - n, "; replay ended; %llu windows processed",
+                                      static_cast<unsigned long long>(ps.windows));
+          if (k < 0 || static_cast<std::size_t>(k) >= sizeof reason - n) reason[n] = '\0';
+        }
+      }
       break;
     case Phase::kStarting:
       std::snprintf(reason, sizeof reason, "waiting for the first vibration block");
       break;
     case Phase::kTraining:
+      break;
     case Phase::kMonitoring:
+      // "not judged yet" before the first judged window, "partial coverage: ..." when a class is missing.
+      if (p->baseline() != nullptr) {
+        (void)dsp::describe_coverage(ps.coverage, *p->baseline(), cfg_.daemon.coverage_timeout_s, reason,
+                                     sizeof reason);
+      }
       break;
   }
   if (stalled >= 0) {
@@ -382,7 +413,8 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
   }
   state_.store(state, std::memory_order_release);
   if (ps.phase != last_phase_ || state != last_state_) {
-    if (ps.phase == Phase::kRefused || ps.phase == Phase::kPausedSpeed || ps.phase == Phase::kPausedSensor) {
+    if (ps.phase == Phase::kRefused || ps.phase == Phase::kPausedSpeed || ps.phase == Phase::kPausedSensor ||
+        ps.phase == Phase::kNotJudging) {
       spdlog::warn("state {} ({}): {}", daemon_state_name(state), phase_name(ps.phase), reason);
     } else {
       spdlog::info("state {} ({}){}{}", daemon_state_name(state), phase_name(ps.phase), reason[0] ? ": " : "",
@@ -488,6 +520,9 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.windows_scored = ps.scored;
   s.windows_abnormal = ps.abnormal;
   s.alarms_raised = ps.alarm_counters.alarms_raised;
+  s.coverage = ps.coverage;
+  s.coverage_timeout_s = cfg_.daemon.coverage_timeout_s;
+  s.coverage_known = b != nullptr && p->mode() == PipelineMode::kMonitor;
   s.watchdog_pings = pings_.load(std::memory_order_relaxed);
 }
 
@@ -573,11 +608,12 @@ void Daemon::supervise(std::int64_t now) noexcept {
   Pipeline* p = pipeline_.get();
   if (p != nullptr) {
     const PipelineStatus ps = p->status();
-    std::snprintf(status_text_, sizeof status_text_, "%s (%s): %llu windows, %llu abnormal, alarm %s%s%s",
-                  daemon_state_name(snapshot_.state).data(), phase_name(ps.phase),
-                  static_cast<unsigned long long>(ps.windows), static_cast<unsigned long long>(ps.abnormal),
-                  drivers::alarm_level_name(ps.report.level).data(), snapshot_.reason.len > 0 ? "; " : "",
-                  snapshot_.reason.text.data());
+    std::snprintf(
+        status_text_, sizeof status_text_, "%s (%s): %llu windows, %llu judged, %llu abnormal, alarm %s%s%s",
+        daemon_state_name(snapshot_.state).data(), phase_name(ps.phase),
+        static_cast<unsigned long long>(ps.windows), static_cast<unsigned long long>(ps.scored),
+        static_cast<unsigned long long>(ps.abnormal), drivers::alarm_level_name(ps.report.level).data(),
+        snapshot_.reason.len > 0 ? "; " : "", snapshot_.reason.text.data());
     notifier_.status(status_text_);
     if (options_.exit_at_end && ps.ended) {
       spdlog::info("replay ended: {} windows processed, stopping (--exit-at-end)", ps.windows);

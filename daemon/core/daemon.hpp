@@ -173,7 +173,7 @@ class Daemon {
   std::atomic<std::uint64_t> reloads_{0}, reload_failures_{0}, pings_{0}, pings_skipped_{0},
       status_writes_{0};
   mutable std::mutex reason_mutex_;  ///< guards reason_ for view()
-  char status_text_[256] = {};
+  char status_text_[kStatusTextBytes + 160] = {};
 };
 
 }  // namespace ptda::daemon

@@ -185,6 +185,7 @@ class DaemonTablesBuilder {
     get(r, "speed_stale_periods", daemon_.speed_stale_periods, 2.0, 100000.0);
     get(r, "sensor_stale_s", daemon_.sensor_stale_s, 0.01, 3600.0);
     get(r, "stage_stall_s", daemon_.stage_stall_s, 0.1, 3600.0);
+    get(r, "coverage_timeout_s", daemon_.coverage_timeout_s, 0.1, 86400.0);
     if (!daemon_.metrics_path.empty() && daemon_.metrics_path.extension() != ".prom") {
       r.fail_value("metrics_path",
                    "must end in \".prom\" (the node_exporter textfile collector reads only *.prom)");

@@ -38,6 +38,8 @@ struct DaemonSection {
   double speed_stale_periods = 25.0;               ///< no speed for this many frame periods: paused
   double sensor_stale_s = 1.0;                     ///< no vibration block for this long: paused
   double stage_stall_s = 2.0;  ///< a stage whose heartbeat stood still this long is stalled
+  /// No window judged for this long while the joint moves: phase "not judging", kFault cause coverage.
+  double coverage_timeout_s = 60.0;
 };
 
 /// [adc]

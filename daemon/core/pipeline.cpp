@@ -42,6 +42,8 @@ const char* phase_name(Phase p) noexcept {
       return "training";
     case Phase::kEnded:
       return "replay ended";
+    case Phase::kNotJudging:
+      return "not judging";
   }
   return "?";
 }
@@ -235,10 +237,16 @@ void Pipeline::configure() {
       }
       engine_ =
           std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method, fs_hz_, 0);
+      dsp::CoverageConfig cc;
+      cc.timeout_s = cfg_.daemon.coverage_timeout_s;
+      cc.moving_speed_rad_s = pc.extraction.min_speed_rad_s;
+      cc.max_speed_gap_s = pc.extraction.max_speed_gap_s;
+      coverage_ = std::make_unique<dsp::CoverageTracker>(*baseline, cc);
       baseline_ = std::move(baseline);
     } catch (const Error& e) {
       refusal_ = e.what();
       engine_.reset();
+      coverage_.reset();
       baseline_.reset();
     }
   } else {
@@ -540,6 +548,7 @@ void Pipeline::push_speed(const dsp::SpeedSample& s) noexcept {
   shifted.t_ns -= st_.t0_mono_ns;
   if (!streams_finished_) {
     if (engine_) engine_->push_speed(shifted);
+    if (coverage_) coverage_->on_speed(s);  // daemon time, as the windows it sees
     if (train_slicer_) train_slicer_->push_speed(shifted);
   }
   ++st_.speeds;
@@ -564,8 +573,13 @@ void Pipeline::drain_windows(std::int64_t now) noexcept {
         ++st_.no_class;
       }
       if (r.alarm) ++st_.alarm_windows;
+      if (coverage_) coverage_->on_window(r);
       alarm_->on_window(r, alarm_time(fast_ ? r.ref.t_end_ns : now));
       if (sink_ != nullptr) sink_->on_window(r);
+    }
+    if (coverage_) {
+      const dsp::SlicerCounters& sc = engine_->slicer().counters();
+      coverage_->on_discarded_total(sc.windows_invalid + sc.windows_lost + sc.windows_overflow);
     }
   }
   if (train_slicer_) {
@@ -642,6 +656,7 @@ bool Pipeline::process_step(std::int64_t now) noexcept {
     if (can_live || (can_end && !have_speed_ && speed_ring_->size_approx() == 0)) {
       finish_streams();
       drain_windows(now);
+      if (coverage_) coverage_->finish();
       work = true;
     }
   }
@@ -671,6 +686,10 @@ void Pipeline::update_phase(std::int64_t now) noexcept {
   } else if (st_.ended) {
     phase = Phase::kEnded;
     causes = drivers::kCauseSensor;
+    if (coverage_ && coverage_->state().level == dsp::CoverageLevel::kNotJudging) {
+      phase = Phase::kNotJudging;  // the replay's verdict: it ended blind
+      causes |= drivers::kCauseCoverage;
+    }
   } else {
     const bool sensor_stale = !fast_ && (acq_end || now - last_block_arrival_ns_ > sensor_stale_ns_);
     bool speed_stale = channel_->bus_state() == drivers::CanBusState::kBusOff;
@@ -688,6 +707,9 @@ void Pipeline::update_phase(std::int64_t now) noexcept {
       phase = Phase::kStarting;
     } else if (mode_ == PipelineMode::kTrain) {
       phase = Phase::kTraining;
+    } else if (coverage_ && coverage_->state().level == dsp::CoverageLevel::kNotJudging) {
+      phase = Phase::kNotJudging;
+      causes = drivers::kCauseCoverage;
     }
     if (mode_ == PipelineMode::kTrain) causes |= drivers::kCauseBaseline;  // nothing is judged while training
   }
@@ -721,6 +743,7 @@ void Pipeline::publish(std::int64_t now, bool force) noexcept {
   st_.alarm = alarm_->state();
   st_.report = alarm_->report();
   st_.alarm_counters = alarm_->counters();
+  if (coverage_) st_.coverage = coverage_->state();
   published_.store(st_);
   last_publish_ns_ = now;
 }

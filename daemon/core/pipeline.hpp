@@ -44,6 +44,7 @@
 #include "ptda/drivers/counter.hpp"
 #include "ptda/drivers/sample_source.hpp"
 #include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/coverage.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "rt/spsc_ring.hpp"
 #include "rt/wake_signal.hpp"
@@ -80,6 +81,8 @@ enum class Phase : std::uint8_t {
   kRefused = 4,       ///< no usable baseline: nothing is judged
   kTraining = 5,      ///< field training: windows go to the FieldTrainer
   kEnded = 6,         ///< a replay ended and every window was processed
+  kNotJudging = 7,    ///< running, but no window judged for [daemon] coverage_timeout_s of motion (or a
+                      ///< finished replay judged nothing): kFault with cause coverage, never kNormal
 };
 [[nodiscard]] const char* phase_name(Phase p) noexcept;
 
@@ -151,6 +154,7 @@ struct PipelineStatus {
   AlarmState alarm;
   drivers::AlarmReport report;
   AlarmCounters alarm_counters;
+  dsp::CoverageState coverage;  ///< judged/unmatched windows, motion since the last judgement
 };
 
 struct StageHeartbeats {
@@ -260,6 +264,7 @@ class Pipeline {
   std::string refusal_;
   std::unique_ptr<dsp::Baseline> baseline_;
   std::unique_ptr<dsp::MonitorEngine> engine_;
+  std::unique_ptr<dsp::CoverageTracker> coverage_;  ///< with engine_
   std::unique_ptr<dsp::WindowSlicer> train_slicer_;
   std::unique_ptr<FieldTrainer> trainer_;
   std::vector<float> train_window_;

@@ -140,14 +140,18 @@ void append_seconds(TextBuffer& b, double s) noexcept {
   b.append(std::string_view(buf, static_cast<std::size_t>(n)));
 }
 
-constexpr std::array<std::pair<std::uint8_t, std::string_view>, 6> kCauseNames{{
+constexpr std::array<std::pair<std::uint8_t, std::string_view>, 7> kCauseNames{{
     {drivers::kCauseRms, "rms"},
     {drivers::kCauseEntropy, "entropy"},
     {drivers::kCauseSensor, "sensor"},
     {drivers::kCauseSpeed, "speed"},
     {drivers::kCauseBaseline, "baseline"},
     {drivers::kCauseInternal, "internal"},
+    {drivers::kCauseCoverage, "coverage"},
 }};
+
+constexpr std::array<dsp::UnmatchedReason, dsp::kUnmatchedReasonCount> kUnmatchedReasons{
+    dsp::UnmatchedReason::kSpeed, dsp::UnmatchedReason::kDirection, dsp::UnmatchedReason::kInvalid};
 
 // ----------------------------------------------------------------------------------------------- JSON
 class Json {
@@ -370,6 +374,56 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   }
   j.close('}');
 
+  if (s.coverage_known) {
+    const dsp::CoverageState& c = s.coverage;
+    j.key("coverage");
+    j.open('{');
+    j.str("state", dsp::coverage_level_name(c.level));
+    j.num("timeout_s", s.coverage_timeout_s);
+    j.u64("judged", c.judged);
+    j.key("unmatched");
+    j.open('{');
+    for (const dsp::UnmatchedReason r : kUnmatchedReasons) {
+      j.u64(dsp::unmatched_reason_name(r), c.unmatched[static_cast<std::size_t>(r)]);
+    }
+    j.close('}');
+    j.secs("last_judged_age_s", c.last_judged_age_s());
+    j.secs("motion_since_judged_s", c.moving_since_judged_s());
+    j.key("classes");
+    j.open('[');
+    const std::uint32_t n = c.class_count < dsp::kCoverageMaxClasses
+                                ? c.class_count
+                                : static_cast<std::uint32_t>(dsp::kCoverageMaxClasses);
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const dsp::ClassCoverage& k = c.classes[i];
+      j.item();
+      j.open('{');
+      j.u64("id", i);
+      j.u64("judged", k.judged);
+      if (k.have) {
+        j.secs("last_judged_age_s", static_cast<double>(c.latest_t_ns - k.last_t_ns) * 1e-9);
+      } else {
+        j.null("last_judged_age_s");
+      }
+      j.boolean("current", c.class_current(i, s.coverage_timeout_s));
+      j.close('}');
+    }
+    j.close(']');
+    j.key("unmatched_speeds");
+    j.open('[');
+    for (std::uint32_t i = 0; i < c.speed_bins && i < dsp::kCoverageSpeedBins; ++i) {
+      j.item();
+      j.open('{');
+      j.num("speed_rad_s", c.speeds[i].speed_rad_s);
+      j.u64("windows", c.speeds[i].count);
+      j.close('}');
+    }
+    j.close(']');
+    j.close('}');
+  } else {
+    j.null("coverage");
+  }
+
   if (s.state == DaemonState::kTraining) {
     j.key("training");
     j.open('{');
@@ -533,6 +587,45 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   p.gauge("ptda_alarm_latched", "1 while an alarm waits for an accepted clear.", s.alarm_latched ? 1.0 : 0.0);
   p.gauge("ptda_alarm_level_duration_seconds", "Seconds since the level was entered.",
           s.now_s - s.alarm_since_s);
+
+  if (s.coverage_known) {
+    const dsp::CoverageState& c = s.coverage;
+    p.family("ptda_coverage_state", "gauge",
+             "1 for the current coverage state (waiting, full, partial, not judging), 0 for the others.");
+    for (const dsp::CoverageLevel l : {dsp::CoverageLevel::kWaiting, dsp::CoverageLevel::kFull,
+                                       dsp::CoverageLevel::kPartial, dsp::CoverageLevel::kNotJudging}) {
+      p.sample("ptda_coverage_state", {{"state", dsp::coverage_level_name(l)}}, l == c.level ? 1.0 : 0.0);
+    }
+    p.counter("ptda_windows_judged_total", "Windows judged against a class of the baseline.", c.judged);
+    p.family("ptda_windows_unmatched_total", "counter",
+             "Windows cut but not judged, by reason: speed (no class at that speed), direction (no class in "
+             "that direction), invalid (discarded samples).");
+    for (const dsp::UnmatchedReason r : kUnmatchedReasons) {
+      p.sample_u64("ptda_windows_unmatched_total", {{"reason", dsp::unmatched_reason_name(r)}},
+                   c.unmatched[static_cast<std::size_t>(r)]);
+    }
+    p.gauge("ptda_last_judged_window_age_seconds",
+            "Data seconds since the last judged window ended (since the first data before one).",
+            c.last_judged_age_s());
+    p.gauge(
+        "ptda_motion_since_judged_seconds",
+        "Seconds of joint motion since the last judged window; coverage_timeout_s of it means not judging.",
+        c.moving_since_judged_s());
+    const std::uint32_t n = c.class_count < dsp::kCoverageMaxClasses
+                                ? c.class_count
+                                : static_cast<std::uint32_t>(dsp::kCoverageMaxClasses);
+    p.family("ptda_class_windows_judged_total", "counter", "Windows judged per segment class.");
+    for (std::uint32_t i = 0; i < n; ++i) {
+      p.sample_u64("ptda_class_windows_judged_total", {{"class", small_int(idb, i)}}, c.classes[i].judged);
+    }
+    p.family("ptda_class_last_judged_window_age_seconds", "gauge",
+             "Data seconds since the class's last judged window ended (classes judged at least once).");
+    for (std::uint32_t i = 0; i < n; ++i) {
+      if (!c.classes[i].have) continue;
+      p.sample("ptda_class_last_judged_window_age_seconds", {{"class", small_int(idb, i)}},
+               static_cast<double>(c.latest_t_ns - c.classes[i].last_t_ns) * 1e-9);
+    }
+  }
 
   if (s.state == DaemonState::kTraining) {
     p.gauge("ptda_training_windows", "Healthy windows collected by field training.", s.training_windows);

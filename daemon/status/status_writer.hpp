@@ -7,7 +7,7 @@
 // per RFC 8259 with \" \\ \b \f \n \r \t and \u00XX for other control characters):
 //   {"version":1,"state":..,"reason":..,"uptime_s":..,"wall_time_unix_s":..,"method":..,
 //    "baseline":{"loaded":..,"path":..,"fs_hz":..,"window_len":..,"source":..,"classes":[{...}]},
-//    "last_window":{...}|null,"alarm":{...},"training":{...}|null,
+//    "last_window":{...}|null,"alarm":{...},"coverage":{...}|null,"training":{...}|null,
 //    "acquisition":{...},"can":{...},"slicer":{...},"pipeline":{...}}
 // Prometheus (text exposition format 0.0.4): `# HELP` and `# TYPE` for every metric family, names
 // `ptda_*`, `_total` for counters, units in names (`_seconds`, `_hertz`, `_radians_per_second`),
@@ -25,6 +25,7 @@
 
 #include "ptda/drivers/alarm_output.hpp"
 #include "ptda/drivers/can_channel.hpp"
+#include "ptda/dsp/coverage.hpp"
 
 namespace ptda::daemon {
 
@@ -87,7 +88,7 @@ enum class DaemonState : std::uint8_t {
 }
 
 inline constexpr std::size_t kStatusMaxClasses = 16;  ///< classes beyond this are not listed
-inline constexpr std::size_t kStatusTextBytes = 160;
+inline constexpr std::size_t kStatusTextBytes = 256;  ///< room for the coverage text and a suffix
 inline constexpr std::size_t kStatusPathBytes = 256;
 
 struct StatusClass {
@@ -165,6 +166,11 @@ struct StatusSnapshot {
   std::uint64_t windows_scored = 0, windows_abnormal = 0;
   std::uint64_t alarms_raised = 0;
   std::uint64_t watchdog_pings = 0;
+
+  // Coverage (monitoring with a baseline): judged and unmatched windows, motion since the last judgement.
+  bool coverage_known = false;  ///< false: "coverage" is null and its metrics are left out
+  double coverage_timeout_s = 0.0;
+  dsp::CoverageState coverage;
 };
 
 /// Appends text into a fixed char buffer; on overflow it stops writing and remembers it.

@@ -1,7 +1,8 @@
 // Alarm verdicts as a classic CAN frame (8 bytes) through a CanChannel. Layout (docs/drivers.md):
 //   byte 0     bits 0-1 level (0 normal, 1 warning, 2 alarm, 3 fault); bits 2-3 zero;
 //              bits 4-7 alive counter (+1 per frame, wraps 15 -> 0)
-//   byte 1     cause bits (AlarmCause: 0 rms, 1 entropy, 2 sensor, 3 speed, 4 baseline, 5 internal)
+//   byte 1     cause bits (AlarmCause: 0 rms, 1 entropy, 2 sensor, 3 speed, 4 baseline, 5 internal,
+//              6 coverage); level fault with no cause bit = "not judged yet"
 //   byte 2     segment class of the last judged window (0xFF = none)
 //   byte 3     abnormal windows among the debouncer's last n
 //   bytes 4-5  rms_res, unsigned little-endian, raw = round(rms / rms_lsb), saturated at 0xFFFE;

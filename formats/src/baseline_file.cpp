@@ -143,6 +143,11 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
   // it directly is an always-false -Wtype-limits error there.
   if (std::uint64_t{b.source.size()} > std::numeric_limits<std::uint32_t>::max())
     throw Error(where + ": source text too long");
+  for (const dsp::TrainingRecording& t : b.training) {
+    if (std::uint64_t{t.id.size()} > std::numeric_limits<std::uint32_t>::max() ||
+        std::uint64_t{t.path.size()} > std::numeric_limits<std::uint32_t>::max())
+      throw Error(where + ": training recording text too long");
+  }
 }
 
 void put_stats(Writer& w, const dsp::FeatureStats& s) {
@@ -225,6 +230,17 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   }
   w.u32(static_cast<std::uint32_t>(b.source.size()));
   w.bytes(b.source.data(), b.source.size());
+  // Version 2: the training recordings.
+  w.u32(static_cast<std::uint32_t>(b.training.size()));
+  for (const dsp::TrainingRecording& t : b.training) {
+    w.u32(static_cast<std::uint32_t>(t.id.size()));
+    w.bytes(t.id.data(), t.id.size());
+    w.u32(static_cast<std::uint32_t>(t.path.size()));
+    w.bytes(t.path.data(), t.path.size());
+    w.f64(t.from_unix_s);
+    w.f64(t.to_unix_s);
+    w.u32(t.windows);
+  }
   w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
   w.u32(crc32(w.buf().data(), w.buf().size()));
   return std::move(w.buf());
@@ -241,9 +257,10 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   Reader r(bytes, source);
   r.skip(kMagic.size());
   const std::uint32_t version = r.u32();
-  if (version != kBaselineFormatVersion)
+  if (version < kBaselineOldestReadableVersion || version > kBaselineFormatVersion)
     throw Error(source + ": unsupported baseline format version " + std::to_string(version) +
-                " (this build reads " + std::to_string(kBaselineFormatVersion) + ")");
+                " (this build reads " + std::to_string(kBaselineOldestReadableVersion) + " to " +
+                std::to_string(kBaselineFormatVersion) + ")");
   const std::uint64_t declared = r.u64();
   if (declared > size)
     throw Error(source + ": truncated: header says " + std::to_string(declared) + " bytes, file has " +
@@ -323,6 +340,28 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   body.need(n_src);
   b.source.assign(reinterpret_cast<const char*>(bytes.data() + body.pos()), n_src);
   body.skip(n_src);
+  if (version >= 2) {
+    const auto text = [&] {
+      const std::uint32_t n = body.u32();
+      body.need(n);
+      std::string t(reinterpret_cast<const char*>(bytes.data() + body.pos()), n);
+      body.skip(n);
+      return t;
+    };
+    const std::uint32_t n_training = body.u32();
+    // id and path lengths, two times, the window count: at least 28 bytes each.
+    if (n_training > body.left() / 28)
+      body.fail(std::to_string(n_training) + " training recordings cannot fit in the remaining " +
+                std::to_string(body.left()) + " bytes");
+    b.training.resize(n_training);
+    for (dsp::TrainingRecording& t : b.training) {
+      t.id = text();
+      t.path = text();
+      t.from_unix_s = body.f64();
+      t.to_unix_s = body.f64();
+      t.windows = body.u32();
+    }
+  }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
   if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0))
     throw Error(source + ": inconsistent baseline: fs_hz must be positive");

@@ -17,6 +17,7 @@
 #include "core/daemon.hpp"
 #include "golden_support.hpp"
 #include "ptda/cli/monitor_output.hpp"
+#include "ptda/cli/pipeline_runner.hpp"
 #include "ptda/common/time.hpp"
 #include "ptda/drivers/clock.hpp"
 #include "ptda/formats/recording.hpp"
@@ -148,6 +149,25 @@ TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
   }
   EXPECT_EQ(collector.windows.size(), pin.windows) << "pinned window count";
   EXPECT_EQ(alarm_windows, pin.alarm_windows) << "pinned alarm windows";
+
+  // Coverage: the daemon's tracker reaches the state `ptda monitor`'s does (same windows, same speed
+  // samples, same motion time), and every window of a paper job's faulty recording is judged.
+  const std::string cfg = (source_dir() / "config" / "examples" / (std::string(pin.job) + ".toml")).string();
+  const cli::MonitorInputs in = cli::load_monitor_inputs(p.faulty.string(), cfg, p.baseline.string());
+  cli::RunOptions ro;
+  ro.progress = false;
+  const cli::MonitorResult m =
+      cli::monitor_recording(in.rec, in.cfg, in.baseline, dsp::Method::kPtda, in.fs_hz, {}, ro);
+  const dsp::CoverageState& dc = v.pipeline.coverage;
+  const dsp::CoverageState& mc = m.coverage;
+  EXPECT_EQ(dc.judged, mc.judged);
+  EXPECT_EQ(dc.unmatched, mc.unmatched);
+  EXPECT_EQ(dc.moving_ns, mc.moving_ns);
+  EXPECT_EQ(dc.level, mc.level);
+  for (std::size_t k = 0; k < dsp::kCoverageMaxClasses; ++k)
+    EXPECT_EQ(dc.classes[k].judged, mc.classes[k].judged);
+  EXPECT_EQ(dc.judged, pin.windows);
+  EXPECT_EQ(dc.level, dsp::CoverageLevel::kFull);
 }
 
 INSTANTIATE_TEST_SUITE_P(PaperJobs, DaemonReplay, ::testing::ValuesIn(kJobs),

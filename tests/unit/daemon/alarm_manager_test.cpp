@@ -59,9 +59,27 @@ TEST(AlarmManager, StartsInFaultWithoutCausesUntilJudged) {
   EXPECT_EQ(m.state().since_ns, 6 * kS);
 }
 
+// Monitoring possible (no fault cause) is not a verdict: the level stays kFault with no cause ("not
+// judged yet", docs/daemon.md) until a window was scored, whatever kNoClass windows pass meanwhile.
+TEST(AlarmManager, NoFaultCauseIsNotNormalBeforeTheFirstScoredWindow) {
+  AlarmManager m(latched_cfg(), 0);
+  EXPECT_EQ(m.set_faults(0, 1 * kS), AlarmLevel::kFault);
+  EXPECT_EQ(m.report().causes, 0);
+  dsp::WindowResult unmatched = ok();
+  unmatched.status = dsp::WindowStatus::kNoClass;
+  EXPECT_EQ(m.on_window(unmatched, 2 * kS), AlarmLevel::kFault);
+  EXPECT_EQ(m.tick(3 * kS), AlarmLevel::kFault);
+  EXPECT_EQ(m.on_window(ok(), 4 * kS), AlarmLevel::kNormal);
+  // Coverage lost later: a fault with its own cause, never kNormal; judged windows bring normal back.
+  EXPECT_EQ(m.set_faults(drivers::kCauseCoverage, 5 * kS), AlarmLevel::kFault);
+  EXPECT_EQ(m.report().causes, drivers::kCauseCoverage);
+  EXPECT_EQ(m.on_window(ok(), 6 * kS), AlarmLevel::kFault);  // the cause is the pipeline's to clear
+  EXPECT_EQ(m.set_faults(0, 7 * kS), AlarmLevel::kNormal);
+}
+
 TEST(AlarmManager, LatchedSequenceWithHoldAndClear) {
   AlarmManager m(latched_cfg(), 0);
-  EXPECT_EQ(m.set_faults(0, 1 * kS), AlarmLevel::kNormal);
+  EXPECT_EQ(m.set_faults(0, 1 * kS), AlarmLevel::kFault);  // not judged yet
   EXPECT_EQ(m.on_window(ok(), 2 * kS), AlarmLevel::kNormal);
   // One abnormal window: warning (warning_k = 1), rms tripped.
   EXPECT_EQ(m.on_window(win(true, false, false, 1), 3 * kS), AlarmLevel::kWarning);
@@ -234,7 +252,7 @@ TEST(AlarmManager, UnclassifiedWindowsAreCountedNotJudged) {
   m.set_faults(0, 0);
   dsp::WindowResult w = win(true, true, true, 5);
   w.status = dsp::WindowStatus::kNoClass;
-  EXPECT_EQ(m.on_window(w, 1 * kS), AlarmLevel::kNormal);
+  EXPECT_EQ(m.on_window(w, 1 * kS), AlarmLevel::kFault);  // still not judged
   EXPECT_FALSE(m.state().have_window);
   EXPECT_EQ(m.counters().windows_unclassified, 1U);
   EXPECT_EQ(m.counters().windows_scored, 0U);

@@ -28,6 +28,10 @@ TEST(DaemonConfig, DefaultsAndOwnTablesBesideThePipeline) {
   EXPECT_EQ(c.can.backend, CanBackend::kSim);
   EXPECT_EQ(c.adc.block_len, 256U);
   EXPECT_EQ(c.daemon.speed_stale_periods, 25.0);
+  EXPECT_EQ(c.daemon.coverage_timeout_s, 60.0);
+  EXPECT_EQ(parse_daemon_config(kMinimal + "[daemon]\ncoverage_timeout_s = 12.5\n", "t.toml")
+                .daemon.coverage_timeout_s,
+            12.5);
   EXPECT_EQ(c.pipeline.extraction.window_len, 4096U);
   EXPECT_EQ(c.pipeline.speed_frame.id, 0x184U);
   EXPECT_EQ(c.alarm.min_hold_s, 10.0);
@@ -77,6 +81,9 @@ TEST(DaemonConfig, ErrorsAreLocated) {
             std::string::npos);
   EXPECT_NE(error_of(kMinimal + "[daemon]\nmetrics_path = \"/tmp/x.txt\"\n").find("must end in \".prom\""),
             std::string::npos);
+  const std::string zero_timeout = kMinimal + "[daemon]\ncoverage_timeout_s = 0\n";
+  EXPECT_EQ(error_of(zero_timeout).rfind("t.toml:6:22: daemon.coverage_timeout_s", 0), 0U)
+      << error_of(zero_timeout);
   // Pipeline errors come out the same way.
   EXPECT_EQ(error_of("[extraction]\nwindow_len = 4097\n").rfind("t.toml:2:", 0), 0U)
       << error_of("[extraction]\nwindow_len = 4097\n");

@@ -209,6 +209,24 @@ StatusSnapshot known_snapshot() {
   s.windows_abnormal = 4;
   s.alarms_raised = 1;
   s.watchdog_pings = 7200;
+  // Coverage: class 1 judged (last window), class 0 never in 3000 s of motion: partial.
+  s.coverage_known = true;
+  s.coverage_timeout_s = 60.0;
+  dsp::CoverageState& c = s.coverage;
+  c.level = dsp::CoverageLevel::kPartial;
+  c.judged = 107;
+  c.unmatched = {1, 0, 0};
+  c.class_count = 2;
+  c.classes[1] = dsp::ClassCoverage{107, true, 4'999'125'000'000, 2'999'500'000'000};
+  c.speeds[0] = dsp::UnmatchedSpeed{0.75, 1, 4'998'000'000'000};
+  c.speed_bins = 1;
+  c.have_judged = true;
+  c.last_judged_t_ns = 4'999'125'000'000;
+  c.have_time = true;
+  c.first_t_ns = 1'000'000'000'000;
+  c.latest_t_ns = 5'000'000'000'000;
+  c.moving_ns = 3'000'000'000'000;
+  c.moving_at_last_judged_ns = 2'999'500'000'000;
   return s;
 }
 
@@ -225,7 +243,12 @@ constexpr std::string_view kKnownJson =
     R"("rms_band":[0.011,0.021],"entropy_band":[0.81,0.91],"rms_out":true,"entropy_out":false,)"
     R"("abnormal":true,"abnormal_in_last_n":3},)"
     R"("alarm":{"level":"alarm","since_s":4990.000,"latched":true,"causes":["rms","speed"],)"
-    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86}},"training":null,)"
+    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86}},)"
+    R"("coverage":{"state":"partial","timeout_s":60,"judged":107,)"
+    R"("unmatched":{"speed":1,"direction":0,"invalid":0},"last_judged_age_s":0.875,)"
+    R"("motion_since_judged_s":0.500,"classes":[{"id":0,"judged":0,"last_judged_age_s":null,"current":false},)"
+    R"({"id":1,"judged":107,"last_judged_age_s":0.875,"current":true}],)"
+    R"("unmatched_speeds":[{"speed_rad_s":0.75,"windows":1}]},"training":null,)"
     R"("acquisition":{"blocks":100,"samples":102400,"gaps":1,"lost_samples":64,"short_reads":0,)"
     R"("time_back":0,"timeouts":0,"read_errors":0},)"
     R"("can":{"frames":5000,"speed_frames":4990,"other_ids":10,"wrong_dlc":0,"remote_frames":2,"error_frames":0,)"
@@ -360,7 +383,28 @@ TEST(StatusWriter, PrometheusLines) {
             (std::vector<std::string>{
                 R"(ptda_alarm_cause{cause="rms"} 1)", R"(ptda_alarm_cause{cause="entropy"} 0)",
                 R"(ptda_alarm_cause{cause="sensor"} 0)", R"(ptda_alarm_cause{cause="speed"} 1)",
-                R"(ptda_alarm_cause{cause="baseline"} 0)", R"(ptda_alarm_cause{cause="internal"} 0)"}));
+                R"(ptda_alarm_cause{cause="baseline"} 0)", R"(ptda_alarm_cause{cause="internal"} 0)",
+                R"(ptda_alarm_cause{cause="coverage"} 0)"}));
+  EXPECT_EQ(
+      samples_of(text, "ptda_coverage_state"),
+      (std::vector<std::string>{
+          R"(ptda_coverage_state{state="waiting"} 0)", R"(ptda_coverage_state{state="full"} 0)",
+          R"(ptda_coverage_state{state="partial"} 1)", R"(ptda_coverage_state{state="not judging"} 0)"}));
+  EXPECT_EQ(samples_of(text, "ptda_windows_judged_total"),
+            std::vector<std::string>{"ptda_windows_judged_total 107"});
+  EXPECT_EQ(samples_of(text, "ptda_windows_unmatched_total"),
+            (std::vector<std::string>{R"(ptda_windows_unmatched_total{reason="speed"} 1)",
+                                      R"(ptda_windows_unmatched_total{reason="direction"} 0)",
+                                      R"(ptda_windows_unmatched_total{reason="invalid"} 0)"}));
+  EXPECT_EQ(samples_of(text, "ptda_last_judged_window_age_seconds"),
+            std::vector<std::string>{"ptda_last_judged_window_age_seconds 0.875"});
+  EXPECT_EQ(samples_of(text, "ptda_motion_since_judged_seconds"),
+            std::vector<std::string>{"ptda_motion_since_judged_seconds 0.5"});
+  EXPECT_EQ(samples_of(text, "ptda_class_windows_judged_total"),
+            (std::vector<std::string>{R"(ptda_class_windows_judged_total{class="0"} 0)",
+                                      R"(ptda_class_windows_judged_total{class="1"} 107)"}));
+  EXPECT_EQ(samples_of(text, "ptda_class_last_judged_window_age_seconds"),
+            std::vector<std::string>{R"(ptda_class_last_judged_window_age_seconds{class="1"} 0.875)"});
   EXPECT_EQ(samples_of(text, "ptda_uptime_seconds"), std::vector<std::string>{"ptda_uptime_seconds 3600.25"});
   EXPECT_EQ(samples_of(text, "ptda_acquisition_samples_total"),
             std::vector<std::string>{"ptda_acquisition_samples_total 102400"});

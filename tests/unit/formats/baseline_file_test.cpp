@@ -66,6 +66,9 @@ Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
   b.classes[0].thresholds[0].rms.hi = std::numeric_limits<double>::infinity();
   b.classes[1].rms_stats[2].stddev = std::numeric_limits<double>::quiet_NaN();
   b.source = "trained on rec/healthy-01 by ptda 0.1.0";
+  b.training = {ptda::dsp::TrainingRecording{"wav:4867590:e1a78178:ch0", "rec/healthy-01", 1.7e9 + 0.375,
+                                             1.7e9 + 30.5, 50},
+                ptda::dsp::TrainingRecording{"wav:12:00000000:ch1", "", 0.0, -0.0, 0}};
   return b;
 }
 
@@ -86,6 +89,14 @@ void expect_equal(const Baseline& a, const Baseline& b) {
   EXPECT_EQ(a.policy.false_alarm_rate, b.policy.false_alarm_rate);
   EXPECT_EQ(a.policy.margin, b.policy.margin);
   EXPECT_EQ(a.source, b.source);
+  ASSERT_EQ(a.training.size(), b.training.size());
+  for (std::size_t i = 0; i < a.training.size(); ++i) {
+    EXPECT_EQ(a.training[i].id, b.training[i].id);
+    EXPECT_EQ(a.training[i].path, b.training[i].path);
+    EXPECT_TRUE(same_bits(a.training[i].from_unix_s, b.training[i].from_unix_s));
+    EXPECT_TRUE(same_bits(a.training[i].to_unix_s, b.training[i].to_unix_s));
+    EXPECT_EQ(a.training[i].windows, b.training[i].windows);
+  }
   ASSERT_EQ(a.classes.size(), b.classes.size());
   for (std::size_t i = 0; i < a.classes.size(); ++i) {
     const auto& x = a.classes[i];
@@ -194,11 +205,21 @@ TEST(BaselineFile, RoundTripIsExact) {
 TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
   const Baseline b = make_baseline(16, 1);
   const Bytes bytes = serialize_baseline(b);
-  // Header 74 + per class (41 + 4*9 + 4 + 4*16 + 96 + 216) + source length 4 + text + CRC 4.
+  // Header 74 + per class (41 + 4*9 + 4 + 4*16 + 96 + 216) + source length 4 + text + training count 4 +
+  // per training recording (4 + id + 4 + path + 8 + 8 + 4) + CRC 4.
   const std::size_t per_class = 41 + 4 * 9 + 4 + 4 * 16 + 96 + 216;
-  ASSERT_EQ(bytes.size(), 74 + 3 * per_class + 4 + b.source.size() + 4);
+  std::size_t training = 4;
+  for (const auto& t : b.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
+  ASSERT_EQ(bytes.size(), 74 + 3 * per_class + 4 + b.source.size() + training + 4);
+  const std::size_t at_training = 74 + 3 * per_class + 4 + b.source.size();
+  EXPECT_EQ(bytes[at_training], 2);                            // two training recordings
+  EXPECT_EQ(bytes[at_training + 4], b.training[0].id.size());  // the first id's length
+  EXPECT_EQ(
+      std::string(bytes.begin() + static_cast<std::ptrdiff_t>(at_training + 8),
+                  bytes.begin() + static_cast<std::ptrdiff_t>(at_training + 8 + b.training[0].id.size())),
+      b.training[0].id);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 8), "PTDABASE");
-  EXPECT_EQ(bytes[8], 1);  // version 1, little-endian
+  EXPECT_EQ(bytes[8], 2);  // version 2, little-endian
   EXPECT_EQ(bytes[9] | bytes[10] | bytes[11], 0);
   std::uint64_t size = 0;
   for (int i = 0; i < 8; ++i)
@@ -224,6 +245,32 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
   EXPECT_EQ(crc, static_cast<std::uint32_t>(::crc32(0L, bytes.data(), static_cast<uInt>(bytes.size() - 4))));
 }
 
+// A version-1 file is a version-2 file without the training section: it is still read, with no
+// training recordings. Built here from the version-2 bytes exactly as the version-1 writer laid them out.
+TEST(BaselineFile, Version1FilesAreStillRead) {
+  const Baseline b = make_baseline(8, 3);
+  Bytes v2 = serialize_baseline(b);
+  std::size_t training = 4;
+  for (const auto& t : b.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
+  Bytes v1(v2.begin(), v2.end() - static_cast<std::ptrdiff_t>(training + 4));
+  v1.resize(v1.size() + 4);  // the CRC
+  v1[8] = 1;
+  for (int i = 0; i < 8; ++i)
+    v1[12 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v1.size() >> (8 * i));
+  fix_crc(v1);
+  const Baseline read = parse_baseline(v1, "v1.bin");
+  EXPECT_TRUE(read.training.empty());
+  Baseline want = b;
+  want.training.clear();
+  expect_equal(read, want);
+  // The same bytes marked version 2 lack the training count: reported, not misread.
+  Bytes v1_as_2 = v1;
+  v1_as_2[8] = 2;
+  fix_crc(v1_as_2);
+  EXPECT_NE(message_of(v1_as_2).find("inconsistent baseline at byte"), std::string::npos)
+      << message_of(v1_as_2);
+}
+
 TEST(BaselineFile, EveryCorruptionIsReported) {
   const Bytes good = serialize_baseline(make_baseline(8, 2));
   const std::string n = std::to_string(good.size());
@@ -241,8 +288,10 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
                                     std::to_string(good.size() + 1) + " (trailing bytes)");
   Bytes version = good;
-  version[8] = 2;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 2 (this build reads 1)");
+  version[8] = 3;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 3 (this build reads 1 to 2)");
+  version[8] = 0;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 2)");
   Bytes flipped = good;
   flipped[good.size() / 2] ^= 0x01;
   const std::string crc_msg = message_of(flipped);
@@ -269,11 +318,19 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   policy[53] = 9;
   fix_crc(policy);
   EXPECT_EQ(message_of(policy), "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9");
+  const Baseline gb = make_baseline(8, 2);
+  std::size_t training = 4;
+  for (const auto& t : gb.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
+  const std::size_t at_training = good.size() - 4 - training;
   Bytes src = good;
-  put_u32(src, good.size() - 4 - 4 - make_baseline(8, 2).source.size(), 5);  // source shorter than stored
+  put_u32(src, at_training - gb.source.size() - 4, 5);  // source shorter than stored: misaligned
   fix_crc(src);
-  EXPECT_EQ(message_of(src).find("unexpected bytes before the CRC") != std::string::npos, true)
-      << message_of(src);
+  EXPECT_EQ(message_of(src).rfind("b.bin: inconsistent baseline at byte", 0), 0U) << message_of(src);
+  Bytes fewer = good;
+  put_u32(fewer, at_training, 1);  // one training recording of the two stored: bytes left over
+  fix_crc(fewer);
+  EXPECT_EQ(message_of(fewer).find("unexpected bytes before the CRC") != std::string::npos, true)
+      << message_of(fewer);
 
   // The same checks through the file API name the path.
   const fs::path d = temp_dir("corrupt");

@@ -12,6 +12,8 @@ namespace ptda::cli {
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;  ///< data or runtime error (bad file, mismatch, I/O)
 inline constexpr int kExitUsage = 2;    ///< the command line is wrong
+/// `ptda monitor` judged nothing: no window was scored, or the run ended in "not judging" (coverage).
+inline constexpr int kExitNotJudged = 3;
 
 int cmd_simulate(std::span<const std::string> args, std::ostream& out);
 int cmd_import(std::span<const std::string> args, std::ostream& out);

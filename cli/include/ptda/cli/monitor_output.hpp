@@ -36,6 +36,24 @@ struct MonitorSummary {
 void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::SlicerCounters& slicer,
                    const CanCounters& can, dsp::Method method);
 
+/// The coverage block of the summary: per class judged windows and the age of the last one, unmatched
+/// windows by reason with the speeds seen, the coverage state. t0_ns: the recording's sample 0.
+void print_coverage(std::ostream& out, const dsp::CoverageState& c, const dsp::Baseline& baseline,
+                    double timeout_s, std::int64_t t0_ns);
+/// Warnings about the coverage ("warning: ..." lines; none when every class was judged recently and at
+/// least half of the cut windows were judged). Returns how many were printed.
+std::size_t print_coverage_warnings(std::ostream& out, const dsp::CoverageState& c,
+                                    const dsp::Baseline& baseline, double timeout_s);
+
+/// Compares the judged recording with the baseline's training recordings (dsp::Baseline::training):
+/// "warning: in-sample: ..." when it is one of them (same recording id) and the windows judged overlap
+/// the windows trained on; a note when it is one of them but the windows are disjoint (a held-out
+/// part), or when the baseline does not list its training recordings. `windows` are the judged windows
+/// (UNIX times); t0_ns: the recording's sample 0 (times are printed from it). Returns true when it
+/// warned. Thread: any. Allocates.
+bool print_training_overlap(std::ostream& out, const dsp::Baseline& baseline, const std::string& recording_id,
+                            const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns);
+
 /// Configuration, baseline and recording of a monitor/report run, checked against each other.
 struct MonitorInputs {
   std::string config_path, baseline_path;

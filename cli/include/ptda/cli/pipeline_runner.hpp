@@ -14,6 +14,7 @@
 
 #include "ptda/cli/args.hpp"
 #include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/coverage.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/types.hpp"
 #include "ptda/formats/recording.hpp"
@@ -35,6 +36,12 @@ struct RecordingInfo {
 /// Reads DIR/recording.toml and the WAV header. Throws ptda::Error (missing directory, bad toml,
 /// unreadable WAV, channel out of range), naming the file.
 [[nodiscard]] RecordingInfo open_recording(const std::filesystem::path& dir);
+
+/// A content fingerprint of the recording's vibration data: "wav:<file size>:<CRC-32 of its first
+/// 1 MiB, hex>:ch<channel>". Copies of a recording share it; other runs (another seed, another day)
+/// do not. Stored in the baseline for each training recording (docs/recording-format.md).
+/// Throws ptda::Error when the file cannot be read. Thread: any. Blocks (reads up to 1 MiB), allocates.
+[[nodiscard]] std::string recording_id(const RecordingInfo& rec);
 
 /// The sample rate the pipeline runs at: the recording's, which must equal the configuration's
 /// [acquisition] fs_hz when that is non-zero. Throws ptda::Error naming both sources on a mismatch.
@@ -67,6 +74,9 @@ struct RunOptions {
   std::size_t block_frames = 4096;
   bool progress = true;        ///< progress bar when stderr is a terminal
   std::string progress_label;  ///< e.g. "monitor run1"
+  /// Coverage of a monitor run (dsp/coverage.hpp): motion without a judged window before "not judging".
+  /// The daemon's [daemon] coverage_timeout_s default.
+  double coverage_timeout_s = 60.0;
 };
 
 /// Streams the recording into sink. Returns the CAN decode counters. Throws ptda::Error on unreadable
@@ -97,6 +107,7 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more);
 /// Monitoring results of one recording with one method.
 struct MonitorResult {
   std::vector<dsp::WindowResult> windows;
+  dsp::CoverageState coverage;  ///< over the whole recording, as the daemon tracks it
   dsp::SlicerCounters slicer;
   CanCounters can;
   double fs_hz = 0.0;

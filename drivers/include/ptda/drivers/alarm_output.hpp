@@ -6,7 +6,8 @@
 // no alarm frame within its period), must be treated by the receiver as "not healthy":
 //   kWarning - a feature left its band but the k-of-n debouncer has not confirmed it (informational);
 //   kAlarm   - the debouncer confirmed an abnormal gearbox;
-//   kFault   - the monitor cannot judge: sensor, CAN speed or baseline missing/invalid, internal overrun.
+//   kFault   - the monitor cannot judge: sensor, CAN speed or baseline missing/invalid, internal overrun,
+//              no window matching a trained class (coverage), or nothing judged yet (no cause bit).
 // A GPIO output is therefore energised (logically active) only for levels below its trip level and is
 // de-energised on trip, on deactivate() and by the hardware when nobody drives it.
 #pragma once
@@ -42,6 +43,7 @@ enum AlarmCause : std::uint8_t {
   kCauseSpeed = 1U << 3,     ///< speed frames stale or CAN bus-off
   kCauseBaseline = 1U << 4,  ///< no baseline for the current segment class
   kCauseInternal = 1U << 5,  ///< ring overrun, stage stalled, watchdog
+  kCauseCoverage = 1U << 6,  ///< running, but no window judged for [daemon] coverage_timeout_s of motion
 };
 
 inline constexpr std::uint8_t kNoSegmentClass = 0xFF;

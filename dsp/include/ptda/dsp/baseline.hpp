@@ -74,6 +74,16 @@ struct GearboxInfo {
   double ratio = 0.0;        ///< input shaft speed / output (joint) speed (eq. 1 for cycloidal)
 };
 
+/// A recording the baseline was trained on (baseline format >= 2), so a monitor run can tell when it
+/// judges its own training data. Times are UNIX seconds of the windows actually used.
+struct TrainingRecording {
+  std::string id;             ///< content fingerprint of the vibration file (cli::recording_id)
+  std::string path;           ///< the recording directory as given to the trainer (for messages only)
+  double from_unix_s = 0.0;   ///< start of the first window used
+  double to_unix_s = 0.0;     ///< end of the last window used
+  std::uint32_t windows = 0;  ///< windows used from this recording
+};
+
 struct Baseline {
   double fs_hz = 0.0;
   std::uint32_t window_len = 0;  ///< N samples per window
@@ -81,6 +91,7 @@ struct Baseline {
   ThresholdPolicy policy;
   std::vector<ClassBaseline> classes;
   std::string source;  ///< free text: what it was trained on (recording path, tool version)
+  std::vector<TrainingRecording> training;  ///< empty when unknown (format version 1, field training)
 
   /// The class matching a window's speed and direction, or nullptr. Picks the closest speed when
   /// several match. Thread: any. Never allocates.

@@ -14,8 +14,10 @@
 
 namespace ptda::formats {
 
-/// Layout version written and read by this build (docs/recording-format.md describes it).
-inline constexpr std::uint32_t kBaselineFormatVersion = 1;
+/// Layout version written by this build (docs/recording-format.md describes it). Version 2 adds the
+/// training recordings after the source text; version 1 files are still read (no training list).
+inline constexpr std::uint32_t kBaselineFormatVersion = 2;
+inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 
 /// Throws ptda::Error (naming the path and the failed step); never leaves a partial file at `path`.
 /// Thread: any (offline / configure time). Blocks (fsync) and allocates.

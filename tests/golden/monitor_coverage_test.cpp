@@ -1,0 +1,133 @@
+// `ptda monitor` on coverage and in-sample data, through the built binary:
+//   - a recording of the arc-welding job whose plateau speeds are all 1.5 times the trained ones judges
+//     nothing: exit status 3, the summary's coverage block says "not judging" with the speeds seen,
+//     and a warning says so;
+//   - the same job at the trained speeds: exit 0, coverage full, no warning;
+//   - monitoring the training recording warns "in-sample"; monitoring its held-out half does not.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+
+#include "golden_support.hpp"
+
+namespace ptda::golden {
+namespace {
+
+bool has(const std::string& text, const std::string& needle) {
+  return text.find(needle) != std::string::npos;
+}
+
+struct Prepared {
+  fs::path dir, healthy, other, fast, baseline, half_baseline;
+  std::string config;
+};
+
+const Prepared& prepared() {
+  static const Prepared p = [] {
+    Prepared q;
+    q.dir = scratch_dir("monitor_coverage");
+    const fs::path scen = source_dir() / "config" / "scenarios" / "arc_welding_healthy.toml";
+    q.config = (source_dir() / "config" / "examples" / "arc_welding.toml").string();
+    q.healthy = q.dir / "healthy";
+    q.other = q.dir / "other";
+    q.fast = q.dir / "fast";
+    q.baseline = q.dir / "base.bin";
+    q.half_baseline = q.dir / "half.bin";
+    std::string text = read_file(scen);
+    const std::string speeds = "segment_speeds_rad_s = [4.1015, 1.0, 0.5, 2.5, 1.2]";
+    const std::size_t at = text.find(speeds);
+    EXPECT_NE(at, std::string::npos) << "the arc-welding scenario's speeds changed";
+    if (at != std::string::npos)
+      text.replace(at, speeds.size(), "segment_speeds_rad_s = [6.15, 1.5, 0.75, 3.75, 1.8]");
+    std::ofstream(q.dir / "fast.toml") << text;
+    EXPECT_EQ(run_ptda({"simulate", "--scenario", scen.string(), "--out", q.healthy.string(), "--seed", "11"},
+                       q.dir, "sim_healthy")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run_ptda({"simulate", "--scenario", scen.string(), "--out", q.other.string(), "--seed", "12"},
+                       q.dir, "sim_other")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run_ptda({"simulate", "--scenario", (q.dir / "fast.toml").string(), "--out", q.fast.string(),
+                        "--seed", "13"},
+                       q.dir, "sim_fast")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run_ptda({"train", "--recording", q.healthy.string(), "--config", q.config, "--out",
+                        q.baseline.string()},
+                       q.dir, "train")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run_ptda({"train", "--recording", q.healthy.string(), "--config", q.config, "--out",
+                        q.half_baseline.string(), "--windows", "0:0.5"},
+                       q.dir, "train_half")
+                  .exit_code,
+              0);
+    return q;
+  }();
+  return p;
+}
+
+RunResult monitor(const fs::path& recording, const fs::path& baseline, const std::string& tag,
+                  std::vector<std::string> extra = {}) {
+  const Prepared& p = prepared();
+  std::vector<std::string> args = {"monitor", "--recording", recording.string(), "--config",
+                                   p.config,  "--baseline",  baseline.string(),  "--quiet"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return run_ptda(args, p.dir, tag);
+}
+
+TEST(MonitorCoverage, SpeedsMatchingNoClassJudgeNothingAndExit3) {
+  const Prepared& p = prepared();
+  const fs::path jsonl = p.dir / "fast.jsonl";
+  const RunResult r =
+      monitor(p.fast, p.baseline, "fast", {"--jsonl", jsonl.string(), "--coverage-timeout", "5"});
+  EXPECT_EQ(r.exit_code, 3) << r.out << r.err;
+  const std::vector<cli::JsonValue> windows = read_jsonl(jsonl);
+  ASSERT_GT(windows.size(), 10U);
+  for (const auto& w : windows) EXPECT_EQ(w.at("status").as_string(), "no_class");
+  const std::string n = std::to_string(windows.size());
+  EXPECT_TRUE(has(r.out, "  coverage   0 windows judged, " + n + " cut but not judged (speed " + n +
+                             ", direction 0, invalid 0)"))
+      << r.out;
+  EXPECT_TRUE(has(r.out, "  state      not judging: no window matches a trained class (seen ")) << r.out;
+  EXPECT_TRUE(has(r.out, "; trained +0.50, +1.00, +4.10, -1.20, -2.50) (timeout 5 s of motion)")) << r.out;
+  EXPECT_TRUE(has(r.out, "warning: judged nothing: no window matched a class of the baseline")) << r.out;
+  EXPECT_TRUE(has(r.out, "  class 0    +0.500 rad/s: 0 judged  (NOT JUDGED RECENTLY)")) << r.out;
+  EXPECT_TRUE(has(r.out, "  unmatched  speeds seen: ")) << r.out;
+  // With the JSONL on stdout the warning goes to stderr; the exit status is the same.
+  const RunResult j = monitor(p.fast, p.baseline, "fast_stdout", {"--jsonl", "-"});
+  EXPECT_EQ(j.exit_code, 3);
+  EXPECT_TRUE(has(j.err, "warning: judged nothing")) << j.err;
+  EXPECT_FALSE(has(j.out, "warning")) << j.out;
+}
+
+TEST(MonitorCoverage, TrainedSpeedsAreFullyCoveredAndOutOfSample) {
+  const Prepared& p = prepared();
+  const RunResult r = monitor(p.other, p.baseline, "other");
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_TRUE(has(r.out, "  state      full (timeout 60 s of motion)")) << r.out;
+  EXPECT_FALSE(has(r.out, "warning")) << r.out;
+  EXPECT_FALSE(has(r.out, "training recording")) << r.out;  // another run: not in-sample
+}
+
+TEST(MonitorCoverage, MonitoringTheTrainingDataWarnsInSample) {
+  const Prepared& p = prepared();
+  const RunResult same = monitor(p.healthy, p.baseline, "same");
+  EXPECT_EQ(same.exit_code, 0);
+  EXPECT_TRUE(has(same.out, "warning: in-sample: this recording is the baseline's training recording " +
+                                p.healthy.string() + " (id wav:"))
+      << same.out;
+  // Trained on the first half: the second half is held out (a note), the first half is in-sample.
+  const RunResult held = monitor(p.healthy, p.half_baseline, "held", {"--windows", "0.5:1"});
+  EXPECT_EQ(held.exit_code, 0);
+  EXPECT_FALSE(has(held.out, "warning: in-sample")) << held.out;
+  EXPECT_TRUE(has(held.out, "note: this recording is the baseline's training recording")) << held.out;
+  EXPECT_TRUE(has(held.out, "a held-out part")) << held.out;
+  const RunResult first = monitor(p.healthy, p.half_baseline, "first", {"--windows", "0:0.5"});
+  EXPECT_TRUE(has(first.out, "warning: in-sample")) << first.out;
+}
+
+}  // namespace
+}  // namespace ptda::golden
