@@ -194,6 +194,8 @@ StatusSnapshot known_snapshot() {
   s.trip_t_s = 4990.0;
   s.trip_rms = 0.03;
   s.trip_entropy = 0.86;
+  s.trip_detector = "k_of_n+sequential";
+  s.trip_cusum = 7.5;
   s.acq_blocks = 100;
   s.acq_samples = 102400;
   s.acq_gaps = 1;
@@ -225,7 +227,8 @@ constexpr std::string_view kKnownJson =
     R"("rms_band":[0.011,0.021],"entropy_band":[0.81,0.91],"rms_out":true,"entropy_out":false,)"
     R"("abnormal":true,"abnormal_in_last_n":3},)"
     R"("alarm":{"level":"alarm","since_s":4990.000,"latched":true,"causes":["rms","speed"],)"
-    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86}},"training":null,)"
+    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86,"detector":"k_of_n+sequential","cusum":7.5}},)"
+    R"("training":null,)"
     R"("acquisition":{"blocks":100,"samples":102400,"gaps":1,"lost_samples":64,"short_reads":0,)"
     R"("time_back":0,"timeouts":0,"read_errors":0},)"
     R"("can":{"frames":5000,"speed_frames":4990,"other_ids":10,"wrong_dlc":0,"remote_frames":2,"error_frames":0,)"

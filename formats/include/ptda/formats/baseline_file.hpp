@@ -14,8 +14,11 @@
 
 namespace ptda::formats {
 
-/// Layout version written and read by this build (docs/recording-format.md describes it).
-inline constexpr std::uint32_t kBaselineFormatVersion = 1;
+/// Layout version written by this build (docs/recording-format.md describes it). Version 2 added the
+/// threshold confidence and hold-out fraction, and per class the ln(rms_res) statistics, windows per
+/// hour and hold-out results. Version 1 files are still read (log statistics derived from the
+/// linear ones, no hold-out).
+inline constexpr std::uint32_t kBaselineFormatVersion = 2;
 
 /// Throws ptda::Error (naming the path and the failed step); never leaves a partial file at `path`.
 /// Thread: any (offline / configure time). Blocks (fsync) and allocates.
