@@ -37,10 +37,10 @@ void KOfNDebouncer::reset() noexcept {
   count_ = 0;
 }
 
-StandardScores standardize(const Features& f, const FeatureStats& log_rms,
-                           const FeatureStats& entropy) noexcept {
-  const auto sd = [](const FeatureStats& s) {
-    return std::max(s.stddev, 1e-9 * std::max(1.0, std::abs(s.mean)));
+StandardScores standardize(const Features& f, const FeatureStats& log_rms, const FeatureStats& entropy,
+                           double scale) noexcept {
+  const auto sd = [scale](const FeatureStats& s) {
+    return scale * std::max(s.stddev, 1e-9 * std::max(1.0, std::abs(s.mean)));
   };
   StandardScores z;
   if (f.rms_res > 0.0) {

@@ -53,7 +53,12 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
       slicer_(cfg, fs_hz, t0_ns),
       analyzer_(cfg.window_len),
       decision_(decision, baseline_.classes.size()),
-      window_(cfg.window_len, 0.0F) {}
+      window_(cfg.window_len, 0.0F) {
+  for (const ClassBaseline& c : baseline_.classes) {
+    z_scale_.push_back(
+        small_sample_scale(c.log_rms_stats[static_cast<std::size_t>(method)].n, baseline_.policy));
+  }
+}
 
 DecisionState::DecisionState(const DecisionConfig& decision, std::size_t classes)
     : debouncer_(decision.k, decision.n), seq_(decision.sequential), cusum_(classes) {
@@ -123,10 +128,12 @@ bool MonitorEngine::poll(WindowResult& out) noexcept {
   out.thresholds = cls->thresholds[static_cast<std::size_t>(method_)];
   out.verdict = judge(out.features, out.thresholds);
   const auto mi = static_cast<std::size_t>(method_);
-  const StandardScores z = standardize(out.features, cls->log_rms_stats[mi], cls->entropy_stats[mi]);
+  const auto ci = static_cast<std::size_t>(cls - baseline_.classes.data());
+  const StandardScores z =
+      standardize(out.features, cls->log_rms_stats[mi], cls->entropy_stats[mi], z_scale_[ci]);
   out.z_rms = z.rms;
   out.z_entropy = z.entropy;
-  decision_.scored(out, static_cast<std::size_t>(cls - baseline_.classes.data()));
+  decision_.scored(out, ci);
   return true;
 }
 
@@ -342,7 +349,8 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
           h.rms_high += v.rms_out ? 1U : 0U;
           h.rms_low += v.rms_low ? 1U : 0U;
           h.entropy_out += v.entropy_out ? 1U : 0U;
-          const StandardScores z = standardize(f, cb.log_rms_stats[mi], cb.entropy_stats[mi]);
+          const StandardScores z = standardize(f, cb.log_rms_stats[mi], cb.entropy_stats[mi],
+                                               small_sample_scale(cb.log_rms_stats[mi].n, policy));
           if (std::isfinite(z.rms)) zr.push_back(z.rms);
           if (std::isfinite(z.entropy)) ze.push_back(z.entropy);
         }

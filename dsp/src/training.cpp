@@ -113,6 +113,17 @@ double tolerance_factor_two_sided(std::uint32_t n, double p, double confidence) 
   return z * std::sqrt(nu * (1.0 + 1.0 / static_cast<double>(n)) / chi2);
 }
 
+double small_sample_scale(std::uint32_t n, const ThresholdPolicy& policy) noexcept {
+  try {
+    if (n < 3) return 1.0;
+    const double alpha = policy.false_alarm_rate;
+    return std::max(
+        1.0, tolerance_factor_one_sided(n, 1.0 - alpha, policy.confidence) / inverse_normal_cdf(1.0 - alpha));
+  } catch (const Error&) {
+    return 1.0;
+  }
+}
+
 Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale) {
   if (values.size() < 2) {
     throw Error("fit_band: needs at least 2 feature values, got " + std::to_string(values.size()));

@@ -176,7 +176,7 @@ TEST(PipelineConfig, DefaultsWhenKeysAbsent) {
   EXPECT_EQ(cfg.extraction.hop, 0U);
   EXPECT_EQ(cfg.decision.k, 3U);
   EXPECT_EQ(cfg.decision.n, 5U);
-  EXPECT_EQ(cfg.thresholds.kind, dsp::ThresholdPolicy::Kind::kGaussian);
+  EXPECT_EQ(cfg.thresholds.kind, dsp::ThresholdPolicy::Kind::kTolerance);
   EXPECT_EQ(cfg.thresholds.false_alarm_rate, 1e-3);
   EXPECT_EQ(cfg.thresholds.confidence, 0.9);
   EXPECT_EQ(cfg.thresholds.holdout_fraction, 0.0);

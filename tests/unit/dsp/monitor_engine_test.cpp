@@ -14,6 +14,7 @@
 
 #include "alloc_counter.hpp"
 #include "ptda/common/error.hpp"
+#include "ptda/dsp/training.hpp"
 
 namespace ptda::dsp {
 namespace {
@@ -232,9 +233,13 @@ TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeature
     const auto c = static_cast<std::size_t>(r.class_id);
     const ClassBaseline& cls = baseline_->classes[c];
     const auto m = static_cast<std::size_t>(Method::kPtda);
+    // Small-sample scale: n = 48 (class 0) and 36 (class 1) training windows.
+    const double c_n = small_sample_scale(cls.log_rms_stats[m].n, baseline_->policy);
+    EXPECT_GT(c_n, 1.0);
     const double zr =
-        (std::log(r.features.rms_res) - cls.log_rms_stats[m].mean) / cls.log_rms_stats[m].stddev;
-    const double ze = (r.features.entropy_res - cls.entropy_stats[m].mean) / cls.entropy_stats[m].stddev;
+        (std::log(r.features.rms_res) - cls.log_rms_stats[m].mean) / (c_n * cls.log_rms_stats[m].stddev);
+    const double ze =
+        (r.features.entropy_res - cls.entropy_stats[m].mean) / (c_n * cls.entropy_stats[m].stddev);
     EXPECT_NEAR(r.z_rms, zr, 1e-9 * std::max(1.0, std::abs(zr)));
     EXPECT_NEAR(r.z_entropy, ze, 1e-9 * std::max(1.0, std::abs(ze)));
     const double cap = 2.0 * seq.h_alarm;

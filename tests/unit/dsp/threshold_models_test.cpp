@@ -48,6 +48,15 @@ TEST(ToleranceFactor, ShrinksTowardsZWithMoreData) {
   EXPECT_NEAR(prev, z, 0.06);
 }
 
+TEST(ToleranceFactor, SmallSampleScale) {
+  ThresholdPolicy p;  // alpha 1e-3, confidence 0.9
+  // k1(20, 0.999, 0.9) / Phi^-1(0.999) = 3.962420485378056 / 3.090232306167813.
+  EXPECT_NEAR(small_sample_scale(20, p), 3.962420485378056 / 3.090232306167813, 1e-9);
+  EXPECT_NEAR(small_sample_scale(40, p), 3.6584581601987973 / 3.090232306167813, 1e-9);
+  EXPECT_EQ(small_sample_scale(2, p), 1.0);
+  EXPECT_LT(small_sample_scale(100000, p), 1.01);
+}
+
 TEST(ToleranceFactor, RejectsBadArguments) {
   EXPECT_THROW((void)tolerance_factor_one_sided(2, 0.99, 0.9), Error);
   EXPECT_THROW((void)tolerance_factor_one_sided(20, 1.0, 0.9), Error);

@@ -41,7 +41,7 @@ struct ThresholdPolicy {
     kTolerance = 2,  ///< normal tolerance limits with confidence `confidence` for n values: rms_res
                      ///< on log(rms_res), one-sided limits at 1-alpha; entropy two-sided at 1-alpha
   };
-  Kind kind = Kind::kGaussian;
+  Kind kind = Kind::kTolerance;    ///< default: holds best on held-out healthy data (docs/method.md §8)
   double false_alarm_rate = 1e-3;  ///< per window and per feature, two-sided
   double margin = 0.0;             ///< extra relative widening of the band (0.1 = 10 % of its width)
   double confidence = 0.9;         ///< kTolerance: probability that the limits cover 1 - alpha

@@ -29,16 +29,17 @@ struct Verdict {
   return v;
 }
 
-/// Standardised features of a window for the sequential detector: z_rms = (ln rms_res - m) / s with
-/// m, s of the class's leave-one-out ln(rms_res), z_entropy = (entropy_res - mean) / sd. An sd of 0 is
-/// floored at 1e-9 max(1, |mean|); rms_res = 0 gives z_rms = -1e3 (far below healthy, finite); NaN
-/// stays NaN. Thread: any. Never allocates.
+/// Standardised features of a window for the sequential detector: z_rms = (ln rms_res - m) / (c s)
+/// with m, s of the class's leave-one-out ln(rms_res), z_entropy = (entropy_res - mean) / (c sd), c the
+/// small-sample scale (training.hpp small_sample_scale(); 1 = none). An sd of 0 is floored at
+/// 1e-9 max(1, |mean|); rms_res = 0 gives z_rms = -1e3 (far below healthy, finite); NaN stays NaN.
+/// Thread: any. Never allocates.
 struct StandardScores {
   double rms = 0.0;
   double entropy = 0.0;
 };
 [[nodiscard]] StandardScores standardize(const Features& f, const FeatureStats& log_rms,
-                                         const FeatureStats& entropy) noexcept;
+                                         const FeatureStats& entropy, double scale = 1.0) noexcept;
 
 /// Parameters of the per-class CUSUM on the standardised features ([decision] cusum_* keys).
 struct SequentialConfig {

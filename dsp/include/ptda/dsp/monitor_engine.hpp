@@ -113,7 +113,8 @@ class MonitorEngine {
   Method method_;
   WindowSlicer slicer_;
   WindowAnalyzer analyzer_;
-  DecisionState decision_;  ///< per-class state sized here at configure
+  DecisionState decision_;       ///< per-class state sized here at configure
+  std::vector<double> z_scale_;  ///< per class: small_sample_scale() of its training windows
   std::vector<float> window_;
 };
 
