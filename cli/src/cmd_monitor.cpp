@@ -57,6 +57,21 @@ std::string window_json(const dsp::WindowResult& w, dsp::Method method) {
   o.add("abnormal", scored && w.verdict.abnormal());
   o.add("alarm", w.alarm);
   o.add("abnormal_in_last_n", static_cast<std::uint64_t>(w.abnormal_in_last_n));
+  // Low residual (below the healthy band): its own cause, not a gear fault (docs/method.md).
+  o.add("rms_low", scored && w.verdict.rms_low);
+  o.add("detector", dsp::alarm_detector_name(w.detector));
+  o.add("kofn_alarm", w.kofn_alarm);
+  o.add("seq_alarm", w.seq_alarm);
+  o.add("seq_warn", w.seq_warn);
+  if (scored) {
+    o.add("z_rms", w.z_rms);
+    o.add("z_entropy", w.z_entropy);
+    o.add("cusum", w.seq_statistic);
+    o.add("cusum_feature", dsp::seq_feature_name(w.seq_feature));
+  } else {
+    o.add_null("z_rms").add_null("z_entropy").add_null("cusum").add_null("cusum_feature");
+  }
+  o.add("cusum_max", w.seq_max_statistic);
   return o.str();
 }
 
@@ -85,9 +100,16 @@ std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std
   } else {
     s += "ok";
   }
+  if (w.verdict.rms_low) s += " low-residual";
   if (w.alarm) {
-    s += " ALARM (" + std::to_string(w.abnormal_in_last_n) + " of the last " + std::to_string(decision_n) +
-         ")";
+    s += " ALARM (";
+    if (w.kofn_alarm)
+      s += std::to_string(w.abnormal_in_last_n) + " of the last " + std::to_string(decision_n);
+    if (w.kofn_alarm && w.seq_alarm) s += "; ";
+    if (w.seq_alarm) s += "CUSUM " + general(w.seq_max_statistic, 3);
+    s += ")";
+  } else if (w.seq_warn) {
+    s += " warning (CUSUM " + general(w.seq_max_statistic, 3) + ")";
   }
   return s + "\n";
 }
@@ -103,6 +125,7 @@ MonitorSummary summarize(const std::vector<dsp::WindowResult>& windows, std::int
     ++s.scored;
     s.rms_sum += w.features.rms_res;
     s.entropy_sum += w.features.entropy_res;
+    if (w.verdict.rms_low) ++s.rms_low;
     if (w.verdict.abnormal()) {
       ++s.abnormal;
       if (w.verdict.rms_out) ++s.rms_out;
@@ -123,6 +146,10 @@ void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::Slicer
   out << "summary (" << dsp::method_name(method) << "): " << s.windows << " windows, " << s.scored
       << " scored, " << s.no_class << " without a matching class\n";
   out << "  abnormal   " << s.abnormal << " (rms " << s.rms_out << ", entropy " << s.entropy_out << ")";
+  if (s.rms_low > 0) {
+    out << "; low residual (below the healthy band: sensor or mesh suspicion, not a gear fault) in "
+        << s.rms_low << " windows";
+  }
   if (s.first_abnormal) {
     out << ", first at " << fixed(ns_to_seconds(s.first_abnormal->ref.t_start_ns - s.t0_ns), 3)
         << " s (window " << s.first_abnormal->ref.seq << ")";
@@ -131,8 +158,9 @@ void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::Slicer
   if (s.first_alarm) {
     const double t = ns_to_seconds(s.first_alarm->ref.t_start_ns);
     out << "  ALARM      first raised at " << fixed(ns_to_seconds(s.first_alarm->ref.t_start_ns - s.t0_ns), 3)
-        << " s (window " << s.first_alarm->ref.seq << ", " << utc_time(t) << "), active in "
-        << s.alarm_windows << " windows\n";
+        << " s (window " << s.first_alarm->ref.seq << ", " << utc_time(t) << ") by "
+        << dsp::alarm_detector_name(s.first_alarm->detector) << ", active in " << s.alarm_windows
+        << " windows\n";
   } else {
     out << "  alarm      never raised\n";
   }

@@ -11,6 +11,7 @@
 #include "ptda/common/time.hpp"
 #include "ptda/config/pipeline_config.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/training.hpp"
 #include "ptda/formats/baseline_file.hpp"
 
 namespace ptda::cli {
@@ -130,10 +131,20 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   out << "baseline " << a.value("out") << ": " << baseline.classes.size()
       << " segment class(es), N = " << baseline.window_len << " samples ("
       << fixed(1000.0 * baseline.window_len / fs_hz, 1) << " ms) at " << general(fs_hz, 10) << " Hz\n";
-  out << "  threshold policy: "
-      << (baseline.policy.kind == dsp::ThresholdPolicy::Kind::kGaussian ? "gaussian" : "quantile")
-      << ", false-alarm rate " << general(baseline.policy.false_alarm_rate)
-      << " per window and feature, margin " << general(baseline.policy.margin) << "\n";
+  out << "  threshold policy: " << config::threshold_kind_name(baseline.policy.kind) << ", false-alarm rate "
+      << general(baseline.policy.false_alarm_rate) << " per window and feature, margin "
+      << general(baseline.policy.margin);
+  if (baseline.policy.kind == dsp::ThresholdPolicy::Kind::kTolerance)
+    out << ", confidence " << general(baseline.policy.confidence) << " (rms_res on a log scale)";
+  out << ", hold-out " << general(baseline.policy.holdout_fraction) << " of each class's latest cycles\n";
+  const dsp::SequentialConfig& seq = cfg.decision.sequential;
+  out << "  decision: alarm when " << cfg.decision.k << " of the last " << cfg.decision.n
+      << " windows are abnormal";
+  if (seq.enabled) {
+    out << " or a class's CUSUM reaches " << general(seq.h_alarm) << " (warning " << general(seq.h_warn)
+        << ", k " << general(seq.k) << ")";
+  }
+  out << "\n";
   for (const auto& c : baseline.classes) {
     const auto& s = c.segment;
     out << "class " << s.id << ": direction " << (s.direction < 0 ? "-" : "+") << ", speed "
@@ -145,8 +156,40 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
           << pad_right(band_text(c.thresholds[m].rms), 22) << " " << stats_text(c.rms_stats[m])
           << "\n        entropy " << pad_right(band_text(c.thresholds[m].entropy), 22) << " "
           << stats_text(c.entropy_stats[m]) << "\n";
+      const dsp::HoldoutStats& h = c.holdout[m];
+      if (h.windows > 0) {
+        const double frac = static_cast<double>(h.abnormal) / h.windows;
+        out << "        hold-out: " << h.abnormal << " of " << h.windows << " healthy windows abnormal ("
+            << general(100.0 * frac, 3) << " %, " << general(frac * c.windows_per_hour, 3) << " per hour at "
+            << general(c.windows_per_hour, 4) << " windows/h; rms high " << h.rms_high << ", entropy "
+            << h.entropy_out << "), low residual " << h.rms_low;
+        if (h.abnormal == 0) out << "; rate <= " << general(3.0 / h.windows, 3) << " per window (95 %)";
+        out << "\n";
+        if (seq.enabled && h.windows >= 3 && h.z_rms_sd > 0.0 && h.z_entropy_sd > 0.0) {
+          const double warn = dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean, h.z_entropy_sd,
+                                                   seq.k, seq.h_warn);
+          const double alarm = dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean,
+                                                    h.z_entropy_sd, seq.k, seq.h_alarm);
+          const double per_day = 24.0 * c.windows_per_hour;
+          out << "        CUSUM on the hold-out (z_rms mean " << general(h.z_rms_mean, 3) << " sd "
+              << general(h.z_rms_sd, 3) << ", z_entropy mean " << general(h.z_entropy_mean, 3) << " sd "
+              << general(h.z_entropy_sd, 3) << "): ARL " << general(warn, 3) << " / " << general(alarm, 3)
+              << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
+              << general(per_day / alarm, 3) << "\n";
+        }
+      }
+    }
+    if (seq.enabled) {
+      // Nominal: standardised healthy features ~ N(0, 1).
+      const double per_day = 24.0 * c.windows_per_hour;
+      const double warn = dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_warn);
+      const double alarm = dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_alarm);
+      out << "  CUSUM nominal (z ~ N(0, 1)): ARL " << general(warn, 3) << " / " << general(alarm, 3)
+          << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
+          << general(per_day / alarm, 3) << " at " << general(per_day, 4) << " windows/day\n";
     }
   }
+  for (const std::string& w : dsp::training_warnings(baseline)) out << "warning: " << w << "\n";
   return kExitOk;
 }
 

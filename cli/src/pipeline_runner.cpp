@@ -314,14 +314,19 @@ MonitorResult monitor_recording(const RecordingInfo& rec, const config::Pipeline
 }
 
 void redebounce(std::vector<dsp::WindowResult>& windows, const dsp::DecisionConfig& decision) {
-  dsp::KOfNDebouncer debouncer(decision.k, decision.n);
+  // Fresh k-of-n and CUSUM state over just these windows (class ids index the CUSUMs).
+  std::size_t classes = 0;
+  for (const auto& w : windows)
+    if (w.class_id >= 0) classes = std::max(classes, static_cast<std::size_t>(w.class_id) + 1);
+  dsp::DecisionState state(decision, classes);
   for (auto& w : windows) {
+    w.seq_statistic = 0.0;
+    w.seq_feature = dsp::SeqFeature::kNone;
     if (w.status == dsp::WindowStatus::kScored) {
-      w.alarm = debouncer.push(w.verdict.abnormal());
+      state.scored(w, static_cast<std::size_t>(w.class_id));
     } else {
-      w.alarm = debouncer.active();
+      state.unscored(w);
     }
-    w.abnormal_in_last_n = debouncer.abnormal_in_window();
   }
 }
 

@@ -65,6 +65,8 @@ std::string_view threshold_kind_name(ThresholdKind kind) noexcept {
       return "gaussian";
     case ThresholdKind::kQuantile:
       return "quantile";
+    case ThresholdKind::kTolerance:
+      return "tolerance";
   }
   return "?";
 }
@@ -211,7 +213,9 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     ignore_owned(r);
     choice(r, "method", cfg_.thresholds.kind,
            std::initializer_list<std::pair<std::string_view, ThresholdKind>>{
-               {"gaussian", ThresholdKind::kGaussian}, {"quantile", ThresholdKind::kQuantile}});
+               {"gaussian", ThresholdKind::kGaussian},
+               {"quantile", ThresholdKind::kQuantile},
+               {"tolerance", ThresholdKind::kTolerance}});
     double rate = 0.0;
     if (r.read("false_alarm_rate", rate, 0.0, 0.5)) {
       if (rate <= 0.0 || rate >= 0.5) r.fail_value("false_alarm_rate", "must be > 0 and < 0.5");
@@ -219,6 +223,13 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
       note(r, "false_alarm_rate");
     }
     get(r, "margin", cfg_.thresholds.margin, 0.0, 10.0);
+    double confidence = 0.0;
+    if (r.read("confidence", confidence, 0.5, 1.0)) {
+      if (confidence <= 0.5 || confidence >= 1.0) r.fail_value("confidence", "must be > 0.5 and < 1");
+      cfg_.thresholds.confidence = confidence;
+      note(r, "confidence");
+    }
+    get(r, "holdout_fraction", cfg_.thresholds.holdout_fraction, 0.0, 0.9);
     r.finish();
   }
 
@@ -227,6 +238,16 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     ignore_owned(r);
     get(r, "k", cfg_.decision.k, std::uint32_t{1}, kMaxDecisionN);
     get(r, "n", cfg_.decision.n, std::uint32_t{1}, kMaxDecisionN);
+    bool cusum = cfg_.decision.sequential.enabled;
+    if (r.read_choice(
+            "sequential", cusum,
+            std::initializer_list<std::pair<std::string_view, bool>>{{"cusum", true}, {"off", false}})) {
+      cfg_.decision.sequential.enabled = cusum;
+      note(r, "sequential");
+    }
+    if (read_positive(r, "cusum_k", cfg_.decision.sequential.k, 10.0)) note(r, "cusum_k");
+    if (read_positive(r, "cusum_warn", cfg_.decision.sequential.h_warn, 1000.0)) note(r, "cusum_warn");
+    if (read_positive(r, "cusum_alarm", cfg_.decision.sequential.h_alarm, 1000.0)) note(r, "cusum_alarm");
     r.finish();
   }
 
@@ -292,6 +313,12 @@ PipelineConfig PipelineConfigBuilder::finish() const {
     fail_key(is_set("decision.k") ? "decision.k" : "decision.n",
              "[decision] k = " + std::to_string(cfg.decision.k) + " must not exceed n = " +
                  std::to_string(cfg.decision.n) + " (alarm when k of the last n windows are abnormal)");
+  }
+
+  if (cfg.decision.sequential.h_warn > cfg.decision.sequential.h_alarm) {
+    fail_key(is_set("decision.cusum_warn") ? "decision.cusum_warn" : "decision.cusum_alarm",
+             "[decision] cusum_warn = " + shortest(cfg.decision.sequential.h_warn) +
+                 " must not exceed cusum_alarm = " + shortest(cfg.decision.sequential.h_alarm));
   }
 
   if (const auto problem = find_problem(cfg.speed_frame)) {
@@ -417,7 +444,13 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "method = \"" << threshold_kind_name(cfg.thresholds.kind) << "\"\n"
      << "false_alarm_rate = " << shortest(cfg.thresholds.false_alarm_rate) << "\n"
      << "margin = " << shortest(cfg.thresholds.margin) << "\n"
+     << "confidence = " << shortest(cfg.thresholds.confidence) << "\n"
+     << "holdout_fraction = " << shortest(cfg.thresholds.holdout_fraction) << "\n"
      << "\n[decision]\nk = " << cfg.decision.k << "\nn = " << cfg.decision.n << "\n"
+     << "sequential = \"" << (cfg.decision.sequential.enabled ? "cusum" : "off") << "\"\n"
+     << "cusum_k = " << shortest(cfg.decision.sequential.k) << "\n"
+     << "cusum_warn = " << shortest(cfg.decision.sequential.h_warn) << "\n"
+     << "cusum_alarm = " << shortest(cfg.decision.sequential.h_alarm) << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
      << "\n[gearbox]\n"
      << "kind = \"" << gearbox_kind_name(cfg.gearbox.kind) << "\"\n";

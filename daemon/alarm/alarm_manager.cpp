@@ -63,7 +63,8 @@ AlarmLevel AlarmManager::on_window(const dsp::WindowResult& w, std::int64_t t_mo
   state_.last_abnormal_in_last_n = w.abnormal_in_last_n;
   state_.last_abnormal = abnormal;
   state_.condition = w.alarm;
-  warning_condition_ = cfg_.warning_enabled && w.abnormal_in_last_n >= cfg_.warning_k;
+  // The sequential detector's warning level (docs/method.md, "Decision") warns as well.
+  warning_condition_ = cfg_.warning_enabled && (w.abnormal_in_last_n >= cfg_.warning_k || w.seq_warn);
   state_.feature_causes |= causes;
 
   TripInfo info;
@@ -74,6 +75,8 @@ AlarmLevel AlarmManager::on_window(const dsp::WindowResult& w, std::int64_t t_mo
   info.rms_res = w.features.rms_res;
   info.entropy_res = w.features.entropy_res;
   info.thresholds = w.thresholds;
+  info.detector = w.detector;
+  info.seq_statistic = w.seq_max_statistic;
 
   if (w.alarm && !state_.alarm_active) {
     state_.alarm_active = true;

@@ -67,6 +67,8 @@ struct TripInfo {
   double rms_res = 0.0;
   double entropy_res = 0.0;
   dsp::FeatureThresholds thresholds;
+  dsp::AlarmDetector detector = dsp::AlarmDetector::kNone;  ///< which detector held the alarm
+  double seq_statistic = 0.0;  ///< largest class CUSUM at that window (the sequential evidence)
 };
 
 /// The manager's state, trivially copyable (the owner may hand copies to the status writer).

@@ -491,6 +491,8 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.trip_rms = ps.alarm.trip.rms_res;
   s.trip_entropy = ps.alarm.trip.entropy_res;
   s.trip_t_s = ns_to_seconds(ps.alarm.trip.t_ns);
+  s.trip_detector = dsp::alarm_detector_name(ps.alarm.trip.detector);
+  s.trip_cusum = ps.alarm.trip.seq_statistic;
 
   const drivers::SampleSourceCounters a = p->source_counters();
   const PipelineCounters c = p->counters();

@@ -368,6 +368,8 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
     j.secs("t_s", s.trip_t_s);
     j.num("rms", s.trip_rms);
     j.num("entropy", s.trip_entropy);
+    j.str("detector", s.trip_detector);
+    j.num("cusum", s.trip_cusum);
     j.close('}');
   } else {
     j.null("trip");

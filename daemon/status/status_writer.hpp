@@ -140,6 +140,8 @@ struct StatusSnapshot {
   std::int32_t trip_class = -1;   ///< the window that raised the alarm (-1: none)
   double trip_rms = 0.0, trip_entropy = 0.0;
   double trip_t_s = 0.0;
+  const char* trip_detector = "none";  ///< dsp::alarm_detector_name of the trip window
+  double trip_cusum = 0.0;             ///< largest class CUSUM at the trip window
 
   // Field training (state == kTraining).
   std::uint64_t training_windows = 0;

@@ -1,6 +1,9 @@
-// k-of-n debouncing over a fixed ring of the last n verdicts.
+// k-of-n debouncing over a fixed ring of the last n verdicts; the per-class CUSUM and its ARL.
 #include "ptda/dsp/decision.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <string>
 
 #include "ptda/common/error.hpp"
@@ -32,6 +35,79 @@ void KOfNDebouncer::reset() noexcept {
   pos_ = 0;
   filled_ = 0;
   count_ = 0;
+}
+
+StandardScores standardize(const Features& f, const FeatureStats& log_rms, const FeatureStats& entropy,
+                           double scale) noexcept {
+  const auto sd = [scale](const FeatureStats& s) {
+    return scale * std::max(s.stddev, 1e-9 * std::max(1.0, std::abs(s.mean)));
+  };
+  StandardScores z;
+  if (f.rms_res > 0.0) {
+    z.rms = (std::log(f.rms_res) - log_rms.mean) / sd(log_rms);
+  } else {
+    z.rms = f.rms_res == 0.0 ? -1e3 : std::numeric_limits<double>::quiet_NaN();
+  }
+  z.entropy = (f.entropy_res - entropy.mean) / sd(entropy);
+  return z;
+}
+
+void check_sequential(const SequentialConfig& cfg) {
+  if (!(cfg.k > 0.0 && cfg.k <= 10.0)) {
+    throw Error("decision.cusum_k: must be > 0 and <= 10 standard deviations, got " + std::to_string(cfg.k));
+  }
+  if (!(cfg.h_warn > 0.0 && cfg.h_warn <= 1000.0)) {
+    throw Error("decision.cusum_warn: must be > 0 and <= 1000, got " + std::to_string(cfg.h_warn));
+  }
+  if (!(cfg.h_alarm > 0.0 && cfg.h_alarm <= 1000.0)) {
+    throw Error("decision.cusum_alarm: must be > 0 and <= 1000, got " + std::to_string(cfg.h_alarm));
+  }
+  if (cfg.h_warn > cfg.h_alarm) {
+    throw Error("decision.cusum_warn: " + std::to_string(cfg.h_warn) + " must not exceed cusum_alarm " +
+                std::to_string(cfg.h_alarm));
+  }
+}
+
+void Cusum::update(double z_rms, double z_entropy, double k, double cap) noexcept {
+  const double bad = k + 1.0;
+  const bool rms_ok = std::isfinite(z_rms);
+  const bool ent_ok = std::isfinite(z_entropy);
+  const auto step = [&](double s, double x) { return std::min(cap, std::max(0.0, s + x - k)); };
+  s_rms_ = step(s_rms_, rms_ok ? z_rms : bad);
+  s_ent_hi_ = step(s_ent_hi_, ent_ok ? z_entropy : bad);
+  s_ent_lo_ = step(s_ent_lo_, ent_ok ? -z_entropy : bad);
+}
+
+double Cusum::statistic() const noexcept {
+  return std::max(s_rms_, std::max(s_ent_hi_, s_ent_lo_));
+}
+
+SeqFeature Cusum::feature() const noexcept {
+  const double s = statistic();
+  if (s <= 0.0) return SeqFeature::kNone;
+  if (s == s_rms_) return SeqFeature::kRmsHigh;
+  return s == s_ent_hi_ ? SeqFeature::kEntropyHigh : SeqFeature::kEntropyLow;
+}
+
+double cusum_arl(double mean, double sd, double k, double h) {
+  if (!(sd > 0.0 && std::isfinite(sd)) || !(h > 0.0) || !std::isfinite(mean) || !std::isfinite(k)) {
+    throw Error("cusum_arl: needs finite mean and k, sd > 0 and h > 0 (got mean " + std::to_string(mean) +
+                ", sd " + std::to_string(sd) + ", k " + std::to_string(k) + ", h " + std::to_string(h) + ")");
+  }
+  const double delta = (mean - k) / sd;
+  const double b = h / sd + 1.166;
+  if (std::abs(delta) < 1e-9) return b * b;
+  const double e = std::exp(-2.0 * delta * b);
+  if (!std::isfinite(e)) return std::numeric_limits<double>::infinity();
+  return (e + 2.0 * delta * b - 1.0) / (2.0 * delta * delta);
+}
+
+double class_cusum_arl(double z_rms_mean, double z_rms_sd, double z_entropy_mean, double z_entropy_sd,
+                       double k, double h) {
+  const double inv = 1.0 / cusum_arl(z_rms_mean, z_rms_sd, k, h) +
+                     1.0 / cusum_arl(z_entropy_mean, z_entropy_sd, k, h) +
+                     1.0 / cusum_arl(-z_entropy_mean, z_entropy_sd, k, h);
+  return inv > 0.0 ? 1.0 / inv : std::numeric_limits<double>::infinity();
 }
 
 }  // namespace ptda::dsp

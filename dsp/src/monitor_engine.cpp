@@ -52,8 +52,46 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
       method_(method),
       slicer_(cfg, fs_hz, t0_ns),
       analyzer_(cfg.window_len),
-      debouncer_(decision.k, decision.n),
-      window_(cfg.window_len, 0.0F) {}
+      decision_(decision, baseline_.classes.size()),
+      window_(cfg.window_len, 0.0F) {
+  for (const ClassBaseline& c : baseline_.classes) {
+    z_scale_.push_back(
+        small_sample_scale(c.log_rms_stats[static_cast<std::size_t>(method)].n, baseline_.policy));
+  }
+}
+
+DecisionState::DecisionState(const DecisionConfig& decision, std::size_t classes)
+    : debouncer_(decision.k, decision.n), seq_(decision.sequential), cusum_(classes) {
+  check_sequential(seq_);
+}
+
+void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
+  debouncer_.push(w.verdict.abnormal());
+  if (seq_.enabled && cls < cusum_.size()) {
+    Cusum& c = cusum_[cls];
+    c.update(w.z_rms, w.z_entropy, seq_.k, 2.0 * seq_.h_alarm);
+    w.seq_statistic = c.statistic();
+    w.seq_feature = c.feature();
+  }
+  fill(w);
+}
+
+void DecisionState::unscored(WindowResult& w) const noexcept {
+  fill(w);
+}
+
+void DecisionState::fill(WindowResult& w) const noexcept {
+  w.kofn_alarm = debouncer_.active();
+  w.abnormal_in_last_n = debouncer_.abnormal_in_window();
+  double worst = 0.0;
+  for (const Cusum& c : cusum_) worst = std::max(worst, c.statistic());
+  w.seq_max_statistic = worst;
+  w.seq_warn = seq_.enabled && worst >= seq_.h_warn;
+  w.seq_alarm = seq_.enabled && worst >= seq_.h_alarm;
+  w.alarm = w.kofn_alarm || w.seq_alarm;
+  w.detector = w.kofn_alarm ? (w.seq_alarm ? AlarmDetector::kBoth : AlarmDetector::kKOfN)
+                            : (w.seq_alarm ? AlarmDetector::kSequential : AlarmDetector::kNone);
+}
 
 void MonitorEngine::push_speed(const SpeedSample& s) noexcept {
   slicer_.push_speed(s);
@@ -81,8 +119,7 @@ bool MonitorEngine::poll(WindowResult& out) noexcept {
   if (cls == nullptr) {
     // Not comparable with any healthy reference: reported, but neither judged nor debounced.
     out.status = WindowStatus::kNoClass;
-    out.alarm = debouncer_.active();
-    out.abnormal_in_last_n = debouncer_.abnormal_in_window();
+    decision_.unscored(out);
     return true;
   }
   out.status = WindowStatus::kScored;
@@ -90,8 +127,13 @@ bool MonitorEngine::poll(WindowResult& out) noexcept {
   out.features = analyzer_.analyze(window_, *cls, method_);
   out.thresholds = cls->thresholds[static_cast<std::size_t>(method_)];
   out.verdict = judge(out.features, out.thresholds);
-  out.alarm = debouncer_.push(out.verdict.abnormal());
-  out.abnormal_in_last_n = debouncer_.abnormal_in_window();
+  const auto mi = static_cast<std::size_t>(method_);
+  const auto ci = static_cast<std::size_t>(cls - baseline_.classes.data());
+  const StandardScores z =
+      standardize(out.features, cls->log_rms_stats[mi], cls->entropy_stats[mi], z_scale_[ci]);
+  out.z_rms = z.rms;
+  out.z_entropy = z.entropy;
+  decision_.scored(out, ci);
   return true;
 }
 
@@ -166,6 +208,9 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
     throw Error("train_baseline: " + std::to_string(data.refs.size()) + " window refs but " +
                 std::to_string(data.windows.size()) + " windows");
   }
+  if (!(policy.holdout_fraction >= 0.0 && policy.holdout_fraction <= 0.9)) {
+    throw Error("thresholds.holdout_fraction: must be in [0, 0.9], got " + num(policy.holdout_fraction));
+  }
   if (data.windows.empty()) {
     throw Error("train_baseline: no constant-speed windows in the training data (" +
                 std::to_string(data.regions.size()) + " regions found)");
@@ -228,6 +273,30 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
     m.groups.push_back(group[i]);
   }
 
+  // Operating time of the training data: the time from each window's start to the next one's (in cut
+  // order), a pause longer than 10 median intervals (another recording, a program stop) counting as
+  // one median interval; the last window adds one median interval.
+  double hours = 0.0;
+  {
+    std::vector<double> dt_s;
+    for (std::size_t i = 1; i < data.refs.size(); ++i) {
+      const double d = static_cast<double>(data.refs[i].t_start_ns - data.refs[i - 1].t_start_ns) * 1e-9;
+      if (d > 0.0) dt_s.push_back(d);
+    }
+    if (!dt_s.empty()) {
+      std::vector<double> sorted = dt_s;
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                       sorted.end());
+      const double median = sorted[sorted.size() / 2];
+      double total = median;
+      for (std::size_t i = 1; i < data.refs.size(); ++i) {
+        const double d = static_cast<double>(data.refs[i].t_start_ns - data.refs[i - 1].t_start_ns) * 1e-9;
+        total += (d > 0.0 && d <= 10.0 * median) ? d : median;
+      }
+      hours = total / 3600.0;
+    }
+  }
+
   Baseline out;
   out.fs_hz = fs_hz;
   out.window_len = static_cast<std::uint32_t>(n);
@@ -244,12 +313,56 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
                std::to_string(members[k].windows.size()) + " windows in " + std::to_string(distinct.size()) +
                " non-overlapping groups";
     if (distinct.size() < 3) continue;
+    // Hold-out: the latest groups (group ids follow cut order), never fewer than 3 groups left to fit.
+    const std::size_t n_hold = std::min(
+        static_cast<std::size_t>(std::floor(policy.holdout_fraction * static_cast<double>(distinct.size()))),
+        distinct.size() - 3);
+    const std::uint64_t first_held = n_hold == 0 ? ~std::uint64_t{0} : distinct[distinct.size() - n_hold];
     std::vector<std::vector<float>> windows;
+    std::vector<std::uint64_t> fit_groups;
+    std::vector<std::size_t> held;
     windows.reserve(members[k].windows.size());
-    for (const std::size_t i : members[k].windows) windows.push_back(data.windows[i]);
+    for (std::size_t j = 0; j < members[k].windows.size(); ++j) {
+      const std::size_t i = members[k].windows[j];
+      if (members[k].groups[j] >= first_held) {
+        held.push_back(i);
+        continue;
+      }
+      windows.push_back(data.windows[i]);
+      fit_groups.push_back(members[k].groups[j]);
+    }
     SegmentClass renumbered = seg;
     renumbered.id = static_cast<std::uint32_t>(out.classes.size());
-    out.classes.push_back(build_class_baseline(renumbered, windows, members[k].groups, policy));
+    ClassBaseline cb = build_class_baseline(renumbered, windows, fit_groups, policy);
+    cb.windows_per_hour = hours > 0.0 ? static_cast<double>(members[k].windows.size()) / hours : 0.0;
+    if (!held.empty()) {
+      WindowAnalyzer analyzer(n);
+      for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
+        HoldoutStats& h = cb.holdout[mi];
+        std::vector<double> zr;
+        std::vector<double> ze;
+        for (const std::size_t i : held) {
+          const Features f = analyzer.analyze(data.windows[i], cb, static_cast<Method>(mi));
+          const Verdict v = judge(f, cb.thresholds[mi]);
+          ++h.windows;
+          h.abnormal += v.abnormal() ? 1U : 0U;
+          h.rms_high += v.rms_out ? 1U : 0U;
+          h.rms_low += v.rms_low ? 1U : 0U;
+          h.entropy_out += v.entropy_out ? 1U : 0U;
+          const StandardScores z = standardize(f, cb.log_rms_stats[mi], cb.entropy_stats[mi],
+                                               small_sample_scale(cb.log_rms_stats[mi].n, policy));
+          if (std::isfinite(z.rms)) zr.push_back(z.rms);
+          if (std::isfinite(z.entropy)) ze.push_back(z.entropy);
+        }
+        const FeatureStats sr = feature_stats(zr);
+        const FeatureStats se = feature_stats(ze);
+        h.z_rms_mean = sr.mean;
+        h.z_rms_sd = sr.stddev;
+        h.z_entropy_mean = se.mean;
+        h.z_entropy_sd = se.stddev;
+      }
+    }
+    out.classes.push_back(std::move(cb));
   }
   if (out.classes.empty()) {
     throw Error("train_baseline: no segment class has enough training data (needs >= " +

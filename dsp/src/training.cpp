@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numbers>
 #include <string>
@@ -68,7 +69,62 @@ double sorted_quantile(const std::vector<double>& sorted, double q) {
 
 }  // namespace
 
-Band fit_band(std::span<const double> values, const ThresholdPolicy& policy) {
+namespace {
+
+void check_tolerance_args(std::uint32_t n, double p, double confidence, const char* what) {
+  if (n < 3) throw Error(std::string(what) + ": needs n >= 3 values, got " + std::to_string(n));
+  if (!(p > 0.5 && p < 1.0)) {
+    throw Error(std::string(what) + ": coverage " + std::to_string(p) + " is not in (0.5, 1)");
+  }
+  if (!(confidence > 0.5 && confidence < 1.0)) {
+    throw Error(std::string(what) + ": confidence " + std::to_string(confidence) + " is not in (0.5, 1)");
+  }
+}
+
+}  // namespace
+
+double tolerance_factor_one_sided(std::uint32_t n, double p, double confidence) {
+  check_tolerance_args(n, p, confidence, "tolerance_factor_one_sided");
+  const double zp = inverse_normal_cdf(p);
+  const double zg = inverse_normal_cdf(confidence);
+  const auto nd = static_cast<double>(n);
+  const double a = 1.0 - zg * zg / (2.0 * (nd - 1.0));
+  const double b = zp * zp - zg * zg / nd;
+  const double disc = zp * zp - a * b;
+  if (!(a > 0.0) || !(disc >= 0.0)) {
+    throw Error("tolerance_factor_one_sided: n = " + std::to_string(n) + " is too small for confidence " +
+                std::to_string(confidence));
+  }
+  return (zp + std::sqrt(disc)) / a;
+}
+
+double tolerance_factor_two_sided(std::uint32_t n, double p, double confidence) {
+  check_tolerance_args(n, p, confidence, "tolerance_factor_two_sided");
+  const double nu = static_cast<double>(n) - 1.0;
+  // Wilson-Hilferty: chi2_q(nu) = nu (1 - 2/(9 nu) + z_q sqrt(2/(9 nu)))^3, here q = 1 - confidence.
+  const double c = 2.0 / (9.0 * nu);
+  const double base = 1.0 - c + inverse_normal_cdf(1.0 - confidence) * std::sqrt(c);
+  if (!(base > 0.0)) {
+    throw Error("tolerance_factor_two_sided: n = " + std::to_string(n) + " is too small for confidence " +
+                std::to_string(confidence));
+  }
+  const double chi2 = nu * base * base * base;
+  const double z = inverse_normal_cdf(0.5 * (1.0 + p));
+  return z * std::sqrt(nu * (1.0 + 1.0 / static_cast<double>(n)) / chi2);
+}
+
+double small_sample_scale(std::uint32_t n, const ThresholdPolicy& policy) noexcept {
+  try {
+    if (n < 3) return 1.0;
+    const double alpha = policy.false_alarm_rate;
+    return std::max(
+        1.0, tolerance_factor_one_sided(n, 1.0 - alpha, policy.confidence) / inverse_normal_cdf(1.0 - alpha));
+  } catch (const Error&) {
+    return 1.0;
+  }
+}
+
+Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale) {
   if (values.size() < 2) {
     throw Error("fit_band: needs at least 2 feature values, got " + std::to_string(values.size()));
   }
@@ -96,6 +152,27 @@ Band fit_band(std::span<const double> values, const ThresholdPolicy& policy) {
       std::vector<double> sorted(values.begin(), values.end());
       std::sort(sorted.begin(), sorted.end());
       b = Band{sorted_quantile(sorted, 0.5 * alpha), sorted_quantile(sorted, 1.0 - 0.5 * alpha)};
+      break;
+    }
+    case ThresholdPolicy::Kind::kTolerance: {
+      const auto n = static_cast<std::uint32_t>(values.size());
+      if (scale == FeatureScale::kLog) {
+        std::vector<double> logs(values.size());
+        for (std::size_t i = 0; i < values.size(); ++i) {
+          if (!(values[i] > 0.0)) {
+            throw Error("fit_band: feature value " + std::to_string(i) + " = " + std::to_string(values[i]) +
+                        " is not > 0 (the log-scale tolerance model needs positive values)");
+          }
+          logs[i] = std::log(values[i]);
+        }
+        const FeatureStats s = feature_stats(logs);
+        const double k1 = tolerance_factor_one_sided(n, 1.0 - alpha, policy.confidence);
+        b = Band{std::exp(s.mean - k1 * s.stddev), std::exp(s.mean + k1 * s.stddev)};
+      } else {
+        const FeatureStats s = feature_stats(values);
+        const double k2 = tolerance_factor_two_sided(n, 1.0 - alpha, policy.confidence);
+        b = Band{s.mean - k2 * s.stddev, s.mean + k2 * s.stddev};
+      }
       break;
     }
     default:
@@ -199,7 +276,7 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
     const std::string what = where + ", method " + std::string(method_name(static_cast<Method>(mi)));
     try {
-      cls.thresholds[mi].rms = fit_band(rms_values[mi], policy);
+      cls.thresholds[mi].rms = fit_band(rms_values[mi], policy, FeatureScale::kLog);
       cls.thresholds[mi].entropy = fit_band(entropy_values[mi], policy);
     } catch (const Error& e) {
       throw Error(what + ": " + e.what());
@@ -209,8 +286,69 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     cls.thresholds[mi].entropy.lo = std::max(0.0, cls.thresholds[mi].entropy.lo);
     cls.rms_stats[mi] = feature_stats(rms_values[mi]);
     cls.entropy_stats[mi] = feature_stats(entropy_values[mi]);
+    std::vector<double> logs;
+    logs.reserve(rms_values[mi].size());
+    // A zero residual (possible only for a window identical to the mean) is left out of the log stats.
+    for (const double v : rms_values[mi])
+      if (v > 0.0) logs.push_back(std::log(v));
+    cls.log_rms_stats[mi] = feature_stats(logs);
   }
   return cls;
+}
+
+std::vector<std::string> training_warnings(const Baseline& baseline) {
+  std::vector<std::string> out;
+  const ThresholdPolicy& p = baseline.policy;
+  const double alpha = p.false_alarm_rate;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%g", alpha);
+  const std::string rate = buf;
+  // Smallest n whose one-sided tolerance factor is within 20 % of the asymptotic z: beyond it the
+  // estimate of the band itself stops dominating (kGaussian's promise, kTolerance's width).
+  const auto n_needed = [&](double confidence) -> std::uint32_t {
+    const double z = inverse_normal_cdf(1.0 - alpha);
+    for (std::uint32_t n = 3; n < 100000; n = n < 64 ? n + 1 : n + n / 8) {
+      try {
+        if (tolerance_factor_one_sided(n, 1.0 - alpha, confidence) <= 1.2 * z) return n;
+      } catch (const Error&) {
+      }
+    }
+    return 100000;
+  };
+  const std::uint32_t need_param =
+      p.kind == ThresholdPolicy::Kind::kQuantile
+          ? 0
+          : n_needed(p.kind == ThresholdPolicy::Kind::kTolerance ? p.confidence : 0.9);
+  for (const ClassBaseline& c : baseline.classes) {
+    const std::uint32_t n = c.rms_stats[static_cast<std::size_t>(Method::kPtda)].n;
+    const std::string cls =
+        "class " + std::to_string(c.segment.id) + ": " + std::to_string(n) + " training windows";
+    if (p.kind == ThresholdPolicy::Kind::kQuantile) {
+      const auto need = static_cast<std::uint32_t>(std::ceil(2.0 / alpha));
+      if (n < need) {
+        out.push_back(cls + " cannot resolve the alpha/2 = " + std::to_string(alpha / 2) +
+                      " quantiles of false_alarm_rate " + rate + ": the band is about the sample range; " +
+                      "needs >= " + std::to_string(need) + " windows");
+      }
+    } else if (n < need_param) {
+      out.push_back(cls +
+                    (p.kind == ThresholdPolicy::Kind::kGaussian
+                         ? " give a Gaussian band whose real false-alarm rate is uncertain far "
+                           "beyond the promised " +
+                               rate
+                         : " make the tolerance band more than 20 % wider than with ample data") +
+                    "; needs >= " + std::to_string(need_param) + " windows (cycles) for rate " + rate);
+    }
+    const HoldoutStats& h = c.holdout[static_cast<std::size_t>(Method::kPtda)];
+    if (h.windows > 0 && 3.0 / h.windows > 2.0 * alpha) {
+      out.push_back("class " + std::to_string(c.segment.id) + ": the hold-out of " +
+                    std::to_string(h.windows) +
+                    " windows can only show a false-alarm rate >= " + std::to_string(3.0 / h.windows) +
+                    " (95 %); confirming " + rate + " per feature needs >= " +
+                    std::to_string(static_cast<std::uint64_t>(std::ceil(1.5 / alpha))) + " held-out windows");
+    }
+  }
+  return out;
 }
 
 }  // namespace ptda::dsp

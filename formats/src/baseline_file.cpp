@@ -122,7 +122,7 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
   if (static_cast<std::uint8_t>(b.gearbox.kind) > static_cast<std::uint8_t>(dsp::GearboxInfo::Kind::kUnknown))
     throw Error(where + ": unknown gearbox kind " + std::to_string(static_cast<int>(b.gearbox.kind)));
   if (static_cast<std::uint8_t>(b.policy.kind) >
-      static_cast<std::uint8_t>(dsp::ThresholdPolicy::Kind::kQuantile))
+      static_cast<std::uint8_t>(dsp::ThresholdPolicy::Kind::kTolerance))
     throw Error(where + ": unknown threshold policy kind " + std::to_string(static_cast<int>(b.policy.kind)));
   const std::size_t n_mag = b.window_len / 2 + 1;
   for (std::size_t i = 0; i < b.classes.size(); ++i) {
@@ -148,6 +148,45 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
         std::uint64_t{t.path.size()} > std::numeric_limits<std::uint32_t>::max())
       throw Error(where + ": training recording text too long");
   }
+}
+
+void put_holdout(Writer& w, const dsp::HoldoutStats& h) {
+  w.u32(h.windows);
+  w.u32(h.abnormal);
+  w.u32(h.rms_high);
+  w.u32(h.rms_low);
+  w.u32(h.entropy_out);
+  w.f64(h.z_rms_mean);
+  w.f64(h.z_rms_sd);
+  w.f64(h.z_entropy_mean);
+  w.f64(h.z_entropy_sd);
+}
+dsp::HoldoutStats get_holdout(Reader& r) {
+  dsp::HoldoutStats h;
+  h.windows = r.u32();
+  h.abnormal = r.u32();
+  h.rms_high = r.u32();
+  h.rms_low = r.u32();
+  h.entropy_out = r.u32();
+  h.z_rms_mean = r.f64();
+  h.z_rms_sd = r.f64();
+  h.z_entropy_mean = r.f64();
+  h.z_entropy_sd = r.f64();
+  return h;
+}
+
+// Version 1 stored no ln(rms_res) statistics: the delta-method values from the linear ones
+// (sd_log = sd / mean, mean_log = ln(mean) - sd_log^2 / 2), exact for a log-normal feature.
+dsp::FeatureStats log_stats_from_linear(const dsp::FeatureStats& s) {
+  dsp::FeatureStats l;
+  l.n = s.n;
+  if (s.mean > 0.0) {
+    l.stddev = s.stddev / s.mean;
+    l.mean = std::log(s.mean) - 0.5 * l.stddev * l.stddev;
+    l.min = s.min > 0.0 ? std::log(s.min) : l.mean;
+    l.max = s.max > 0.0 ? std::log(s.max) : l.mean;
+  }
+  return l;
 }
 
 void put_stats(Writer& w, const dsp::FeatureStats& s) {
@@ -206,6 +245,8 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   w.u8(static_cast<std::uint8_t>(b.policy.kind));
   w.f64(b.policy.false_alarm_rate);
   w.f64(b.policy.margin);
+  w.f64(b.policy.confidence);        // v2
+  w.f64(b.policy.holdout_fraction);  // v2
   w.u32(static_cast<std::uint32_t>(b.classes.size()));
   for (const auto& c : b.classes) {
     w.u32(c.segment.id);
@@ -227,6 +268,9 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
     }
     for (const auto& s : c.rms_stats) put_stats(w, s);
     for (const auto& s : c.entropy_stats) put_stats(w, s);
+    for (const auto& s : c.log_rms_stats) put_stats(w, s);  // v2 from here
+    w.f64(c.windows_per_hour);
+    for (const auto& h : c.holdout) put_holdout(w, h);
   }
   w.u32(static_cast<std::uint32_t>(b.source.size()));
   w.bytes(b.source.data(), b.source.size());
@@ -290,11 +334,18 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   b.gearbox.z_pin = body.u32();
   b.gearbox.ratio = body.f64();
   const std::uint8_t pk = body.u8();
-  if (pk > static_cast<std::uint8_t>(dsp::ThresholdPolicy::Kind::kQuantile))
-    body.fail("unknown threshold policy kind " + std::to_string(pk));
+  const auto last_kind =
+      version == 1 ? dsp::ThresholdPolicy::Kind::kQuantile : dsp::ThresholdPolicy::Kind::kTolerance;
+  if (pk > static_cast<std::uint8_t>(last_kind))
+    body.fail("unknown threshold policy kind " + std::to_string(pk) + " for format version " +
+              std::to_string(version));
   b.policy.kind = static_cast<dsp::ThresholdPolicy::Kind>(pk);
   b.policy.false_alarm_rate = body.f64();
   b.policy.margin = body.f64();
+  if (version >= 2) {
+    b.policy.confidence = body.f64();
+    b.policy.holdout_fraction = body.f64();
+  }
   const std::uint32_t n_classes = body.u32();
   if (n_classes > body.left() / kMinClassBytes)
     body.fail(std::to_string(n_classes) + " classes cannot fit in the remaining " +
@@ -335,6 +386,14 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
     }
     for (auto& s : c.rms_stats) s = get_stats(body);
     for (auto& s : c.entropy_stats) s = get_stats(body);
+    if (version >= 2) {
+      for (auto& s : c.log_rms_stats) s = get_stats(body);
+      c.windows_per_hour = body.f64();
+      for (auto& h : c.holdout) h = get_holdout(body);
+    } else {
+      for (std::size_t m = 0; m < dsp::kMethodCount; ++m)
+        c.log_rms_stats[m] = log_stats_from_linear(c.rms_stats[m]);
+    }
   }
   const std::uint32_t n_src = body.u32();
   body.need(n_src);

@@ -35,6 +35,8 @@ struct Pinned {
 };
 
 // Measured with this test's commands (= scripts/gfd_study.sh build/h-gfd), ptda built with GCC 12
+// (alarms re-measured for issue 12's tolerance bands and CUSUM with scripts/gfd_study.sh; the ratios
+// and AUCs do not depend on the bands)
 // (RelWithDebInfo, x86-64), from `ptda evaluate --json`: ratios printed to 9 significant digits, AUCs
 // as the integer 2U = AUC * 2 n_h n_f (every AUC here is such a fraction exactly).
 // Tolerances: the AUC is a rank statistic, exact given the features; it could only move if a build's
@@ -66,16 +68,16 @@ constexpr Pinned kPinned[] = {
     {20, "a3", "tda", 13, 27, 0.986388556, 278, 0.975057445, 38, true, true},
     {20, "a3", "ptda", 13, 27, 1.34964881, 702, 0.964787148, 0, false, true},
     {20, "a4", "raw", 13, 27, 1.00448364, 386, 0.969880888, 80, false, false},
-    {20, "a4", "tda", 13, 27, 1.00558261, 400, 0.972220653, 106, false, true},
+    {20, "a4", "tda", 13, 27, 1.00558261, 400, 0.972220653, 106, false, false},
     {20, "a4", "ptda", 13, 27, 1.04423583, 500, 0.973531181, 22, false, true},
     {40, "a1", "raw", 12, 23, 0.597059432, 0, 0.948319188, 0, false, true},
-    {40, "a1", "tda", 12, 23, 0.629345313, 0, 0.984088119, 76, false, true},
+    {40, "a1", "tda", 12, 23, 0.629345313, 0, 0.984088119, 76, false, false},
     {40, "a1", "ptda", 12, 23, 1.88789234, 552, 0.993446581, 174, true, true},
     {40, "a2", "raw", 12, 23, 0.93916314, 48, 0.912061085, 0, false, true},
     {40, "a2", "tda", 12, 23, 0.93984127, 42, 0.939333016, 0, false, true},
     {40, "a2", "ptda", 12, 23, 1.86240617, 552, 1.02657137, 552, false, true},
     {40, "a3", "raw", 12, 23, 0.912883319, 0, 0.961426136, 0, false, true},
-    {40, "a3", "tda", 12, 23, 0.918084443, 2, 0.969029503, 42, false, true},
+    {40, "a3", "tda", 12, 23, 0.918084443, 2, 0.969029503, 42, false, false},
     {40, "a3", "ptda", 12, 23, 1.2881698, 552, 0.958107721, 0, false, true},
     {40, "a4", "raw", 12, 23, 0.961286238, 122, 0.990006817, 198, false, false},
     {40, "a4", "tda", 12, 23, 0.959564558, 114, 0.995331417, 260, false, false},
@@ -88,7 +90,7 @@ constexpr Pinned kPinned[] = {
     {60, "a2", "ptda", 12, 23, 1.67013422, 552, 1.03777162, 552, false, true},
     {60, "a3", "raw", 12, 23, 0.913757581, 0, 0.955588528, 0, false, true},
     {60, "a3", "tda", 12, 23, 0.927758651, 10, 0.956065116, 0, false, true},
-    {60, "a3", "ptda", 12, 23, 1.16371555, 526, 0.975356733, 54, false, false},
+    {60, "a3", "ptda", 12, 23, 1.16371555, 526, 0.975356733, 54, false, true},
     {60, "a4", "raw", 12, 23, 0.952311096, 66, 0.994528908, 222, false, false},
     {60, "a4", "tda", 12, 23, 0.969494709, 130, 0.983133177, 122, false, false},
     {60, "a4", "ptda", 12, 23, 0.991315824, 282, 0.991486216, 242, false, false},
@@ -290,11 +292,13 @@ TEST_F(GfdStudy, SummaryClaims) {
   EXPECT_EQ(ent_sep_09["raw"], 16);
   EXPECT_EQ(ent_sep_09["tda"], 14);
   EXPECT_EQ(ent_sep_09["ptda"], 8);
-  // With the trained bands and the 3-of-5 alarm: alarm on the broken tooth and none on the held-out
-  // healthy half.
+  // With the trained bands, the 3-of-5 alarm and the CUSUM: alarm on the broken tooth and none on the
+  // held-out healthy half. Re-pinned for tolerance bands + CUSUM (issue 12; before: Gaussian bands,
+  // k-of-n only: raw 15, TDA 14, PTDA 14). PTDA gains 60 % a3 (the CUSUM accumulates its 21.7 %
+  // abnormal windows); TDA's wider tolerance bands lose 20 % a4, 40 % a1 and 40 % a3.
   EXPECT_EQ(clean_alarm["raw"], 15);
-  EXPECT_EQ(clean_alarm["tda"], 14);
-  EXPECT_EQ(clean_alarm["ptda"], 14);
+  EXPECT_EQ(clean_alarm["tda"], 11);
+  EXPECT_EQ(clean_alarm["ptda"], 15);
 }
 
 // a4 is the hard channel: no method reaches an RMS separability of 0.9 at any load.

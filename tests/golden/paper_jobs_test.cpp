@@ -23,7 +23,7 @@ namespace {
 
 struct MonitorStats {
   std::size_t windows = 0, scored = 0, abnormal = 0, alarm_windows = 0;
-  std::size_t rms_out = 0;  ///< windows whose RMS alone is out of its band
+  std::size_t rms_out = 0;  ///< windows whose RMS alone is above its band
   long first_alarm_n = -1;  ///< window sequence of the first alarm, -1: never
   double mean_rms = 0.0, mean_entropy = 0.0;
 };
@@ -40,15 +40,16 @@ MonitorStats stats_of(const std::vector<cli::JsonValue>& rows, const std::string
     const double ent = r.at("entropy_res").as_number();
     s.mean_rms += rms;
     s.mean_entropy += ent;
-    // The JSONL verdict must agree with the bands it reports.
+    // The JSONL verdict must agree with the bands it reports. Issue 12: a residual RMS below its band is
+    // a low residual (its own cause), not abnormal; above it, or entropy outside its band, is abnormal.
     const auto& rb = r.at("rms_band").array;
     const auto& eb = r.at("entropy_band").array;
-    const bool out = rms < rb.at(0).as_number() || rms > rb.at(1).as_number() || ent < eb.at(0).as_number() ||
-                     ent > eb.at(1).as_number();
+    const bool out = rms > rb.at(1).as_number() || ent < eb.at(0).as_number() || ent > eb.at(1).as_number();
     EXPECT_EQ(r.at("abnormal").as_bool(), out) << "window " << r.at("n").as_number();
     if (out) ++s.abnormal;
-    const bool rms_out = rms < rb.at(0).as_number() || rms > rb.at(1).as_number();
+    const bool rms_out = rms > rb.at(1).as_number();
     EXPECT_EQ(r.at("rms_out").as_bool(), rms_out) << "window " << r.at("n").as_number();
+    EXPECT_EQ(r.at("rms_low").as_bool(), rms < rb.at(0).as_number()) << "window " << r.at("n").as_number();
     if (rms_out) ++s.rms_out;
     if (r.at("alarm").as_bool()) {
       ++s.alarm_windows;
@@ -86,6 +87,11 @@ struct Job {
 // welding alarm 4 of 10). Everything is deterministic given the seeds; the relative tolerance 1e-4 on
 // the mean residual RMS covers float32 FFT rounding differences between builds (FMA contraction, -O
 // levels), which are ~1e-6 relative on a 0.5 s window, with room; counts are exact.
+// Re-pinned for issue 12 (tolerance bands, one-sided RMS, CUSUM beside k-of-n; the features and mean
+// RMS are unchanged): before, with Gaussian two-sided bands and k-of-n only, abnormal faulty windows
+// ptda/tda/raw were 40/6/36, 40/0/32, 20/11/20, RMS out 40/0/25, 40/0/12, 20/0/19 and first alarms
+// 2/-1/2, 8/-1/13, 2/3/2. Tolerance bands are wider for TDA and raw, whose leave-one-out features
+// vary more; PTDA now alarms at the first faulty window, through the CUSUM.
 // Before the cycle-to-cycle variation (identical cycles) raw flagged 40/40, 49/101, 20/20 faulty
 // windows (PTDA 40, 48, 20), raw RMS ratios 1.033, 1.011, 1.048.
 constexpr Job kJobs[] = {
@@ -93,15 +99,15 @@ constexpr Job kJobs[] = {
     // first alarm window ptda/tda/raw, mean rms_res ptda fresh/faulty, tda fresh/faulty, raw fresh/faulty
     {"joint_rotation",
      true,
-     {40, 40, 40, 6, 36, 40, 0, 25, 2, -1, 2, 0.256852705, 0.441198798, 2.00395427, 2.05173636, 1.94357524,
+     {40, 40, 40, 1, 29, 40, 0, 15, 0, 14, 3, 0.256852705, 0.441198798, 2.00395427, 2.05173636, 1.94357524,
       2.000598}},
     {"arc_welding",
      true,
-     {100, 101, 40, 0, 32, 40, 0, 12, 8, -1, 13, 0.254059718, 0.288964039, 1.04698794, 1.05729261, 1.03934736,
+     {100, 101, 40, 0, 22, 39, 0, 5, 0, -1, 10, 0.254059718, 0.288964039, 1.04698794, 1.05729261, 1.03934736,
       1.04217004}},
     {"spot_welding",
      false,
-     {20, 20, 20, 11, 20, 20, 0, 19, 2, 3, 2, 0.261193089, 0.46389865, 1.9517956, 2.05480079, 1.94241323,
+     {20, 20, 20, 5, 20, 20, 0, 17, 0, 4, 1, 0.261193089, 0.46389865, 1.9517956, 2.05480079, 1.94241323,
       2.02733877}},
 };
 

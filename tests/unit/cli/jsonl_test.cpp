@@ -98,6 +98,14 @@ TEST(WindowJson, ScoredAndUnclassifiedWindows) {
   w.verdict = {true, false};
   w.alarm = true;
   w.abnormal_in_last_n = 3;
+  w.kofn_alarm = true;
+  w.detector = dsp::AlarmDetector::kKOfN;
+  w.z_rms = 2.5;
+  w.z_entropy = -0.25;
+  w.seq_statistic = 1.5;
+  w.seq_feature = dsp::SeqFeature::kRmsHigh;
+  w.seq_max_statistic = 4.5;
+  w.seq_warn = true;
   // Times: UNIX seconds of the ns timestamps, written so they read back to the same double.
   const std::string t_start = json_number(ns_to_seconds(w.ref.t_start_ns));
   const std::string t_end = json_number(ns_to_seconds(w.ref.t_end_ns));
@@ -109,7 +117,9 @@ TEST(WindowJson, ScoredAndUnclassifiedWindows) {
           ",\"segment\":1,\"region\":3,"
           "\"speed_rad_s\":-1.0471975511965976,\"status\":\"scored\",\"method\":\"ptda\",\"rms_res\":0.0625,"
           "\"entropy_res\":0.875,\"rms_band\":[0.03125,0.05],\"entropy_band\":[0.5,0.95],\"rms_out\":true,"
-          "\"entropy_out\":false,\"abnormal\":true,\"alarm\":true,\"abnormal_in_last_n\":3}");
+          "\"entropy_out\":false,\"abnormal\":true,\"alarm\":true,\"abnormal_in_last_n\":3,\"rms_low\":false,"
+          "\"detector\":\"k_of_n\",\"kofn_alarm\":true,\"seq_alarm\":false,\"seq_warn\":true,\"z_rms\":2.5,"
+          "\"z_entropy\":-0.25,\"cusum\":1.5,\"cusum_feature\":\"rms_high\",\"cusum_max\":4.5}");
   w.status = dsp::WindowStatus::kNoClass;
   w.class_id = -1;
   w.alarm = false;
@@ -119,6 +129,8 @@ TEST(WindowJson, ScoredAndUnclassifiedWindows) {
   EXPECT_EQ(v.at("status").as_string(), "no_class");
   EXPECT_EQ(v.at("method").as_string(), "tda");
   EXPECT_FALSE(v.at("abnormal").as_bool());
+  EXPECT_TRUE(v.at("cusum").is_null());  // no class: no class statistic; the largest stays
+  EXPECT_EQ(v.at("cusum_max").as_number(), 4.5);
 }
 
 }  // namespace

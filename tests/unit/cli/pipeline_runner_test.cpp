@@ -218,7 +218,7 @@ TEST(Redebounce, RecomputesKOfNOverTheSubsetAndSkipsUnclassified) {
     w[i].verdict.rms_out = pattern[i] == 1;
     w[i].alarm = true;  // stale state from the full run
   }
-  redebounce(w, dsp::DecisionConfig{2, 3});
+  redebounce(w, dsp::DecisionConfig{2, 3, {}});
   // scored history: a, ok, (skip), a -> 2 of last 3 -> alarm; a -> ok,a,a alarm; ok -> a,a,ok alarm;
   // ok -> a,ok,ok no; ok -> no
   const std::vector<bool> expected = {false, false, false, true, true, true, false, false};
@@ -227,6 +227,28 @@ TEST(Redebounce, RecomputesKOfNOverTheSubsetAndSkipsUnclassified) {
     EXPECT_EQ(w[i].alarm, expected[i]) << i;
     EXPECT_EQ(w[i].abnormal_in_last_n, counts[i]) << i;
   }
+}
+
+TEST(Redebounce, RestartsTheCusumOverTheSubset) {
+  // Class 0 windows with z_rms = 3 (k 1: +2 per window), stale statistics from the full run.
+  std::vector<dsp::WindowResult> w(5);
+  for (auto& r : w) {
+    r.status = dsp::WindowStatus::kScored;
+    r.class_id = 0;
+    r.z_rms = 3.0;
+    r.seq_statistic = 13.0;
+    r.seq_alarm = true;
+  }
+  redebounce(w, dsp::DecisionConfig{3, 5, {}});  // cusum_warn 4, cusum_alarm 7
+  const std::vector<double> s = {2.0, 4.0, 6.0, 8.0, 10.0};
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    EXPECT_DOUBLE_EQ(w[i].seq_statistic, s[i]) << i;
+    EXPECT_EQ(w[i].seq_warn, s[i] >= 4.0) << i;
+    EXPECT_EQ(w[i].seq_alarm, s[i] >= 7.0) << i;
+    EXPECT_EQ(w[i].seq_feature, dsp::SeqFeature::kRmsHigh) << i;
+  }
+  EXPECT_EQ(w[3].detector, dsp::AlarmDetector::kSequential);  // verdicts all ok: k-of-n silent
+  EXPECT_TRUE(w[3].alarm);
 }
 
 }  // namespace

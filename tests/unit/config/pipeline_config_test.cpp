@@ -80,8 +80,14 @@ void expect_config_eq(const PipelineConfig& a, const PipelineConfig& b) {
   EXPECT_EQ(a.thresholds.kind, b.thresholds.kind);
   EXPECT_EQ(a.thresholds.false_alarm_rate, b.thresholds.false_alarm_rate);
   EXPECT_EQ(a.thresholds.margin, b.thresholds.margin);
+  EXPECT_EQ(a.thresholds.confidence, b.thresholds.confidence);
+  EXPECT_EQ(a.thresholds.holdout_fraction, b.thresholds.holdout_fraction);
   EXPECT_EQ(a.decision.k, b.decision.k);
   EXPECT_EQ(a.decision.n, b.decision.n);
+  EXPECT_EQ(a.decision.sequential.enabled, b.decision.sequential.enabled);
+  EXPECT_EQ(a.decision.sequential.k, b.decision.sequential.k);
+  EXPECT_EQ(a.decision.sequential.h_warn, b.decision.sequential.h_warn);
+  EXPECT_EQ(a.decision.sequential.h_alarm, b.decision.sequential.h_alarm);
   EXPECT_EQ(a.method, b.method);
   EXPECT_EQ(a.gearbox.kind, b.gearbox.kind);
   EXPECT_EQ(a.gearbox.z_in, b.gearbox.z_in);
@@ -132,12 +138,18 @@ speed_tol_rel = 0.1
 speed_tol_abs_rad_s = 0.05
 min_regions = 4
 [thresholds]
-method = "quantile"
+method = "tolerance"
 false_alarm_rate = 0.01
 margin = 0.15
+confidence = 0.95
+holdout_fraction = 0.25
 [decision]
 k = 2
 n = 7
+sequential = "off"
+cusum_k = 0.5
+cusum_warn = 3.5
+cusum_alarm = 9
 [monitor]
 method = "tda"
 [gearbox]
@@ -164,8 +176,14 @@ TEST(PipelineConfig, DefaultsWhenKeysAbsent) {
   EXPECT_EQ(cfg.extraction.hop, 0U);
   EXPECT_EQ(cfg.decision.k, 3U);
   EXPECT_EQ(cfg.decision.n, 5U);
-  EXPECT_EQ(cfg.thresholds.kind, dsp::ThresholdPolicy::Kind::kGaussian);
+  EXPECT_EQ(cfg.thresholds.kind, dsp::ThresholdPolicy::Kind::kTolerance);
   EXPECT_EQ(cfg.thresholds.false_alarm_rate, 1e-3);
+  EXPECT_EQ(cfg.thresholds.confidence, 0.9);
+  EXPECT_EQ(cfg.thresholds.holdout_fraction, 0.0);
+  EXPECT_TRUE(cfg.decision.sequential.enabled);
+  EXPECT_EQ(cfg.decision.sequential.k, 1.0);
+  EXPECT_EQ(cfg.decision.sequential.h_warn, 4.0);
+  EXPECT_EQ(cfg.decision.sequential.h_alarm, 7.0);
   EXPECT_EQ(cfg.method, dsp::Method::kPtda);
   EXPECT_EQ(cfg.gearbox.kind, dsp::GearboxInfo::Kind::kUnknown);
   EXPECT_EQ(cfg.gearbox.ratio, 0.0);
@@ -196,11 +214,17 @@ TEST(PipelineConfig, ParsesEveryKey) {
   EXPECT_EQ(cfg.classes.speed_tol_rel, 0.1);
   EXPECT_EQ(cfg.classes.speed_tol_abs_rad_s, 0.05);
   EXPECT_EQ(cfg.classes.min_regions, 4U);
-  EXPECT_EQ(cfg.thresholds.kind, dsp::ThresholdPolicy::Kind::kQuantile);
+  EXPECT_EQ(cfg.thresholds.kind, dsp::ThresholdPolicy::Kind::kTolerance);
   EXPECT_EQ(cfg.thresholds.false_alarm_rate, 0.01);
   EXPECT_EQ(cfg.thresholds.margin, 0.15);
+  EXPECT_EQ(cfg.thresholds.confidence, 0.95);
+  EXPECT_EQ(cfg.thresholds.holdout_fraction, 0.25);
   EXPECT_EQ(cfg.decision.k, 2U);
   EXPECT_EQ(cfg.decision.n, 7U);
+  EXPECT_FALSE(cfg.decision.sequential.enabled);
+  EXPECT_EQ(cfg.decision.sequential.k, 0.5);
+  EXPECT_EQ(cfg.decision.sequential.h_warn, 3.5);
+  EXPECT_EQ(cfg.decision.sequential.h_alarm, 9.0);
   EXPECT_EQ(cfg.method, dsp::Method::kTda);
   EXPECT_EQ(cfg.gearbox.kind, dsp::GearboxInfo::Kind::kCycloidal);
   EXPECT_EQ(cfg.gearbox.z_in, 28U);
@@ -333,6 +357,15 @@ TEST(PipelineConfigErrors, OutOfRangeValues) {
   EXPECT_EQ(error_of("[decision]\nn = 65\n"), "cfg.toml:2:5: decision.n = 65 is outside 1..64");
   EXPECT_EQ(error_of("[thresholds]\nfalse_alarm_rate = 0.5\n"),
             "cfg.toml:2:20: thresholds.false_alarm_rate must be > 0 and < 0.5");
+  EXPECT_EQ(error_of("[thresholds]\nconfidence = 1.0\n"),
+            "cfg.toml:2:14: thresholds.confidence must be > 0.5 and < 1");
+  EXPECT_EQ(error_of("[thresholds]\nholdout_fraction = 0.95\n"),
+            "cfg.toml:2:20: thresholds.holdout_fraction = 0.95 is outside 0..0.9");
+  EXPECT_EQ(error_of("[decision]\ncusum_k = 0\n"), "cfg.toml:2:11: decision.cusum_k must be > 0");
+  EXPECT_EQ(error_of("[decision]\nsequential = \"ewma\"\n"),
+            "cfg.toml:2:14: decision.sequential must be one of \"cusum\", \"off\", not \"ewma\"");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[decision]\ncusum_warn = 8\n"),
+            "cfg.toml:4:14: [decision] cusum_warn = 8.0 must not exceed cusum_alarm = 7.0");
   EXPECT_EQ(error_of("[thresholds]\nfalse_alarm_rate = 0\n"),
             "cfg.toml:2:20: thresholds.false_alarm_rate must be > 0 and < 0.5");
   EXPECT_EQ(error_of("[extraction]\nwindow_len = 0\n"),
@@ -349,7 +382,8 @@ TEST(PipelineConfigErrors, OutOfRangeValues) {
   EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[can.speed_frame.angle]\nscale = 0.0\n"),
             "cfg.toml:4:9: can.speed_frame.angle.scale must not be 0");
   EXPECT_EQ(error_of("[thresholds]\nmethod = \"median\"\n"),
-            "cfg.toml:2:10: thresholds.method must be one of \"gaussian\", \"quantile\", not \"median\"");
+            "cfg.toml:2:10: thresholds.method must be one of \"gaussian\", \"quantile\", \"tolerance\", not "
+            "\"median\"");
   EXPECT_EQ(
       error_of("[extraction]\nwindow_len = 4096\n[can.speed_frame.speed]\nbyte_order = \"motorola\"\n"),
       "cfg.toml:4:14: can.speed_frame.speed.byte_order must be one of \"little\", \"big\", not \"motorola\"");

@@ -33,7 +33,12 @@ class Clear : public ::testing::Test {
 
 std::string clear_config(const fs::path& dir) {
   // k = n = 5: only a run of abnormal windows alarms, so the healthy parts never do (checked below).
-  const std::string pipe = with_decision(arc_pipeline(), 5, 5);
+  // The test times the clears on the k-of-n condition (gone after 5 healthy windows); the CUSUM's
+  // slower recovery (up to 2 cusum_alarm / cusum_k windows after a fault this large) is switched off.
+  std::string pipe = with_decision(arc_pipeline(), 5, 5);
+  const std::size_t at = pipe.find("\nn = 5\n");
+  if (at == std::string::npos) throw std::runtime_error("clear_config: no 'n = 5' line");
+  pipe.insert(at + 7, "sequential = \"off\"\n");
   return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
          (dir / "status").string() +
          "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +

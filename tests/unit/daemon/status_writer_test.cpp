@@ -194,6 +194,8 @@ StatusSnapshot known_snapshot() {
   s.trip_t_s = 4990.0;
   s.trip_rms = 0.03;
   s.trip_entropy = 0.86;
+  s.trip_detector = "k_of_n+sequential";
+  s.trip_cusum = 7.5;
   s.acq_blocks = 100;
   s.acq_samples = 102400;
   s.acq_gaps = 1;
@@ -243,7 +245,7 @@ constexpr std::string_view kKnownJson =
     R"("rms_band":[0.011,0.021],"entropy_band":[0.81,0.91],"rms_out":true,"entropy_out":false,)"
     R"("abnormal":true,"abnormal_in_last_n":3},)"
     R"("alarm":{"level":"alarm","since_s":4990.000,"latched":true,"causes":["rms","speed"],)"
-    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86}},)"
+    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86,"detector":"k_of_n+sequential","cusum":7.5}},)"
     R"("coverage":{"state":"partial","timeout_s":60,"judged":107,)"
     R"("unmatched":{"speed":1,"direction":0,"invalid":0},"last_judged_age_s":0.875,)"
     R"("motion_since_judged_s":0.500,"classes":[{"id":0,"judged":0,"last_judged_age_s":null,"current":false},)"

@@ -14,6 +14,7 @@
 
 #include "alloc_counter.hpp"
 #include "ptda/common/error.hpp"
+#include "ptda/dsp/training.hpp"
 
 namespace ptda::dsp {
 namespace {
@@ -143,7 +144,7 @@ class MonitorEngineTest : public ::testing::Test {
   }
   static std::vector<WindowResult> monitor(const Stream& s, std::size_t block = 700,
                                            Method m = Method::kPtda) {
-    MonitorEngine e(*baseline_, extraction(), DecisionConfig{3, 5}, m, kFs, kT0);
+    MonitorEngine e(*baseline_, extraction(), DecisionConfig{3, 5, {}}, m, kFs, kT0);
     std::vector<WindowResult> out;
     WindowResult r;
     feed(e, s, block, [&] {
@@ -203,14 +204,119 @@ TEST_F(MonitorEngineTest, HealthyCyclesRaiseNoAlarmImpulsesDo) {
     std::uint32_t last5 = 0;  // recount of the debouncer's window from the verdicts
     for (std::size_t j = i >= 4 ? i - 4 : 0; j <= i; ++j) last5 += faulty[j].verdict.abnormal() ? 1 : 0;
     EXPECT_EQ(faulty[i].abnormal_in_last_n, last5) << i;
-    EXPECT_EQ(faulty[i].alarm, last5 >= 3) << i;
+    EXPECT_EQ(faulty[i].kofn_alarm, last5 >= 3) << i;
+    EXPECT_EQ(faulty[i].alarm, faulty[i].kofn_alarm || faulty[i].seq_alarm) << i;
   }
   EXPECT_GE(faulty_abnormal, faulty.size() - 1);
   EXPECT_TRUE(faulty.back().alarm);
-  // k = 3 of n = 5: the alarm is up from the third abnormal window on.
-  EXPECT_FALSE(faulty[1].alarm);
-  EXPECT_TRUE(faulty[4].alarm);
+  // k = 3 of n = 5: the k-of-n alarm is up from the third abnormal window on. The CUSUM is faster on
+  // a fault this large (z_rms far above cusum_alarm + k in one window): it holds the alarm from the
+  // first window.
+  EXPECT_FALSE(faulty[1].kofn_alarm);
+  EXPECT_TRUE(faulty[4].kofn_alarm);
+  EXPECT_TRUE(faulty[0].seq_alarm);
+  EXPECT_EQ(faulty[0].detector, AlarmDetector::kSequential);
+  EXPECT_EQ(faulty[4].detector, AlarmDetector::kBoth);
   EXPECT_GT(faulty[4].features.rms_res, faulty[4].thresholds.rms.hi);
+}
+
+// The engine's sequential evidence is the documented recursion on the standardised features, one
+// CUSUM per class: recomputed here from each window's features and the baseline's statistics.
+TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeatures) {
+  const auto res = monitor(make_stream(6, 6, 0.65));
+  const SequentialConfig seq;  // defaults: k 1, warn 4, alarm 7
+  std::vector<double> s_rms(2, 0.0), s_hi(2, 0.0), s_lo(2, 0.0);
+  bool seq_alarm_seen = false;
+  bool kofn_seen = false;
+  for (const WindowResult& r : res) {
+    ASSERT_EQ(r.status, WindowStatus::kScored);
+    const auto c = static_cast<std::size_t>(r.class_id);
+    const ClassBaseline& cls = baseline_->classes[c];
+    const auto m = static_cast<std::size_t>(Method::kPtda);
+    // Small-sample scale: n = 48 (class 0) and 36 (class 1) training windows.
+    const double c_n = small_sample_scale(cls.log_rms_stats[m].n, baseline_->policy);
+    EXPECT_GT(c_n, 1.0);
+    const double zr =
+        (std::log(r.features.rms_res) - cls.log_rms_stats[m].mean) / (c_n * cls.log_rms_stats[m].stddev);
+    const double ze =
+        (r.features.entropy_res - cls.entropy_stats[m].mean) / (c_n * cls.entropy_stats[m].stddev);
+    EXPECT_NEAR(r.z_rms, zr, 1e-9 * std::max(1.0, std::abs(zr)));
+    EXPECT_NEAR(r.z_entropy, ze, 1e-9 * std::max(1.0, std::abs(ze)));
+    const double cap = 2.0 * seq.h_alarm;
+    s_rms[c] = std::min(cap, std::max(0.0, s_rms[c] + zr - seq.k));
+    s_hi[c] = std::min(cap, std::max(0.0, s_hi[c] + ze - seq.k));
+    s_lo[c] = std::min(cap, std::max(0.0, s_lo[c] - ze - seq.k));
+    const double mine = std::max(s_rms[c], std::max(s_hi[c], s_lo[c]));
+    EXPECT_NEAR(r.seq_statistic, mine, 1e-6);
+    const double worst = std::max(std::max(s_rms[0], std::max(s_hi[0], s_lo[0])),
+                                  std::max(s_rms[1], std::max(s_hi[1], s_lo[1])));
+    EXPECT_NEAR(r.seq_max_statistic, worst, 1e-6);
+    EXPECT_EQ(r.seq_alarm, worst >= seq.h_alarm);
+    EXPECT_EQ(r.seq_warn, worst >= seq.h_warn);
+    EXPECT_EQ(r.alarm, r.kofn_alarm || r.seq_alarm);
+    const AlarmDetector want = r.kofn_alarm
+                                   ? (r.seq_alarm ? AlarmDetector::kBoth : AlarmDetector::kKOfN)
+                                   : (r.seq_alarm ? AlarmDetector::kSequential : AlarmDetector::kNone);
+    EXPECT_EQ(r.detector, want);
+    seq_alarm_seen = seq_alarm_seen || r.seq_alarm;
+    kofn_seen = kofn_seen || r.kofn_alarm;
+  }
+  // Impulses of amplitude 0.65 raise the residual by about 1-2 sd: one window of 42 leaves its band,
+  // so k-of-n never fires, but the evidence accumulates and the CUSUM reaches its alarm (measured:
+  // its largest value is 11.7 against cusum_alarm 7; at amplitude 0.5 it stays at 3.7).
+  EXPECT_FALSE(kofn_seen);
+  EXPECT_TRUE(seq_alarm_seen);
+  // Switched off, the same data leaves every sequential field at rest and the alarm to k-of-n.
+  DecisionConfig off{3, 5, {}};
+  off.sequential.enabled = false;
+  MonitorEngine e(*baseline_, extraction(), off, Method::kPtda, kFs, kT0);
+  WindowResult r;
+  feed(e, make_stream(6, 6, 0.65), 700, [&] {
+    while (e.poll(r)) {
+      EXPECT_EQ(r.seq_statistic, 0.0);
+      EXPECT_FALSE(r.seq_alarm);
+      EXPECT_EQ(r.alarm, r.kofn_alarm);
+    }
+  });
+}
+
+TEST_F(MonitorEngineTest, HoldoutLeavesTheLatestCyclesOutAndCountsThem) {
+  const Stream healthy = make_stream(12, 1, 0.0);
+  WindowSlicer slicer(extraction(), kFs, kT0);
+  CollectedWindows data;
+  std::vector<float> buf(kN);
+  WindowRef ref;
+  RegionInfo region;
+  feed(slicer, healthy, 512, [&] {
+    while (slicer.pop(ref, buf)) {
+      data.refs.push_back(ref);
+      data.windows.push_back(buf);
+    }
+    while (slicer.pop_region(region)) data.regions.push_back(region);
+  });
+  ThresholdPolicy policy;
+  policy.holdout_fraction = 0.25;
+  const Baseline b = train_baseline(data, ClassLearningConfig{}, policy, kFs, GearboxInfo{});
+  ASSERT_EQ(b.classes.size(), 2U);
+  // Disjoint windows are their own groups: class 0 has 48 (12 held out), class 1 has 36 (9 held out).
+  EXPECT_EQ(b.classes[0].n_windows, 36U);
+  EXPECT_EQ(b.classes[1].n_windows, 27U);
+  for (std::size_t m = 0; m < kMethodCount; ++m) {
+    EXPECT_EQ(b.classes[0].holdout[m].windows, 12U);
+    EXPECT_EQ(b.classes[1].holdout[m].windows, 9U);
+  }
+  // Healthy held-out windows: PTDA flags at most one, and their standardised scores are near N(0, 1).
+  const auto p = static_cast<std::size_t>(Method::kPtda);
+  EXPECT_LE(b.classes[0].holdout[p].abnormal + b.classes[1].holdout[p].abnormal, 1U);
+  EXPECT_LT(std::abs(b.classes[0].holdout[p].z_rms_mean), 1.5);
+  EXPECT_GT(b.classes[0].holdout[p].z_rms_sd, 0.3);
+  EXPECT_LT(b.classes[0].holdout[p].z_rms_sd, 3.0);
+  // 12 cycles of 2.4 s with 4 forward windows each: 4 / 2.4 s = 6000 windows per hour (the last
+  // window adds one median start-to-start interval, so the operating time is close to 28.8 s).
+  EXPECT_NEAR(b.classes[0].windows_per_hour, 6000.0, 400.0);
+  // The bands are fitted without the held-out windows: the same as training on the first 75 %.
+  policy.holdout_fraction = 0.95;
+  EXPECT_THROW((void)train_baseline(data, ClassLearningConfig{}, policy, kFs, GearboxInfo{}), Error);
 }
 
 TEST_F(MonitorEngineTest, UnknownSpeedIsReportedButNotScored) {
@@ -249,7 +355,7 @@ TEST_F(MonitorEngineTest, BlockSizeDoesNotChangeResults) {
 
 TEST_F(MonitorEngineTest, PollDoesNotAllocateAfterWarmUp) {
   const Stream s = make_stream(8, 5, 2.0);
-  MonitorEngine e(*baseline_, extraction(), DecisionConfig{3, 5}, Method::kPtda, kFs, kT0);
+  MonitorEngine e(*baseline_, extraction(), DecisionConfig{3, 5, {}}, Method::kPtda, kFs, kT0);
   WindowResult r;
   std::size_t polled = 0;
   std::size_t k = 0;
@@ -292,7 +398,7 @@ TEST_F(MonitorEngineTest, RejectsMismatchedBaselineAndDecision) {
   other.hop = 0;
   expect_error([&] { MonitorEngine e(*baseline_, other, {}, Method::kPtda, kFs, kT0); },
                "extraction.window_len");
-  expect_error([] { MonitorEngine e(*baseline_, extraction(), {6, 5}, Method::kPtda, kFs, kT0); }, "");
+  expect_error([] { MonitorEngine e(*baseline_, extraction(), {6, 5, {}}, Method::kPtda, kFs, kT0); }, "");
   Baseline empty = *baseline_;
   empty.classes.clear();
   expect_error([&] { MonitorEngine e(empty, extraction(), {}, Method::kPtda, kFs, kT0); },

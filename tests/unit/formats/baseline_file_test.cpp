@@ -46,7 +46,7 @@ Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
   b.fs_hz = 25600.0;
   b.window_len = n;
   b.gearbox = {ptda::dsp::GearboxInfo::Kind::kCycloidal, 10, 40, 41, 164.0};
-  b.policy = {ptda::dsp::ThresholdPolicy::Kind::kQuantile, 1e-3, 0.1};
+  b.policy = {ptda::dsp::ThresholdPolicy::Kind::kQuantile, 1e-3, 0.1, 0.95, 0.25};
   for (std::uint32_t k = 0; k < 3; ++k) {
     ptda::dsp::ClassBaseline c;
     c.segment = {k + 7, static_cast<std::int8_t>(k % 2 == 0 ? 1 : -1), 0.5 + k, 0.05, 1.25, 12 + k};
@@ -59,7 +59,18 @@ Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
       c.thresholds[m] = {{u(rng), u(rng)}, {u(rng), u(rng)}};
       c.rms_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
       c.entropy_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
+      c.log_rms_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
+      c.holdout[m] = {static_cast<std::uint32_t>(rng()),
+                      static_cast<std::uint32_t>(rng()),
+                      static_cast<std::uint32_t>(rng()),
+                      static_cast<std::uint32_t>(rng()),
+                      static_cast<std::uint32_t>(rng()),
+                      u(rng),
+                      u(rng),
+                      u(rng),
+                      u(rng)};
     }
+    c.windows_per_hour = 1440.0 + k;
     b.classes.push_back(c);
   }
   // Infinite bands and a NaN stat must survive bit for bit.
@@ -88,6 +99,8 @@ void expect_equal(const Baseline& a, const Baseline& b) {
   EXPECT_EQ(a.policy.kind, b.policy.kind);
   EXPECT_EQ(a.policy.false_alarm_rate, b.policy.false_alarm_rate);
   EXPECT_EQ(a.policy.margin, b.policy.margin);
+  EXPECT_EQ(a.policy.confidence, b.policy.confidence);
+  EXPECT_EQ(a.policy.holdout_fraction, b.policy.holdout_fraction);
   EXPECT_EQ(a.source, b.source);
   ASSERT_EQ(a.training.size(), b.training.size());
   for (std::size_t i = 0; i < a.training.size(); ++i) {
@@ -110,7 +123,22 @@ void expect_equal(const Baseline& a, const Baseline& b) {
     EXPECT_EQ(x.n_windows, y.n_windows);
     EXPECT_EQ(x.mean_magnitude, y.mean_magnitude);
     EXPECT_EQ(x.tda_mean, y.tda_mean);
+    EXPECT_EQ(x.windows_per_hour, y.windows_per_hour);
     for (std::size_t m = 0; m < ptda::dsp::kMethodCount; ++m) {
+      EXPECT_TRUE(same_bits(x.log_rms_stats[m].mean, y.log_rms_stats[m].mean));
+      EXPECT_TRUE(same_bits(x.log_rms_stats[m].stddev, y.log_rms_stats[m].stddev));
+      EXPECT_EQ(x.log_rms_stats[m].n, y.log_rms_stats[m].n);
+      const auto& hx = x.holdout[m];
+      const auto& hy = y.holdout[m];
+      EXPECT_EQ(hx.windows, hy.windows);
+      EXPECT_EQ(hx.abnormal, hy.abnormal);
+      EXPECT_EQ(hx.rms_high, hy.rms_high);
+      EXPECT_EQ(hx.rms_low, hy.rms_low);
+      EXPECT_EQ(hx.entropy_out, hy.entropy_out);
+      EXPECT_EQ(hx.z_rms_mean, hy.z_rms_mean);
+      EXPECT_EQ(hx.z_rms_sd, hy.z_rms_sd);
+      EXPECT_EQ(hx.z_entropy_mean, hy.z_entropy_mean);
+      EXPECT_EQ(hx.z_entropy_sd, hy.z_entropy_sd);
       EXPECT_TRUE(same_bits(x.thresholds[m].rms.lo, y.thresholds[m].rms.lo));
       EXPECT_TRUE(same_bits(x.thresholds[m].rms.hi, y.thresholds[m].rms.hi));
       EXPECT_TRUE(same_bits(x.thresholds[m].entropy.lo, y.thresholds[m].entropy.lo));
@@ -155,7 +183,8 @@ Bytes read_file(const fs::path& p) {
 
 // Offsets from the layout table in docs/recording-format.md.
 constexpr std::size_t kOffWindowLen = 28;
-constexpr std::size_t kOffClasses = 74;
+constexpr std::size_t kOffClassCount = 86;
+constexpr std::size_t kOffClasses = 90;
 
 }  // namespace
 
@@ -205,13 +234,14 @@ TEST(BaselineFile, RoundTripIsExact) {
 TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
   const Baseline b = make_baseline(16, 1);
   const Bytes bytes = serialize_baseline(b);
-  // Header 74 + per class (41 + 4*9 + 4 + 4*16 + 96 + 216) + source length 4 + text + training count 4 +
-  // per training recording (4 + id + 4 + path + 8 + 8 + 4) + CRC 4.
-  const std::size_t per_class = 41 + 4 * 9 + 4 + 4 * 16 + 96 + 216;
+  // Header 90 + per class (41 + 4*9 + 4 + 4*16 + 96 + 216 + v2: 108 log stats + 8 windows/h + 156
+  // hold-out) + source length 4 + text + training count 4 + per training recording (4 + id + 4 + path +
+  // 8 + 8 + 4) + CRC 4.
+  const std::size_t per_class = 41 + 4 * 9 + 4 + 4 * 16 + 96 + 216 + 108 + 8 + 156;
   std::size_t training = 4;
   for (const auto& t : b.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
-  ASSERT_EQ(bytes.size(), 74 + 3 * per_class + 4 + b.source.size() + training + 4);
-  const std::size_t at_training = 74 + 3 * per_class + 4 + b.source.size();
+  ASSERT_EQ(bytes.size(), 90 + 3 * per_class + 4 + b.source.size() + training + 4);
+  const std::size_t at_training = 90 + 3 * per_class + 4 + b.source.size();
   EXPECT_EQ(bytes[at_training], 2);                            // two training recordings
   EXPECT_EQ(bytes[at_training + 4], b.training[0].id.size());  // the first id's length
   EXPECT_EQ(
@@ -230,13 +260,17 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
     fs_bits |= static_cast<std::uint64_t>(bytes[20 + static_cast<std::size_t>(i)]) << (8 * i);
   EXPECT_EQ(std::bit_cast<double>(fs_bits), 25600.0);
   EXPECT_EQ(bytes[kOffWindowLen], 16);
-  EXPECT_EQ(bytes[32], 0);                // gearbox kind cycloidal
-  EXPECT_EQ(bytes[33], 10);               // z_in
-  EXPECT_EQ(bytes[53], 1);                // policy kind quantile
-  EXPECT_EQ(bytes[70], 3);                // class count
-  EXPECT_EQ(bytes[kOffClasses], 7);       // first class id
-  EXPECT_EQ(bytes[kOffClasses + 4], 1);   // direction +1
-  EXPECT_EQ(bytes[kOffClasses + 37], 9);  // mean_magnitude count N/2+1
+  EXPECT_EQ(bytes[32], 0);   // gearbox kind cycloidal
+  EXPECT_EQ(bytes[33], 10);  // z_in
+  EXPECT_EQ(bytes[53], 1);   // policy kind quantile
+  std::uint64_t conf_bits = 0;
+  for (int i = 0; i < 8; ++i)
+    conf_bits |= static_cast<std::uint64_t>(bytes[70 + static_cast<std::size_t>(i)]) << (8 * i);
+  EXPECT_EQ(std::bit_cast<double>(conf_bits), 0.95);  // v2: policy confidence, then hold-out fraction
+  EXPECT_EQ(bytes[kOffClassCount], 3);                // class count
+  EXPECT_EQ(bytes[kOffClasses], 7);                   // first class id
+  EXPECT_EQ(bytes[kOffClasses + 4], 1);               // direction +1
+  EXPECT_EQ(bytes[kOffClasses + 37], 9);              // mean_magnitude count N/2+1
   // Second class has direction -1, stored as the byte 0xFF.
   EXPECT_EQ(bytes[kOffClasses + per_class + 4], 0xFF);
   std::uint32_t crc = 0;
@@ -309,15 +343,16 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(dir), "b.bin: inconsistent baseline at byte " + std::to_string(kOffClasses + 5) +
                                  ": class 0: direction must be +1 or -1, got 0");
   Bytes classes = good;
-  put_u32(classes, 70, 1000000);
+  put_u32(classes, kOffClassCount, 1000000);
   fix_crc(classes);
   EXPECT_EQ(
-      message_of(classes).rfind("b.bin: inconsistent baseline at byte 74: 1000000 classes cannot fit", 0),
+      message_of(classes).rfind("b.bin: inconsistent baseline at byte 90: 1000000 classes cannot fit", 0),
       0U);
   Bytes policy = good;
   policy[53] = 9;
   fix_crc(policy);
-  EXPECT_EQ(message_of(policy), "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9");
+  EXPECT_EQ(message_of(policy),
+            "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9 for format version 2");
   const Baseline gb = make_baseline(8, 2);
   std::size_t training = 4;
   for (const auto& t : gb.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
@@ -355,6 +390,46 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
     EXPECT_EQ(std::string(e.what()), d.string() + ": is a directory, not a baseline file");
   }
   fs::remove_all(d);
+}
+
+// A version 1 file written by ptda before format 2 (commit b930fd4: `ptda train` on `ptda simulate
+// --scenario config/scenarios/joint_rotation_healthy.toml --seed 1001` with config/examples/
+// joint_rotation.toml at window_len = hop = 256). The values below are what that build printed.
+TEST(BaselineFile, ReadsVersion1GoldenFile) {
+  const fs::path golden =
+      fs::path(PTDA_SOURCE_DIR) / "tests" / "data" / "formats" / "baseline_v1_joint_rotation.bin";
+  const Bytes bytes = read_file(golden);
+  ASSERT_GT(bytes.size(), 20U);
+  EXPECT_EQ(bytes[8], 1);
+  const Baseline b = read_baseline(golden);
+  EXPECT_EQ(b.fs_hz, 25600.0);
+  EXPECT_EQ(b.window_len, 256U);
+  EXPECT_EQ(b.policy.kind, ptda::dsp::ThresholdPolicy::Kind::kGaussian);
+  EXPECT_EQ(b.policy.false_alarm_rate, 1e-3);
+  EXPECT_EQ(b.policy.holdout_fraction, 0.0);  // not in version 1: defaults
+  EXPECT_EQ(b.policy.confidence, 0.9);
+  ASSERT_EQ(b.classes.size(), 2U);
+  const auto ptda_m = static_cast<std::size_t>(ptda::dsp::Method::kPtda);
+  const auto& c0 = b.classes[0];
+  EXPECT_EQ(c0.segment.direction, 1);
+  EXPECT_EQ(c0.segment.regions, 20U);
+  EXPECT_EQ(c0.n_windows, 20U);
+  EXPECT_NEAR(c0.thresholds[ptda_m].rms.lo, 0.22121, 5e-6);
+  EXPECT_NEAR(c0.thresholds[ptda_m].rms.hi, 0.3668, 5e-5);
+  EXPECT_NEAR(c0.rms_stats[ptda_m].mean, 0.29401, 5e-6);
+  EXPECT_EQ(b.classes[1].segment.direction, -1);
+  EXPECT_NEAR(b.classes[1].entropy_stats[ptda_m].mean, 0.84372, 5e-6);
+  // Log statistics derived by the delta method: sd_log = sd / mean, mean_log = ln(mean) - sd_log^2/2.
+  const auto& s = c0.rms_stats[ptda_m];
+  EXPECT_DOUBLE_EQ(c0.log_rms_stats[ptda_m].stddev, s.stddev / s.mean);
+  EXPECT_DOUBLE_EQ(c0.log_rms_stats[ptda_m].mean,
+                   std::log(s.mean) - 0.5 * (s.stddev / s.mean) * (s.stddev / s.mean));
+  EXPECT_EQ(c0.holdout[ptda_m].windows, 0U);
+  EXPECT_EQ(c0.windows_per_hour, 0.0);
+  // Written back, it becomes a version 2 file with the same content.
+  const Bytes v2 = serialize_baseline(b);
+  EXPECT_EQ(v2[8], 2);
+  expect_equal(parse_baseline(v2, "v2"), b);
 }
 
 TEST(BaselineFile, InconsistentBaselineIsNotWritten) {

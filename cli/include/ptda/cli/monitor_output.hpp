@@ -28,6 +28,7 @@ namespace ptda::cli {
 struct MonitorSummary {
   std::uint64_t windows = 0, scored = 0, no_class = 0;
   std::uint64_t abnormal = 0, rms_out = 0, entropy_out = 0, alarm_windows = 0;
+  std::uint64_t rms_low = 0;  ///< scored windows with the residual below its band (not abnormal)
   double rms_sum = 0.0, entropy_sum = 0.0;  ///< over scored windows
   std::optional<dsp::WindowResult> first_abnormal, first_alarm;
   std::int64_t t0_ns = 0;

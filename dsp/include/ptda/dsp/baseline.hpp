@@ -32,15 +32,36 @@ struct FeatureStats {
   std::uint32_t n = 0;
 };
 
-/// How thresholds are set from the healthy leave-one-out feature distribution.
+/// How thresholds are set from the healthy leave-one-out feature distribution (docs/method.md,
+/// "Thresholds").
 struct ThresholdPolicy {
   enum class Kind : std::uint8_t {
-    kGaussian = 0,  ///< mean +- z * stddev, z from the two-sided false-alarm target
-    kQuantile = 1,  ///< empirical quantiles alpha/2 and 1-alpha/2, widened by margin
+    kGaussian = 0,   ///< mean +- z * stddev, z from the two-sided false-alarm target
+    kQuantile = 1,   ///< empirical quantiles alpha/2 and 1-alpha/2, widened by margin
+    kTolerance = 2,  ///< normal tolerance limits with confidence `confidence` for n values: rms_res
+                     ///< on log(rms_res), one-sided limits at 1-alpha; entropy two-sided at 1-alpha
   };
-  Kind kind = Kind::kGaussian;
+  Kind kind = Kind::kTolerance;    ///< default: holds best on held-out healthy data (docs/method.md §8)
   double false_alarm_rate = 1e-3;  ///< per window and per feature, two-sided
   double margin = 0.0;             ///< extra relative widening of the band (0.1 = 10 % of its width)
+  double confidence = 0.9;         ///< kTolerance: probability that the limits cover 1 - alpha
+  /// Fraction of each class's training windows (the latest cycles) held out of the fit and used to
+  /// measure the false-alarm rate of the bands that are stored (0 = none).
+  double holdout_fraction = 0.0;
+};
+
+/// The bands of one method measured on held-out healthy windows of its class (never part of the
+/// class's means or bands). All counts 0 when there was no hold-out.
+struct HoldoutStats {
+  std::uint32_t windows = 0;      ///< held-out windows scored
+  std::uint32_t abnormal = 0;     ///< of them: gear-fault abnormal (rms above or entropy outside)
+  std::uint32_t rms_high = 0;     ///< rms_res above its band
+  std::uint32_t rms_low = 0;      ///< rms_res below its band (low residual: not a gear fault)
+  std::uint32_t entropy_out = 0;  ///< entropy_res outside its band
+  double z_rms_mean = 0.0;        ///< mean and sd of the standardised log rms_res (sequential input)
+  double z_rms_sd = 0.0;
+  double z_entropy_mean = 0.0;  ///< mean and sd of the standardised entropy_res
+  double z_entropy_sd = 0.0;
 };
 
 /// A recurring constant-speed segment of the job: a window is only compared with its own class.
@@ -62,6 +83,10 @@ struct ClassBaseline {
   std::array<FeatureThresholds, kMethodCount> thresholds{};  ///< indexed by Method
   std::array<FeatureStats, kMethodCount> rms_stats{};        ///< leave-one-out, indexed by Method
   std::array<FeatureStats, kMethodCount> entropy_stats{};
+  /// Leave-one-out statistics of ln(rms_res): the sequential detector standardises with them.
+  std::array<FeatureStats, kMethodCount> log_rms_stats{};
+  std::array<HoldoutStats, kMethodCount> holdout{};
+  double windows_per_hour = 0.0;  ///< training windows of this class per hour of recording
 };
 
 /// Gearbox description, kept in the baseline so a report can name the mesh frequencies.

@@ -1,4 +1,5 @@
-// Window decision and k-of-n alarm debouncing (fixed capacity, allocation-free).
+// Window decision, k-of-n alarm debouncing and the sequential (CUSUM) detector (fixed capacity,
+// allocation-free at run time). Formulas: docs/method.md, "Decision".
 #pragma once
 
 #include <array>
@@ -10,15 +11,92 @@
 namespace ptda::dsp {
 
 struct Verdict {
-  bool rms_out = false;      ///< rms_res outside its band
+  bool rms_out = false;      ///< rms_res above its band (or not finite): gear-fault evidence
   bool entropy_out = false;  ///< entropy_res outside its band
+  /// rms_res below its band: less residual than any healthy window (a loose sensor, a stopped mesh,
+  /// a lost channel). Its own cause, not a gear fault: it does not make the window abnormal.
+  bool rms_low = false;
   [[nodiscard]] bool abnormal() const noexcept { return rms_out || entropy_out; }
 };
 
-/// A window is abnormal when either feature leaves its band (paper section 3.4).
+/// A window is abnormal when its residual RMS is above its band or its entropy outside its band
+/// (paper section 3.4, made one-sided for the RMS: see Verdict::rms_low). Never allocates.
 [[nodiscard]] inline Verdict judge(const Features& f, const FeatureThresholds& t) noexcept {
-  return Verdict{!t.rms.contains(f.rms_res), !t.entropy.contains(f.entropy_res)};
+  Verdict v;
+  v.rms_out = !(f.rms_res <= t.rms.hi);  // NaN (size mismatch) is never healthy
+  v.rms_low = f.rms_res < t.rms.lo;
+  v.entropy_out = !t.entropy.contains(f.entropy_res);
+  return v;
 }
+
+/// Standardised features of a window for the sequential detector: z_rms = (ln rms_res - m) / (c s)
+/// with m, s of the class's leave-one-out ln(rms_res), z_entropy = (entropy_res - mean) / (c sd), c the
+/// small-sample scale (training.hpp small_sample_scale(); 1 = none). An sd of 0 is floored at
+/// 1e-9 max(1, |mean|); rms_res = 0 gives z_rms = -1e3 (far below healthy, finite); NaN stays NaN.
+/// Thread: any. Never allocates.
+struct StandardScores {
+  double rms = 0.0;
+  double entropy = 0.0;
+};
+[[nodiscard]] StandardScores standardize(const Features& f, const FeatureStats& log_rms,
+                                         const FeatureStats& entropy, double scale = 1.0) noexcept;
+
+/// Parameters of the per-class CUSUM on the standardised features ([decision] cusum_* keys).
+struct SequentialConfig {
+  bool enabled = true;
+  double k = 1.0;        ///< reference value (allowance) in standard deviations per window
+  double h_warn = 4.0;   ///< decision interval of the warning level
+  double h_alarm = 7.0;  ///< decision interval of the alarm level (the statistic is capped at 2 h_alarm)
+};
+
+/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10 and 0 < h_warn <= h_alarm <= 1000.
+/// Thread: any (setup). Allocates only for the message.
+void check_sequential(const SequentialConfig& cfg);
+
+/// Which CUSUM statistic of a class is the largest.
+enum class SeqFeature : std::uint8_t { kNone = 0, kRmsHigh = 1, kEntropyHigh = 2, kEntropyLow = 3 };
+[[nodiscard]] constexpr const char* seq_feature_name(SeqFeature f) noexcept {
+  switch (f) {
+    case SeqFeature::kNone:
+      return "none";
+    case SeqFeature::kRmsHigh:
+      return "rms_high";
+    case SeqFeature::kEntropyHigh:
+      return "entropy_high";
+    case SeqFeature::kEntropyLow:
+      return "entropy_low";
+  }
+  return "?";
+}
+
+/// One class's CUSUM statistics: upper on z_rms (low residuals are not gear faults), upper and lower
+/// on z_entropy. S <- min(cap, max(0, S + z - k)) each (docs/method.md, "Sequential detector").
+class Cusum {
+ public:
+  /// A non-finite z counts as z = k + 1 (one sd of evidence above the allowance), like the k-of-n
+  /// rule that counts a non-finite feature as abnormal. Thread: the owner's. Never allocates.
+  void update(double z_rms, double z_entropy, double k, double cap) noexcept;
+  /// max of the three statistics and which one it is.
+  [[nodiscard]] double statistic() const noexcept;
+  [[nodiscard]] SeqFeature feature() const noexcept;
+  void reset() noexcept { s_rms_ = s_ent_hi_ = s_ent_lo_ = 0.0; }
+
+ private:
+  double s_rms_ = 0.0, s_ent_hi_ = 0.0, s_ent_lo_ = 0.0;
+};
+
+/// Average run length (windows) of a one-sided CUSUM S <- max(0, S + x - k) to reach h when x is
+/// normal with this mean and sd: Siegmund's approximation with delta = (mean - k) / sd and
+/// b = h / sd + 1.166: ARL = (exp(-2 delta b) + 2 delta b - 1) / (2 delta^2), b^2 at delta = 0.
+/// +inf when it overflows. Throws ptda::Error unless sd > 0 and h > 0. Thread: any. No allocation
+/// except the message.
+[[nodiscard]] double cusum_arl(double mean, double sd, double k, double h);
+
+/// Combined ARL of a class's three CUSUMs (upper on z_rms, upper and lower on z_entropy) for
+/// healthy standardised features with these means and sds: 1 / sum(1 / ARL_i) (rare, nearly
+/// independent crossings). Thread: any.
+[[nodiscard]] double class_cusum_arl(double z_rms_mean, double z_rms_sd, double z_entropy_mean,
+                                     double z_entropy_sd, double k, double h);
 
 /// Alarm when at least k of the last n judged windows were abnormal. n <= kMaxN.
 class KOfNDebouncer {

@@ -14,9 +14,26 @@
 namespace ptda::dsp {
 
 struct DecisionConfig {
-  std::uint32_t k = 3;  ///< abnormal windows ...
-  std::uint32_t n = 5;  ///< ... out of the last n scored windows raise the alarm
+  std::uint32_t k = 3;          ///< abnormal windows ...
+  std::uint32_t n = 5;          ///< ... out of the last n scored windows raise the alarm
+  SequentialConfig sequential;  ///< per-class CUSUM beside k-of-n (either raises the alarm)
 };
+
+/// Which detector holds the alarm (WindowResult::detector).
+enum class AlarmDetector : std::uint8_t { kNone = 0, kKOfN = 1, kSequential = 2, kBoth = 3 };
+[[nodiscard]] constexpr const char* alarm_detector_name(AlarmDetector d) noexcept {
+  switch (d) {
+    case AlarmDetector::kNone:
+      return "none";
+    case AlarmDetector::kKOfN:
+      return "k_of_n";
+    case AlarmDetector::kSequential:
+      return "sequential";
+    case AlarmDetector::kBoth:
+      return "k_of_n+sequential";
+  }
+  return "?";
+}
 
 enum class WindowStatus : std::uint8_t {
   kScored = 0,   ///< features computed and judged
@@ -30,14 +47,45 @@ struct WindowResult {
   Features features;
   FeatureThresholds thresholds;  ///< of the class and method used
   Verdict verdict;
-  bool alarm = false;  ///< k-of-n state after this window
+  bool alarm = false;  ///< alarm state after this window: k-of-n or sequential
   std::uint32_t abnormal_in_last_n = 0;
+  // Evidence of the detectors (docs/method.md, "Decision").
+  bool kofn_alarm = false;                        ///< k of the last n scored windows abnormal
+  bool seq_alarm = false;                         ///< some class's CUSUM >= cusum_alarm
+  bool seq_warn = false;                          ///< some class's CUSUM >= cusum_warn
+  AlarmDetector detector = AlarmDetector::kNone;  ///< which of them holds `alarm`
+  double z_rms = 0.0;                             ///< standardised ln(rms_res) of this window (scored)
+  double z_entropy = 0.0;                         ///< standardised entropy_res of this window (scored)
+  double seq_statistic = 0.0;                     ///< this window's class CUSUM after it (scored)
+  SeqFeature seq_feature = SeqFeature::kNone;     ///< which of that class's statistics is largest
+  double seq_max_statistic = 0.0;                 ///< largest CUSUM over all classes
+};
+
+/// The decision after the verdicts: k-of-n over all scored windows and one CUSUM per class (fixed
+/// state sized at construction). MonitorEngine runs one; `ptda monitor --windows` replays one over a
+/// subset. Constructor: thread any (setup), allocates, throws ptda::Error on a bad configuration.
+class DecisionState {
+ public:
+  DecisionState(const DecisionConfig& decision, std::size_t classes);
+  /// A scored window of class index `cls` (< classes): reads w.verdict, w.z_rms, w.z_entropy and
+  /// fills the decision fields of w. Thread: the owner's. Never allocates or blocks.
+  void scored(WindowResult& w, std::size_t cls) noexcept;
+  /// A window not judged: its decision fields repeat the current state. Never allocates or blocks.
+  void unscored(WindowResult& w) const noexcept;
+
+ private:
+  KOfNDebouncer debouncer_;
+  SequentialConfig seq_;
+  std::vector<Cusum> cusum_;  ///< one per class
+
+  void fill(WindowResult& w) const noexcept;
 };
 
 class MonitorEngine {
  public:
   /// Copies what it needs of baseline (the caller may drop it). Throws ptda::Error when the baseline's
-  /// sample rate or window length disagree with fs_hz / cfg.window_len (says which).
+  /// sample rate or window length disagree with fs_hz / cfg.window_len (says which), or the
+  /// sequential parameters are invalid (check_sequential()).
   /// Thread: any (setup). Allocates.
   MonitorEngine(const Baseline& baseline, const ExtractionConfig& cfg, const DecisionConfig& decision,
                 Method method, double fs_hz, std::int64_t t0_ns);
@@ -49,7 +97,8 @@ class MonitorEngine {
   void mark_gap(std::uint64_t count) noexcept;
   void finish() noexcept;
   /// Next processed window (scored or kNoClass), oldest first. A kNoClass window is not judged and
-  /// does not enter the k-of-n decision (its alarm fields repeat the current state). The slicer's
+  /// does not enter the k-of-n decision or any CUSUM (its alarm fields repeat the current state).
+  /// A scored window updates k-of-n and its class's CUSUM; the alarm holds while either holds. The slicer's
   /// ended regions are drained and dropped here. Thread: the owner's. Never allocates or blocks.
   bool poll(WindowResult& out) noexcept;
 
@@ -64,7 +113,8 @@ class MonitorEngine {
   Method method_;
   WindowSlicer slicer_;
   WindowAnalyzer analyzer_;
-  KOfNDebouncer debouncer_;
+  DecisionState decision_;       ///< per-class state sized here at configure
+  std::vector<double> z_scale_;  ///< per class: small_sample_scale() of its training windows
   std::vector<float> window_;
 };
 

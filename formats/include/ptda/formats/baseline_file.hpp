@@ -14,8 +14,10 @@
 
 namespace ptda::formats {
 
-/// Layout version written by this build (docs/recording-format.md describes it). Version 2 adds the
-/// training recordings after the source text; version 1 files are still read (no training list).
+/// Layout version written by this build (docs/recording-format.md describes it). Version 2 added the
+/// threshold confidence and hold-out fraction, per class the ln(rms_res) statistics, windows per hour
+/// and hold-out results, and after the source text the training recordings. Version 1 files are still
+/// read (log statistics derived from the linear ones, no hold-out, no training list).
 inline constexpr std::uint32_t kBaselineFormatVersion = 2;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 
