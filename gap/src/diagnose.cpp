@@ -54,22 +54,36 @@ class Evaluator {
     }
   }
 
-  /// Simulates and returns the model's probes (all cycles).
+  /// Drive the model along the measured CAN speed (true) or by the scenario's own motion (false).
+  void set_measured_motion(bool on) { measured_motion_ = on; }
+  bool measured_motion() const { return measured_motion_; }
+
+  /// Simulates and returns the model's probes: the mean of its probes over the fit units and over the
+  /// held-out units, so that each half has as many windows as a measured part and count-dependent
+  /// statistics (leave-one-out residuals, extremes) are compared like for like.
   ProbeSet model_probes(const sim::Scenario& s, std::uint64_t seed) {
     simulations_.fetch_add(1, std::memory_order_relaxed);
     const sim::SimulatedSignals sig = sim::simulate_signals(s, seed);
     const GapRecording rec = recording_from_simulation(sig, s);
+    if (measured_motion_) {
+      // The model moved exactly as the recording did: cut it at the recording's own segments and
+      // windows (same time base), split by the same units.
+      std::vector<Window> ws;
+      for (const Window& w : windows_)
+        if (w.start + w.len <= rec.accel_ms2.size()) ws.push_back(w);
+      return average_probes(compute_probes(rec, segs_, ws, fit_, ctx_),
+                            compute_probes(rec, segs_, ws, held_, ctx_));
+    }
     const std::vector<Segment> segs = segment_recording(rec);
     const std::vector<Window> ws = cut_windows(rec, segs, plan_);
-    // The even and the odd cycles separately, averaged: each half has as many windows as a measured
-    // part, so count-dependent statistics (leave-one-out residuals, extremes) are compared like for like.
-    std::uint32_t cycles = 0;
-    for (const Window& w : ws) cycles = std::max(cycles, w.cycle + 1);
-    std::vector<char> even(cycles, 0), odd(cycles, 0);
-    for (std::uint32_t c = 0; c < cycles; ++c) (c % 2 == 0 ? even : odd)[c] = 1;
-    if (cycles < 4) return compute_probes(rec, segs, ws, {}, ctx_);
-    return average_probes(compute_probes(rec, segs, ws, even, ctx_),
-                          compute_probes(rec, segs, ws, odd, ctx_));
+    AnalysisPlan mplan = plan_;
+    mplan.cycles = 0;
+    for (const Segment& sg : segs) mplan.cycles = std::max(mplan.cycles, sg.cycle + 1);
+    const ProgramSplit ms =
+        find_program_split(segs, mplan, static_cast<double>(rec.accel_ms2.size()) / rec.fs_hz);
+    if (!ms.enough) return compute_probes(rec, segs, ws, {}, ctx_);
+    return average_probes(compute_probes(rec, segs, ws, ms.fit, ctx_),
+                          compute_probes(rec, segs, ws, ms.held, ctx_));
   }
   ProbeSet real_probes(const std::vector<char>& part, const ProbeSet* ref) const {
     return compute_probes(real_, segs_, windows_, part, ctx_, ref);
@@ -159,6 +173,7 @@ class Evaluator {
   std::atomic<std::uint32_t> simulations_{0};  // counted from the fitting threads
   std::vector<char> fit_, held_;
   ElementVariance noise_fit_, noise_held_;
+  bool measured_motion_ = false;
 };
 
 /// Runs fn(0..n-1) on up to `threads` threads (0: one per hardware thread). Every call is independent
@@ -564,6 +579,25 @@ std::vector<std::size_t> tied_candidates(const std::vector<CandidateResult>& ran
   return out;
 }
 
+std::string measured_speed_problem(const GapRecording& real) {
+  const double duration_s = static_cast<double>(real.accel_ms2.size()) / real.fs_hz;
+  if (real.speed.size() < 10) return std::to_string(real.speed.size()) + " speed frames";
+  const double span = real.speed.back().t_s - real.speed.front().t_s;
+  if (span < 0.8 * duration_s)
+    return "the speed frames cover " + fmt("%.1f", span) + " s of " + fmt("%.1f", duration_s) + " s";
+  std::vector<double> dt;
+  for (std::size_t i = 1; i < real.speed.size(); ++i) dt.push_back(real.speed[i].t_s - real.speed[i - 1].t_s);
+  std::vector<double> sorted = dt;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
+  const double med = sorted[sorted.size() / 2];
+  const double worst = *std::max_element(dt.begin(), dt.end());
+  if (worst > std::max(0.25, 20.0 * med))
+    return "a " + fmt("%.2f", worst) + " s gap in the speed frames (median interval " + fmt("%.4f", med) +
+           " s)";
+  return "";
+}
+
 Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, const DiagnoseOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   auto log = [&](const std::string& s) {
@@ -580,26 +614,76 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   }
   Evaluator ev(real, opt.sim_seed);
   const AnalysisPlan& plan = ev.plan();
+  const double duration_s = static_cast<double>(real.accel_ms2.size()) / real.fs_hz;
   d.cycles = plan.cycles;
   d.class_speeds_rad_s = plan.speeds;
-  if (plan.cycles < 4)
-    throw Error(real.source + ": only " + std::to_string(plan.cycles) +
-                " cycles/blocks; the diagnosis needs >= 4");
-  std::vector<char> fit(plan.cycles, 0), held(plan.cycles, 0);
-  for (std::uint32_t c = 0; c < plan.cycles; ++c) (c % 2 == 0 ? fit : held)[c] = 1;
-  d.fit_cycles = (plan.cycles + 1) / 2;
-  d.heldout_cycles = plan.cycles / 2;
+  // Split by the program period: both parts hold every position of the job's program.
+  const ProgramSplit split = find_program_split(ev.segments(), plan, duration_s);
+  d.period_units = split.period_units;
+  d.period_s = split.period_s;
+  if (!split.enough) throw Error(real.source + ": " + split.need);
+  const std::vector<char>& fit = split.fit;
+  const std::vector<char>& held = split.held;
+  d.fit_cycles = static_cast<std::uint32_t>(std::count(fit.begin(), fit.end(), 1));
+  d.heldout_cycles = static_cast<std::uint32_t>(std::count(held.begin(), held.end(), 1));
   for (const Window& w : ev.windows()) (fit[w.cycle] ? d.windows_fit : d.windows_heldout) += 1;
+  d.split_missing = missing_classes(ev.windows(), plan, fit, held);
+  for (const std::string& m : d.split_missing) log("split: " + m);
 
-  // The model: the nominal scenario with as many cycles as were measured (or the measured duration).
+  // The model's motion: the measured CAN speed when it is usable (every move, rest and reversal where
+  // and when it happened), else the scenario's own profile.
+  const std::string usable = measured_speed_problem(real);
+  bool measured = opt.motion != MotionSource::kScenario && usable.empty();
+  if (opt.motion == MotionSource::kMeasured && !usable.empty())
+    throw Error(real.source + ": --motion measured: " + usable);
+  d.motion_source = measured ? "measured" : "scenario";
+  d.motion_note = measured
+                      ? "model driven by the recording's CAN speed"
+                      : (opt.motion == MotionSource::kScenario
+                             ? "model follows the scenario's motion profile (--motion scenario)"
+                             : "model follows the scenario's motion profile: the CAN speed is not usable (" +
+                                   usable + ")");
+  log(d.motion_note);
+  ev.set_measured_motion(measured);
+
   // The nominal scenario's own [[effects]] are what the model already knows: they stay in the model
   // (calibrated with it) and their kinds are not candidates.
   sim::Scenario model = nominal_in;
-  if (model.motion.kind == sim::MotionKind::kConstant) {
-    model.motion.duration_s = static_cast<double>(real.accel_ms2.size()) / real.fs_hz;
+  if (measured) {
+    model.motion.kind = sim::MotionKind::kMeasured;
+    model.motion.duration_s = duration_s;
+    model.motion.measured_t_s.clear();
+    model.motion.measured_speed_rad_s.clear();
+    for (const SpeedPoint& p : real.speed) {
+      if (!model.motion.measured_t_s.empty() && p.t_s <= model.motion.measured_t_s.back()) continue;
+      model.motion.measured_t_s.push_back(p.t_s);
+      model.motion.measured_speed_rad_s.push_back(p.speed_rad_s);
+    }
+    // Job cycles of the model = the recording's units (cycle variation, fault onsets count them).
+    model.motion.measured_cycle_start_s.assign(plan.cycles, 0.0);
+    std::vector<char> seen(plan.cycles, 0);
+    for (const Segment& sg : ev.segments()) {
+      if (sg.cycle < plan.cycles && !seen[sg.cycle]) {
+        seen[sg.cycle] = 1;
+        model.motion.measured_cycle_start_s[sg.cycle] = sg.cycle == 0 ? 0.0 : sg.t0_s;
+      }
+    }
+    for (std::size_t c = 1; c < plan.cycles; ++c)
+      model.motion.measured_cycle_start_s[c] =
+          std::max(model.motion.measured_cycle_start_s[c], model.motion.measured_cycle_start_s[c - 1]);
+  } else if (model.motion.kind == sim::MotionKind::kConstant) {
+    model.motion.duration_s = duration_s;
     model.motion.cycles = 1;
   } else {
-    model.motion.cycles = std::max<std::uint32_t>(plan.cycles, 4);
+    // As many scenario cycles as fill the measured duration (not as many as measured units: one
+    // measured unit may be one move of a longer cycle).
+    sim::Scenario one = model;
+    one.motion.cycles = 1;
+    one.effects.clear();
+    const sim::MotionProfile p1 = sim::build_motion(one, opt.sim_seed);
+    const double per_cycle = std::max(1e-3, p1.duration_s - one.motion.lead_in_s);
+    model.motion.cycles = static_cast<std::uint32_t>(
+        std::max(4.0, std::round((duration_s - one.motion.lead_in_s) / per_cycle)));
   }
   ev.set_context(model);
   ev.set_split(fit, held);

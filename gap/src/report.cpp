@@ -107,6 +107,12 @@ std::string array_json(const std::vector<double>& v) {
   return s + "]";
 }
 
+std::string strings_json(const std::vector<std::string>& v) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + esc(v[i]);
+  return s + "]";
+}
+
 // ---- HTML ----------------------------------------------------------------------------------------
 
 std::string svg_bars(const std::vector<std::pair<std::string, double>>& bars, const std::string& title) {
@@ -197,7 +203,11 @@ std::string diagnosis_json(const Diagnosis& d) {
   o << "  \"split\": {\"cycles\": " << d.cycles << ", \"fit_cycles\": " << d.fit_cycles
     << ", \"heldout_cycles\": " << d.heldout_cycles << ", \"windows_fit\": " << d.windows_fit
     << ", \"windows_heldout\": " << d.windows_heldout
-    << ", \"class_speeds_rad_s\": " << array_json(d.class_speeds_rad_s) << "},\n";
+    << ", \"class_speeds_rad_s\": " << array_json(d.class_speeds_rad_s)
+    << ", \"period_units\": " << d.period_units << ", \"period_s\": " << num(d.period_s)
+    << ", \"missing_classes\": " << strings_json(d.split_missing) << "},\n";
+  o << "  \"motion\": {\"source\": " << esc(d.motion_source) << ", \"note\": " << esc(d.motion_note)
+    << "},\n";
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
     << ", \"noise_rms\": " << num(d.calibrated_noise_rms) << "},\n";
   o << "  \"noise_gap\": " << num(d.noise_gap) << ",\n";
@@ -235,8 +245,10 @@ std::string diagnosis_html(const Diagnosis& d) {
        "td,th{border:1px solid #ccc;padding:2px 6px;font-size:12px}</style></head><body>";
   o << "<h1>Sim-to-real gap</h1><p><b>" << html_esc(d.verdict) << "</b></p>";
   o << "<p>Scenario <code>" << html_esc(d.scenario) << "</code>, recording <code>" << html_esc(d.real_source)
-    << "</code>; " << d.cycles << " cycles (" << d.fit_cycles << " fit / " << d.heldout_cycles
-    << " held out), " << d.simulations << " simulations, " << num(d.runtime_s) << " s.</p>";
+    << "</code>; " << d.cycles << " moves/blocks, program period " << d.period_units << " ("
+    << num(d.period_s) << " s): " << d.fit_cycles << " fit / " << d.heldout_cycles << " held out; "
+    << html_esc(d.motion_note) << "; " << d.simulations << " simulations, " << num(d.runtime_s) << " s.</p>";
+  for (const std::string& m : d.split_missing) o << "<p>Split: " << html_esc(m) << "</p>";
   o << "<p>Held-out gap of the calibrated nominal model: " << num(d.nominal_heldout.total)
     << " (expected from the measured cycles' own spread: " << num(d.noise_gap) << " &plusmn; "
     << num(d.noise_gap_sd) << "); after the chosen effects: " << num(d.final_heldout.total) << " (shrink "

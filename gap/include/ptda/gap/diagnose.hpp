@@ -16,7 +16,15 @@
 
 namespace ptda::gap {
 
+/// What the model's motion follows (docs/gap.md "Method", step 3).
+enum class MotionSource : std::uint8_t {
+  kAuto,      ///< the measured CAN speed when it is usable, else the scenario's profile
+  kMeasured,  ///< the measured CAN speed (an error when it is not usable)
+  kScenario,  ///< the scenario's [motion] profile
+};
+
 struct DiagnoseOptions {
+  MotionSource motion = MotionSource::kAuto;
   std::uint64_t sim_seed = 9001;  ///< seed of the model's simulations (common random numbers)
   std::uint32_t max_effects = 2;  ///< greedy rounds
   std::uint32_t full_fits = 4;    ///< candidates fitted fully per round (after a two-stage screen)
@@ -62,6 +70,11 @@ struct Diagnosis {
   std::size_t windows_fit = 0;
   std::size_t windows_heldout = 0;
   std::vector<double> class_speeds_rad_s;
+  std::uint32_t period_units = 1;          ///< program period in units (moves or blocks)
+  double period_s = 0.0;                   ///< its mean duration
+  std::vector<std::string> split_missing;  ///< segment classes present in one part only
+  std::string motion_source;               ///< "measured" or "scenario"
+  std::string motion_note;                 ///< why, in words
   std::vector<double> calibrated_gmf_amplitudes;
   double calibrated_noise_rms = 0.0;
   GapBreakdown nominal_heldout;            ///< calibrated nominal model vs held-out cycles
@@ -87,6 +100,11 @@ struct Diagnosis {
 
 /// Runs the diagnosis of `real` against `nominal`. Throws ptda::Error when the recording has too few
 /// cycles or windows to split.
+/// Why the recording's CAN speed cannot drive the model (empty: usable): fewer than 10 frames, frames
+/// covering < 80 % of the recording, or a hole longer than max(0.25 s, 20 x the median interval).
+/// Any thread; allocates.
+[[nodiscard]] std::string measured_speed_problem(const GapRecording& real);
+
 [[nodiscard]] Diagnosis diagnose(const sim::Scenario& nominal, const GapRecording& real,
                                  const DiagnoseOptions& opt);
 
