@@ -156,6 +156,7 @@ class Evaluator {
     return g;
   }
 
+  const ElementVariance& noise_fit() const { return noise_fit_; }
   const AnalysisPlan& plan() const { return plan_; }
   const std::vector<Segment>& segments() const { return segs_; }
   const std::vector<Window>& windows() const { return windows_; }
@@ -206,17 +207,25 @@ void parallel_for(std::size_t n, unsigned threads, Fn fn) {
   if (error) std::rethrow_exception(error);
 }
 
-/// The probe holding most of a gap (for the verdict).
-std::string largest_probe(const GapBreakdown& g) {
-  std::string where;
-  double most = -1.0;
-  for (const auto& [p, v] : g.by_probe) {
-    if (v > most) {
-      most = v;
-      where = p;
+/// Where a gap lies, in words: its largest probe, band and segment type with their shares.
+std::string where_words(const GapBreakdown& g) {
+  auto largest = [](const std::map<std::string, double>& m, double& v) {
+    std::string k;
+    v = -1.0;
+    for (const auto& [key, x] : m) {
+      if (x > v) {
+        v = x;
+        k = key;
+      }
     }
-  }
-  return where;
+    return k;
+  };
+  const double tot = std::max(g.total, 1e-12);
+  double vp = 0, vb = 0, vs = 0;
+  const std::string p = largest(g.by_probe, vp), b = largest(g.by_band, vb), sg = largest(g.by_segment, vs);
+  return "the '" + p + "' probe (" + fmt("%.0f", 100.0 * vp / tot) + " %), band " + b + " (" +
+         fmt("%.0f", 100.0 * vb / tot) + " %), segment type " + sg + " (" + fmt("%.0f", 100.0 * vs / tot) +
+         " %)";
 }
 
 /// Data-driven starting points for the fits, from the measured fit cycles vs the calibrated model.
@@ -448,8 +457,13 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
     case EffectKind::kAdcClipping:
       return {{"level_ms2", {q.max_abs_ms2 * 0.995, q.max_abs_ms2, q.max_abs_ms2 * 1.005}}};
     case EffectKind::kSampleClockError:
-      return {{"ppm", {q.ppm - 100, q.ppm - 50, q.ppm, q.ppm + 50, q.ppm + 100}},
-              {"ppm", {q.ppm - 20, q.ppm + 20}}};
+      // The guess plus a coarse grid: the guess comes from the strongest harmonic's tracking only and
+      // read 0 ppm on a rig whose shaft orders agreed on +3000..4000 ppm (issue 11).
+      return {{"ppm",
+               {q.ppm - 100, q.ppm - 50, q.ppm, q.ppm + 50, q.ppm + 100, -5000, -3000, -1500, -600, 600, 1500,
+                3000, 5000}},
+              {"ppm", {0.9, 0.95, 1.05, 1.1}, true},
+              {"ppm", {0.97, 0.99, 1.01, 1.03}, true}};
     case EffectKind::kSpeedLatency: {
       const double g = std::max(0.0, std::fabs(q.lag_s));
       std::vector<double> d;
@@ -579,6 +593,69 @@ std::vector<std::size_t> tied_candidates(const std::vector<CandidateResult>& ran
   return out;
 }
 
+std::vector<CalibratedParam> calibration_report(const sim::Scenario& nominal, const sim::Scenario& calibrated,
+                                                const ElementVariance& noise) {
+  std::vector<CalibratedParam> out;
+  auto finish = [](CalibratedParam& c, const std::string& what) {
+    c.offset_db = 20.0 * std::log10(std::max(c.calibrated, 1e-12) / std::max(c.nominal, 1e-12));
+    c.significant = std::fabs(c.offset_db) > std::max(1.0, 2.0 * c.sd_db);
+    c.sentence = what + " is " + fmt("%.1f", std::fabs(c.offset_db)) + " dB " +
+                 (c.offset_db < 0 ? "below" : "above") + " the nominal (+- " + fmt("%.1f", c.sd_db) + " dB)";
+  };
+  const std::vector<double>& a0 = nominal.vibration.gmf_amplitudes;
+  for (std::size_t k = 0; k < a0.size() && k < calibrated.vibration.gmf_amplitudes.size(); ++k) {
+    if (a0[k] <= 0.0) continue;
+    CalibratedParam c;
+    c.order = static_cast<int>(k + 1);
+    c.name = "gmf_order_" + std::to_string(k + 1);
+    c.nominal = a0[k];
+    c.calibrated = calibrated.vibration.gmf_amplitudes[k];
+    // The order's offset is the mean over classes of its per-class level differences: its variance is
+    // the sum of their sampling variances over the class count squared.
+    const std::string suffix = ".k" + std::to_string(k + 1);
+    double v = 0.0;
+    int n = 0;
+    for (const auto& [key, var] : noise) {
+      if (key.rfind("harmonics/c", 0) == 0 && key.size() > suffix.size() &&
+          key.compare(key.size() - suffix.size(), suffix.size(), suffix) == 0) {
+        v += var;
+        ++n;
+      }
+    }
+    c.sd_db = n > 0 ? std::sqrt(v) / n : 0.0;
+    finish(c, "order " + std::to_string(k + 1));
+    out.push_back(c);
+  }
+  if (nominal.vibration.noise_rms > 0.0) {
+    CalibratedParam c;
+    c.name = "noise_rms";
+    c.nominal = nominal.vibration.noise_rms;
+    c.calibrated = calibrated.vibration.noise_rms;
+    // Median of the constant-speed floor bands: about 1.25 x the standard error of their mean.
+    double v = 0.0;
+    int n = 0;
+    for (const auto& [key, var] : noise) {
+      if (key.rfind("noise_floor/constant", 0) == 0) {
+        v += var;
+        ++n;
+      }
+    }
+    c.sd_db = n > 0 ? 1.25 * std::sqrt(v / n / n) : 0.0;
+    finish(c, "the noise level");
+    out.push_back(c);
+  }
+  return out;
+}
+
+std::string calibration_words(const std::vector<CalibratedParam>& cal) {
+  std::string s;
+  for (const CalibratedParam& c : cal) {
+    if (!c.significant) continue;
+    s += (s.empty() ? "" : ", ") + c.sentence;
+  }
+  return s;
+}
+
 std::string measured_speed_problem(const GapRecording& real) {
   const double duration_s = static_cast<double>(real.accel_ms2.size()) / real.fs_hz;
   if (real.speed.size() < 10) return std::to_string(real.speed.size()) + " speed frames";
@@ -692,6 +769,11 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   (void)ev.calibrate(model, fit, 3);
   d.calibrated_gmf_amplitudes = model.vibration.gmf_amplitudes;
   d.calibrated_noise_rms = model.vibration.noise_rms;
+  d.calibration = calibration_report(nominal_in, model, ev.noise_fit());
+  for (const CalibratedParam& c : d.calibration) {
+    d.recalibrated = d.recalibrated || c.significant;
+    if (c.significant) log("calibration: " + c.sentence);
+  }
 
   ProbeSet model_probes, real_fit_probes;
   const GapBreakdown g_fit0 = ev.gap(model, fit, &model_probes, &real_fit_probes);
@@ -785,9 +867,12 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
       return improved;
     };
     for (EffectKind k : kinds) {
-      bool used = false;
-      for (const EffectSpec& e : current.effects) used = used || e.kind == k;
-      if (used) continue;
+      // One instance per kind, except for effects that act at a place (a second structural path, a
+      // second interference source): up to two of those.
+      int used = 0;
+      for (const EffectSpec& e : current.effects) used += e.kind == k ? 1 : 0;
+      const bool located = k == EffectKind::kTransferPath || k == EffectKind::kElectricalInterference;
+      if (used >= (located ? 2 : 1)) continue;
       Work w;
       w.e = initial_effect(k, q);
       clamp_params(w.e);
@@ -891,15 +976,21 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   }
   d.total_shrink_pct =
       100.0 * (d.nominal_heldout.total - d.final_heldout.total) / std::max(d.nominal_heldout.total, 1e-12);
+  const std::string cal_words = calibration_words(d.calibration);
   if (!d.gap_significant) {
-    d.verdict = "no significant gap: the calibrated nominal model's held-out gap " +
-                fmt("%.2f", 0.5 * (d.nominal_heldout.total + d.nominal_heldout_replicate)) +
-                " (mean of two model realisations) is within " + fmt("%.2f", d.noise_gap) + " + " +
-                fmt("%.0f", opt.min_gap_sd) + " x " + fmt("%.2f", d.noise_gap_sd) +
-                " expected from the measured cycles' own spread";
+    d.verdict =
+        std::string(d.recalibrated ? "no unmodelled effect; nominal re-calibrated (" + cal_words + "). "
+                                   : "") +
+        "no significant gap: the calibrated nominal model's held-out gap " +
+        fmt("%.2f", 0.5 * (d.nominal_heldout.total + d.nominal_heldout_replicate)) +
+        " (mean of two model realisations) is within " + fmt("%.2f", d.noise_gap) + " + " +
+        fmt("%.0f", opt.min_gap_sd) + " x " + fmt("%.2f", d.noise_gap_sd) +
+        " expected from the measured cycles' own spread";
   } else if (d.chosen.empty()) {
-    d.verdict = "no candidate effect explains a significant share of the gap; it lies mostly in the '" +
-                largest_probe(d.nominal_heldout) + "' probe";
+    d.verdict =
+        "unexplained: no candidate effect explains a significant share of the gap; it lies mostly in " +
+        where_words(d.nominal_heldout);
+    if (d.recalibrated) d.verdict += "; nominal re-calibrated (" + cal_words + ")";
   } else {
     d.verdict = "explained by ";
     for (std::size_t i = 0; i < d.chosen.size(); ++i) {
@@ -913,9 +1004,10 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
     if (d.final_heldout.total > d.noise_gap + opt.min_gap_sd * d.noise_gap_sd) {
       // Say what is still unexplained: the rest is itself above the sampling level.
       d.verdict += "; the rest (" + fmt("%.1f", d.final_heldout.total) + ", expected " +
-                   fmt("%.1f", d.noise_gap) + " from sampling) is not explained, mostly in the '" +
-                   largest_probe(d.final_heldout) + "' probe";
+                   fmt("%.1f", d.noise_gap) + " from sampling) is not explained, mostly in " +
+                   where_words(d.final_heldout);
     }
+    if (d.recalibrated) d.verdict += "; nominal re-calibrated (" + cal_words + ")";
   }
   d.simulations = ev.simulations();
   d.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();

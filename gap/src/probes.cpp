@@ -537,15 +537,10 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
         Stage::kRaw);
   };
   {
-    double lk = 0, cr = 0;
-    std::size_t n = 0;
-    for (auto& [c, acc] : const_acc) {
-      lk += acc.log_kurt;
-      cr += acc.crest_db;
-      n += acc.count;
-    }
-    amp_probes(SegmentType::kConstant, lk, cr, n);
-    amp_probes(SegmentType::kAccel, accel_acc.log_kurt, accel_acc.crest_db, accel_acc.count);
+    // Kurtosis and crest factor only where the mesh is silent: where it runs they depend on the relative
+    // phases of its harmonics, which no nominal knows (a machine with other phases than the nominal's
+    // read as an `amplitude` gap on every independent control case, issue 11). Clipping keeps its
+    // phase-invariant signature below (flat tops), knocks theirs in the transients probe.
     amp_probes(SegmentType::kStandstill, still_acc.log_kurt, still_acc.crest_db, still_acc.count);
     // Flat tops: share of the windows' samples within 0.2 % of the largest magnitude.
     std::size_t near = 0, total = 0;

@@ -209,7 +209,17 @@ std::string diagnosis_json(const Diagnosis& d) {
   o << "  \"motion\": {\"source\": " << esc(d.motion_source) << ", \"note\": " << esc(d.motion_note)
     << "},\n";
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
-    << ", \"noise_rms\": " << num(d.calibrated_noise_rms) << "},\n";
+    << ", \"noise_rms\": " << num(d.calibrated_noise_rms)
+    << ", \"recalibrated\": " << (d.recalibrated ? "true" : "false") << ", \"params\": [";
+  for (std::size_t i = 0; i < d.calibration.size(); ++i) {
+    const CalibratedParam& c = d.calibration[i];
+    o << (i ? "," : "") << "\n    {\"name\": " << esc(c.name) << ", \"order\": " << c.order
+      << ", \"nominal\": " << num(c.nominal) << ", \"calibrated\": " << num(c.calibrated)
+      << ", \"offset_db\": " << num(c.offset_db) << ", \"sd_db\": " << num(c.sd_db)
+      << ", \"significant\": " << (c.significant ? "true" : "false") << ", \"sentence\": " << esc(c.sentence)
+      << "}";
+  }
+  o << "]},\n";
   o << "  \"noise_gap\": " << num(d.noise_gap) << ",\n";
   o << "  \"noise_gap_sd\": " << num(d.noise_gap_sd) << ",\n";
   o << "  \"alarm_rate_heldout\": {\"nominal\": " << num(d.alarm_rate_nominal)
@@ -256,6 +266,18 @@ std::string diagnosis_html(const Diagnosis& d) {
   o << "<p>Alarm stage: a PTDA baseline trained on the model flags " << num(100.0 * d.alarm_rate_nominal)
     << " % of the held-out constant-speed windows (calibrated nominal), " << num(100.0 * d.alarm_rate_final)
     << " % with the chosen effects.</p>";
+  o << "<h2>Calibration (the nominal's own parameters, fitted on the fit part)</h2>";
+  o << "<p>"
+    << (d.recalibrated ? "The nominal was re-calibrated: calibration is not an unmodelled effect."
+                       : "No calibrated parameter differs from the nominal beyond its uncertainty.")
+    << "</p><table><tr><th>parameter</th><th>nominal</th><th>calibrated</th><th>offset dB</th><th>&plusmn; "
+       "dB</th><th>in words</th></tr>";
+  for (const CalibratedParam& c : d.calibration) {
+    o << "<tr><td>" << html_esc(c.name) << "</td><td>" << num(c.nominal) << "</td><td>" << num(c.calibrated)
+      << "</td><td>" << (c.significant ? "<b>" : "") << num(c.offset_db) << (c.significant ? "</b>" : "")
+      << "</td><td>" << num(c.sd_db) << "</td><td>" << html_esc(c.sentence) << "</td></tr>";
+  }
+  o << "</table>";
   o << "<h2>Spectra (first constant-speed class)</h2>" << svg_spectra(d);
   o << "<h2>Where the gap lies (calibrated nominal, held-out)</h2>";
   o << svg_bars(sorted(d.nominal_heldout.by_probe), "by probe") << "<br>";

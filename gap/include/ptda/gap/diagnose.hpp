@@ -53,6 +53,18 @@ struct CandidateResult {
   std::vector<std::string> alternatives;
 };
 
+/// One calibrated parameter of the nominal model (docs/gap.md "Calibration").
+struct CalibratedParam {
+  std::string name;          ///< "gmf_order_2", "noise_rms"
+  int order = 0;             ///< GMF order (0: not a harmonic)
+  double nominal = 0.0;      ///< the nominal scenario's value
+  double calibrated = 0.0;   ///< after calibration on the fit part
+  double offset_db = 0.0;    ///< 20 log10(calibrated / nominal)
+  double sd_db = 0.0;        ///< sampling standard deviation of the offset (measured fit part's spread)
+  bool significant = false;  ///< |offset| > max(1 dB, 2 sd)
+  std::string sentence;      ///< "order 2 is 6.1 dB below the nominal (+- 0.4 dB)"
+};
+
 struct SelectionRound {
   double gap_before_heldout = 0.0;
   double gap_before_heldout_replicate = 0.0;  ///< the round's starting model, second realisation
@@ -70,11 +82,13 @@ struct Diagnosis {
   std::size_t windows_fit = 0;
   std::size_t windows_heldout = 0;
   std::vector<double> class_speeds_rad_s;
-  std::uint32_t period_units = 1;          ///< program period in units (moves or blocks)
-  double period_s = 0.0;                   ///< its mean duration
-  std::vector<std::string> split_missing;  ///< segment classes present in one part only
-  std::string motion_source;               ///< "measured" or "scenario"
-  std::string motion_note;                 ///< why, in words
+  std::uint32_t period_units = 1;            ///< program period in units (moves or blocks)
+  double period_s = 0.0;                     ///< its mean duration
+  std::vector<std::string> split_missing;    ///< segment classes present in one part only
+  std::string motion_source;                 ///< "measured" or "scenario"
+  std::string motion_note;                   ///< why, in words
+  std::vector<CalibratedParam> calibration;  ///< per nominal GMF order, then the noise level
+  bool recalibrated = false;                 ///< any calibration parameter significant
   std::vector<double> calibrated_gmf_amplitudes;
   double calibrated_noise_rms = 0.0;
   GapBreakdown nominal_heldout;            ///< calibrated nominal model vs held-out cycles
