@@ -98,7 +98,7 @@ std::string candidate_json(const CandidateResult& c) {
          ", \"gap_heldout\": " + num(c.gap_heldout) +
          ", \"gap_heldout_replicate\": " + num(c.gap_heldout_replicate) +
          ", \"shrink_pct\": " + num(c.shrink_pct) + ", \"evaluations\": " + std::to_string(c.evaluations) +
-         alternatives + "}";
+         (c.accepted_locally ? ", \"accepted_locally\": true" : "") + alternatives + "}";
 }
 
 std::string array_json(const std::vector<double>& v) {

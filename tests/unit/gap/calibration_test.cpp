@@ -11,13 +11,15 @@
 #include "ptda/sim/simulator.hpp"
 
 namespace ptda::gap {
-namespace {
+namespace {}  // namespace
 
-const CalibratedParam* find(const Diagnosis& d, const std::string& name) {
+inline const CalibratedParam* find(const Diagnosis& d, const std::string& name) {
   for (const CalibratedParam& c : d.calibration)
     if (c.name == name) return &c;
   return nullptr;
 }
+
+namespace {
 
 TEST(Calibration, NominalOffByKnownDecibelsIsRecalibratedAndNamesNoEffect) {
   const sim::Scenario truth = test::joint_rotation_job(6);
@@ -52,6 +54,32 @@ TEST(Calibration, NominalOffByKnownDecibelsIsRecalibratedAndNamesNoEffect) {
   ASSERT_NE(o7, nullptr);
   EXPECT_FALSE(o7->significant) << o7->sentence;
   EXPECT_NE(d.verdict.find("order 1 is"), std::string::npos) << d.verdict;
+}
+
+}  // namespace
+}  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+TEST(Calibration, SpeedExponentIsCalibratedWithinOneDirection) {
+  // Two plateau speeds in the positive direction (2.0 and 3.49 rad/s), one negative: the levels follow
+  // speed^1.0, the nominal says speed^1.8 (+4.5 dB between 2.0 and 3.49 rad/s).
+  sim::Scenario truth = test::joint_rotation_job(6);
+  truth.motion.via_points_rad = {0.0, 1.2, 3.0, 0.0};
+  truth.motion.segment_speeds_rad_s = {2.0, 3.49068, 3.0};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 99), truth);
+  sim::Scenario nominal = truth;
+  nominal.vibration.amplitude_speed_exponent = 1.8;
+  const Diagnosis d = diagnose(nominal, real, DiagnoseOptions{});
+  const CalibratedParam* e = find(d, "amplitude_speed_exponent");
+  ASSERT_NE(e, nullptr);
+  EXPECT_GT(e->sd_db, 0.0);
+  EXPECT_TRUE(e->significant) << e->sentence;
+  // Recovered within 3 sd (in exponent units: sd_db / span_db) + the 0.05 step below which it stops.
+  const double span_db = 20.0 * std::log10(3.49068 / 2.0);
+  EXPECT_NEAR(e->calibrated, 1.0, 3.0 * e->sd_db / span_db + 0.05) << e->sentence;
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,9 @@ struct DiagnoseOptions {
   double min_gain_sd = 2.0;       ///< ... and this many standard deviations of the sampling gap, against
                                   ///< two independent model realisations of the held-out part (both)
   double min_gap_sd = 2.0;        ///< no diagnosis when the gap is within expected + this many sd
+  /// Local acceptance (transfer_path, electrical_interference): this share of the gap in the effect's own
+  /// octave bands removed, against both realisations, with the overall gain >= min_gain_sd sd.
+  double min_local_share = 0.5;
   unsigned threads = 0;  ///< fitting threads (0: one per hardware thread); results do not depend on it
   std::vector<sim::EffectKind> candidates;      ///< empty: the whole catalog
   std::function<void(const std::string&)> log;  ///< progress lines (optional)
@@ -51,6 +55,10 @@ struct CandidateResult {
   /// Chosen effects only: other fully fitted candidates whose held-out gap (mean of both realisations) is
   /// within max(min_gain_sd sd, 10 % of the chosen one's gain) of it: not told apart on this recording.
   std::vector<std::string> alternatives;
+  /// Held-out gap by octave band with the effect, both realisations (for the local acceptance rule;
+  /// not written to the JSON).
+  std::map<std::string, double> heldout_by_band, replicate_by_band;
+  bool accepted_locally = false;  ///< chosen by the local rule (its own bands), not the global one
 };
 
 /// One calibrated parameter of the nominal model (docs/gap.md "Calibration").
