@@ -704,19 +704,9 @@ std::vector<CalibratedParam> calibration_report(const sim::Scenario& nominal, co
     c.name = "gmf_order_" + std::to_string(k + 1);
     c.nominal = a0[k];
     c.calibrated = calibrated.vibration.gmf_amplitudes[k];
-    // The order's offset is the mean over classes of its per-class level differences: its variance is
-    // the sum of their sampling variances over the class count squared.
-    const std::string suffix = ".k" + std::to_string(k + 1);
-    double v = 0.0;
-    int n = 0;
-    for (const auto& [key, var] : noise) {
-      if (key.rfind("harmonics/c", 0) == 0 && key.size() > suffix.size() &&
-          key.compare(key.size() - suffix.size(), suffix.size(), suffix) == 0) {
-        v += var;
-        ++n;
-      }
-    }
-    c.sd_db = n > 0 ? std::sqrt(v) / n : 0.0;
+    // Jackknife variance of the profiled-out order offset (fit part, model side included).
+    const auto it = noise.find("calib/order.k" + std::to_string(k + 1));
+    c.sd_db = it != noise.end() ? std::sqrt(it->second) : 0.0;
     finish(c, "order " + std::to_string(k + 1));
     out.push_back(c);
   }
@@ -725,16 +715,8 @@ std::vector<CalibratedParam> calibration_report(const sim::Scenario& nominal, co
     c.name = "noise_rms";
     c.nominal = nominal.vibration.noise_rms;
     c.calibrated = calibrated.vibration.noise_rms;
-    // Median of the constant-speed floor bands: about 1.25 x the standard error of their mean.
-    double v = 0.0;
-    int n = 0;
-    for (const auto& [key, var] : noise) {
-      if (key.rfind("noise_floor/constant", 0) == 0) {
-        v += var;
-        ++n;
-      }
-    }
-    c.sd_db = n > 0 ? 1.25 * std::sqrt(v / n / n) : 0.0;
+    const auto it = noise.find("calib/noise_offset");
+    c.sd_db = it != noise.end() ? std::sqrt(it->second) : 0.0;
     finish(c, "the noise level");
     out.push_back(c);
   }
