@@ -64,6 +64,12 @@ TEST(GapDiagnosis, UsageErrors) {
                dir, "bad_effect");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("unknown effect 'warp_drive'"), std::string::npos) << r.err;
+  const RunResult m =
+      run_ptda({"gap", "--scenario", (source_dir() / "config/scenarios/gfd_like.toml").string(), "--real",
+                "x", "--motion", "sideways"},
+               dir, "bad_motion");
+  EXPECT_EQ(m.exit_code, 2);
+  EXPECT_NE(m.err.find("--motion: 'sideways' is not measured or scenario"), std::string::npos) << m.err;
 }
 
 }  // namespace
