@@ -98,12 +98,18 @@ std::string candidate_json(const CandidateResult& c) {
          ", \"gap_heldout\": " + num(c.gap_heldout) +
          ", \"gap_heldout_replicate\": " + num(c.gap_heldout_replicate) +
          ", \"shrink_pct\": " + num(c.shrink_pct) + ", \"evaluations\": " + std::to_string(c.evaluations) +
-         alternatives + "}";
+         (c.accepted_locally ? ", \"accepted_locally\": true" : "") + alternatives + "}";
 }
 
 std::string array_json(const std::vector<double>& v) {
   std::string s = "[";
   for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + num(v[i]);
+  return s + "]";
+}
+
+std::string strings_json(const std::vector<std::string>& v) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + esc(v[i]);
   return s + "]";
 }
 
@@ -197,9 +203,23 @@ std::string diagnosis_json(const Diagnosis& d) {
   o << "  \"split\": {\"cycles\": " << d.cycles << ", \"fit_cycles\": " << d.fit_cycles
     << ", \"heldout_cycles\": " << d.heldout_cycles << ", \"windows_fit\": " << d.windows_fit
     << ", \"windows_heldout\": " << d.windows_heldout
-    << ", \"class_speeds_rad_s\": " << array_json(d.class_speeds_rad_s) << "},\n";
+    << ", \"class_speeds_rad_s\": " << array_json(d.class_speeds_rad_s)
+    << ", \"period_units\": " << d.period_units << ", \"period_s\": " << num(d.period_s)
+    << ", \"missing_classes\": " << strings_json(d.split_missing) << "},\n";
+  o << "  \"motion\": {\"source\": " << esc(d.motion_source) << ", \"note\": " << esc(d.motion_note)
+    << "},\n";
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
-    << ", \"noise_rms\": " << num(d.calibrated_noise_rms) << "},\n";
+    << ", \"noise_rms\": " << num(d.calibrated_noise_rms)
+    << ", \"recalibrated\": " << (d.recalibrated ? "true" : "false") << ", \"params\": [";
+  for (std::size_t i = 0; i < d.calibration.size(); ++i) {
+    const CalibratedParam& c = d.calibration[i];
+    o << (i ? "," : "") << "\n    {\"name\": " << esc(c.name) << ", \"order\": " << c.order
+      << ", \"nominal\": " << num(c.nominal) << ", \"calibrated\": " << num(c.calibrated)
+      << ", \"offset_db\": " << num(c.offset_db) << ", \"sd_db\": " << num(c.sd_db)
+      << ", \"significant\": " << (c.significant ? "true" : "false") << ", \"sentence\": " << esc(c.sentence)
+      << "}";
+  }
+  o << "]},\n";
   o << "  \"noise_gap\": " << num(d.noise_gap) << ",\n";
   o << "  \"noise_gap_sd\": " << num(d.noise_gap_sd) << ",\n";
   o << "  \"alarm_rate_heldout\": {\"nominal\": " << num(d.alarm_rate_nominal)
@@ -235,8 +255,10 @@ std::string diagnosis_html(const Diagnosis& d) {
        "td,th{border:1px solid #ccc;padding:2px 6px;font-size:12px}</style></head><body>";
   o << "<h1>Sim-to-real gap</h1><p><b>" << html_esc(d.verdict) << "</b></p>";
   o << "<p>Scenario <code>" << html_esc(d.scenario) << "</code>, recording <code>" << html_esc(d.real_source)
-    << "</code>; " << d.cycles << " cycles (" << d.fit_cycles << " fit / " << d.heldout_cycles
-    << " held out), " << d.simulations << " simulations, " << num(d.runtime_s) << " s.</p>";
+    << "</code>; " << d.cycles << " moves/blocks, program period " << d.period_units << " ("
+    << num(d.period_s) << " s): " << d.fit_cycles << " fit / " << d.heldout_cycles << " held out; "
+    << html_esc(d.motion_note) << "; " << d.simulations << " simulations, " << num(d.runtime_s) << " s.</p>";
+  for (const std::string& m : d.split_missing) o << "<p>Split: " << html_esc(m) << "</p>";
   o << "<p>Held-out gap of the calibrated nominal model: " << num(d.nominal_heldout.total)
     << " (expected from the measured cycles' own spread: " << num(d.noise_gap) << " &plusmn; "
     << num(d.noise_gap_sd) << "); after the chosen effects: " << num(d.final_heldout.total) << " (shrink "
@@ -244,6 +266,18 @@ std::string diagnosis_html(const Diagnosis& d) {
   o << "<p>Alarm stage: a PTDA baseline trained on the model flags " << num(100.0 * d.alarm_rate_nominal)
     << " % of the held-out constant-speed windows (calibrated nominal), " << num(100.0 * d.alarm_rate_final)
     << " % with the chosen effects.</p>";
+  o << "<h2>Calibration (the nominal's own parameters, fitted on the fit part)</h2>";
+  o << "<p>"
+    << (d.recalibrated ? "The nominal was re-calibrated: calibration is not an unmodelled effect."
+                       : "No calibrated parameter differs from the nominal beyond its uncertainty.")
+    << "</p><table><tr><th>parameter</th><th>nominal</th><th>calibrated</th><th>offset dB</th><th>&plusmn; "
+       "dB</th><th>in words</th></tr>";
+  for (const CalibratedParam& c : d.calibration) {
+    o << "<tr><td>" << html_esc(c.name) << "</td><td>" << num(c.nominal) << "</td><td>" << num(c.calibrated)
+      << "</td><td>" << (c.significant ? "<b>" : "") << num(c.offset_db) << (c.significant ? "</b>" : "")
+      << "</td><td>" << num(c.sd_db) << "</td><td>" << html_esc(c.sentence) << "</td></tr>";
+  }
+  o << "</table>";
   o << "<h2>Spectra (first constant-speed class)</h2>" << svg_spectra(d);
   o << "<h2>Where the gap lies (calibrated nominal, held-out)</h2>";
   o << svg_bars(sorted(d.nominal_heldout.by_probe), "by probe") << "<br>";

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
@@ -256,6 +257,96 @@ std::vector<Window> cut_windows(const GapRecording& rec, const std::vector<Segme
     if (st < 0.0) continue;
     w.start = static_cast<std::size_t>(st);
     if (w.start + w.len <= n_total) out.push_back(w);
+  }
+  return out;
+}
+
+ProgramSplit find_program_split(const std::vector<Segment>& segs, const AnalysisPlan& plan,
+                                double duration_s) {
+  ProgramSplit out;
+  out.units = plan.cycles;
+  const std::uint32_t n = out.units;
+  // Signatures: constant classes in order; a move without a plateau by its direction.
+  std::vector<std::vector<int>> sig(n);
+  std::vector<double> start_s(n, -1.0), motion_sum(n, 0.0);
+  for (const Segment& s : segs) {
+    if (s.cycle >= n) continue;
+    if (start_s[s.cycle] < 0.0 && s.type != SegmentType::kStandstill) start_s[s.cycle] = s.t0_s;
+    motion_sum[s.cycle] += s.speed_rad_s * (s.t1_s - s.t0_s);
+    if (s.type != SegmentType::kConstant || s.t1_s - s.t0_s < 0.06) continue;
+    for (std::size_t c = 0; c < plan.speeds.size(); ++c) {
+      if (std::fabs(plan.speeds[c] - s.speed_rad_s) <= 0.02 * std::fabs(plan.speeds[c])) {
+        if (sig[s.cycle].empty() || sig[s.cycle].back() != static_cast<int>(c))
+          sig[s.cycle].push_back(static_cast<int>(c));
+        break;
+      }
+    }
+  }
+  for (std::uint32_t u = 0; u < n; ++u) {
+    if (sig[u].empty()) sig[u].push_back(motion_sum[u] >= 0.0 ? -1 : -2);
+    if (start_s[u] < 0.0) {  // a unit of standstill only: after the previous one
+      start_s[u] = u > 0 ? start_s[u - 1] : 0.0;
+    }
+  }
+  out.period_units = 1;
+  for (std::uint32_t p = 1; 2 * p <= n; ++p) {
+    std::uint32_t same = 0;
+    for (std::uint32_t u = 0; u + p < n; ++u) same += sig[u] == sig[u + p] ? 1U : 0U;
+    if (static_cast<double>(same) >= 0.75 * static_cast<double>(n - p)) {
+      out.period_units = p;
+      break;
+    }
+  }
+  const std::uint32_t p = out.period_units;
+  out.periods = n / p;
+  if (n > p) {
+    out.period_s = (start_s[n - 1] - start_s[(n - 1) % p]) / static_cast<double>((n - 1) / p);
+  } else {
+    out.period_s = duration_s;
+  }
+  out.fit.assign(n, 0);
+  out.held.assign(n, 0);
+  for (std::uint32_t u = 0; u < n; ++u) (((u / p) + (u % p)) % 2 == 0 ? out.fit : out.held)[u] = 1;
+  out.enough = out.periods >= 2 && n >= 4;
+  if (!out.enough) {
+    const std::uint32_t need_periods = std::max<std::uint32_t>(2, (4 + p - 1) / p);
+    char b[400];
+    std::snprintf(b, sizeof b,
+                  "too short to split: %u move(s)/block(s), the program repeats every %u of them (%.2f s); "
+                  "a fit and a held-out part that both hold every segment class need >= %u periods and "
+                  ">= 4 moves, about %.1f s of recording (this one is %.1f s)",
+                  n, p, out.period_s, need_periods,
+                  (n > 0 ? start_s[0] : 0.0) + static_cast<double>(need_periods) * out.period_s + 0.5,
+                  duration_s);
+    out.need = b;
+  }
+  return out;
+}
+
+std::vector<std::string> missing_classes(const std::vector<Window>& windows, const AnalysisPlan& plan,
+                                         const std::vector<char>& fit, const std::vector<char>& held) {
+  // Index: constant classes 0..n-1, then acceleration, then standstill.
+  const std::size_t nc = plan.speeds.size();
+  std::vector<int> in_fit(nc + 2, 0), in_held(nc + 2, 0);
+  for (const Window& w : windows) {
+    const std::size_t i = w.type == SegmentType::kConstant ? static_cast<std::size_t>(w.speed_class)
+                          : w.type == SegmentType::kAccel  ? nc
+                                                           : nc + 1;
+    if (w.cycle < fit.size() && fit[w.cycle]) in_fit[i] = 1;
+    if (w.cycle < held.size() && held[w.cycle]) in_held[i] = 1;
+  }
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < nc + 2; ++i) {
+    if (in_fit[i] == in_held[i]) continue;
+    std::string name;
+    if (i < nc) {
+      char b[96];
+      std::snprintf(b, sizeof b, "constant class %zu (%+.3f rad/s)", i, plan.speeds[i]);
+      name = b;
+    } else {
+      name = i == nc ? "acceleration" : "standstill";
+    }
+    out.push_back(name + (in_fit[i] ? " not in the held-out part" : " not in the fit part"));
   }
   return out;
 }

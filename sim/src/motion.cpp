@@ -83,7 +83,87 @@ std::vector<double> segment_durations(const MotionSpec& m) {
   return td;
 }
 
+// Pieces following a measured speed trace over [0, duration_s] (see build_motion()).
+void measured_pieces(const MotionSpec& m, const std::string& where, MotionProfile& prof) {
+  const std::vector<double>& ts = m.measured_t_s;
+  const std::vector<double>& ws = m.measured_speed_rad_s;
+  if (ts.size() != ws.size() || ts.size() < 2) {
+    throw Error(where + ": measured motion needs >= 2 speed points with one time each (got " +
+                std::to_string(ts.size()) + " times, " + std::to_string(ws.size()) + " speeds)");
+  }
+  for (std::size_t i = 0; i < ts.size(); ++i) {
+    if (!std::isfinite(ts[i]) || !std::isfinite(ws[i]))
+      throw Error(where + ": measured motion point " + std::to_string(i) + " is not finite");
+    if (i > 0 && ts[i] <= ts[i - 1])
+      throw Error(where + ": measured motion times must ascend (point " + std::to_string(i) + " at " +
+                  fmt(ts[i]) + " s after " + fmt(ts[i - 1]) + " s)");
+  }
+  if (!(m.duration_s > 0.0)) throw Error(where + ": measured motion needs duration_s > 0");
+  // The trace restricted to [0, duration_s]: held before the first and after the last point,
+  // interpolated at the ends.
+  auto speed_at = [&](double t) {
+    if (t <= ts.front()) return ws.front();
+    if (t >= ts.back()) return ws.back();
+    const std::size_t j = static_cast<std::size_t>(std::upper_bound(ts.begin(), ts.end(), t) - ts.begin());
+    const double u = (t - ts[j - 1]) / (ts[j] - ts[j - 1]);
+    return ws[j - 1] + u * (ws[j] - ws[j - 1]);
+  };
+  std::vector<double> pt{0.0}, pw{speed_at(0.0)};
+  for (std::size_t i = 0; i < ts.size(); ++i) {
+    if (ts[i] > 0.0 && ts[i] < m.duration_s) {
+      pt.push_back(ts[i]);
+      pw.push_back(ws[i]);
+    }
+  }
+  pt.push_back(m.duration_s);
+  pw.push_back(speed_at(m.duration_s));
+  const double deadband = measured_motion_deadband(ts, ws);
+  const std::vector<double>& starts = m.measured_cycle_start_s;
+  double angle = 0.0;
+  for (std::size_t i = 0; i + 1 < pt.size(); ++i) {
+    const double dt = pt[i + 1] - pt[i];
+    if (dt <= 0.0) continue;
+    const double a = (pw[i + 1] - pw[i]) / dt;
+    MotionPiece p;
+    p.t0_s = pt[i];
+    p.t1_s = pt[i + 1];
+    p.angle0_rad = angle;
+    if (std::fabs(a) < deadband) {
+      p.speed0_rad_s = 0.5 * (pw[i] + pw[i + 1]);  // same angle advance as the linear interpolation
+      p.accel_rad_s2 = 0.0;
+    } else {
+      p.speed0_rad_s = pw[i];
+      p.accel_rad_s2 = a;
+    }
+    const auto c =
+        static_cast<std::size_t>(std::upper_bound(starts.begin(), starts.end(), p.t0_s) - starts.begin());
+    p.cycle = static_cast<std::uint32_t>(c == 0 ? 0 : c - 1);
+    prof.pieces.push_back(p);
+    angle += p.speed0_rad_s * dt + 0.5 * p.accel_rad_s2 * dt * dt;
+  }
+  prof.cycle_start_s = starts.empty() ? std::vector<double>{0.0} : starts;
+  prof.cycles = static_cast<std::uint32_t>(std::max<std::size_t>(1, starts.size()));
+  prof.duration_s = m.duration_s;
+}
+
 }  // namespace
+
+double measured_motion_deadband(const std::vector<double>& t_s, const std::vector<double>& speed_rad_s) {
+  std::vector<double> acc;
+  double top = 0.0;
+  for (std::size_t i = 0; i < t_s.size() && i < speed_rad_s.size(); ++i) {
+    top = std::max(top, std::fabs(speed_rad_s[i]));
+    if (i > 0 && t_s[i] > t_s[i - 1])
+      acc.push_back(std::fabs(speed_rad_s[i] - speed_rad_s[i - 1]) / (t_s[i] - t_s[i - 1]));
+  }
+  double p99 = 0.0;
+  if (!acc.empty()) {
+    const auto k = static_cast<std::size_t>(0.99 * static_cast<double>(acc.size() - 1));
+    std::nth_element(acc.begin(), acc.begin() + static_cast<std::ptrdiff_t>(k), acc.end());
+    p99 = acc[k];
+  }
+  return std::max(0.2 * p99, 0.02 * top);
+}
 
 CyclePlan plan_cycle(const MotionSpec& m) {
   const auto& via = m.via_points_rad;
@@ -186,9 +266,11 @@ MotionProfile build_motion(const Scenario& s, std::uint64_t seed) {
   MotionProfile prof;
   prof.fs_hz = s.sensor.fs_hz;
   prof.cycles = m.cycles;
-  if (m.cycles == 0) throw Error(where + ": [motion] cycles must be >= 1");
+  if (m.cycles == 0 && m.kind != MotionKind::kMeasured) throw Error(where + ": [motion] cycles must be >= 1");
 
-  if (m.kind == MotionKind::kConstant) {
+  if (m.kind == MotionKind::kMeasured) {
+    measured_pieces(m, where, prof);
+  } else if (m.kind == MotionKind::kConstant) {
     const double ratio = reduction_ratio(s.gearbox);
     if (ratio <= 0.0) throw Error(where + ": [gearbox] tooth counts give no reduction ratio");
     const double w_out = 2.0 * std::numbers::pi * m.shaft_speed_hz / ratio;

@@ -58,7 +58,9 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
   root.insert("gearbox", std::move(gb));
 
   toml::table mo;
-  mo.insert("kind", s.motion.kind == MotionKind::kLspb ? "lspb" : "constant");
+  mo.insert("kind", s.motion.kind == MotionKind::kLspb       ? "lspb"
+                    : s.motion.kind == MotionKind::kConstant ? "constant"
+                                                             : "measured");
   mo.insert("duration_s", m.duration_s);
   mo.insert("cycles", static_cast<std::int64_t>(m.cycles));
   mo.insert("cycle_start_s", to_array(m.cycle_start_s));
@@ -68,7 +70,7 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
     mo.insert("dwell_s", s.motion.dwell_s);
     mo.insert("start_jitter_s", s.motion.start_jitter_s);
     mo.insert("lead_in_s", s.motion.lead_in_s);
-  } else {
+  } else if (s.motion.kind == MotionKind::kConstant) {
     mo.insert("shaft_speed_hz", s.motion.shaft_speed_hz);
   }
   root.insert("motion", std::move(mo));

@@ -38,9 +38,14 @@ TEST(GapDiagnosis, NamesTheMountResonanceAndWritesTheSchema) {
   EXPECT_EQ(chosen[0].at("effect").at("kind").as_string(), "transfer_path");
   const double f = chosen[0].at("effect").at("params").at("frequency_hz").as_number();
   EXPECT_NEAR(f / 4200.0, 1.0, 0.15);
-  // Measured with this build (noise-aware gap, docs/gap.md): 4157 Hz, held-out 84.7 -> 14.2 (83.3 %);
-  // round 2 then names the 50 Hz pickup (49.96 Hz), 14.2 -> 2.10, total 97.5 %.
-  EXPECT_GT(chosen[0].at("shrink_pct").as_number(), 80.0);
+  // Measured with this build (issue-11 code, model driven by the measured CAN speed): 4157 Hz, held-out
+  // 58.4 -> 14.1 (75.8 %); round 2 then names the 50 Hz pickup (49.96 Hz), 14.1 -> 2.07, total 96.5 %.
+  // Session 3 measured 84.7 -> 14.2 (83.3 %): the rest is the same, the starting gap is smaller because
+  // the raw kurtosis/crest where the mesh runs (which depend on the unknown harmonic phases) are no
+  // longer compared.
+  EXPECT_GT(chosen[0].at("shrink_pct").as_number(), 70.0);
+  EXPECT_EQ(j.at("motion").at("source").as_string(), "measured");
+  EXPECT_EQ(j.at("split").at("period_units").as_number(), 1.0);
   ASSERT_EQ(chosen.size(), 2U);
   EXPECT_EQ(chosen[1].at("effect").at("kind").as_string(), "electrical_interference");
   EXPECT_NEAR(chosen[1].at("effect").at("params").at("frequency_hz").as_number(), 50.0, 1.0);
@@ -59,6 +64,12 @@ TEST(GapDiagnosis, UsageErrors) {
                dir, "bad_effect");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("unknown effect 'warp_drive'"), std::string::npos) << r.err;
+  const RunResult m =
+      run_ptda({"gap", "--scenario", (source_dir() / "config/scenarios/gfd_like.toml").string(), "--real",
+                "x", "--motion", "sideways"},
+               dir, "bad_motion");
+  EXPECT_EQ(m.exit_code, 2);
+  EXPECT_NE(m.err.find("--motion: 'sideways' is not measured or scenario"), std::string::npos) << m.err;
 }
 
 }  // namespace

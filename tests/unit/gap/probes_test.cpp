@@ -119,13 +119,13 @@ TEST(Probes, KnocksStandOutInTheDifferencedTransients) {
   sim::Scenario s = job(4);
   s.effects = {effect(sim::EffectKind::kImpacts, {{"amplitude_ms2", 6.0}, {"resonance_hz", 6000.0}})};
   const Measured b = measure(s, 17, &a.plan);
-  const double raw =
-      element(b.probes, "transients", "log_kurtosis") - element(a.probes, "transients", "log_kurtosis");
   const double diff = element(b.probes, "transients", "diff_log_kurtosis") -
                       element(a.probes, "transients", "diff_log_kurtosis");
-  // Measured with seed 17: +0.073 raw, +0.116 differenced (the probe's scale is 0.05).
+  // Measured with seed 17: +0.116 differenced (the probe's scale is 0.05); the raw kurtosis rose only
+  // +0.073 and is no longer a probe element (it depends on the mesh's unknown harmonic phases).
   EXPECT_GT(diff, 0.09);
-  EXPECT_GT(diff, 1.4 * raw);
+  for (const ProbeElement& e : b.probes.elements)
+    EXPECT_FALSE(e.probe == "transients" && (e.key == "log_kurtosis" || e.key == "crest_db")) << e.key;
 }
 
 TEST(Probes, ClockLatencyAndClippingShowInTheirProbes) {

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -16,7 +17,15 @@
 
 namespace ptda::gap {
 
+/// What the model's motion follows (docs/gap.md "Method", step 3).
+enum class MotionSource : std::uint8_t {
+  kAuto,      ///< the measured CAN speed when it is usable, else the scenario's profile
+  kMeasured,  ///< the measured CAN speed (an error when it is not usable)
+  kScenario,  ///< the scenario's [motion] profile
+};
+
 struct DiagnoseOptions {
+  MotionSource motion = MotionSource::kAuto;
   std::uint64_t sim_seed = 9001;  ///< seed of the model's simulations (common random numbers)
   std::uint32_t max_effects = 2;  ///< greedy rounds
   std::uint32_t full_fits = 4;    ///< candidates fitted fully per round (after a two-stage screen)
@@ -24,6 +33,9 @@ struct DiagnoseOptions {
   double min_gain_sd = 2.0;       ///< ... and this many standard deviations of the sampling gap, against
                                   ///< two independent model realisations of the held-out part (both)
   double min_gap_sd = 2.0;        ///< no diagnosis when the gap is within expected + this many sd
+  /// Local acceptance (transfer_path, electrical_interference): this share of the gap in the effect's own
+  /// octave bands removed, against both realisations, with the overall gain >= min_gain_sd sd.
+  double min_local_share = 0.5;
   unsigned threads = 0;  ///< fitting threads (0: one per hardware thread); results do not depend on it
   std::vector<sim::EffectKind> candidates;      ///< empty: the whole catalog
   std::function<void(const std::string&)> log;  ///< progress lines (optional)
@@ -43,6 +55,22 @@ struct CandidateResult {
   /// Chosen effects only: other fully fitted candidates whose held-out gap (mean of both realisations) is
   /// within max(min_gain_sd sd, 10 % of the chosen one's gain) of it: not told apart on this recording.
   std::vector<std::string> alternatives;
+  /// Held-out gap by octave band with the effect, both realisations (for the local acceptance rule;
+  /// not written to the JSON).
+  std::map<std::string, double> heldout_by_band, replicate_by_band;
+  bool accepted_locally = false;  ///< chosen by the local rule (its own bands), not the global one
+};
+
+/// One calibrated parameter of the nominal model (docs/gap.md "Calibration").
+struct CalibratedParam {
+  std::string name;          ///< "gmf_order_2", "noise_rms"
+  int order = 0;             ///< GMF order (0: not a harmonic)
+  double nominal = 0.0;      ///< the nominal scenario's value
+  double calibrated = 0.0;   ///< after calibration on the fit part
+  double offset_db = 0.0;    ///< 20 log10(calibrated / nominal)
+  double sd_db = 0.0;        ///< sampling standard deviation of the offset (measured fit part's spread)
+  bool significant = false;  ///< |offset| > max(1 dB, 2 sd)
+  std::string sentence;      ///< "order 2 is 6.1 dB below the nominal (+- 0.4 dB)"
 };
 
 struct SelectionRound {
@@ -62,6 +90,13 @@ struct Diagnosis {
   std::size_t windows_fit = 0;
   std::size_t windows_heldout = 0;
   std::vector<double> class_speeds_rad_s;
+  std::uint32_t period_units = 1;            ///< program period in units (moves or blocks)
+  double period_s = 0.0;                     ///< its mean duration
+  std::vector<std::string> split_missing;    ///< segment classes present in one part only
+  std::string motion_source;                 ///< "measured" or "scenario"
+  std::string motion_note;                   ///< why, in words
+  std::vector<CalibratedParam> calibration;  ///< per nominal GMF order, then the noise level
+  bool recalibrated = false;                 ///< any calibration parameter significant
   std::vector<double> calibrated_gmf_amplitudes;
   double calibrated_noise_rms = 0.0;
   GapBreakdown nominal_heldout;            ///< calibrated nominal model vs held-out cycles
@@ -87,6 +122,11 @@ struct Diagnosis {
 
 /// Runs the diagnosis of `real` against `nominal`. Throws ptda::Error when the recording has too few
 /// cycles or windows to split.
+/// Why the recording's CAN speed cannot drive the model (empty: usable): fewer than 10 frames, frames
+/// covering < 80 % of the recording, or a hole longer than max(0.25 s, 20 x the median interval).
+/// Any thread; allocates.
+[[nodiscard]] std::string measured_speed_problem(const GapRecording& real);
+
 [[nodiscard]] Diagnosis diagnose(const sim::Scenario& nominal, const GapRecording& real,
                                  const DiagnoseOptions& opt);
 

@@ -104,7 +104,8 @@ using ElementVariance = std::map<std::string, double>;
                                           const ElementVariance* noise = nullptr);
 
 /// The per-element differences real - sim after profiling out the free parameters (as compare_probes
-/// uses them), keyed "probe/key".
+/// uses them), keyed "probe/key", plus the profiled-out offsets themselves ("calib/order.kK" per GMF
+/// order, "calib/noise_offset"; dB), whose jackknife variance is the calibration's uncertainty.
 [[nodiscard]] std::map<std::string, double> profiled_differences(const ProbeSet& real, const ProbeSet& sim);
 
 /// Jackknife over cycles: the sampling variance of each element's profiled value when the probes use

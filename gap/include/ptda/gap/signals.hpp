@@ -76,4 +76,33 @@ struct AnalysisPlan {
 [[nodiscard]] std::vector<Window> cut_windows(const GapRecording& rec, const std::vector<Segment>& segs,
                                               const AnalysisPlan& plan);
 
+/// The fit/held-out split by the job's program period (docs/gap.md "Method", step 2). Units are the
+/// segments' `cycle` values: moves (starts from a rest of >= 0.1 s) or rig blocks. A move's signature
+/// is the sequence of its constant-speed classes (or its direction when it has none); the program
+/// period is the smallest P with signature(u) = signature(u + P) for >= 75 % of the units (1 when none
+/// repeats). Unit u in period i = u / P at position j = u % P goes to the fit part when i + j is even:
+/// with >= 2 periods both parts hold every position of the program, hence every segment class (a job that
+/// rests before every move of a back-and-forth program has P = 2: fit = moves 0, 3, 4, ..., held-out =
+/// 1, 2, 5, ...).
+struct ProgramSplit {
+  std::uint32_t units = 0;         ///< moves or blocks
+  std::uint32_t period_units = 1;  ///< program period in units
+  double period_s = 0.0;           ///< mean duration of one period (start to start)
+  std::uint32_t periods = 0;       ///< whole periods in the recording
+  std::vector<char> fit, held;     ///< per unit: 1 when in that part
+  bool enough = false;             ///< >= 2 periods and >= 4 units
+  std::string need;                ///< when not enough: what the recording lacks and the length needed
+};
+
+/// Finds the program period and the split. `duration_s` is the recording length (for the message).
+/// Any thread; allocates.
+[[nodiscard]] ProgramSplit find_program_split(const std::vector<Segment>& segs, const AnalysisPlan& plan,
+                                              double duration_s);
+
+/// Segment classes ("constant class 1 (+0.80 rad/s)", "acceleration", "standstill") that have windows
+/// in one part but not in the other, each with the part it is missing from. Any thread; allocates.
+[[nodiscard]] std::vector<std::string> missing_classes(const std::vector<Window>& windows,
+                                                       const AnalysisPlan& plan, const std::vector<char>& fit,
+                                                       const std::vector<char>& held);
+
 }  // namespace ptda::gap

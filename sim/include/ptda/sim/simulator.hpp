@@ -25,6 +25,9 @@ namespace ptda::sim {
 enum class MotionKind : std::uint8_t {
   kLspb,      ///< via points joined by linear segments with parabolic blends, repeated as job cycles
   kConstant,  ///< constant shaft speed for the whole recording (test rigs)
+  /// Follows a measured speed trace (in memory only, not a scenario key: `ptda gap` drives its model
+  /// along a recording's own CAN speed, docs/gap.md "Method"). See MotionSpec::measured_*.
+  kMeasured,
 };
 
 struct MotionSpec {
@@ -42,7 +45,15 @@ struct MotionSpec {
   double lead_in_s = 0.2;                    ///< standstill before the first cycle
   // --- kConstant ---
   double shaft_speed_hz = 0.0;  ///< input-shaft rotation frequency (kConstant; sign = direction)
-  double duration_s = 0.0;      ///< recording length (kConstant), split into `cycles` blocks
+  double duration_s = 0.0;      ///< recording length (kConstant, kMeasured), split into `cycles` blocks
+  // --- kMeasured ---
+  /// Instants of the measured output speed, seconds from sample 0 on the true (CAN log) time base,
+  /// strictly ascending; the speed is interpolated linearly between them and held before the first and
+  /// after the last. At least 2.
+  std::vector<double> measured_t_s;
+  std::vector<double> measured_speed_rad_s;  ///< signed output speed at measured_t_s
+  /// Start of each job cycle (ascending; cycle c from [c] to [c + 1]); empty: one cycle.
+  std::vector<double> measured_cycle_start_s;
 };
 
 /// [gearbox]
@@ -193,11 +204,22 @@ struct MotionProfile {
   double duration_s = 0.0;
 };
 
+/// Dead band (rad/s^2) below which an interval of a measured speed trace counts as constant speed:
+/// max(0.2 x the 99th percentile of the intervals' |acceleration|, 0.02 x the top |speed| per second).
+/// Any thread; allocates.
+[[nodiscard]] double measured_motion_deadband(const std::vector<double>& t_s,
+                                              const std::vector<double>& speed_rad_s);
+
 /// Exact motion at t_s (clamped to [0, duration_s]). Any thread; no allocation.
 [[nodiscard]] MotionState motion_at(const MotionProfile& m, double t_s) noexcept;
 
-/// Builds the motion (analytic LSPB / constant speed) sampled at fs_hz. Jitter draws from seed.
-/// Throws ptda::Error when the motion is infeasible. Any thread; allocates.
+/// Builds the motion (analytic LSPB / constant speed / measured trace) sampled at fs_hz. Jitter draws
+/// from seed. A measured trace becomes constant-acceleration pieces between its instants (the angle is
+/// the exact integral of the pieces' speed); an interval whose acceleration is below the trace's dead
+/// band (measured_motion_deadband()) becomes a constant-speed piece at the interval's mean speed, so that
+/// CAN quantisation and small ripple do not count as torque reversals. At the measured instants the
+/// motion's speed then differs from the trace by at most half the dead band times the interval.
+/// Throws ptda::Error when the motion is infeasible or the trace is malformed. Any thread; allocates.
 [[nodiscard]] MotionProfile build_motion(const Scenario& s, std::uint64_t seed);
 
 /// Severity of fault f in job cycle `cycle`: 0 before onset_cycle, then

@@ -1,0 +1,86 @@
+// Calibration kept apart from unmodelled effects (docs/gap.md "Calibration"): a nominal that is wrong only
+// in its own free parameters (harmonic levels, noise level) is re-calibrated, the offsets are reported
+// with their uncertainty, and no library effect is named.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "gap_test_job.hpp"
+#include "ptda/gap/diagnose.hpp"
+#include "ptda/gap/signals.hpp"
+#include "ptda/sim/simulator.hpp"
+
+namespace ptda::gap {
+namespace {}  // namespace
+
+inline const CalibratedParam* find(const Diagnosis& d, const std::string& name) {
+  for (const CalibratedParam& c : d.calibration)
+    if (c.name == name) return &c;
+  return nullptr;
+}
+
+namespace {
+
+TEST(Calibration, NominalOffByKnownDecibelsIsRecalibratedAndNamesNoEffect) {
+  const sim::Scenario truth = test::joint_rotation_job(6);
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 1234), truth);
+  // The nominal: order 1 +6 dB, order 5 -6 dB, order 8 +3 dB, noise +30 % (2.3 dB) against the machine.
+  sim::Scenario nominal = truth;
+  nominal.vibration.gmf_amplitudes[0] *= 2.0;
+  nominal.vibration.gmf_amplitudes[4] *= 0.5;
+  nominal.vibration.gmf_amplitudes[7] *= std::pow(10.0, 3.0 / 20.0);
+  nominal.vibration.noise_rms *= 1.3;
+  DiagnoseOptions opt;
+  const Diagnosis d = diagnose(nominal, real, opt);
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
+  EXPECT_TRUE(d.recalibrated);
+  EXPECT_EQ(d.verdict.rfind("no unmodelled effect; nominal re-calibrated", 0), 0U) << d.verdict;
+  // Recovered: calibrated / nominal = the inverse of the error, within 3 stated sd + 0.5 dB (the
+  // calibration stops once every offset is below 0.5 dB).
+  struct Want {
+    const char* name;
+    double db;
+  };
+  for (const Want w : {Want{"gmf_order_1", -6.02}, Want{"gmf_order_5", 6.02}, Want{"gmf_order_8", -3.0},
+                       Want{"noise_rms", -2.28}}) {
+    const CalibratedParam* c = find(d, w.name);
+    ASSERT_NE(c, nullptr) << w.name;
+    EXPECT_GT(c->sd_db, 0.0) << w.name;
+    EXPECT_NEAR(c->offset_db, w.db, 3.0 * c->sd_db + 0.5) << w.name << ": " << c->sentence;
+    EXPECT_TRUE(c->significant) << w.name;
+  }
+  // Orders the nominal had right are not reported as changed.
+  const CalibratedParam* o7 = find(d, "gmf_order_7");
+  ASSERT_NE(o7, nullptr);
+  EXPECT_FALSE(o7->significant) << o7->sentence;
+  EXPECT_NE(d.verdict.find("order 1 is"), std::string::npos) << d.verdict;
+}
+
+}  // namespace
+}  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+TEST(Calibration, SpeedExponentIsCalibratedWithinOneDirection) {
+  // Two plateau speeds in the positive direction (2.0 and 3.49 rad/s), one negative: the levels follow
+  // speed^1.0, the nominal says speed^1.8 (+4.5 dB between 2.0 and 3.49 rad/s).
+  sim::Scenario truth = test::joint_rotation_job(6);
+  truth.motion.via_points_rad = {0.0, 1.2, 3.0, 0.0};
+  truth.motion.segment_speeds_rad_s = {2.0, 3.49068, 3.0};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 99), truth);
+  sim::Scenario nominal = truth;
+  nominal.vibration.amplitude_speed_exponent = 1.8;
+  const Diagnosis d = diagnose(nominal, real, DiagnoseOptions{});
+  const CalibratedParam* e = find(d, "amplitude_speed_exponent");
+  ASSERT_NE(e, nullptr);
+  EXPECT_GT(e->sd_db, 0.0);
+  EXPECT_TRUE(e->significant) << e->sentence;
+  // Recovered within 3 sd (in exponent units: sd_db / span_db) + the 0.05 step below which it stops.
+  const double span_db = 20.0 * std::log10(3.49068 / 2.0);
+  EXPECT_NEAR(e->calibrated, 1.0, 3.0 * e->sd_db / span_db + 0.05) << e->sentence;
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
+}
+
+}  // namespace
+}  // namespace ptda::gap
