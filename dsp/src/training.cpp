@@ -300,9 +300,12 @@ std::vector<std::string> training_warnings(const Baseline& baseline) {
   std::vector<std::string> out;
   const ThresholdPolicy& p = baseline.policy;
   const double alpha = p.false_alarm_rate;
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g", alpha);
-  const std::string rate = buf;
+  const auto g = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3g", v);
+    return std::string(buf);
+  };
+  const std::string rate = g(alpha);
   // Smallest n whose one-sided tolerance factor is within 20 % of the asymptotic z: beyond it the
   // estimate of the band itself stops dominating (kGaussian's promise, kTolerance's width).
   const auto n_needed = [&](double confidence) -> std::uint32_t {
@@ -326,7 +329,7 @@ std::vector<std::string> training_warnings(const Baseline& baseline) {
     if (p.kind == ThresholdPolicy::Kind::kQuantile) {
       const auto need = static_cast<std::uint32_t>(std::ceil(2.0 / alpha));
       if (n < need) {
-        out.push_back(cls + " cannot resolve the alpha/2 = " + std::to_string(alpha / 2) +
+        out.push_back(cls + " cannot resolve the alpha/2 = " + g(alpha / 2) +
                       " quantiles of false_alarm_rate " + rate + ": the band is about the sample range; " +
                       "needs >= " + std::to_string(need) + " windows");
       }
@@ -342,9 +345,8 @@ std::vector<std::string> training_warnings(const Baseline& baseline) {
     const HoldoutStats& h = c.holdout[static_cast<std::size_t>(Method::kPtda)];
     if (h.windows > 0 && 3.0 / h.windows > 2.0 * alpha) {
       out.push_back("class " + std::to_string(c.segment.id) + ": the hold-out of " +
-                    std::to_string(h.windows) +
-                    " windows can only show a false-alarm rate >= " + std::to_string(3.0 / h.windows) +
-                    " (95 %); confirming " + rate + " per feature needs >= " +
+                    std::to_string(h.windows) + " windows can only show a false-alarm rate >= " +
+                    g(3.0 / h.windows) + " (95 %); confirming " + rate + " per feature needs >= " +
                     std::to_string(static_cast<std::uint64_t>(std::ceil(1.5 / alpha))) + " held-out windows");
     }
   }

@@ -142,7 +142,9 @@ TEST(TrainingWarnings, SaysHowManyWindowsAreNeeded) {
   b.classes[0].holdout[static_cast<std::size_t>(Method::kPtda)].windows = 10;
   w = training_warnings(b);
   ASSERT_EQ(w.size(), 1U);
-  EXPECT_NE(w[0].find("needs >= 1500 held-out windows"), std::string::npos) << w[0];
+  EXPECT_NE(w[0].find("rate >= 0.3 (95 %); confirming 0.001 per feature needs >= 1500 held-out windows"),
+            std::string::npos)
+      << w[0];
 }
 
 TEST(Judge, LowResidualIsItsOwnCauseNotAbnormal) {
