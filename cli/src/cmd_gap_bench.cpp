@@ -34,6 +34,7 @@ void print_table(std::ostream& out, const gap::BenchResult& r) {
     out << "false attrib.   " << 100.0 * r.ool_false_attribution_rate << " % of the out-of-library cases\n";
   out << "median shrink   " << r.median_shrink_pct << " %\n";
   out << "time per case   " << r.median_case_runtime_s << " s median, " << r.max_case_runtime_s << " s max\n";
+  out << "CPU per case    " << r.max_case_cpu_s << " s max (diagnosis process, all threads)\n";
   out << "peak memory     " << r.max_peak_rss_mib << " MiB (largest case)\n";
   out << "runtime         " << r.runtime_s << " s\n";
 }

@@ -119,9 +119,14 @@ constexpr std::size_t kConfusionRows = sim::kEffectKinds + 2;  // + control (non
 struct Outcome {
   std::vector<EffectSpec> chosen;
   double shrink_pct = 0.0, gap_heldout = 0.0, noise_gap = 0.0, noise_gap_sd = 0.0, runtime_s = 0.0;
-  double peak_rss_mib = 0.0, remaining_share = 0.0;
+  double peak_rss_mib = 0.0, remaining_share = 0.0, cpu_s = 0.0;
   std::string remaining_probe, verdict, error;
 };
+
+double cpu_seconds(const rusage& ru) {
+  return static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
 
 Outcome outcome_of(const Diagnosis& d) {
   Outcome o;
@@ -221,7 +226,10 @@ Outcome run_isolated(const std::function<Diagnosis()>& fn) {
       o.error = e.what();
     }
     rusage ru{};
-    if (getrusage(RUSAGE_SELF, &ru) == 0) o.peak_rss_mib = static_cast<double>(ru.ru_maxrss) / 1024.0;
+    if (getrusage(RUSAGE_SELF, &ru) == 0) {
+      o.peak_rss_mib = static_cast<double>(ru.ru_maxrss) / 1024.0;
+      o.cpu_s = cpu_seconds(ru);  // of the whole process so far (fallback only)
+    }
     return o;
   };
   int fds[2];
@@ -272,6 +280,7 @@ Outcome run_isolated(const std::function<Diagnosis()>& fn) {
                   : "the diagnosis process failed";
   }
   o.peak_rss_mib = static_cast<double>(ru.ru_maxrss) / 1024.0;
+  o.cpu_s = cpu_seconds(ru);
   return o;
 }
 
@@ -283,6 +292,7 @@ void take(BenchCaseResult& cr, Outcome o) {
   cr.noise_gap_sd = o.noise_gap_sd;
   cr.runtime_s = o.runtime_s;
   cr.peak_rss_mib = o.peak_rss_mib;
+  cr.cpu_s = o.cpu_s;
   cr.remaining_probe = std::move(o.remaining_probe);
   cr.remaining_share = o.remaining_share;
   cr.verdict = std::move(o.verdict);
@@ -296,7 +306,10 @@ void score(BenchResult& res, BenchCaseResult& cr, std::vector<double>& shrinks,
   const std::size_t named =
       cr.chosen.empty() ? sim::kEffectKinds : static_cast<std::size_t>(cr.chosen[0].kind);
   if (!cr.error.empty()) ++res.errors;
-  if (cr.error.empty()) runtimes.push_back(cr.runtime_s);
+  if (cr.error.empty()) {
+    runtimes.push_back(cr.runtime_s);
+    res.max_case_cpu_s = std::max(res.max_case_cpu_s, cr.cpu_s);
+  }
   res.max_peak_rss_mib = std::max(res.max_peak_rss_mib, cr.peak_rss_mib);
   if (cr.category != CaseCategory::kEffect) {
     const bool ool = cr.category == CaseCategory::kOutOfLibrary;
@@ -359,7 +372,7 @@ std::string case_line(const BenchCaseResult& cr) {
                      "| " + (cr.top1_correct ? "OK" : "WRONG") + (cr.location_ok ? " located" : "") +
                      " shrink " + num(cr.shrink_pct) + " % gap " + num(cr.gap_heldout) + " expected " +
                      num(cr.noise_gap) + " +- " + num(cr.noise_gap_sd) + " (" + num(cr.runtime_s) + " s, " +
-                     num(cr.peak_rss_mib) + " MiB)";
+                     num(cr.peak_rss_mib) + " MiB, cpu " + num(cr.cpu_s) + " s)";
   if (!cr.error.empty()) line += " ERROR: " + cr.error;
   return line;
 }
@@ -555,6 +568,7 @@ std::string bench_json(const BenchResult& r) {
     << ",\n  \"median_shrink_pct\": " << num(r.median_shrink_pct)
     << ",\n  \"median_case_runtime_s\": " << num(r.median_case_runtime_s)
     << ",\n  \"max_case_runtime_s\": " << num(r.max_case_runtime_s)
+    << ",\n  \"max_case_cpu_s\": " << num(r.max_case_cpu_s)
     << ",\n  \"max_peak_rss_mib\": " << num(r.max_peak_rss_mib) << ",\n  \"runtime_s\": " << num(r.runtime_s)
     << ",\n";
   o << "  \"labels\": [";
@@ -584,7 +598,7 @@ std::string bench_json(const BenchResult& r) {
       << ", \"shrink_pct\": " << num(c.shrink_pct) << ", \"gap_heldout\": " << num(c.gap_heldout)
       << ", \"noise_gap\": " << num(c.noise_gap) << ", \"noise_gap_sd\": " << num(c.noise_gap_sd)
       << ", \"runtime_s\": " << num(c.runtime_s) << ", \"peak_rss_mib\": " << num(c.peak_rss_mib)
-      << ", \"remaining_probe\": " << json_str(c.remaining_probe)
+      << ", \"cpu_s\": " << num(c.cpu_s) << ", \"remaining_probe\": " << json_str(c.remaining_probe)
       << ", \"remaining_share\": " << num(c.remaining_share) << ", \"verdict\": " << json_str(c.verdict)
       << ", \"error\": " << json_str(c.error) << "}";
   }
@@ -613,15 +627,15 @@ std::string bench_markdown(const std::vector<BenchResult>& rs) {
   };
   o << "| corpus | top-1 | located (of top-1) | median held-out shrink | false attr. (controls) | false "
        "attr. "
-       "(out of library) | errors | time per case (median / max) | peak RSS (max) |\n";
-  o << "|---|---|---|---|---|---|---|---|---|\n";
+       "(out of library) | errors | time per case (median / max) | CPU per case (max) | peak RSS (max) |\n";
+  o << "|---|---|---|---|---|---|---|---|---|---|\n";
   for (const BenchResult& r : rs) {
     o << "| " << r.corpus << " | " << pct(r.top1_correct, r.effect_cases) << " | "
       << pct(r.located, r.top1_correct) << " | " << (r.effect_cases ? fix(r.median_shrink_pct, " %") : "-")
       << " | " << pct(r.false_attributions, r.none_cases) << " | "
       << pct(r.ool_false_attributions, r.ool_cases) << " | " << r.errors << " | "
       << fix(r.median_case_runtime_s, " s") << " / " << fix(r.max_case_runtime_s, " s") << " | "
-      << fix(r.max_peak_rss_mib, " MiB") << " |\n";
+      << fix(r.max_case_cpu_s, " s") << " | " << fix(r.max_peak_rss_mib, " MiB") << " |\n";
   }
   for (const BenchResult& r : rs) {
     o << "\n### " << r.corpus << "\n\nConfusion (rows truth, columns first named):\n\n| truth \\ named |";
@@ -637,8 +651,9 @@ std::string bench_markdown(const std::vector<BenchResult>& rs) {
       for (std::uint32_t v : r.confusion[t]) o << " " << (v ? std::to_string(v) : "") << " |";
       o << "\n";
     }
-    o << "\n| case | truth | named | top-1 | located | shrink | unexplained (probe, share) | time | RSS |\n"
-         "|---|---|---|---|---|---|---|---|---|\n";
+    o << "\n| case | truth | named | top-1 | located | shrink | unexplained (probe, share) | time | CPU | "
+         "RSS |\n"
+         "|---|---|---|---|---|---|---|---|---|---|\n";
     for (const BenchCaseResult& c : r.cases) {
       std::string t = c.description;
       if (t.empty()) {
@@ -652,7 +667,8 @@ std::string bench_markdown(const std::vector<BenchResult>& rs) {
         << (c.category == CaseCategory::kEffect ? (c.location_ok ? "yes" : "no") : "") << " | "
         << (c.category == CaseCategory::kEffect ? fix(c.shrink_pct, " %") : "") << " | "
         << (c.remaining_probe.empty() ? "" : c.remaining_probe + " " + fix(100.0 * c.remaining_share, " %"))
-        << " | " << fix(c.runtime_s, " s") << " | " << fix(c.peak_rss_mib, " MiB") << " |\n";
+        << " | " << fix(c.runtime_s, " s") << " | " << fix(c.cpu_s, " s") << " | "
+        << fix(c.peak_rss_mib, " MiB") << " |\n";
     }
   }
   return o.str();

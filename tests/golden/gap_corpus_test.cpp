@@ -70,6 +70,7 @@ TEST(GapCorpus, ShortGen2CaseLoadsAndIsScored) {
   EXPECT_GT(c.at("gap_heldout").as_number(), 0.0);
   EXPECT_GT(c.at("noise_gap").as_number(), 0.0);
   EXPECT_GT(c.at("runtime_s").as_number(), 0.0);
+  EXPECT_GT(c.at("cpu_s").as_number(), 0.0);  // wait4 rusage of the diagnosis child
   // Peak RSS measured in the diagnosis child: more than the recording's samples, within the target.
   EXPECT_GT(c.at("peak_rss_mib").as_number(), 1.0);
   EXPECT_LT(c.at("peak_rss_mib").as_number(), 256.0);

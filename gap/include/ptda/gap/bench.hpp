@@ -53,6 +53,7 @@ struct BenchCaseResult {
   double noise_gap_sd = 0.0;            ///< its standard deviation
   double runtime_s = 0.0;
   double peak_rss_mib = 0.0;     ///< peak resident memory of the diagnosis process (0: not measured)
+  double cpu_s = 0.0;            ///< CPU time (user + system) of the diagnosis process, all its threads
   std::string remaining_probe;   ///< probe holding most of the remaining (unexplained) held-out gap
   double remaining_share = 0.0;  ///< its share of the remaining gap
   std::string verdict;
@@ -77,6 +78,7 @@ struct BenchResult {
   std::uint32_t errors = 0;                  ///< cases whose diagnosis failed
   double median_case_runtime_s = 0.0;
   double max_case_runtime_s = 0.0;
+  double max_case_cpu_s = 0.0;
   double max_peak_rss_mib = 0.0;
   double runtime_s = 0.0;
   /// confusion[truth][named]: truth index kEffectKinds = control (none), kEffectKinds + 1 = out of
