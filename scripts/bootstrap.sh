@@ -13,6 +13,7 @@ BASE=(
   libeigen3-dev libkissfft-dev libspdlog-dev libfmt-dev libtomlplusplus-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libgpiod-dev libsystemd-dev can-utils
+  python3-numpy
 )
 CROSS=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev)
 VM=(qemu-system-x86 qemu-system-arm busybox-static cpio iproute2 can-utils gpiod dpkg-dev xz-utils)

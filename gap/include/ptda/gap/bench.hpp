@@ -1,6 +1,9 @@
 // gap-bench: cases made with the simulator (one withheld effect, a pair, or none, with randomised
-// parameters, amplitudes, noise level and seed), diagnosed from the recording and the nominal scenario
-// only, and scored (docs/gap.md "Bench"). Offline: any thread, allocates, writes temporary recordings.
+// parameters, amplitudes, noise level and seed), or read from a corpus directory (recordings made by
+// other generators or real recordings with injected effects, each with its nominal scenario and truth),
+// diagnosed from the recording and the nominal scenario only, and scored (docs/gap.md "Bench").
+// Offline: call from one thread at a time (a case's diagnosis runs in a forked child process so that
+// its peak memory is measured alone), allocates, writes temporary recordings.
 #pragma once
 
 #include <cstdint>
@@ -26,34 +29,84 @@ struct BenchOptions {
   std::function<void(const std::string&)> log;
 };
 
+/// What a case holds: one or more library effects, nothing unmodelled (a control: no effect, or a
+/// nominal that is off only in its own free parameters), or an effect outside the library.
+enum class CaseCategory : std::uint8_t { kEffect, kControl, kOutOfLibrary };
+/// "effect", "control", "out_of_library". Any thread; no allocation.
+[[nodiscard]] const char* case_category_name(CaseCategory c) noexcept;
+
 struct BenchCaseResult {
   std::uint32_t index = 0;
+  std::string name;  ///< corpus case name (built-in bench: "caseN")
+  CaseCategory category = CaseCategory::kEffect;
+  std::string description;  ///< corpus truth's description (built-in: empty)
   std::string job;
   std::uint64_t seed = 0;
   std::vector<sim::EffectSpec> truth;   ///< withheld effects (empty: none)
   std::vector<sim::EffectSpec> chosen;  ///< what the diagnosis named
   bool top1_correct = false;            ///< first named effect is a true one (none case: nothing named)
   bool location_ok = false;             ///< the named true effect sits where the truth does (see docs/gap.md)
-  bool false_attribution = false;       ///< none case: something was named
+  bool false_attribution = false;       ///< control or out-of-library case: something was named
   double shrink_pct = 0.0;              ///< held-out shrink with the chosen effects
   double gap_heldout = 0.0;             ///< calibrated nominal
   double noise_gap = 0.0;               ///< held-out gap expected from sampling
   double noise_gap_sd = 0.0;            ///< its standard deviation
   double runtime_s = 0.0;
+  double peak_rss_mib = 0.0;     ///< peak resident memory of the diagnosis process (0: not measured)
+  double cpu_s = 0.0;            ///< CPU time (user + system) of the diagnosis process, all its threads
+  std::string remaining_probe;   ///< probe holding most of the remaining (unexplained) held-out gap
+  double remaining_share = 0.0;  ///< its share of the remaining gap
   std::string verdict;
+  std::string error;  ///< the diagnosis failed with this message (scored as wrong; the bench goes on)
 };
 
 struct BenchResult {
+  std::string corpus = "project simulator";  ///< corpus name
   std::vector<BenchCaseResult> cases;
-  double top1_accuracy = 0.0;           ///< over cases with effects
-  double location_accuracy = 0.0;       ///< over cases with a correct top-1
-  double false_attribution_rate = 0.0;  ///< over no-effect cases
-  double median_shrink_pct = 0.0;       ///< over cases with effects
+  double top1_accuracy = 0.0;               ///< over cases with effects
+  double location_accuracy = 0.0;           ///< over cases with a correct top-1
+  double false_attribution_rate = 0.0;      ///< over control (no-effect) cases
+  double ool_false_attribution_rate = 0.0;  ///< over out-of-library cases (anything named is false)
+  double median_shrink_pct = 0.0;           ///< over cases with effects
   std::uint32_t effect_cases = 0;
-  std::uint32_t none_cases = 0;
+  std::uint32_t none_cases = 0;  ///< control cases
+  std::uint32_t ool_cases = 0;   ///< out-of-library cases
+  std::uint32_t top1_correct = 0;
+  std::uint32_t located = 0;
+  std::uint32_t false_attributions = 0;      ///< on controls
+  std::uint32_t ool_false_attributions = 0;  ///< on out-of-library cases
+  std::uint32_t errors = 0;                  ///< cases whose diagnosis failed
+  double median_case_runtime_s = 0.0;
+  double max_case_runtime_s = 0.0;
+  double max_case_cpu_s = 0.0;
+  double max_peak_rss_mib = 0.0;
   double runtime_s = 0.0;
-  /// confusion[truth][named]: truth index kEffectKinds = none; named kEffectKinds = nothing named.
+  /// confusion[truth][named]: truth index kEffectKinds = control (none), kEffectKinds + 1 = out of
+  /// library; named kEffectKinds = nothing named.
   std::vector<std::vector<std::uint32_t>> confusion;
+};
+
+/// One case of a corpus directory (paths absolute or relative to the working directory).
+struct CorpusCase {
+  std::string name;
+  std::filesystem::path recording;  ///< recording directory (docs/recording-format.md)
+  std::filesystem::path nominal;    ///< nominal scenario
+  CaseCategory category = CaseCategory::kControl;
+  std::vector<sim::EffectSpec> truth;  ///< library effects (category kEffect only)
+  std::string description;
+};
+
+struct Corpus {
+  std::string name;
+  std::filesystem::path dir;
+  std::vector<CorpusCase> cases;
+};
+
+struct CorpusBenchOptions {
+  std::uint64_t sim_seed = 424242;  ///< DiagnoseOptions::sim_seed for every case
+  unsigned threads = 0;             ///< fitting threads per diagnosis (0: one per hardware thread)
+  std::vector<std::string> only;    ///< run only these case names (empty: all)
+  std::function<void(const std::string&)> log;
 };
 
 /// Truth of case `index` of a bench with `seed`: which effects, with randomised parameters (the rest of
@@ -69,6 +122,14 @@ struct BenchResult {
 [[nodiscard]] bool location_matches(const sim::EffectSpec& truth, const sim::EffectSpec& fitted);
 
 [[nodiscard]] BenchResult run_bench(const BenchOptions& opt);
+/// Diagnoses every case of `corpus` against its own nominal and scores it like run_bench. A case whose
+/// nominal or recording cannot be read, or whose diagnosis throws, is reported (`error`) and scored
+/// as wrong; the other cases still run.
+[[nodiscard]] BenchResult run_corpus_bench(const Corpus& corpus, const CorpusBenchOptions& opt);
 [[nodiscard]] std::string bench_json(const BenchResult& r);
+/// JSON of several benches: {"format": "ptda-gap-bench-set", "version": 1, "corpora": [bench_json...]}.
+[[nodiscard]] std::string bench_set_json(const std::vector<BenchResult>& r);
+/// Markdown: summary row per bench, then per bench its confusion matrix and per-case table.
+[[nodiscard]] std::string bench_markdown(const std::vector<BenchResult>& r);
 
 }  // namespace ptda::gap
