@@ -171,8 +171,11 @@ Outcome replay(const std::string& name, const std::string& scenario) {
       if (!s.empty() && s.back() == '\n') {
         if (r.snapshots.empty() || r.snapshots.back() != s) r.snapshots.push_back(s);
         const DaemonView v = d.view();
-        if ((v.phase == Phase::kEnded || v.phase == Phase::kNotJudging) && has(s, "\"state\":\"ended\""))
+        // status.json is replaced before the metrics file: wait for both to show the end.
+        if ((v.phase == Phase::kEnded || v.phase == Phase::kNotJudging) && has(s, "\"state\":\"ended\"") &&
+            has(read_text(dir / "ptda.prom"), "\nptda_state{state=\"ended\"} 1\n")) {
           break;
+        }
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
