@@ -103,6 +103,13 @@ AlarmLevel AlarmManager::set_faults(std::uint8_t fault_causes, std::int64_t t_mo
   return state_.level;
 }
 
+AlarmLevel AlarmManager::set_input_ended(std::int64_t t_mono_ns) noexcept {
+  ended_ = true;
+  apply_posted_clears(t_mono_ns);
+  evaluate(t_mono_ns);
+  return state_.level;
+}
+
 AlarmLevel AlarmManager::tick(std::int64_t t_mono_ns) noexcept {
   apply_posted_clears(t_mono_ns);
   evaluate(t_mono_ns);
@@ -165,7 +172,7 @@ void AlarmManager::evaluate(std::int64_t t_ns) noexcept {
   AlarmLevel level = AlarmLevel::kNormal;
   if (state_.alarm_active) {
     level = AlarmLevel::kAlarm;
-  } else if (!judged_ || state_.fault_causes != 0) {  // not judged yet, or cannot judge
+  } else if (!judged_ || ended_ || state_.fault_causes != 0) {  // not judged yet, ended, or cannot judge
     level = AlarmLevel::kFault;
   } else if (warning_active_) {
     level = AlarmLevel::kWarning;

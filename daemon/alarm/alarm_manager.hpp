@@ -13,7 +13,8 @@
 //              judged yet": kFault with no cause; set_faults(0) alone never makes the level kNormal). A fault
 //              never raises, holds or latches kAlarm; a latched alarm stays kAlarm through a fault (the
 //              receiver keeps the confirmed verdict) and the report's causes then carry the fault bits as
-//              well.
+//              well. The end of a replay (set_input_ended()) is kFault with no cause of its own: the
+//              verdict stops, nothing failed.
 //   kWarning - warning enabled and at least warning_k of the debouncer's last n windows were abnormal
 //              (warning_k = 1: any abnormal window), kept for at least warning_hold_s.
 //   kNormal  - otherwise.
@@ -125,6 +126,11 @@ class AlarmManager {
   /// monitoring is possible. Thread: the owner. Never allocates, blocks or throws.
   drivers::AlarmLevel set_faults(std::uint8_t fault_causes, std::int64_t t_mono_ns) noexcept;
 
+  /// The input ended for good (a replay finished): from now on the level is kFault (no verdict) unless
+  /// an alarm is active; no cause bit is added (an end is not a sensor fault). Thread: the owner. Never
+  /// allocates, blocks or throws.
+  drivers::AlarmLevel set_input_ended(std::int64_t t_mono_ns) noexcept;
+
   /// Time passes: ends holds that expired, applies posted clear requests. Call at least every few
   /// hundred ms (and before report()). Thread: the owner. Never allocates, blocks or throws.
   drivers::AlarmLevel tick(std::int64_t t_mono_ns) noexcept;
@@ -166,6 +172,7 @@ class AlarmManager {
   bool warning_active_ = false;
   std::int64_t warning_raised_ns_ = 0;
   bool judged_ = false;  ///< a scored window was seen: kNormal/kWarning are possible from here on
+  bool ended_ = false;   ///< set_input_ended(): no further verdict
   ClearResult last_clear_ = ClearResult::kNothingToClear;
   std::atomic<std::uint32_t> posted_clears_{0};
   std::atomic<std::uint8_t> posted_source_{0};

@@ -39,8 +39,9 @@ DaemonState state_of(Phase phase) noexcept {
       return DaemonState::kTraining;
     case Phase::kPausedSpeed:
     case Phase::kPausedSensor:
-    case Phase::kEnded:
       return DaemonState::kPaused;
+    case Phase::kEnded:
+      return DaemonState::kEnded;
     case Phase::kStarting:
     case Phase::kMonitoring:
     case Phase::kNotJudging:  // running, its own phase and fault cause say it is blind
@@ -436,7 +437,20 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.method.assign(dsp::method_name(cfg_.pipeline.method));
   s.uptime_s = ns_to_seconds(now - started_ns_);
   s.wall_time_unix_ns = wall_time_ns();
+  s.now_s = ns_to_seconds(now);
   if (p == nullptr) return;
+  const PipelineStatus ps = p->status();
+  s.phase.assign(phase_name(ps.phase));
+  // The status timeline: window and alarm times are on the alarm manager's time base, which in a fast
+  // replay is data time and runs ahead of the daemon clock (a 60 s recording is replayed in ~2 s). Ages
+  // are taken against the latest instant of that timeline, so they are never negative; in real time it
+  // is the daemon clock (the data lags it by the ring's latency).
+  const std::int64_t timeline_ns = std::max({now, ps.clock_ns, ps.data_time_ns});
+  s.now_s = ns_to_seconds(timeline_ns);
+  // Wall-clock time of a timeline instant: the daemon clock's offset to CLOCK_REALTIME. For a fast
+  // replay that is the replay's own timeline (sample 0 at activation, as logged at start).
+  const std::int64_t to_wall_ns = drivers::realtime_offset_ns(clock_);
+  const auto wall = [to_wall_ns](std::int64_t t_ns) noexcept { return t_ns + to_wall_ns; };
   const dsp::Baseline* b = p->baseline();
   s.baseline_loaded = b != nullptr;
   s.baseline_path.assign(cfg_.daemon.baseline.native());
@@ -466,11 +480,11 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
     s.class_count = 0;
     s.classes_listed = 0;
   }
-  const PipelineStatus ps = p->status();
   s.have_window = ps.have_window;
   if (ps.have_window) {
     const dsp::WindowResult& w = ps.last_window;
     s.window_t_s = ns_to_seconds(w.ref.t_end_ns);
+    s.window_wall_ns = wall(w.ref.t_end_ns);
     s.window_class = w.class_id;
     s.window_speed_rad_s = w.ref.speed_rad_s;
     s.window_rms = w.features.rms_res;
@@ -485,6 +499,7 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   }
   s.alarm_level = ps.report.level;
   s.alarm_since_s = ns_to_seconds(ps.alarm.since_ns);
+  s.alarm_since_wall_ns = wall(ps.alarm.since_ns);
   s.alarm_latched = ps.alarm.latched;
   s.alarm_causes = ps.report.causes;
   s.trip_class = ps.alarm.alarm_active ? ps.alarm.trip.class_id : -1;
@@ -493,6 +508,7 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.trip_t_s = ns_to_seconds(ps.alarm.trip.t_ns);
   s.trip_detector = dsp::alarm_detector_name(ps.alarm.trip.detector);
   s.trip_cusum = ps.alarm.trip.seq_statistic;
+  s.trip_wall_ns = wall(ps.alarm.trip.t_ns);
 
   const drivers::SampleSourceCounters a = p->source_counters();
   const PipelineCounters c = p->counters();
@@ -559,6 +575,89 @@ void Daemon::log_counter_changes() noexcept {
   last_slicer_ = sc;
 }
 
+namespace {
+
+/// "rms+entropy", "coverage", "none": the AlarmCause bits. Never allocates.
+void cause_text(std::uint8_t causes, char* out, std::size_t cap) noexcept {
+  static constexpr std::pair<std::uint8_t, const char*> kNames[] = {
+      {drivers::kCauseRms, "rms"},           {drivers::kCauseEntropy, "entropy"},
+      {drivers::kCauseSensor, "sensor"},     {drivers::kCauseSpeed, "speed"},
+      {drivers::kCauseBaseline, "baseline"}, {drivers::kCauseInternal, "internal"},
+      {drivers::kCauseCoverage, "coverage"}};
+  std::size_t n = 0;
+  out[0] = '\0';
+  for (const auto& [bit, name] : kNames) {
+    if ((causes & bit) == 0) continue;
+    const int k = std::snprintf(out + n, cap - n, "%s%s", n == 0 ? "" : "+", name);
+    if (k < 0 || static_cast<std::size_t>(k) >= cap - n) break;
+    n += static_cast<std::size_t>(k);
+  }
+  if (n == 0) std::snprintf(out, cap, "none");
+}
+
+/// "rms_res 0.0123 out of [0.001, 0.01]". Never allocates.
+int feature_text(char* out, std::size_t cap, const char* name, double v, const dsp::Band& band) noexcept {
+  const bool in = v >= band.lo && v <= band.hi;
+  return std::snprintf(out, cap, "%s %.4g %s [%.4g, %.4g]", name, v, in ? "in" : "out of", band.lo, band.hi);
+}
+
+}  // namespace
+
+// Runs on the supervisor (the processing thread only sets the alarm state; it never logs). Lines stay
+// under spdlog's 250-byte inline buffer, so logging them does not allocate.
+void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
+  const drivers::AlarmLevel level = ps.alarm.level;
+  const std::uint64_t changes = ps.alarm_counters.level_changes;
+  if (level == last_level_ && changes == last_level_changes_) return;
+  // A reload starts a new pipeline whose counter starts again at 0.
+  const std::uint64_t seen = changes >= last_level_changes_ ? changes - last_level_changes_ : changes;
+  const std::uint64_t missed = seen > 1 ? seen - 1 : 0;
+  const drivers::AlarmLevel was = last_level_;
+  last_level_ = level;
+  last_level_changes_ = changes;
+
+  char since[32] = "?";
+  (void)format_rfc3339_utc(ps.alarm.since_ns + drivers::realtime_offset_ns(clock_), since, sizeof since);
+  char head[96];
+  std::snprintf(head, sizeof head, "alarm level %s (was %s", drivers::alarm_level_name(level).data(),
+                drivers::alarm_level_name(was).data());
+  char extra[64] = "";
+  if (missed > 0) {
+    std::snprintf(extra, sizeof extra, "; %llu more level change%s between status checks",
+                  static_cast<unsigned long long>(missed), missed == 1 ? "" : "s");
+  }
+  const dsp::DecisionConfig& dc = cfg_.pipeline.decision;
+  char evidence[320] = "";
+  char causes[64];
+  if (level == drivers::AlarmLevel::kAlarm || level == drivers::AlarmLevel::kWarning ||
+      (level == drivers::AlarmLevel::kNormal && ps.have_window)) {
+    // Alarm/warning: the window that raised it; normal: the last judged window.
+    const bool episode = level != drivers::AlarmLevel::kNormal;
+    const std::int32_t cls = episode ? ps.alarm.trip.class_id : ps.last_window.class_id;
+    const double rms = episode ? ps.alarm.trip.rms_res : ps.last_window.features.rms_res;
+    const double ent = episode ? ps.alarm.trip.entropy_res : ps.last_window.features.entropy_res;
+    const dsp::FeatureThresholds& th = episode ? ps.alarm.trip.thresholds : ps.last_window.thresholds;
+    const std::uint32_t ab = episode ? ps.alarm.trip.abnormal_in_last_n : ps.last_window.abnormal_in_last_n;
+    char f1[64], f2[64];
+    (void)feature_text(f1, sizeof f1, "rms_res", rms, th.rms);
+    (void)feature_text(f2, sizeof f2, "entropy_res", ent, th.entropy);
+    cause_text(ps.report.causes, causes, sizeof causes);
+    std::snprintf(evidence, sizeof evidence,
+                  "class %d, %s, %s, %u of %u abnormal (warn %u, alarm %u); cause %s", static_cast<int>(cls),
+                  f1, f2, static_cast<unsigned>(ab), static_cast<unsigned>(dc.n),
+                  static_cast<unsigned>(cfg_.alarm.warning ? cfg_.alarm.warning_k : 0),
+                  static_cast<unsigned>(dc.k), causes);
+  } else {
+    cause_text(ps.report.causes, causes, sizeof causes);
+    std::snprintf(evidence, sizeof evidence, "no verdict (%s); cause %s", phase_name(ps.phase), causes);
+  }
+  if (level == drivers::AlarmLevel::kNormal) {
+    spdlog::info("{}{}) at {}: {}", head, extra, since, evidence);
+  } else {
+    spdlog::warn("{}{}) at {}: {}", head, extra, since, evidence);
+  }
+}
+
 void Daemon::check_training(std::int64_t now) {
   if (mode_ != PipelineMode::kTrain || !pipeline_ || pipeline_->trainer() == nullptr) return;
   const FieldTrainer& trainer = *pipeline_->trainer();
@@ -603,6 +702,7 @@ void Daemon::supervise(std::int64_t now) noexcept {
     spdlog::error("field training: {}", e.what());
   }
   fill_snapshot(now);
+  if (pipeline_) log_alarm_changes(pipeline_->status());
   if (writer_) {
     if (writer_->write(snapshot_) == StatusWriteResult::kOk)
       status_writes_.fetch_add(1, std::memory_order_relaxed);

@@ -129,6 +129,7 @@ class Daemon {
   void fill_snapshot(std::int64_t now) noexcept;
   void update_state_and_reason(std::int64_t now) noexcept;
   void log_counter_changes() noexcept;
+  void log_alarm_changes(const PipelineStatus& ps) noexcept;
   void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);
 
   DaemonOptions options_;
@@ -166,6 +167,8 @@ class Daemon {
   drivers::SampleSourceCounters last_source_{};
   dsp::SlicerCounters last_slicer_{};
   Phase last_phase_ = Phase::kStarting;
+  drivers::AlarmLevel last_level_ = drivers::AlarmLevel::kFault;  ///< level seen at the last supervise()
+  std::uint64_t last_level_changes_ = 0;                          ///< AlarmCounters::level_changes then
   DaemonState last_state_ = DaemonState::kConfigured;
   FixedString<kStatusTextBytes> reason_;
   FixedString<kStatusTextBytes> last_reload_error_;

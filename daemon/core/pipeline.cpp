@@ -684,11 +684,11 @@ void Pipeline::update_phase(std::int64_t now) noexcept {
     phase = Phase::kRefused;
     causes = drivers::kCauseBaseline;
   } else if (st_.ended) {
+    // The end of a replay is no input fault: no cause bit; the alarm manager shows kFault (no verdict).
     phase = Phase::kEnded;
-    causes = drivers::kCauseSensor;
     if (coverage_ && coverage_->state().level == dsp::CoverageLevel::kNotJudging) {
       phase = Phase::kNotJudging;  // the replay's verdict: it ended blind
-      causes |= drivers::kCauseCoverage;
+      causes = drivers::kCauseCoverage;
     }
   } else {
     const bool sensor_stale = !fast_ && (acq_end || now - last_block_arrival_ns_ > sensor_stale_ns_);
@@ -720,6 +720,10 @@ void Pipeline::update_phase(std::int64_t now) noexcept {
     st_.fault_causes = causes;
     faults_applied_ = true;
   }
+  if (st_.ended && !ended_applied_) {
+    alarm_->set_input_ended(alarm_time(fast_ ? st_.data_time_ns : now));
+    ended_applied_ = true;
+  }
 }
 
 void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
@@ -740,6 +744,7 @@ void Pipeline::publish(std::int64_t now, bool force) noexcept {
   if (!force && now - last_publish_ns_ < 20'000'000) return;
   if (engine_) st_.slicer = engine_->slicer().counters();
   if (train_slicer_) st_.slicer = train_slicer_->counters();
+  st_.clock_ns = alarm_time_ns_;
   st_.alarm = alarm_->state();
   st_.report = alarm_->report();
   st_.alarm_counters = alarm_->counters();

@@ -80,7 +80,8 @@ enum class Phase : std::uint8_t {
   kPausedSensor = 3,  ///< no vibration block for [daemon] sensor_stale_s (real-time sources)
   kRefused = 4,       ///< no usable baseline: nothing is judged
   kTraining = 5,      ///< field training: windows go to the FieldTrainer
-  kEnded = 6,         ///< a replay ended and every window was processed
+  kEnded = 6,         ///< a replay ended and every window was processed: kFault with no cause (no
+                      ///< verdict; not a sensor fault), daemon state "ended"
   kNotJudging = 7,    ///< running, but no window judged for [daemon] coverage_timeout_s of motion (or a
                       ///< finished replay judged nothing): kFault with cause coverage, never kNormal
 };
@@ -138,6 +139,8 @@ struct PipelineStatus {
   std::int64_t t0_mono_ns = 0;     ///< daemon time of sample 0
   std::int64_t data_time_ns = 0;   ///< end time of the newest vibration block pushed
   std::int64_t last_speed_ns = 0;  ///< newest speed sample (latency applied)
+  std::int64_t clock_ns = 0;       ///< the alarm manager's time base at publication (data time in fast
+                                   ///< replays, the daemon clock otherwise; never goes back)
   std::uint64_t windows = 0, scored = 0, no_class = 0, abnormal = 0, alarm_windows = 0;
   std::uint64_t blocks = 0, samples = 0, speeds = 0;
   std::uint64_t gap_samples = 0;     ///< samples declared missing to the engine (index jumps)
@@ -303,6 +306,7 @@ class Pipeline {
   std::int64_t last_dev_ = 0;  ///< previous block's stamp - nominal time
   bool have_any_speed_ = false;
   bool faults_applied_ = false;
+  bool ended_applied_ = false;      ///< the alarm manager was told the input ended
   std::int64_t alarm_time_ns_ = 0;  ///< monotone time base of the alarm manager
   std::int64_t last_block_arrival_ns_ = 0;
   std::int64_t hold_ns_ = 0;

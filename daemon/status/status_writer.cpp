@@ -8,6 +8,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <span>
 #include <string_view>
 
@@ -121,6 +122,18 @@ void TextBuffer::append_label_value(std::string_view s) noexcept {
   }
 }
 
+std::size_t format_rfc3339_utc(std::int64_t unix_ns, char* out, std::size_t cap) noexcept {
+  // 253402300799 s = 9999-12-31T23:59:59Z: four-digit years only.
+  if (cap < 25 || unix_ns < 0 || unix_ns / 1'000'000'000 > 253'402'300'799) return 0;
+  const std::time_t secs = static_cast<std::time_t>(unix_ns / 1'000'000'000);
+  const int ms = static_cast<int>((unix_ns % 1'000'000'000) / 1'000'000);
+  std::tm tm{};
+  if (::gmtime_r(&secs, &tm) == nullptr) return 0;
+  const int n = std::snprintf(out, cap, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900,
+                              tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, ms);
+  return n == 24 ? 24 : 0;
+}
+
 namespace {
 
 using drivers::AlarmLevel;
@@ -211,6 +224,16 @@ class Json {
     key(k);
     b_.append("null");
   }
+  /// RFC 3339 UTC text of a unix time in ns; null when unknown (0).
+  void utc(std::string_view k, std::int64_t unix_ns) noexcept {
+    char buf[32];
+    const std::size_t n = unix_ns > 0 ? format_rfc3339_utc(unix_ns, buf, sizeof buf) : 0;
+    if (n == 0) {
+      null(k);
+    } else {
+      str(k, std::string_view(buf, n));
+    }
+  }
 
  private:
   TextBuffer& b_;
@@ -295,9 +318,11 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   j.open('{');
   j.u64("version", 1);
   j.str("state", daemon_state_name(s.state));
+  j.str("phase", s.phase.view());
   j.str("reason", s.reason.view());
   j.secs("uptime_s", s.uptime_s);
   j.secs("now_s", s.now_s);
+  j.utc("now_utc", s.wall_time_unix_ns);
   j.i64("wall_time_unix_ns", s.wall_time_unix_ns);
   j.str("method", s.method.view());
 
@@ -333,6 +358,8 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
     j.key("last_window");
     j.open('{');
     j.secs("t_s", s.window_t_s);
+    j.utc("t_utc", s.window_wall_ns);
+    j.secs("age_s", s.now_s - s.window_t_s);
     j.i64("class", s.window_class);
     j.num("speed_rad_s", s.window_speed_rad_s);
     j.num("rms", s.window_rms);
@@ -352,6 +379,8 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   j.open('{');
   j.str("level", drivers::alarm_level_name(s.alarm_level));
   j.secs("since_s", s.alarm_since_s);
+  j.utc("since_utc", s.alarm_since_wall_ns);
+  j.secs("duration_s", s.now_s - s.alarm_since_s);
   j.boolean("latched", s.alarm_latched);
   j.key("causes");
   j.open('[');
@@ -366,6 +395,7 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
     j.open('{');
     j.i64("class", s.trip_class);
     j.secs("t_s", s.trip_t_s);
+    j.utc("t_utc", s.trip_wall_ns);
     j.num("rms", s.trip_rms);
     j.num("entropy", s.trip_entropy);
     j.str("detector", s.trip_detector);
@@ -494,6 +524,16 @@ class Prom {
     b_.append_double(v, {});
     b_.append_char('\n');
   }
+  /// A unix time in ns as seconds with milliseconds ("%.3f": %.9g would round it to 10 s).
+  void sample_unix(std::string_view name, std::int64_t unix_ns) noexcept {
+    begin(name, {});
+    b_.append_i64(unix_ns / 1'000'000'000);
+    char ms[8];
+    const int n =
+        std::snprintf(ms, sizeof ms, ".%03d", static_cast<int>((unix_ns % 1'000'000'000) / 1'000'000));
+    if (n == 4) b_.append(std::string_view(ms, 4));
+    b_.append_char('\n');
+  }
   void sample_u64(std::string_view name,
                   std::initializer_list<std::pair<std::string_view, std::string_view>> labels,
                   std::uint64_t v) noexcept {
@@ -523,19 +563,25 @@ std::string_view small_int(char (&buf)[16], std::int64_t v) noexcept {
 void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   Prom p(b);
   p.family("ptda_info", "gauge",
-           "Constant 1; labels: monitoring method, state reason, baseline path and source.");
+           "Constant 1; labels: monitoring method, phase, state reason, baseline path and source.");
   p.sample("ptda_info",
            {{"method", s.method.view()},
+            {"phase", s.phase.view()},
             {"reason", s.reason.view()},
             {"baseline_path", s.baseline_path.view()},
             {"baseline_source", s.baseline_source.view()}},
            1.0);
   p.family("ptda_state", "gauge", "1 for the daemon's current state, 0 for the others.");
-  for (const DaemonState st : {DaemonState::kConfigured, DaemonState::kRunning, DaemonState::kPaused,
-                               DaemonState::kRefused, DaemonState::kTraining, DaemonState::kStopping}) {
+  for (const DaemonState st :
+       {DaemonState::kConfigured, DaemonState::kRunning, DaemonState::kPaused, DaemonState::kRefused,
+        DaemonState::kTraining, DaemonState::kStopping, DaemonState::kEnded}) {
     p.sample("ptda_state", {{"state", daemon_state_name(st)}}, st == s.state ? 1.0 : 0.0);
   }
   p.gauge("ptda_uptime_seconds", "Seconds since the daemon started.", s.uptime_s);
+  if (s.wall_time_unix_ns > 0) {
+    p.family("ptda_status_timestamp_seconds", "gauge", "Unix time (UTC) when this file was written.");
+    p.sample_unix("ptda_status_timestamp_seconds", s.wall_time_unix_ns);
+  }
 
   p.gauge("ptda_baseline_loaded", "1 when a baseline is loaded and accepted.", s.baseline_loaded ? 1.0 : 0.0);
   p.gauge("ptda_baseline_sample_rate_hertz", "Sample rate the baseline was trained at.", s.baseline_fs_hz);
@@ -577,6 +623,10 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   }
   p.family("ptda_window_age_seconds", "gauge", "Seconds since the end of the last scored window.");
   if (s.have_window) p.sample("ptda_window_age_seconds", {}, s.now_s - s.window_t_s);
+  p.family("ptda_window_end_timestamp_seconds", "gauge", "Unix time (UTC) of the last scored window's end.");
+  if (s.have_window && s.window_wall_ns > 0) {
+    p.sample_unix("ptda_window_end_timestamp_seconds", s.window_wall_ns);
+  }
   p.gauge("ptda_abnormal_windows", "Abnormal windows among the debouncer's last n.",
           s.window_abnormal_in_last_n);
 
@@ -589,6 +639,11 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
   p.gauge("ptda_alarm_latched", "1 while an alarm waits for an accepted clear.", s.alarm_latched ? 1.0 : 0.0);
   p.gauge("ptda_alarm_level_duration_seconds", "Seconds since the level was entered.",
           s.now_s - s.alarm_since_s);
+  p.family("ptda_alarm_level_since_timestamp_seconds", "gauge",
+           "Unix time (UTC) when the level was entered.");
+  if (s.alarm_since_wall_ns > 0) {
+    p.sample_unix("ptda_alarm_level_since_timestamp_seconds", s.alarm_since_wall_ns);
+  }
 
   if (s.coverage_known) {
     const dsp::CoverageState& c = s.coverage;

@@ -5,13 +5,16 @@
 //
 // JSON layout (keys in this order; times are seconds as decimals, feature values %.9g, strings escaped
 // per RFC 8259 with \" \\ \b \f \n \r \t and \u00XX for other control characters):
-//   {"version":1,"state":..,"reason":..,"uptime_s":..,"wall_time_unix_s":..,"method":..,
-//    "baseline":{"loaded":..,"path":..,"fs_hz":..,"window_len":..,"source":..,"classes":[{...}]},
+//   {"version":1,"state":..,"phase":..,"reason":..,"uptime_s":..,"now_s":..,"now_utc":..,
+//    "wall_time_unix_ns":..,"method":..,"baseline":{"loaded":..,"path":..,"fs_hz":..,"window_len":..,"source":..,"classes":[{...}]},
 //    "last_window":{...}|null,"alarm":{...},"coverage":{...}|null,"training":{...}|null,
 //    "acquisition":{...},"can":{...},"slicer":{...},"pipeline":{...}}
 // Prometheus (text exposition format 0.0.4): `# HELP` and `# TYPE` for every metric family, names
 // `ptda_*`, `_total` for counters, units in names (`_seconds`, `_hertz`, `_radians_per_second`),
 // label values escaped (\\ \" \n). docs/systemd.md ("Status files") lists every metric.
+// Times: every `*_s` time is on the daemon's status timeline (now_s; see StatusSnapshot::now_s), every
+// age/duration is now_s minus such a time (never negative), every `*_utc` is RFC 3339 UTC text with
+// milliseconds ("2026-11-25T04:31:07.250Z"), null when unknown.
 #pragma once
 
 #include <array>
@@ -53,6 +56,7 @@ enum class DaemonState : std::uint8_t {
   kRefused = 3,     ///< cannot monitor: baseline refused / missing, see reason
   kTraining = 4,    ///< field training mode
   kStopping = 5,
+  kEnded = 6,  ///< a replay ended and every window was processed (not a fault of the input)
 };
 
 [[nodiscard]] constexpr std::string_view daemon_state_name(DaemonState s) noexcept {
@@ -69,6 +73,8 @@ enum class DaemonState : std::uint8_t {
       return "training";
     case DaemonState::kStopping:
       return "stopping";
+    case DaemonState::kEnded:
+      return "ended";
   }
   return "?";
 }
@@ -107,9 +113,13 @@ struct StatusSnapshot {
   DaemonState state = DaemonState::kConfigured;
   FixedString<kStatusTextBytes> reason;  ///< why (refused: which check; paused: by whom); may be empty
   FixedString<16> method;                ///< "ptda" / "tda" / "raw"
+  FixedString<32> phase;  ///< what the processing stage is doing ("monitoring", "replay ended", ...)
   double uptime_s = 0.0;
-  double now_s = 0.0;                  ///< daemon monotonic seconds when the snapshot was taken
-  std::int64_t wall_time_unix_ns = 0;  ///< when the snapshot was taken (0 = unknown)
+  /// Seconds on the status timeline when the snapshot was taken: the daemon's monotonic clock, or the
+  /// newest data time when the data runs ahead of it (a fast replay stamps data at the replay's pace:
+  /// the window and alarm times below are then data times). Every age is now_s minus a time.
+  double now_s = 0.0;
+  std::int64_t wall_time_unix_ns = 0;  ///< CLOCK_REALTIME when the snapshot was taken (0 = unknown)
 
   // Baseline.
   bool baseline_loaded = false;
@@ -123,7 +133,8 @@ struct StatusSnapshot {
 
   // Last scored window.
   bool have_window = false;
-  double window_t_s = 0.0;  ///< its end, daemon monotonic seconds
+  double window_t_s = 0.0;          ///< its end, status-timeline seconds
+  std::int64_t window_wall_ns = 0;  ///< the same instant, unix ns (0 = unknown)
   std::int32_t window_class = -1;
   double window_speed_rad_s = 0.0;
   double window_rms = 0.0, window_entropy = 0.0;
@@ -134,7 +145,8 @@ struct StatusSnapshot {
 
   // Alarm.
   drivers::AlarmLevel alarm_level = drivers::AlarmLevel::kFault;
-  double alarm_since_s = 0.0;  ///< daemon monotonic seconds
+  double alarm_since_s = 0.0;            ///< when the level was entered, status-timeline seconds
+  std::int64_t alarm_since_wall_ns = 0;  ///< the same instant, unix ns (0 = unknown)
   bool alarm_latched = false;
   std::uint8_t alarm_causes = 0;  ///< AlarmCause bits
   std::int32_t trip_class = -1;   ///< the window that raised the alarm (-1: none)
@@ -142,6 +154,7 @@ struct StatusSnapshot {
   double trip_t_s = 0.0;
   const char* trip_detector = "none";  ///< dsp::alarm_detector_name of the trip window
   double trip_cusum = 0.0;             ///< largest class CUSUM at the trip window
+  std::int64_t trip_wall_ns = 0;  ///< unix ns (0 = unknown)
 
   // Field training (state == kTraining).
   std::uint64_t training_windows = 0;
@@ -174,6 +187,11 @@ struct StatusSnapshot {
   double coverage_timeout_s = 0.0;
   dsp::CoverageState coverage;
 };
+
+/// RFC 3339 UTC text with milliseconds ("2026-11-25T04:31:07.250Z", 24 characters) of a unix time in
+/// ns into `out`; returns the length, 0 when `cap` < 25 or the time is before 1970 or after 9999.
+/// Thread: any. Never allocates (gmtime_r, no time zone lookup).
+std::size_t format_rfc3339_utc(std::int64_t unix_ns, char* out, std::size_t cap) noexcept;
 
 /// Appends text into a fixed char buffer; on overflow it stops writing and remembers it.
 class TextBuffer {

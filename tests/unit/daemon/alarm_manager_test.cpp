@@ -330,3 +330,34 @@ TEST(AlarmManager, RejectsBadConfiguration) {
 
 }  // namespace
 }  // namespace ptda::daemon
+
+namespace ptda::daemon {
+namespace {
+
+// The end of a replay: no verdict (kFault) with no cause bit of its own, but a raised alarm stays.
+TEST(AlarmManager, InputEndedIsFaultWithoutCauseAndKeepsAnAlarm) {
+  constexpr std::int64_t kSec = 1'000'000'000;
+  AlarmManagerConfig cfg;
+  cfg.min_hold_s = 10.0;
+  cfg.latch = true;
+  AlarmManager healthy(cfg, 0);
+  dsp::WindowResult w;
+  w.status = dsp::WindowStatus::kScored;
+  w.class_id = 0;
+  ASSERT_EQ(healthy.on_window(w, 1 * kSec), drivers::AlarmLevel::kNormal);
+  EXPECT_EQ(healthy.set_input_ended(2 * kSec), drivers::AlarmLevel::kFault);
+  EXPECT_EQ(healthy.report().causes, 0);
+  EXPECT_EQ(healthy.state().since_ns, 2 * kSec);
+  EXPECT_EQ(healthy.tick(3 * kSec), drivers::AlarmLevel::kFault);  // for good
+
+  AlarmManager alarmed(cfg, 0);
+  w.verdict.rms_out = true;
+  w.alarm = true;
+  w.abnormal_in_last_n = 3;
+  ASSERT_EQ(alarmed.on_window(w, 1 * kSec), drivers::AlarmLevel::kAlarm);
+  EXPECT_EQ(alarmed.set_input_ended(2 * kSec), drivers::AlarmLevel::kAlarm);
+  EXPECT_EQ(alarmed.report().causes, drivers::kCauseRms);
+}
+
+}  // namespace
+}  // namespace ptda::daemon

@@ -227,7 +227,8 @@ TEST_F(Coverage, SpeedsMatchingNoClassEndNotJudgingInEveryOutput) {
   // status.json: reason, cause and the coverage object.
   EXPECT_TRUE(has(r.status_json, "\"reason\":\"not judging: no window matches a trained class (seen "))
       << r.status_json;
-  EXPECT_TRUE(has(r.status_json, "\"causes\":[\"sensor\",\"coverage\"]")) << r.status_json;
+  // The end of the replay adds no cause of its own (it used to show as a sensor fault).
+  EXPECT_TRUE(has(r.status_json, "\"causes\":[\"coverage\"]")) << r.status_json;
   EXPECT_TRUE(has(r.status_json,
                   "\"coverage\":{\"state\":\"not judging\",\"timeout_s\":5,\"judged\":0,"
                   "\"unmatched\":{\"speed\":" +

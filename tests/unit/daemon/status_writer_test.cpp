@@ -160,6 +160,7 @@ std::string slurp(const fs::path& p) {
 StatusSnapshot known_snapshot() {
   StatusSnapshot s;
   s.state = DaemonState::kRunning;
+  s.phase.assign("monitoring");
   s.reason.assign("");
   s.method.assign("ptda");
   s.uptime_s = 3600.25;
@@ -176,6 +177,7 @@ StatusSnapshot known_snapshot() {
   s.classes[1] = StatusClass{1, -1, 0.25, 2.0, 12, 60, 0.011, 0.021, 0.81, 0.91};
   s.have_window = true;
   s.window_t_s = 4999.125;
+  s.window_wall_ns = 1700000000123456789 - 1'375'000'000;  // 1.375 s before the snapshot, as window_t_s
   s.window_class = 1;
   s.window_speed_rad_s = -0.25;
   s.window_rms = 0.025;
@@ -188,10 +190,12 @@ StatusSnapshot known_snapshot() {
   s.window_abnormal_in_last_n = 3;
   s.alarm_level = drivers::AlarmLevel::kAlarm;
   s.alarm_since_s = 4990.0;
+  s.alarm_since_wall_ns = 1700000000123456789 - 10'500'000'000;
   s.alarm_latched = true;
   s.alarm_causes = drivers::kCauseRms | drivers::kCauseSpeed;
   s.trip_class = 1;
   s.trip_t_s = 4990.0;
+  s.trip_wall_ns = 1700000000123456789 - 10'500'000'000;
   s.trip_rms = 0.03;
   s.trip_entropy = 0.86;
   s.trip_detector = "k_of_n+sequential";
@@ -233,19 +237,21 @@ StatusSnapshot known_snapshot() {
 }
 
 constexpr std::string_view kKnownJson =
-    R"({"version":1,"state":"running","reason":"","uptime_s":3600.250,"now_s":5000.500,)"
-    R"("wall_time_unix_ns":1700000000123456789,"method":"ptda",)"
+    R"({"version":1,"state":"running","phase":"monitoring","reason":"","uptime_s":3600.250,"now_s":5000.500,)"
+    R"("now_utc":"2023-11-14T22:13:20.123Z","wall_time_unix_ns":1700000000123456789,"method":"ptda",)"
     R"("baseline":{"loaded":true,"path":"/var/lib/ptda/baseline.bin","source":"ptda train rec/2024-05-01",)"
     R"("fs_hz":25600,"window_len":4096,"class_count":2,"classes":[)"
     R"({"id":0,"direction":1,"speed_rad_s":0.5,"duration_s":1.5,"regions":12,"n_windows":48,)"
     R"("rms_band":[0.01,0.02],"entropy_band":[0.8,0.9]},)"
     R"({"id":1,"direction":-1,"speed_rad_s":0.25,"duration_s":2,"regions":12,"n_windows":60,)"
     R"("rms_band":[0.011,0.021],"entropy_band":[0.81,0.91]}]},)"
-    R"("last_window":{"t_s":4999.125,"class":1,"speed_rad_s":-0.25,"rms":0.025,"entropy":0.85,)"
+    R"("last_window":{"t_s":4999.125,"t_utc":"2023-11-14T22:13:18.748Z","age_s":1.375,"class":1,"speed_rad_s":-0.25,"rms":0.025,"entropy":0.85,)"
     R"("rms_band":[0.011,0.021],"entropy_band":[0.81,0.91],"rms_out":true,"entropy_out":false,)"
     R"("abnormal":true,"abnormal_in_last_n":3},)"
-    R"("alarm":{"level":"alarm","since_s":4990.000,"latched":true,"causes":["rms","speed"],)"
-    R"("trip":{"class":1,"t_s":4990.000,"rms":0.03,"entropy":0.86,"detector":"k_of_n+sequential","cusum":7.5}},)"
+    R"("alarm":{"level":"alarm","since_s":4990.000,"since_utc":"2023-11-14T22:13:09.623Z","duration_s":10.500,)"
+    R"("latched":true,"causes":["rms","speed"],)"
+    R"("trip":{"class":1,"t_s":4990.000,"t_utc":"2023-11-14T22:13:09.623Z","rms":0.03,"entropy":0.86,)"
+    R"("detector":"k_of_n+sequential","cusum":7.5}},)"
     R"("coverage":{"state":"partial","timeout_s":60,"judged":107,)"
     R"("unmatched":{"speed":1,"direction":0,"invalid":0},"last_judged_age_s":0.875,)"
     R"("motion_since_judged_s":0.500,"classes":[{"id":0,"judged":0,"last_judged_age_s":null,"current":false},)"
@@ -282,8 +288,11 @@ TEST(StatusWriter, JsonForEmptyAndTrainingSnapshots) {
   EXPECT_NE(text.find(R"("state":"configured")"), std::string::npos);
   EXPECT_NE(text.find(R"("classes":[])"), std::string::npos);
   EXPECT_NE(text.find(R"("last_window":null)"), std::string::npos);
-  EXPECT_NE(text.find(R"("alarm":{"level":"fault","since_s":0.000,"latched":false,"causes":[],"trip":null})"),
-            std::string::npos)
+  EXPECT_NE(
+      text.find(
+          R"("alarm":{"level":"fault","since_s":0.000,"since_utc":null,"duration_s":0.000,"latched":false,)"
+          R"("causes":[],"trip":null})"),
+      std::string::npos)
       << text;
 
   s.state = DaemonState::kTraining;
@@ -358,14 +367,16 @@ TEST(StatusWriter, PrometheusLines) {
   const std::string text(w.render_prometheus(s));
 
   EXPECT_EQ(samples_of(text, "ptda_info"),
-            std::vector<std::string>{R"(ptda_info{method="ptda",reason="operator \"jo\"\\n\nnext",)"
-                                     R"(baseline_path="/var/lib/ptda/base\\line.bin",)"
-                                     R"(baseline_source="ptda train rec/2024-05-01"} 1)"});
+            std::vector<std::string>{
+                R"(ptda_info{method="ptda",phase="monitoring",reason="operator \"jo\"\\n\nnext",)"
+                R"(baseline_path="/var/lib/ptda/base\\line.bin",)"
+                R"(baseline_source="ptda train rec/2024-05-01"} 1)"});
   EXPECT_EQ(
       samples_of(text, "ptda_state"),
       (std::vector<std::string>{R"(ptda_state{state="configured"} 0)", R"(ptda_state{state="running"} 1)",
                                 R"(ptda_state{state="paused"} 0)", R"(ptda_state{state="refused"} 0)",
-                                R"(ptda_state{state="training"} 0)", R"(ptda_state{state="stopping"} 0)"}));
+                                R"(ptda_state{state="training"} 0)", R"(ptda_state{state="stopping"} 0)",
+                                R"(ptda_state{state="ended"} 0)"}));
   EXPECT_EQ(samples_of(text, "ptda_rms_threshold"),
             (std::vector<std::string>{R"(ptda_rms_threshold{class="0",bound="low"} 0.01)",
                                       R"(ptda_rms_threshold{class="0",bound="high"} 0.02)",

@@ -1,0 +1,263 @@
+// Status for people (issue 17, item 3): every time in status.json and the metrics is non-negative and
+// has its wall-clock (RFC 3339) twin, alarm level changes are logged by the supervisor with their
+// evidence, and the end of a replay is its own phase (state "ended"), not a sensor fault.
+//
+// The replays run at fast pace: data time then runs far ahead of the daemon clock (the arc job's ~60 s
+// of data in a few seconds), which is what made window_age and alarm_level_duration negative.
+#include <gtest/gtest.h>
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
+#include <time.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <ctime>
+#include <mutex>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "daemon_test_support.hpp"
+#include "status/status_writer.hpp"
+
+namespace ptda::daemon::test {
+namespace {
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+bool has(const std::string& text, const std::string& needle) {
+  return text.find(needle) != std::string::npos;
+}
+
+/// Unix seconds of RFC 3339 UTC text as the status writer writes it ("2026-11-25T04:31:07.250Z"); -1 when
+/// it does not parse.
+double parse_rfc3339_utc(const std::string& s) {
+  static const std::regex re(R"(^(\d{4})-(\d{2})-(\d{2})T(\d{2}):(\d{2}):(\d{2})\.(\d{3})Z$)");
+  std::smatch m;
+  if (!std::regex_match(s, m, re)) return -1.0;
+  std::tm tm{};
+  tm.tm_year = std::stoi(m[1]) - 1900;
+  tm.tm_mon = std::stoi(m[2]) - 1;
+  tm.tm_mday = std::stoi(m[3]);
+  tm.tm_hour = std::stoi(m[4]);
+  tm.tm_min = std::stoi(m[5]);
+  tm.tm_sec = std::stoi(m[6]);
+  if (tm.tm_mon > 11 || tm.tm_mday < 1 || tm.tm_mday > 31 || tm.tm_hour > 23 || tm.tm_min > 59 ||
+      tm.tm_sec > 60) {
+    return -1.0;
+  }
+  return static_cast<double>(::timegm(&tm)) + std::stoi(m[7]) * 1e-3;
+}
+
+/// Checks one status.json text: every time (`*_s` except speeds) is >= 0, every `*_utc` parses and lies
+/// within a day of the test's wall clock, and the named wall-clock fields are present and not null.
+/// Returns the number of time fields checked.
+int check_status_json(const std::string& json, const std::vector<std::string>& required_utc) {
+  const double wall_now = static_cast<double>(std::time(nullptr));
+  static const std::regex field(R"re("([a-z_]+)":(null|"[^"]*"|-?[0-9][0-9.eE+-]*))re");
+  int times = 0;
+  std::vector<std::string> seen_utc;
+  for (auto it = std::sregex_iterator(json.begin(), json.end(), field); it != std::sregex_iterator(); ++it) {
+    const std::string key = (*it)[1];
+    const std::string value = (*it)[2];
+    const bool speed = key.size() >= 6 && key.compare(key.size() - 6, 6, "_rad_s") == 0;
+    if (!speed && key.size() > 2 && key.compare(key.size() - 2, 2, "_s") == 0 && value != "null") {
+      ++times;
+      EXPECT_GE(std::strtod(value.c_str(), nullptr), 0.0) << key << " = " << value << " in " << json;
+    }
+    if (key.size() > 4 && key.compare(key.size() - 4, 4, "_utc") == 0) {
+      if (value == "null" || value.size() < 2) {
+        EXPECT_EQ(value, "null") << key;
+        continue;
+      }
+      const double t = parse_rfc3339_utc(value.substr(1, value.size() - 2));
+      EXPECT_GT(t, wall_now - 86400.0) << key << " = " << value;
+      EXPECT_LT(t, wall_now + 86400.0) << key << " = " << value;
+      seen_utc.push_back(key);
+    }
+  }
+  for (const std::string& k : required_utc) {
+    EXPECT_NE(std::find(seen_utc.begin(), seen_utc.end(), k), seen_utc.end()) << k << " missing in " << json;
+  }
+  return times;
+}
+
+/// Every `*_seconds` sample of the Prometheus text is >= 0; `*_timestamp_seconds` are unix times within a
+/// day of now. Returns the number checked.
+int check_metrics(const std::string& prom) {
+  const double wall_now = static_cast<double>(std::time(nullptr));
+  std::istringstream in(prom);
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    const std::size_t sp = line.rfind(' ');
+    std::string name = line.substr(0, line.find_first_of("{ "));
+    if (name.size() < 8 || name.compare(name.size() - 8, 8, "_seconds") != 0) continue;
+    const double v = std::strtod(line.c_str() + sp + 1, nullptr);
+    ++n;
+    EXPECT_GE(v, 0.0) << line;
+    if (name.find("_timestamp_seconds") != std::string::npos) {
+      EXPECT_GT(v, wall_now - 86400.0) << line;
+      EXPECT_LT(v, wall_now + 86400.0) << line;
+    }
+  }
+  return n;
+}
+
+/// Captures every log line of the default logger for the life of the object.
+class LogCapture {
+ public:
+  LogCapture() : previous_(spdlog::default_logger()) {
+    auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(out_);
+    auto logger = std::make_shared<spdlog::logger>("capture", sink);
+    logger->set_pattern("%l: %v");
+    logger->set_level(spdlog::level::trace);
+    spdlog::set_default_logger(logger);
+  }
+  ~LogCapture() { spdlog::set_default_logger(previous_); }
+  LogCapture(const LogCapture&) = delete;
+  LogCapture& operator=(const LogCapture&) = delete;
+  [[nodiscard]] std::string text() {
+    spdlog::default_logger()->flush();
+    return out_.str();
+  }
+
+ private:
+  std::shared_ptr<spdlog::logger> previous_;
+  std::ostringstream out_;
+};
+
+struct Outcome {
+  DaemonView view;
+  std::string status_json, metrics, log;
+  std::vector<std::string> snapshots;  ///< status.json texts read while the daemon ran
+};
+
+/// Replays `scenario` (seed 7) at fast pace against the healthy arc baseline until the end.
+Outcome replay(const std::string& name, const std::string& scenario) {
+  const fs::path dir = scratch(name);
+  write_sim_baseline(dir / "baseline.bin");
+  std::string cfg = sim_config(dir / "baseline.bin", dir / "status", "fast",
+                               "metrics_path = \"" + (dir / "ptda.prom").string() + "\"\n");
+  const std::string healthy = arc_scenario().string();
+  cfg.replace(cfg.find(healthy), healthy.size(), (arc_scenario().parent_path() / scenario).string());
+  const std::string pace = "pace = \"fast\"\n";  // the first one is [adc]'s: one pass, then the end
+  cfg.insert(cfg.find(pace) + pace.size(), "loop = false\n");
+  write_text(dir / "ptdad.toml", cfg);
+  LogCapture log;
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  drivers::MonotonicClock clock;
+  Daemon d(opt, clock);
+  d.configure();
+  d.activate();
+  Outcome r;
+  {
+    DaemonRunThread runner(d);
+    // Until the replay ended and the supervisor wrote that state, then stop (not --exit-at-end: its
+    // last status.json says "stopping").
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (std::chrono::steady_clock::now() < deadline) {
+      std::string s = read_text(dir / "status" / "status.json");
+      if (!s.empty() && s.back() == '\n') {
+        if (r.snapshots.empty() || r.snapshots.back() != s) r.snapshots.push_back(s);
+        const DaemonView v = d.view();
+        // status.json is replaced before the metrics file: wait for both to show the end.
+        if ((v.phase == Phase::kEnded || v.phase == Phase::kNotJudging) && has(s, "\"state\":\"ended\"") &&
+            has(read_text(dir / "ptda.prom"), "\nptda_state{state=\"ended\"} 1\n")) {
+          break;
+        }
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    r.view = d.view();
+    r.status_json = read_text(dir / "status" / "status.json");
+    r.metrics = read_text(dir / "ptda.prom");
+  }
+  r.log = log.text();
+  return r;
+}
+
+class StatusTimes : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { block_daemon_signals(); }
+};
+
+TEST(StatusTimesFormat, Rfc3339Utc) {
+  char buf[32];
+  ASSERT_EQ(format_rfc3339_utc(0, buf, sizeof buf), 24U);
+  EXPECT_STREQ(buf, "1970-01-01T00:00:00.000Z");
+  // 1795581067.250999 s: `date -u -d @1795581067` = Wed Nov 25 04:31:07 UTC 2026; ms truncated.
+  ASSERT_EQ(format_rfc3339_utc(1'795'581'067'250'999'000, buf, sizeof buf), 24U);
+  EXPECT_STREQ(buf, "2026-11-25T04:31:07.250Z");
+  EXPECT_DOUBLE_EQ(parse_rfc3339_utc(buf), 1795581067.25);
+  EXPECT_EQ(format_rfc3339_utc(-1, buf, sizeof buf), 0U);
+  EXPECT_EQ(format_rfc3339_utc(0, buf, 24), 0U);  // no room for the NUL
+}
+
+TEST_F(StatusTimes, HealthyReplayHasNoNegativeTimeAndWallClockTimes) {
+  const Outcome r = replay("status_times_healthy", "arc_welding_healthy.toml");
+  ASSERT_GT(r.view.pipeline.scored, 10U);
+  // Final files: the last window, the alarm level and the snapshot itself carry UTC times.
+  EXPECT_GE(check_status_json(r.status_json, {"now_utc", "t_utc", "since_utc"}), 8) << r.status_json;
+  static const std::regex now_s(R"("now_s":([0-9.]+))");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.status_json, m, now_s)) << r.status_json;
+  EXPECT_GT(std::stod(m[1]), 0.0);  // was always 0
+  EXPECT_GE(check_metrics(r.metrics), 6) << r.metrics;
+  EXPECT_TRUE(has(r.metrics, "\nptda_window_age_seconds ")) << r.metrics;
+  EXPECT_TRUE(has(r.metrics, "\nptda_alarm_level_duration_seconds ")) << r.metrics;
+  EXPECT_TRUE(has(r.metrics, "\nptda_alarm_level_since_timestamp_seconds ")) << r.metrics;
+  EXPECT_TRUE(has(r.metrics, "\nptda_window_end_timestamp_seconds ")) << r.metrics;
+  EXPECT_TRUE(has(r.metrics, "\nptda_status_timestamp_seconds ")) << r.metrics;
+  // Every status.json written during the replay as well (the data ran ahead of the clock then).
+  ASSERT_GE(r.snapshots.size(), 1U);
+  for (const std::string& s : r.snapshots) check_status_json(s, {"now_utc"});
+}
+
+TEST_F(StatusTimes, AlarmLevelChangesAreLoggedWithEvidence) {
+  // The faulty arc job against the healthy baseline raises the alarm (k = 4 of n = 10,
+  // config/examples/arc_welding.toml).
+  const Outcome r = replay("status_times_faulty", "arc_welding_faulty.toml");
+  ASSERT_GT(r.view.pipeline.alarm_counters.alarms_raised, 0U);
+  // The first verdict after "not judged yet", and the alarm with the window that raised it.
+  EXPECT_TRUE(has(r.log, "alarm level normal (was fault") || has(r.log, "alarm level warning (was fault") ||
+              has(r.log, "alarm level alarm (was fault"))
+      << r.log;
+  static const std::regex alarm_line(
+      R"(warning: alarm level alarm \(was [a-z]+[^)]*\) at \d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z: class \d+, )"
+      R"(rms_res \S+ (in|out of) \[\S+, \S+\], entropy_res \S+ (in|out of) \[\S+, \S+\], \d+ of 10 abnormal )"
+      R"(\(warn 1, alarm 4\); cause (rms|entropy|rms\+entropy))");
+  EXPECT_TRUE(std::regex_search(r.log, alarm_line)) << r.log;
+  // The end of the replay ends the verdict: fault, no cause, phase "replay ended".
+  EXPECT_TRUE(has(r.log, "no verdict (replay ended); cause none") || r.view.pipeline.alarm.alarm_active)
+      << r.log;
+}
+
+TEST_F(StatusTimes, EndOfReplayIsItsOwnPhaseNotASensorFault) {
+  const Outcome r = replay("status_times_end", "arc_welding_healthy.toml");
+  EXPECT_EQ(r.view.phase, Phase::kEnded) << phase_name(r.view.phase);
+  EXPECT_EQ(r.view.state, DaemonState::kEnded);
+  EXPECT_EQ(r.view.pipeline.report.level, drivers::AlarmLevel::kFault);  // no verdict after the end
+  EXPECT_EQ(r.view.pipeline.report.causes & drivers::kCauseSensor, 0);
+  EXPECT_EQ(r.view.pipeline.fault_causes, 0);
+  EXPECT_TRUE(
+      has(r.status_json, "\"state\":\"ended\",\"phase\":\"replay ended\",\"reason\":\"replay ended; "))
+      << r.status_json;
+  EXPECT_FALSE(has(r.status_json, "\"sensor\"")) << r.status_json;
+  EXPECT_TRUE(has(r.metrics, "\nptda_state{state=\"ended\"} 1\n")) << r.metrics;
+  EXPECT_TRUE(has(r.metrics, "\nptda_alarm_cause{cause=\"sensor\"} 0\n")) << r.metrics;
+  EXPECT_TRUE(has(r.log, "info: state ended (replay ended): replay ended; ")) << r.log;
+}
+
+}  // namespace
+}  // namespace ptda::daemon::test
