@@ -5,6 +5,7 @@
 //   - the same job at the trained speeds: exit 0, coverage full, no warning;
 //   - monitoring the training recording warns "in-sample"; monitoring its held-out half does not.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <string>
@@ -26,7 +27,8 @@ struct Prepared {
 const Prepared& prepared() {
   static const Prepared p = [] {
     Prepared q;
-    q.dir = scratch_dir("monitor_coverage");
+    // One directory per process: ctest runs this file's tests as parallel processes.
+    q.dir = scratch_dir("monitor_coverage_" + std::to_string(::getpid()));
     const fs::path scen = source_dir() / "config" / "scenarios" / "arc_welding_healthy.toml";
     q.config = (source_dir() / "config" / "examples" / "arc_welding.toml").string();
     q.healthy = q.dir / "healthy";
