@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "ptda/common/error.hpp"
+#include "ptda/common/file_check.hpp"
 #include "ptda/common/time.hpp"
 #include "ptda/formats/wav.hpp"
 
@@ -136,10 +137,11 @@ RecordingMeta read_recording_meta(const std::filesystem::path& dir) {
   const std::filesystem::path file = dir / kMetaFile;
   const std::string name = file.string();
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec)) throw Error(name + ": recording.toml not found");
+  if (!std::filesystem::exists(file, ec)) throw Error(name + ": recording.toml not found");
+  const std::string text = read_regular_file(file, kMaxConfigFileBytes, "recording.toml");
   toml::table root;
   try {
-    root = toml::parse_file(name);
+    root = toml::parse(text, name);
   } catch (const toml::parse_error& e) {
     throw Error(name, static_cast<long>(e.source().begin.line), static_cast<long>(e.source().begin.column),
                 std::string(e.description()));
