@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages ptda builds and tests with. Idempotent: apt runs only when something
 # is missing. Needs root (or sudo) on a fresh machine; nothing is downloaded from outside Debian.
-# Usage: scripts/bootstrap.sh [base] [cross] [vm] [pkg]     (base is always included)
+# Usage: scripts/bootstrap.sh [base] [cross] [vm] [pkg] [fuzz]     (base is always included)
 #   cross - aarch64/armhf cross compilers, qemu-user, the foreign architectures for apt-get download
 #           (the target libraries go into a sysroot: scripts/sysroot.sh)
 #   vm    - qemu-system for the x86_64 and aarch64 kernel tests, busybox, cpio
 #   pkg   - what the .deb build and the install/upgrade/remove test need
+#   fuzz  - clang and its libFuzzer runtime (scripts/fuzz.sh, tests/fuzz)
 set -euo pipefail
 
 BASE=(
@@ -18,6 +19,7 @@ BASE=(
 CROSS=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev)
 VM=(qemu-system-x86 qemu-system-arm busybox-static cpio iproute2 can-utils gpiod dpkg-dev xz-utils)
 PKG=(dpkg-dev fakeroot debootstrap file)
+FUZZ=(clang-14 libclang-rt-14-dev)
 
 groups=("$@")
 packages=("${BASE[@]}")
@@ -28,7 +30,8 @@ for g in "${groups[@]}"; do
     cross) packages+=("${CROSS[@]}"); foreign+=(arm64 armhf) ;;
     vm) packages+=("${VM[@]}"); foreign+=(arm64) ;;
     pkg) packages+=("${PKG[@]}") ;;
-    *) echo "bootstrap: unknown group '$g' (base, cross, vm, pkg)" >&2; exit 2 ;;
+    fuzz) packages+=("${FUZZ[@]}") ;;
+    *) echo "bootstrap: unknown group '$g' (base, cross, vm, pkg, fuzz)" >&2; exit 2 ;;
   esac
 done
 packages+=(${PTDA_EXTRA_PACKAGES:-})

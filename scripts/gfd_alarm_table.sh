@@ -64,9 +64,9 @@ for load in $loads; do
   for ch in $channels; do
     d=$work/${load}_$ch
     mkdir -p "$d"
-    "$ptda" import --csv "$data/h30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz \
+    "$ptda" import --csv "$data/h30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz --force \
       --out "$d/healthy" >"$d/import_healthy.txt"
-    "$ptda" import --csv "$data/b30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz \
+    "$ptda" import --csv "$data/b30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz --force \
       --out "$d/broken" >"$d/import_broken.txt"
     "$ptda" train --recording "$d/healthy" --config "$config" --out "$d/baseline.bin" --windows 0:0.5 \
       >"$d/train.txt"

@@ -53,9 +53,9 @@ for load in $loads; do
     case_dir=$work/load${load}_$ch
     mkdir -p "$case_dir"
     echo "== load $load %, channel $ch" >&2
-    "$ptda" import --csv "$data/h30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz \
+    "$ptda" import --csv "$data/h30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz --force \
       --out "$case_dir/healthy" >"$case_dir/import_healthy.txt"
-    "$ptda" import --csv "$data/b30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz \
+    "$ptda" import --csv "$data/b30hz$load.csv.gz" --column "$ch" --rate "$rate_hz" --shaft-speed 30Hz --force \
       --out "$case_dir/broken" >"$case_dir/import_broken.txt"
     "$ptda" train --recording "$case_dir/healthy" --config "$config" --out "$case_dir/baseline.bin" \
       --windows 0:0.5 >"$case_dir/train.txt"

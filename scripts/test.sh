@@ -4,21 +4,24 @@
 #   release - every test (RelWithDebInfo)
 #   asan    - every test under AddressSanitizer + UndefinedBehaviorSanitizer
 #   tsan    - the threaded daemon tests (ring, pipeline) under ThreadSanitizer
+#   fuzz    - the libFuzzer harnesses built with clang (build/fuzz), each seed corpus replayed once
+#             (scripts/fuzz.sh 0; seconds once built, about 12 min of clang build from cold on 2 cores)
 #   aarch64 - the unit suite cross-built for arm64, run under qemu-user      (scripts/cross_test.sh)
 #   armhf   - the same for armhf (not in 'all': run it before a release)    (scripts/cross_test.sh)
 #   package - the .deb built and installed, upgraded, removed in a Debian 12 chroot (scripts/package_test.sh)
 #   vm      - ptdad against real kernels: x86_64 and aarch64 guests under qemu-system (scripts/vm_test.sh)
-# Usage: scripts/test.sh [all|release|asan|tsan|aarch64|armhf|package|vm]   (default: all)
+# Usage: scripts/test.sh [all|release|asan|tsan|fuzz|aarch64|armhf|package|vm]   (default: all)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 what="${1:-all}"
 case "$what" in
   release|asan|tsan) scripts/bootstrap.sh base ;;
+  fuzz) scripts/bootstrap.sh base fuzz ;;
   aarch64|armhf) scripts/bootstrap.sh base cross ;;
   package) scripts/bootstrap.sh base pkg ;;
   vm) scripts/bootstrap.sh base cross vm ;;
-  all) scripts/bootstrap.sh base cross vm pkg ;;
-  *) echo "usage: scripts/test.sh [all|release|asan|tsan|aarch64|armhf|package|vm]" >&2; exit 2 ;;
+  all) scripts/bootstrap.sh base cross vm pkg fuzz ;;
+  *) echo "usage: scripts/test.sh [all|release|asan|tsan|fuzz|aarch64|armhf|package|vm]" >&2; exit 2 ;;
 esac
 scripts/lint.sh   # clang-format gate (naming: scripts/lint.sh <build_dir>)
 jobs="$(nproc 2>/dev/null || echo 2)"
@@ -44,6 +47,7 @@ run_stage() {
     release) run_preset release ;;
     asan) run_preset asan ;;
     tsan) run_preset tsan tests_daemon daemon ;;
+    fuzz) stage "fuzz: build + replay the seed corpora"; scripts/fuzz.sh 0 ;;
     aarch64|armhf) stage "$1: cross build + qemu-user"; scripts/cross_test.sh "$1" ;;
     package) stage "package"; scripts/package_test.sh ;;
     vm) stage "vm"; scripts/vm_test.sh all ;;
@@ -51,7 +55,7 @@ run_stage() {
 }
 
 if [ "$what" = all ]; then
-  for s in release asan tsan aarch64 package vm; do run_stage "$s"; done
+  for s in release asan tsan fuzz aarch64 package vm; do run_stage "$s"; done
   stage "all stages passed"
 else
   run_stage "$what"

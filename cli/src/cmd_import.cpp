@@ -1,12 +1,42 @@
 // ptda import --csv FILE --column NAME_OR_INDEX --rate HZ --shaft-speed SPEED --out DIR [...]
+#include <unistd.h>
+
+#include <filesystem>
 #include <ostream>
+#include <string>
+#include <system_error>
 
 #include "ptda/cli/args.hpp"
 #include "ptda/cli/commands.hpp"
 #include "ptda/cli/csv_import.hpp"
 #include "ptda/cli/text.hpp"
+#include "ptda/common/error.hpp"
 
 namespace ptda::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Removes a partly written import directory when the import fails (issue 14 item 9: a failed
+/// import left an empty directory behind).
+class TempDirGuard {
+ public:
+  explicit TempDirGuard(fs::path dir) : dir_(std::move(dir)) {}
+  ~TempDirGuard() {
+    if (!dir_.empty()) {
+      std::error_code ec;
+      fs::remove_all(dir_, ec);
+    }
+  }
+  TempDirGuard(const TempDirGuard&) = delete;
+  TempDirGuard& operator=(const TempDirGuard&) = delete;
+  void release() { dir_.clear(); }
+
+ private:
+  fs::path dir_;
+};
+
+}  // namespace
 
 int cmd_import(std::span<const std::string> args, std::ostream& out) {
   ArgParser parser(
@@ -21,7 +51,8 @@ int cmd_import(std::span<const std::string> args, std::ostream& out) {
       .option("rate", "HZ", "sample rate in Hz (a whole number)", true)
       .option("shaft-speed", "SPEED", "constant shaft speed with unit: 30Hz, 30rev/s, 1800rpm, 188.5rad/s",
               true)
-      .option("out", "DIR", "recording directory to write (created)", true)
+      .option("out", "DIR", "recording directory to write (created; must not exist unless --force)", true)
+      .flag("force", "replace an existing --out directory (only once the import has succeeded)")
       .option("unit", "UNIT", "physical unit of the values (default m/s^2)")
       .option("scale", "X", "stored value * X = value in UNIT (default 1)")
       .option("start-time", "UNIX_S", "UNIX time of the first sample in seconds (default 0)");
@@ -40,7 +71,19 @@ int cmd_import(std::span<const std::string> args, std::ostream& out) {
                      a.value("rate") + "'");
   }
   o.shaft_speed_rad_s = parse_speed_rad_s(a.value("shaft-speed"), "shaft-speed");
-  o.out_dir = a.value("out");
+  const fs::path out_dir = a.value("out");
+  const bool force = a.has("force");
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(out_dir, ec)) && !force)
+    throw Error(out_dir.string() + ": already exists; pass --force to replace it");
+  // Written into a sibling directory first and renamed at the end: a failure removes it and leaves
+  // an existing --out untouched.
+  fs::path parent = out_dir.parent_path();
+  if (parent.empty()) parent = ".";
+  const fs::path tmp_dir = parent / ("." + out_dir.filename().string() + ".import-tmp." +
+                                     std::to_string(static_cast<long>(::getpid())));
+  fs::remove_all(tmp_dir, ec);
+  o.out_dir = tmp_dir;
   o.unit = a.value_or("unit", "m/s^2");
   if (a.has("scale")) {
     o.scale = parse_double_arg(a.value("scale"), "scale");
@@ -48,7 +91,15 @@ int cmd_import(std::span<const std::string> args, std::ostream& out) {
   }
   if (a.has("start-time")) o.start_time_s = parse_double_arg(a.value("start-time"), "start-time");
 
+  TempDirGuard guard(tmp_dir);
   const ImportSummary s = import_csv(o);
+  if (fs::exists(fs::symlink_status(out_dir, ec))) {
+    fs::remove_all(out_dir, ec);  // --force (checked above)
+    if (ec) throw Error(out_dir.string() + ": cannot replace: " + ec.message());
+  }
+  fs::rename(tmp_dir, out_dir, ec);
+  if (ec) throw Error(out_dir.string() + ": cannot move the import into place: " + ec.message());
+  guard.release();
   out << "imported " << a.value("csv") << " column '" << s.column_name << "' (index " << s.column_index
       << ") into " << a.value("out") << "\n";
   out << "  samples      " << s.samples << " at " << general(o.rate_hz, 10)

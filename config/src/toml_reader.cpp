@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "ptda/common/error.hpp"
+#include "ptda/common/file_check.hpp"
 
 namespace ptda::config {
 namespace {
@@ -48,14 +49,8 @@ toml::table parse_toml(std::string_view text, const std::string& source) {
 }
 
 toml::table read_toml_file(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    throw Error(path.string() + ": cannot open configuration file: " + std::strerror(errno));
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw Error(path.string() + ": cannot read configuration file");
-  return parse_toml(text.str(), path.string());
+  // A regular file of bounded size: a FIFO or /dev/zero must not hang or flood configure (issue 14).
+  return parse_toml(read_regular_file(path, kMaxConfigFileBytes, "configuration file"), path.string());
 }
 
 std::string_view toml_type_name(toml::node_type type) noexcept {

@@ -18,6 +18,7 @@
 #include <limits>
 
 #include "ptda/common/error.hpp"
+#include "ptda/common/file_check.hpp"
 
 namespace ptda::formats {
 namespace {
@@ -432,7 +433,7 @@ dsp::Baseline read_baseline(const std::filesystem::path& path) {
   const std::string name = path.string();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(name + ": baseline file not found");
-  if (std::filesystem::is_directory(path, ec)) throw Error(name + ": is a directory, not a baseline file");
+  require_regular_file(path, kMaxBaselineFileBytes, "baseline file");  // no FIFO, device, directory
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(name + ": cannot open baseline: " + std::strerror(errno));
   std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "ptda/common/error.hpp"
+#include "ptda/common/file_check.hpp"
 #include "ptda/common/time.hpp"
 
 namespace ptda::formats {
@@ -269,6 +270,7 @@ std::optional<CandumpRecord> parse_candump_line(std::string_view line, const std
 }
 
 CandumpReader::CandumpReader(const std::filesystem::path& path) : path_(path), source_(path.string()) {
+  require_regular_file(path, kNoSizeLimit, "candump log");  // a FIFO would block, /dev/zero never end
   f_ = std::fopen(source_.c_str(), "rb");
   if (f_ == nullptr) throw Error(source_ + ": cannot open candump log: " + std::strerror(errno));
   line_.reserve(256);

@@ -14,6 +14,8 @@
 #include <utility>
 
 #include "ptda/common/error.hpp"
+#include "ptda/common/file_check.hpp"
+#include "ptda/common/time.hpp"
 #include "ptda/formats/wav.hpp"
 
 namespace ptda::formats {
@@ -135,10 +137,11 @@ RecordingMeta read_recording_meta(const std::filesystem::path& dir) {
   const std::filesystem::path file = dir / kMetaFile;
   const std::string name = file.string();
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec)) throw Error(name + ": recording.toml not found");
+  if (!std::filesystem::exists(file, ec)) throw Error(name + ": recording.toml not found");
+  const std::string text = read_regular_file(file, kMaxConfigFileBytes, "recording.toml");
   toml::table root;
   try {
-    root = toml::parse_file(name);
+    root = toml::parse(text, name);
   } catch (const toml::parse_error& e) {
     throw Error(name, static_cast<long>(e.source().begin.line), static_cast<long>(e.source().begin.column),
                 std::string(e.description()));
@@ -161,6 +164,11 @@ RecordingMeta read_recording_meta(const std::filesystem::path& dir) {
   const std::int64_t channel = ck.need_integer(vib, "channel", "[vibration]");
   meta.start_time_s = ck.need_number(vib, "start_time", "[vibration]");
   if (meta.start_time_s < 0.0) ck.fail(vib.get("start_time")->source(), "start_time must not be negative");
+  // Every consumer converts to int64 ns and adds durations: keep the sum representable (issue 14).
+  if (meta.start_time_s > kMaxUnixTimeS)
+    ck.fail(vib.get("start_time")->source(),
+            "start_time " + toml_float(meta.start_time_s, "start_time") + " s is out of range (at most " +
+                toml_float(kMaxUnixTimeS, "start_time") + " s UNIX time, year 2096)");
   meta.scale = ck.need_number(vib, "scale", "[vibration]");
   if (meta.scale == 0.0) ck.fail(vib.get("scale")->source(), "scale must not be zero");
   meta.unit = ck.need_string(vib, "unit", "[vibration]");
@@ -190,6 +198,9 @@ void write_recording_meta(const std::filesystem::path& dir, const RecordingMeta&
   const std::filesystem::path file = dir / kMetaFile;
   if (meta.vibration_file.empty() || meta.can_file.empty() || meta.unit.empty())
     throw Error(file.string() + ": vibration file, CAN file and unit must not be empty");
+  if (!(meta.start_time_s >= 0.0 && meta.start_time_s <= kMaxUnixTimeS))
+    throw Error(file.string() + ": start_time " + std::to_string(meta.start_time_s) +
+                " s is out of range (0 to 4e9 s UNIX time)");
   std::string text;
   text += "# ptda recording, see docs/recording-format.md\n";
   text += "format = \"ptda-recording\"\n";

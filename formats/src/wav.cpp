@@ -12,6 +12,7 @@
 #include <string>
 
 #include "ptda/common/error.hpp"
+#include "ptda/common/file_check.hpp"
 
 namespace ptda::formats {
 namespace {
@@ -94,6 +95,7 @@ std::uint16_t wav_bytes_per_sample(WavSampleFormat format) noexcept {
 
 WavReader::WavReader(const std::filesystem::path& path) : path_(path) {
   const std::string name = path.string();
+  require_regular_file(path, kNoSizeLimit, "WAV file");  // a FIFO would block fopen
   f_ = std::fopen(name.c_str(), "rb");
   if (f_ == nullptr) throw Error(name + ": cannot open WAV file: " + errno_text());
   try {

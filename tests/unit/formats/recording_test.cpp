@@ -150,6 +150,11 @@ TEST_F(RecordingTest, MalformedFilesPointAtLineAndColumn) {
             f + ":7:14: 'start_time' in [vibration] must be a number");
   EXPECT_EQ(error_for(replace(kValid, "start_time = 1700000000.5", "start_time = -1.0")),
             f + ":7:14: start_time must not be negative");
+  // Issue 14 item 1: 9.3e9 s overflowed the ns conversion (UB) and gave 0 windows silently.
+  EXPECT_EQ(error_for(replace(kValid, "start_time = 1700000000.5", "start_time = 9.3e9")),
+            f + ":7:14: start_time 9.3e+09 s is out of range (at most 4e+09 s UNIX time, year 2096)");
+  EXPECT_EQ(error_for(replace(kValid, "start_time = 1700000000.5", "start_time = 4000000001")),
+            f + ":7:14: start_time 4000000001.0 s is out of range (at most 4e+09 s UNIX time, year 2096)");
   EXPECT_EQ(error_for(replace(kValid, "start_time = 1700000000.5", "start_time = nan")),
             f + ":7:14: 'start_time' in [vibration] must be finite");
   EXPECT_EQ(error_for(replace(kValid, "scale = 0.001", "scale = 0.0")), f + ":8:9: scale must not be zero");
