@@ -4,6 +4,9 @@
 //
 // The replays run at fast pace: data time then runs far ahead of the daemon clock (the arc job's ~60 s
 // of data in a few seconds), which is what made window_age and alarm_level_duration negative.
+// GCC 12's <regex> trips -Wmaybe-uninitialized inside std::function under ASan (a false positive seen
+// before in this project); the test parses text with it, so the warning is off for this file only.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <gtest/gtest.h>
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
