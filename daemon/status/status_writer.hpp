@@ -154,7 +154,7 @@ struct StatusSnapshot {
   double trip_t_s = 0.0;
   const char* trip_detector = "none";  ///< dsp::alarm_detector_name of the trip window
   double trip_cusum = 0.0;             ///< largest class CUSUM at the trip window
-  std::int64_t trip_wall_ns = 0;  ///< unix ns (0 = unknown)
+  std::int64_t trip_wall_ns = 0;       ///< unix ns (0 = unknown)
 
   // Field training (state == kTraining).
   std::uint64_t training_windows = 0;
