@@ -63,13 +63,14 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
 DecisionState::DecisionState(const DecisionConfig& decision, std::size_t classes)
     : debouncer_(decision.k, decision.n), seq_(decision.sequential), cusum_(classes) {
   check_sequential(seq_);
+  cap_ = seq_.h_alarm + static_cast<double>(decision.n - std::min(decision.k, decision.n)) * seq_.k;
 }
 
 void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
   debouncer_.push(w.verdict.abnormal());
   if (seq_.enabled && cls < cusum_.size()) {
     Cusum& c = cusum_[cls];
-    c.update(w.z_rms, w.z_entropy, seq_.k, 2.0 * seq_.h_alarm);
+    c.update(w.z_rms, w.z_entropy, seq_.k, cap_);
     w.seq_statistic = c.statistic();
     w.seq_feature = c.feature();
   }

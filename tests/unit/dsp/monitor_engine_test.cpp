@@ -222,6 +222,34 @@ TEST_F(MonitorEngineTest, HealthyCyclesRaiseNoAlarmImpulsesDo) {
 
 // The engine's sequential evidence is the documented recursion on the standardised features, one
 // CUSUM per class: recomputed here from each window's features and the baseline's statistics.
+// The CUSUM's cap h_alarm + (n - k) cusum_k: after a fault of any size, a healthy run (z = 0) ends
+// the sequential alarm after n - k + 1 windows, like k-of-n. An uncapped (or 2 h_alarm) statistic
+// would hold the alarm 7+ windows after a repair and delay the operator's clear (the VM test's
+// repaired part is about 8 windows long).
+TEST(DecisionStateTest, CusumCapBoundsTheRecoveryToKOfNs) {
+  for (const auto& [k, n] : {std::pair<std::uint32_t, std::uint32_t>{3, 5}, {5, 5}, {2, 8}}) {
+    DecisionConfig cfg{k, n, {}};
+    DecisionState d(cfg, 1);
+    WindowResult w;
+    for (int i = 0; i < 20; ++i) {  // a large fault: z = 50 per window, abnormal
+      w.verdict.rms_out = true;
+      w.z_rms = 50.0;
+      w.z_entropy = 0.0;
+      d.scored(w, 0);
+    }
+    EXPECT_TRUE(w.seq_alarm);
+    EXPECT_DOUBLE_EQ(w.seq_statistic, cfg.sequential.h_alarm + (n - k) * cfg.sequential.k);
+    int healthy = 0;
+    do {  // healthy: z = 0, normal verdicts
+      w.verdict.rms_out = false;
+      w.z_rms = 0.0;
+      d.scored(w, 0);
+      ++healthy;
+    } while (w.seq_alarm && healthy < 100);
+    EXPECT_EQ(healthy, static_cast<int>(n - k + 1)) << "k " << k << " n " << n;
+  }
+}
+
 TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeatures) {
   const auto res = monitor(make_stream(6, 6, 0.65));
   const SequentialConfig seq;  // defaults: k 1, warn 4, alarm 7
@@ -242,7 +270,8 @@ TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeature
         (r.features.entropy_res - cls.entropy_stats[m].mean) / (c_n * cls.entropy_stats[m].stddev);
     EXPECT_NEAR(r.z_rms, zr, 1e-9 * std::max(1.0, std::abs(zr)));
     EXPECT_NEAR(r.z_entropy, ze, 1e-9 * std::max(1.0, std::abs(ze)));
-    const double cap = 2.0 * seq.h_alarm;
+    // Cap h_alarm + (n - k) cusum_k with the engine's k-of-n 3 of 5: 7 + 2 = 9.
+    const double cap = seq.h_alarm + 2.0 * seq.k;
     s_rms[c] = std::min(cap, std::max(0.0, s_rms[c] + zr - seq.k));
     s_hi[c] = std::min(cap, std::max(0.0, s_hi[c] + ze - seq.k));
     s_lo[c] = std::min(cap, std::max(0.0, s_lo[c] - ze - seq.k));
@@ -263,7 +292,8 @@ TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeature
   }
   // Impulses of amplitude 0.65 raise the residual by about 1-2 sd: one window of 42 leaves its band,
   // so k-of-n never fires, but the evidence accumulates and the CUSUM reaches its alarm (measured:
-  // its largest value is 11.7 against cusum_alarm 7; at amplitude 0.5 it stays at 3.7).
+  // uncapped its largest value was 11.7 against cusum_alarm 7, so it reaches the cap of 9; at
+  // amplitude 0.5 it stays at 3.7).
   EXPECT_FALSE(kofn_seen);
   EXPECT_TRUE(seq_alarm_seen);
   // Switched off, the same data leaves every sequential field at rest and the alarm to k-of-n.

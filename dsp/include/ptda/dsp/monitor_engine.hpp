@@ -76,6 +76,10 @@ class DecisionState {
  private:
   KOfNDebouncer debouncer_;
   SequentialConfig seq_;
+  /// Cap of each CUSUM: h_alarm + (n - k) cusum_k, so that from the cap a healthy run (z = 0) ends
+  /// the sequential alarm after n - k + 1 windows, as k-of-n ends its own (a latched alarm can then
+  /// be cleared as soon after a repair as k-of-n allows). Reaching h_alarm is not affected.
+  double cap_ = 0.0;
   std::vector<Cusum> cusum_;  ///< one per class
 
   void fill(WindowResult& w) const noexcept;
