@@ -274,9 +274,51 @@ def ring(fs, fn, zeta, fn2=None, share2=0.0):
     return h
 
 
+# ---------------------------------------------------------------------------------------------- gear fault
+def tooth_defect(m, fault, theta_in, phi, w, mesh, fs):
+    """A local defect on one tooth of the input pinion (detection study, g2detect.py), in this family's
+    own terms: once per input-shaft revolution, while the damaged tooth is in mesh (an angle span of
+    `contact` tooth pitches centred on `angle_rad`), the mesh loses part of its amplitude and slips in
+    phase (a Hann-shaped dip of depth `depth` and `slip_rad`), and the tooth's entry knocks a structural
+    mode (`knock_ms2` at the reference speed, scaled by (speed / ref)^beta). `severity` scales all three.
+    Returns the mesh signal with the defect."""
+    s = fault["severity"]
+    pitch = 2 * math.pi / m.z_in
+    half = 0.5 * fault["contact"] * pitch
+    # Signed angle of the shaft from the damaged tooth's centre, in (-pi, pi].
+    d = np.mod(theta_in - fault["angle_rad"] + math.pi, 2 * math.pi) - math.pi
+    bump = np.where(np.abs(d) < half, 0.5 * (1.0 + np.cos(math.pi * d / half)), 0.0)
+    out = mesh * (1.0 - s * fault["depth"] * bump)
+    # The phase slip: the mesh waveform read slightly late where the tooth bends. A first-order
+    # correction (d mesh / d phi * slip) is enough for slips of a few tenths of a radian.
+    dmesh = np.gradient(mesh) / np.maximum(np.abs(np.gradient(phi)), 1e-9)
+    out = out - dmesh * s * fault["slip_rad"] * bump
+    # Knocks where the damaged tooth enters the mesh: the shaft angle crosses the span's leading edge
+    # (angle - half going forward, angle + half going backward).
+    fwd = np.flatnonzero(np.diff(np.floor((theta_in - fault["angle_rad"] + half) / (2 * math.pi))) > 0)
+    bwd = np.flatnonzero(np.diff(np.floor((theta_in - fault["angle_rad"] - half) / (2 * math.pi))) < 0)
+    cross = np.concatenate([fwd, bwd])
+    h = ring(fs, fault["fn_hz"], fault["zeta"])
+    lvl = (np.abs(w) / m.ref_speed) ** m.beta
+    for i0 in cross:
+        a = s * fault["knock_ms2"] * lvl[i0]
+        seg = h[: max(0, min(h.size, out.size - i0))]
+        out[i0:i0 + seg.size] += a * seg
+    return out
+
+
+def draw_tooth_defect(m, r, severity):
+    """Defect parameters of a machine at full severity (drawn once per machine; severity scales)."""
+    return {"severity": severity, "angle_rad": U(r, -math.pi, math.pi), "contact": U(r, 1.3, 1.8),
+            "depth": U(r, 0.3, 0.6), "slip_rad": U(r, 0.1, 0.3),
+            "knock_ms2": U(r, 0.5, 1.5) * m.levels[1], "fn_hz": logU(r, 1500, 0.35 * m.fs),
+            "zeta": U(r, 0.03, 0.08)}
+
+
 # ---------------------------------------------------------------------------------------------- synthesis
-def synthesise(m, kind, p, control, r):
-    """Returns (acceleration at the true-time grid m/fs (m/s^2), t grid, speed, motion info)."""
+def synthesise(m, kind, p, control, r, fault=None):
+    """Returns (acceleration at the true-time grid m/fs (m/s^2), t grid, speed, motion info).
+    fault: None, or a local tooth defect on the input pinion (see tooth_defect(); detection study)."""
     fs = m.fs
     blend_scale = control.get("blend_scale", 1.0)
     pieces, moves, end = build_timeline(C.rng_for(m.seed, 2), m.prog, m.cycles, m.lead_in_s, blend_scale)
@@ -316,6 +358,8 @@ def synthesise(m, kind, p, control, r):
             table += a_k * np.cos(k * ang + m.phases[k])
         mesh[sel] = np.interp(pos[sel], np.arange(grid + 1), table)
     amp = (np.abs(w) / m.ref_speed) ** m.beta
+    if fault is not None:
+        mesh = tooth_defect(m, fault, theta_in, phi, w, mesh, fs)
     if kind == "mesh_modulation":
         amp = amp * (1.0 + p["am"] * np.cos(p["rate_order"] * theta_in + p["phase"]))
     if kind == "load_dependence":
@@ -571,6 +615,33 @@ def _same_move(prog, leg_index):
     return False
 
 
+def write_can_and_toml(recdir, m, info, rc, delay, jit, lsb):
+    """CAN log (the controller's clock, speed/angle frames in the nominal's layout, other traffic) and
+    recording.toml of a recording whose vibration.wav is written."""
+    period = m.can_period_s * (1 + m.can_clock_ppm * 1e-6)
+    t0 = rc.uniform(0, period)
+    tk = np.arange(t0, info["end_s"] - 0.01, period)
+    wk = np.interp(tk, info["t"], info["w"])
+    qk = np.interp(tk, info["t"], info["q"])
+    logt = m.start_time + tk + delay + rc.uniform(0, jit, tk.size)
+    frames = []
+    for ts, wv, qv in zip(logt, wk, qk):
+        payload = int(round(wv / 1e-4)).to_bytes(4, "little", signed=True) + \
+            int(round(qv / 1e-5)).to_bytes(4, "little", signed=True)
+        frames.append((ts, m.can_id, payload))
+    dur = info["end_s"]
+    for _ in range(int(20 * dur)):
+        ts = m.start_time + rc.uniform(0, dur)
+        cid = [0x080, 0x201, 0x701][int(rc.integers(3))]
+        pl = bytes(int(b) for b in rc.integers(0, 256, 0 if cid == 0x080 else (1 if cid == 0x701 else 8)))
+        frames.append((ts, cid, pl))
+    frames.sort(key=lambda f: f[0])
+    with open(os.path.join(recdir, "can.log"), "w") as f:
+        for ts, cid, pl in frames:
+            f.write(C.candump_line(ts, "can0", cid, pl))
+    C.write_recording_toml(recdir, "vibration.wav", m.start_time, lsb, "can.log")
+
+
 # ---------------------------------------------------------------------------------------------- case
 def make_case(seed, outdir, kind=None, short_s=None):
     """Writes outdir/rec (recording), outdir/nominal.toml, outdir/truth.json. kind overrides the slot.
@@ -614,32 +685,9 @@ def make_case(seed, outdir, kind=None, short_s=None):
     os.makedirs(os.path.join(outdir, "rec"), exist_ok=True)
     C.write_wav_pcm(os.path.join(outdir, "rec", "vibration.wav"), codes, fs, bits)
 
-    # CAN: controller clock, frames in the layout the nominal states.
-    rc = C.rng_for(seed, 8)
-    period = m.can_period_s * (1 + m.can_clock_ppm * 1e-6)
-    t0 = rc.uniform(0, period)
-    tk = np.arange(t0, info["end_s"] - 0.01, period)
-    wk = np.interp(tk, info["t"], info["w"])
-    qk = np.interp(tk, info["t"], info["q"])
     delay = m.can_delay_s + (p["delay_s"] if kind == "speed_latency" else 0.0)
     jit = m.can_jitter_s + (p["jitter_s"] if kind == "speed_latency" else 0.0)
-    logt = m.start_time + tk + delay + rc.uniform(0, jit, tk.size)
-    frames = []
-    for ts, wv, qv in zip(logt, wk, qk):
-        payload = int(round(wv / 1e-4)).to_bytes(4, "little", signed=True) + \
-            int(round(qv / 1e-5)).to_bytes(4, "little", signed=True)
-        frames.append((ts, m.can_id, payload))
-    dur = info["end_s"]
-    for _ in range(int(20 * dur)):
-        ts = m.start_time + rc.uniform(0, dur)
-        cid = [0x080, 0x201, 0x701][int(rc.integers(3))]
-        pl = bytes(int(b) for b in rc.integers(0, 256, 0 if cid == 0x080 else (1 if cid == 0x701 else 8)))
-        frames.append((ts, cid, pl))
-    frames.sort(key=lambda f: f[0])
-    with open(os.path.join(outdir, "rec", "can.log"), "w") as f:
-        for ts, cid, pl in frames:
-            f.write(C.candump_line(ts, "can0", cid, pl))
-    C.write_recording_toml(os.path.join(outdir, "rec"), "vibration.wav", m.start_time, lsb, "can.log")
+    write_can_and_toml(os.path.join(outdir, "rec"), m, info, C.rng_for(seed, 8), delay, jit, lsb)
 
     nominal, nominfo = nominal_toml(m, control, C.rng_for(seed, 9))
     with open(os.path.join(outdir, "nominal.toml"), "w") as f:
