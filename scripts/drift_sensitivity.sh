@@ -14,7 +14,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$root/build/release}
 out=${2:-$root/out/drift-sensitivity}
 ptda=$build/cli/ptda
-config=$root/config/examples/joint_rotation.toml
+config=${PTDA_SENSITIVITY_CONFIG:-$root/config/examples/joint_rotation.toml}
 [[ -x "$ptda" ]] || { echo "drift_sensitivity: $ptda not found: build the ptda target first" >&2; exit 1; }
 rm -rf "$out"
 mkdir -p "$out"

@@ -289,6 +289,14 @@ MonitorInputs load_monitor_inputs(const std::string& recording, const std::strin
   in.baseline = formats::read_baseline(baseline_path);
   in.fs_hz = pipeline_fs_hz(in.rec, in.cfg, config_path);
   check_baseline_matches(in.baseline, baseline_path, in.cfg, config_path, in.fs_hz, in.rec.wav_path.string());
+  if (in.cfg.thresholds.ptda_line_gain != in.baseline.policy.ptda_line_gain) {
+    // The bands only hold for the residual they were trained on, so the baseline decides.
+    std::cerr << "warning: " << config_path
+              << ": [monitor] line_gain = " << (in.cfg.thresholds.ptda_line_gain ? "true" : "false")
+              << ", but " << baseline_path
+              << " was trained with line_gain = " << (in.baseline.policy.ptda_line_gain ? "true" : "false")
+              << "; the baseline's setting is used (retrain to change it)\n";
+  }
   return in;
 }
 

@@ -137,6 +137,12 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   if (baseline.policy.kind == dsp::ThresholdPolicy::Kind::kTolerance)
     out << ", confidence " << general(baseline.policy.confidence) << " (rms_res on a log scale)";
   out << ", hold-out " << general(baseline.policy.holdout_fraction) << " of each class's latest cycles\n";
+  if (baseline.policy.ptda_line_gain) {
+    out << "  PTDA line gain: on (a gain per window on each line group of the healthy spectrum; groups per "
+           "class:";
+    for (const auto& c : baseline.classes) out << " " << c.line_groups.size();
+    out << ")\n";
+  }
   const dsp::SequentialConfig& seq = cfg.decision.sequential;
   out << "  decision: alarm when " << cfg.decision.k << " of the last " << cfg.decision.n
       << " windows are abnormal";

@@ -257,6 +257,9 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     choice(r, "method", cfg_.method,
            std::initializer_list<std::pair<std::string_view, dsp::Method>>{
                {"ptda", dsp::Method::kPtda}, {"tda", dsp::Method::kTda}, {"raw", dsp::Method::kRaw}});
+    // PTDA with a per-window gain on each line of the healthy spectrum (docs/method.md §3); training
+    // stores it in the baseline, which then decides for monitoring.
+    r.read("line_gain", cfg_.thresholds.ptda_line_gain);
     r.finish();
   }
 
@@ -452,6 +455,7 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "cusum_warn = " << shortest(cfg.decision.sequential.h_warn) << "\n"
      << "cusum_alarm = " << shortest(cfg.decision.sequential.h_alarm) << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
+     << "line_gain = " << (cfg.thresholds.ptda_line_gain ? "true" : "false") << "\n"
      << "\n[gearbox]\n"
      << "kind = \"" << gearbox_kind_name(cfg.gearbox.kind) << "\"\n";
   // Teeth only for a known kind, ratio only when known: exactly what parses back to this config.

@@ -1,6 +1,7 @@
 // Per-window residuals: raw, TDA (eq. 5) and PTDA (eqs. 8-9 / 12-13), then features (eqs. 14-16).
 #include "ptda/dsp/analyzer.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -15,14 +16,22 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 }  // namespace
 
 WindowAnalyzer::WindowAnalyzer(std::size_t n)
-    : n_(n), fft_(n), d_(n, 0.0F), r_(n, 0.0F), X_(n / 2 + 1), D_(n / 2 + 1), R_(n / 2 + 1) {}
+    : n_(n),
+      fft_(n),
+      d_(n, 0.0F),
+      r_(n, 0.0F),
+      mag_(n / 2 + 1, 0.0F),
+      X_(n / 2 + 1),
+      D_(n / 2 + 1),
+      R_(n / 2 + 1) {}
 
 Features WindowAnalyzer::analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept {
-  return analyze_with(x, cls.mean_magnitude, cls.tda_mean, method);
+  return analyze_with(x, cls.mean_magnitude, cls.tda_mean, method, cls.line_groups);
 }
 
 Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
-                                      std::span<const float> tda_mean, Method method) noexcept {
+                                      std::span<const float> tda_mean, Method method,
+                                      std::span<const LineGroup> line_groups) noexcept {
   const std::size_t bins = n_ / 2 + 1;
   // Cheap guard: a size mismatch is a caller bug, but on a real-time path it must not become UB.
   // NaN features are never inside a band, so such a window is judged abnormal, never silently normal.
@@ -51,12 +60,34 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
       fft_.forward(r_, R_);
       break;
     case Method::kPtda:
+      // The deterministic magnitude (in d_ until the inverse transform overwrites it): the healthy mean
+      // a[k], or g a[k] inside a line group.
+      for (std::size_t k = 0; k < bins; ++k) d_[k] = mean_magnitude[k];
+      if (!line_groups.empty()) {
+        for (std::size_t k = 0; k < bins; ++k) {
+          const double re = X_[k].real();
+          const double im = X_[k].imag();
+          mag_[k] = static_cast<float>(std::sqrt(re * re + im * im));
+        }
+      }
+      for (const LineGroup& g : line_groups) {
+        const std::size_t lo = std::max<std::size_t>(g.begin, 1);
+        const std::size_t hi = std::min<std::size_t>(g.end, bins);
+        double num = 0.0;
+        double den = 0.0;
+        for (std::size_t k = lo; k < hi; ++k) {
+          num += static_cast<double>(mean_magnitude[k]) * mag_[k];
+          den += static_cast<double>(mean_magnitude[k]) * mean_magnitude[k];
+        }
+        const double gain = den > 0.0 ? num / den : 1.0;
+        for (std::size_t k = lo; k < hi; ++k) d_[k] = static_cast<float>(gain * mean_magnitude[k]);
+      }
       for (std::size_t k = 0; k < bins; ++k) {
-        // D[k] = |D_avg[k]| e^{j theta_x[k]}; a zero bin has no phase, take 0.
+        // D[k] = |D[k]| e^{j theta_x[k]}; a zero bin has no phase, take 0.
         const double re = X_[k].real();
         const double im = X_[k].imag();
         const double mag = std::sqrt(re * re + im * im);
-        const double a = mean_magnitude[k];
+        const double a = d_[k];
         if (mag > 0.0) {
           D_[k] = {static_cast<float>(a * re / mag), static_cast<float>(a * im / mag)};
         } else {
@@ -70,6 +101,50 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
       break;
   }
   return Features{rms(r_), spectral_entropy(R_)};
+}
+
+std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
+  std::vector<LineGroup> out;
+  const std::size_t bins = mean_magnitude.size();
+  if (bins < 3) return out;
+  constexpr std::size_t kHalf = 32;       // floor: median of 65 bins around k
+  constexpr double kLineOverFloor = 4.0;  // 12 dB
+  std::vector<float> win;
+  win.reserve(2 * kHalf + 1);
+  std::vector<bool> line(bins, false);
+  for (std::size_t k = 1; k < bins; ++k) {
+    const std::size_t lo = k > kHalf + 1 ? k - kHalf : 1;
+    const std::size_t hi = std::min(bins, k + kHalf + 1);
+    win.assign(mean_magnitude.begin() + static_cast<std::ptrdiff_t>(lo),
+               mean_magnitude.begin() + static_cast<std::ptrdiff_t>(hi));
+    const auto mid = win.begin() + static_cast<std::ptrdiff_t>(win.size() / 2);
+    std::nth_element(win.begin(), mid, win.end());
+    line[k] = static_cast<double>(mean_magnitude[k]) > kLineOverFloor * static_cast<double>(*mid);
+  }
+  for (std::size_t k = 1; k < bins; ++k) {
+    if (!line[k]) continue;
+    std::size_t e = k;
+    while (e < bins && line[e]) ++e;
+    const auto begin = static_cast<std::uint32_t>(std::max<std::size_t>(1, k - 1));
+    const auto end = static_cast<std::uint32_t>(std::min(bins, e + 1));
+    if (!out.empty() && begin <= out.back().end) {
+      out.back().end = end;
+    } else {
+      out.push_back(LineGroup{begin, end});
+    }
+    k = e;
+  }
+  return out;
+}
+
+void prepare_line_groups(Baseline& baseline) {
+  for (ClassBaseline& c : baseline.classes) {
+    if (baseline.policy.ptda_line_gain) {
+      c.line_groups = find_line_groups(c.mean_magnitude);
+    } else {
+      c.line_groups.clear();
+    }
+  }
 }
 
 void WindowAnalyzer::magnitude(std::span<const float> x, std::span<float> mag) noexcept {

@@ -54,6 +54,10 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
       analyzer_(cfg.window_len),
       decision_(decision, baseline_.classes.size()),
       window_(cfg.window_len, 0.0F) {
+  // The line groups are runtime state derived from the stored means: recomputed on the engine's copy,
+  // so an engine built from any baseline (read, trained or made by hand) scores the residual it was
+  // trained on.
+  prepare_line_groups(baseline_);
   for (const ClassBaseline& c : baseline_.classes) {
     z_scale_.push_back(
         small_sample_scale(c.log_rms_stats[static_cast<std::size_t>(method)].n, baseline_.policy));

@@ -241,6 +241,10 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     cls.mean_magnitude[k] = static_cast<float>(total_mag[k] / static_cast<double>(m));
   for (std::size_t j = 0; j < n; ++j)
     cls.tda_mean[j] = static_cast<float>(total_x[j] / static_cast<double>(m));
+  // The line groups come from the mean of all the class's windows and are used for every
+  // leave-one-out residual too (a group's gain is fitted per window, so the grouping barely depends on
+  // the one window left out).
+  if (policy.ptda_line_gain) cls.line_groups = find_line_groups(cls.mean_magnitude);
 
   // Leave-one-group-out: each window is scored against the means of the windows of the other groups.
   // One group's sums are formed at a time (O(M) FFTs overall, O(N) extra memory).
@@ -266,7 +270,8 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     for (std::size_t j = 0; j < n; ++j) loo_x[j] = static_cast<float>((total_x[j] - group_x[j]) / others);
     for (const std::size_t i : idx) {
       for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
-        const Features f = analyzer.analyze_with(windows[i], loo_mag, loo_x, static_cast<Method>(mi));
+        const Features f =
+            analyzer.analyze_with(windows[i], loo_mag, loo_x, static_cast<Method>(mi), cls.line_groups);
         rms_values[mi].push_back(f.rms_res);
         entropy_values[mi].push_back(f.entropy_res);
       }

@@ -19,6 +19,7 @@
 
 #include "ptda/common/error.hpp"
 #include "ptda/common/file_check.hpp"
+#include "ptda/dsp/analyzer.hpp"
 
 namespace ptda::formats {
 namespace {
@@ -27,6 +28,8 @@ constexpr std::array<char, 8> kMagic = {'P', 'T', 'D', 'A', 'B', 'A', 'S', 'E'};
 // magic 8 + version 4 + file size 8
 constexpr std::size_t kPreambleBytes = 20;
 constexpr std::size_t kCrcBytes = 4;
+// Version 3 option flags (u32 before the CRC).
+constexpr std::uint32_t kOptionLineGain = 1U;
 // Smallest possible class record (window_len 1: one magnitude and one mean sample); bounds n_classes
 // before anything is allocated for it.
 // id, direction, 3 speeds/duration, regions, n_windows, 2 x (count + one float), thresholds, stats.
@@ -286,6 +289,8 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
     w.f64(t.to_unix_s);
     w.u32(t.windows);
   }
+  // Version 3: option flags (bit 0: PTDA line gain); appended so every earlier offset stays put.
+  w.u32(b.policy.ptda_line_gain ? kOptionLineGain : 0U);
   w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
   w.u32(crc32(w.buf().data(), w.buf().size()));
   return std::move(w.buf());
@@ -422,10 +427,18 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
       t.windows = body.u32();
     }
   }
+  if (version >= 3) {
+    const std::uint32_t options = body.u32();
+    if ((options & ~kOptionLineGain) != 0U)
+      body.fail("unknown option bits " + hex32(options & ~kOptionLineGain) +
+                " (this build knows bit 0, line_gain)");
+    b.policy.ptda_line_gain = (options & kOptionLineGain) != 0U;
+  }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
   if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0))
     throw Error(source + ": inconsistent baseline: fs_hz must be positive");
   if (b.window_len == 0) throw Error(source + ": inconsistent baseline: window_len is 0");
+  dsp::prepare_line_groups(b);
   return b;
 }
 

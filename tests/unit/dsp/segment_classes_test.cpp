@@ -77,7 +77,11 @@ TEST(LearnSegmentClasses, TwoDirectionsTwoSpeedsEach) {
 
   // Every training region of a kept class matches its own class through Baseline::match.
   Baseline b;
-  for (const auto& c : classes) b.classes.push_back(ClassBaseline{c, 0, {}, {}, {}, {}, {}});
+  for (const auto& c : classes) {
+    ClassBaseline cb;
+    cb.segment = c;
+    b.classes.push_back(cb);
+  }
   for (const RegionInfo& r : regions) {
     const ClassBaseline* m = b.match(r.mean_speed_rad_s);
     if (r.mean_speed_rad_s == 3.0) {

@@ -101,6 +101,7 @@ void expect_equal(const Baseline& a, const Baseline& b) {
   EXPECT_EQ(a.policy.margin, b.policy.margin);
   EXPECT_EQ(a.policy.confidence, b.policy.confidence);
   EXPECT_EQ(a.policy.holdout_fraction, b.policy.holdout_fraction);
+  EXPECT_EQ(a.policy.ptda_line_gain, b.policy.ptda_line_gain);
   EXPECT_EQ(a.source, b.source);
   ASSERT_EQ(a.training.size(), b.training.size());
   for (std::size_t i = 0; i < a.training.size(); ++i) {
@@ -240,7 +241,7 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
   const std::size_t per_class = 41 + 4 * 9 + 4 + 4 * 16 + 96 + 216 + 108 + 8 + 156;
   std::size_t training = 4;
   for (const auto& t : b.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
-  ASSERT_EQ(bytes.size(), 90 + 3 * per_class + 4 + b.source.size() + training + 4);
+  ASSERT_EQ(bytes.size(), 90 + 3 * per_class + 4 + b.source.size() + training + 4 + 4);  // v3: options
   const std::size_t at_training = 90 + 3 * per_class + 4 + b.source.size();
   EXPECT_EQ(bytes[at_training], 2);                            // two training recordings
   EXPECT_EQ(bytes[at_training + 4], b.training[0].id.size());  // the first id's length
@@ -249,7 +250,10 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
                   bytes.begin() + static_cast<std::ptrdiff_t>(at_training + 8 + b.training[0].id.size())),
       b.training[0].id);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 8), "PTDABASE");
-  EXPECT_EQ(bytes[8], 2);  // version 2, little-endian
+  EXPECT_EQ(bytes[8], 3);  // version 3, little-endian
+  EXPECT_EQ(
+      bytes[bytes.size() - 8] | bytes[bytes.size() - 7] | bytes[bytes.size() - 6] | bytes[bytes.size() - 5],
+      0);  // v3 option flags before the CRC: none
   EXPECT_EQ(bytes[9] | bytes[10] | bytes[11], 0);
   std::uint64_t size = 0;
   for (int i = 0; i < 8; ++i)
@@ -292,7 +296,7 @@ TEST(BaselineFile, Version1FilesAreStillRead) {
   ASSERT_EQ(v1[8], 1);
   const Baseline read = parse_baseline(v1, "v1.bin");
   EXPECT_TRUE(read.training.empty());
-  // Written back it becomes version 2 with the same content and still no training list.
+  // Written back it becomes version 3 with the same content and still no training list.
   const Baseline again = parse_baseline(serialize_baseline(read), "v2.bin");
   expect_equal(again, read);
   // The same bytes marked version 2 lack the version-2 fields: reported, not misread.
@@ -301,6 +305,30 @@ TEST(BaselineFile, Version1FilesAreStillRead) {
   fix_crc(v1_as_2);
   EXPECT_NE(message_of(v1_as_2).find("inconsistent baseline at byte"), std::string::npos)
       << message_of(v1_as_2);
+}
+
+// Version 3 appends option flags before the CRC; a version-2 file (the same bytes without them) is read
+// with no options, and the line-gain option survives a round trip and prepares the line groups.
+TEST(BaselineFile, Version3OptionsAndVersion2Files) {
+  Baseline b = make_baseline(8, 2);
+  const Bytes v3 = serialize_baseline(b);
+  Bytes v2(v3.begin(), v3.end() - 8);  // without the options and the CRC
+  v2[8] = 2;
+  put_u32(v2, 12, static_cast<std::uint32_t>(v2.size() + 4));
+  v2.resize(v2.size() + 4);
+  fix_crc(v2);
+  const Baseline from_v2 = parse_baseline(v2, "v2.bin");
+  EXPECT_FALSE(from_v2.policy.ptda_line_gain);
+  expect_equal(from_v2, b);
+  b.policy.ptda_line_gain = true;
+  b.classes[0].mean_magnitude.assign(b.classes[0].mean_magnitude.size(), 1.0F);
+  b.classes[0].mean_magnitude[2] = 40.0F;
+  const Baseline lg = parse_baseline(serialize_baseline(b), "lg.bin");
+  EXPECT_TRUE(lg.policy.ptda_line_gain);
+  expect_equal(lg, b);
+  ASSERT_EQ(lg.classes[0].line_groups.size(), 1U);  // prepared by the reader: bins [1, 4)
+  EXPECT_EQ(lg.classes[0].line_groups[0].begin, 1U);
+  EXPECT_EQ(lg.classes[0].line_groups[0].end, 4U);
 }
 
 TEST(BaselineFile, EveryCorruptionIsReported) {
@@ -320,10 +348,10 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
                                     std::to_string(good.size() + 1) + " (trailing bytes)");
   Bytes version = good;
-  version[8] = 3;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 3 (this build reads 1 to 2)");
+  version[8] = 4;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 4 (this build reads 1 to 3)");
   version[8] = 0;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 2)");
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 3)");
   Bytes flipped = good;
   flipped[good.size() / 2] ^= 0x01;
   const std::string crc_msg = message_of(flipped);
@@ -350,20 +378,25 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   policy[53] = 9;
   fix_crc(policy);
   EXPECT_EQ(message_of(policy),
-            "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9 for format version 2");
+            "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9 for format version 3");
   const Baseline gb = make_baseline(8, 2);
   std::size_t training = 4;
   for (const auto& t : gb.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
-  const std::size_t at_training = good.size() - 4 - training;
+  const std::size_t at_training = good.size() - 4 - 4 - training;  // CRC, v3 options, training list
   Bytes src = good;
   put_u32(src, at_training - gb.source.size() - 4, 5);  // source shorter than stored: misaligned
   fix_crc(src);
   EXPECT_EQ(message_of(src).rfind("b.bin: inconsistent baseline at byte", 0), 0U) << message_of(src);
   Bytes fewer = good;
-  put_u32(fewer, at_training, 1);  // one training recording of the two stored: bytes left over
+  put_u32(fewer, at_training, 1);  // one training recording of the two stored: the rest is misread
   fix_crc(fewer);
-  EXPECT_EQ(message_of(fewer).find("unexpected bytes before the CRC") != std::string::npos, true)
-      << message_of(fewer);
+  // The second recording's bytes are then read as the v3 option flags: a located error either way.
+  EXPECT_EQ(message_of(fewer).rfind("b.bin: inconsistent baseline at byte", 0), 0U) << message_of(fewer);
+  Bytes options = good;
+  put_u32(options, good.size() - 8, 0x6U);  // bits 1 and 2 mean nothing to this build
+  fix_crc(options);
+  EXPECT_EQ(message_of(options), "b.bin: inconsistent baseline at byte " + std::to_string(good.size() - 4) +
+                                     ": unknown option bits 0x00000006 (this build knows bit 0, line_gain)");
 
   // The same checks through the file API name the path.
   const fs::path d = temp_dir("corrupt");
@@ -424,10 +457,10 @@ TEST(BaselineFile, ReadsVersion1GoldenFile) {
                    std::log(s.mean) - 0.5 * (s.stddev / s.mean) * (s.stddev / s.mean));
   EXPECT_EQ(c0.holdout[ptda_m].windows, 0U);
   EXPECT_EQ(c0.windows_per_hour, 0.0);
-  // Written back, it becomes a version 2 file with the same content.
-  const Bytes v2 = serialize_baseline(b);
-  EXPECT_EQ(v2[8], 2);
-  expect_equal(parse_baseline(v2, "v2"), b);
+  // Written back, it becomes a version 3 file with the same content.
+  const Bytes v3 = serialize_baseline(b);
+  EXPECT_EQ(v3[8], 3);
+  expect_equal(parse_baseline(v3, "v3"), b);
 }
 
 TEST(BaselineFile, InconsistentBaselineIsNotWritten) {

@@ -33,9 +33,13 @@ class WindowAnalyzer {
   Features analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept;
 
   /// Like analyze() but with an explicit mean magnitude / TDA mean (used for leave-one-out training).
+  /// line_groups (PTDA only; empty = the paper's PTDA): each group's deterministic magnitude is the
+  /// mean magnitude times the window's own least-squares gain g = sum(a |X|) / sum(a^2) over the
+  /// group, so D[k] = g a[k] e^{j theta_x[k]}. Groups outside [1, N/2] are ignored.
   /// Same size rule, thread and allocation contract as analyze().
   Features analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
-                        std::span<const float> tda_mean, Method method) noexcept;
+                        std::span<const float> tda_mean, Method method,
+                        std::span<const LineGroup> line_groups = {}) noexcept;
 
   /// Buffers of the last analyze() call (valid until the next call), for reports and tests.
   [[nodiscard]] std::span<const float> deterministic() const noexcept { return d_; }
@@ -50,8 +54,19 @@ class WindowAnalyzer {
  private:
   std::size_t n_;
   RealFft fft_;
-  std::vector<float> d_, r_;
+  std::vector<float> d_, r_, mag_;
   std::vector<std::complex<float>> X_, D_, R_;
 };
+
+/// The spectral lines of a healthy mean magnitude spectrum a[k], k = 0..N/2: bins above 4 times
+/// (12 dB) the local floor (the median of a over the 65 bins centred on k, clipped to 1..N/2), each
+/// run of such bins widened by one bin on both sides (the leakage skirt of a line between bins), runs
+/// that touch merged. Bin 0 (DC) is never part of a line. Deterministic. Thread: any. Allocates.
+[[nodiscard]] std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude);
+
+/// Fills every class's line_groups from its mean_magnitude when baseline.policy.ptda_line_gain is
+/// set, and clears them otherwise. Called by training and by the baseline reader. Thread: any.
+/// Allocates.
+void prepare_line_groups(Baseline& baseline);
 
 }  // namespace ptda::dsp

@@ -48,6 +48,17 @@ struct ThresholdPolicy {
   /// Fraction of each class's training windows (the latest cycles) held out of the fit and used to
   /// measure the false-alarm rate of the bands that are stored (0 = none).
   double holdout_fraction = 0.0;
+  /// PTDA with a per-window gain on each line group of the healthy mean spectrum (`[monitor]
+  /// line_gain`, docs/method.md §3): a harmonic whose level moved with load or temperature leaves no
+  /// residual, sidebands, impacts and the floor still do. Stored in the baseline (format >= 3) because
+  /// the bands are only valid for the residual they were trained on.
+  bool ptda_line_gain = false;
+};
+
+/// Bins [begin, end) of one spectral line of the healthy mean magnitude (with its leakage skirt).
+struct LineGroup {
+  std::uint32_t begin = 0;
+  std::uint32_t end = 0;
 };
 
 /// The bands of one method measured on held-out healthy windows of its class (never part of the
@@ -87,6 +98,9 @@ struct ClassBaseline {
   std::array<FeatureStats, kMethodCount> log_rms_stats{};
   std::array<HoldoutStats, kMethodCount> holdout{};
   double windows_per_hour = 0.0;  ///< training windows of this class per hour of recording
+  /// Runtime only (not stored): the line groups of mean_magnitude when the policy asks for PTDA line
+  /// gains (find_line_groups(), filled by prepare_line_groups()), else empty = the paper's PTDA.
+  std::vector<LineGroup> line_groups;
 };
 
 /// Gearbox description, kept in the baseline so a report can name the mesh frequencies.

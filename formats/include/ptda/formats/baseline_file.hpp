@@ -17,8 +17,9 @@ namespace ptda::formats {
 /// Layout version written by this build (docs/recording-format.md describes it). Version 2 added the
 /// threshold confidence and hold-out fraction, per class the ln(rms_res) statistics, windows per hour
 /// and hold-out results, and after the source text the training recordings. Version 1 files are still
-/// read (log statistics derived from the linear ones, no hold-out, no training list).
-inline constexpr std::uint32_t kBaselineFormatVersion = 2;
+/// read (log statistics derived from the linear ones, no hold-out, no training list). Version 3 appends
+/// option flags before the CRC (bit 0: PTDA line gain); versions 1 and 2 read with no options.
+inline constexpr std::uint32_t kBaselineFormatVersion = 3;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 
 /// Throws ptda::Error (naming the path and the failed step); never leaves a partial file at `path`.
