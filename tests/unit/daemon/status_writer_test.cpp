@@ -12,6 +12,7 @@
 
 #include "alloc_counter.hpp"
 #include "ptda/common/error.hpp"
+#include "status/text_escape.hpp"
 
 namespace fs = std::filesystem;
 
@@ -332,6 +333,46 @@ TEST(StatusWriter, EscapesStrings) {
   b.clear();
   b.append_json_string(std::string_view("\b\f\r\x7f/", 5));
   EXPECT_EQ(b.view(), "\"\\b\\f\\r\x7f/\"");
+}
+
+// Ill-formed UTF-8 and NUL bytes (a baseline path, a reason from a file) must not reach either file
+// raw: the JSON must stay valid UTF-8 and the Prometheus label values too (status/text_escape.hpp).
+TEST(StatusWriter, EscapesIllFormedUtf8AndNul) {
+  StatusWriterConfig c = json_only(scratch("utf8"));
+  c.prom_path = c.json_path.parent_path() / "ptda.prom";
+  StatusWriter w(c);
+  StatusSnapshot s;
+  s.reason.assign(
+      std::string_view("a\0b\xC0\x80"
+                       "c\xED\xA0\x80"
+                       "d\xE2\x82",
+                       12));
+  s.baseline_path.assign(
+      "/var/lib/ptda/\xE2\x82\xAC"
+      ".bin");
+  const std::string text(w.render_json(s));
+  EXPECT_NE(text.find("\"reason\":\"a\\u0000b\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "c"
+                      "\xEF\xBF\xBD\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "d\xEF\xBF\xBD\""),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("\"path\":\"/var/lib/ptda/\xE2\x82\xAC"
+                      ".bin\""),
+            std::string::npos)
+      << text;
+  EXPECT_TRUE(JsonChecker(text).valid()) << text;
+  EXPECT_TRUE(is_valid_utf8(text));
+  const std::string prom(w.render_prometheus(s));
+  EXPECT_NE(prom.find("reason=\"a\xEF\xBF\xBD"
+                      "b\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "c"
+                      "\xEF\xBF\xBD\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "d\xEF\xBF\xBD\""),
+            std::string::npos)
+      << prom;
+  EXPECT_TRUE(is_valid_utf8(prom));
+  EXPECT_EQ(prom.find('\0'), std::string::npos);
 }
 
 TEST(StatusWriter, FixedStringTruncates) {
