@@ -14,6 +14,7 @@
 #include <sstream>
 #include <utility>
 
+#include "adc/iio_sysfs_value.hpp"
 #include "ptda/common/error.hpp"
 
 namespace fs = std::filesystem;
@@ -102,11 +103,7 @@ void IioSampleSource::configure() {
   // 2. Rate, read back: drivers round to what the hardware supports.
   const fs::path freq = dir / "sampling_frequency";
   if (config_.fs_hz > 0.0) write_attr(freq, number_text(config_.fs_hz));
-  const std::string freq_text = read_attr(freq);
-  char* end = nullptr;
-  fs_hz_ = std::strtod(freq_text.c_str(), &end);
-  if (end == freq_text.c_str() || !(fs_hz_ > 0.0) || !std::isfinite(fs_hz_))
-    throw Error(freq.string(), 0, 0, "not a positive sample rate: '" + freq_text + "'");
+  fs_hz_ = parse_sysfs_rate_hz(read_attr(freq), freq.string());
   period_ns_ = 1e9 / fs_hz_;
   // 3. Timestamps on CLOCK_MONOTONIC (the default is CLOCK_REALTIME, which jumps with NTP).
   if (fs::exists(dir / "current_timestamp_clock")) write_attr(dir / "current_timestamp_clock", "monotonic");
@@ -140,15 +137,7 @@ void IioSampleSource::configure() {
     IioChannelSpec spec;
     spec.name = a;
     const fs::path index_path = se / ("in_" + a + "_index");
-    const std::string index_text = read_attr(index_path);
-    try {
-      std::size_t used = 0;
-      const unsigned long v = std::stoul(index_text, &used);
-      if (used != index_text.size()) throw std::invalid_argument("junk");
-      spec.index = static_cast<std::uint32_t>(v);
-    } catch (const std::exception&) {
-      throw Error(index_path.string(), 0, 0, "not a scan index: '" + index_text + "'");
-    }
+    spec.index = parse_sysfs_index(read_attr(index_path), index_path.string());
     const fs::path type_path = se / ("in_" + a + "_type");
     spec.type = parse_iio_scan_type(read_attr(type_path), type_path.string());
     specs.push_back(std::move(spec));

@@ -331,6 +331,24 @@ TEST_F(FakeIio, BadTypeOrRateIsAnError) {
   EXPECT_THROW(src2.configure(), Error);
 }
 
+// strtod/stoul used to take "4000 Hz" as 4000 and "-1" as index 4294967295 (wrapped).
+TEST_F(FakeIio, SysfsValuesAreParsedStrictly) {
+  cfg_.fs_hz = 0;
+  put(sys_ / "sampling_frequency", "4000 Hz\n");
+  IioSampleSource src(cfg_, clock_);
+  EXPECT_THROW(src.configure(), Error);
+  put(sys_ / "sampling_frequency", "4000\n");
+  put(sys_ / "scan_elements" / "in_accel_x_index", "-1\n");
+  IioSampleSource src2(cfg_, clock_);
+  try {
+    src2.configure();
+    ADD_FAILURE() << "index -1 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("in_accel_x_index: not a scan index: '-1'"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(FakeIio, ReadNeverAllocates) {
   cfg_.block_len = 64;
   IioSampleSource src(cfg_, clock_);
