@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <utility>
 
@@ -239,7 +240,13 @@ SourceStatus IioSampleSource::read(SampleBlock& out, std::int64_t timeout_ns) no
     if (ts_el != nullptr) {
       const std::int64_t t = decode_iio_value(s, *ts_el);
       if (have_last_ts_) {
-        const std::int64_t dt = t - last_ts_;
+        // Saturated: a garbage timestamp (any 64-bit value) must not overflow (UB) into a step
+        // backwards; it is a huge gap or a step back by its sign.
+        std::int64_t dt = 0;
+        if (__builtin_sub_overflow(t, last_ts_, &dt)) {
+          dt = t < last_ts_ ? std::numeric_limits<std::int64_t>::min()
+                            : std::numeric_limits<std::int64_t>::max();
+        }
         const bool back = dt <= 0;
         const bool gap = static_cast<double>(dt) > gap_limit_ns;
         if ((back || gap) && k > 0) break;  // a discontinuity always starts a new block

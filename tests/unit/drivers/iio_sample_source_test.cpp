@@ -208,6 +208,25 @@ TEST_F(FakeIio, TimestampGapStartsANewFlaggedBlockAndAdvancesTheIndex) {
   EXPECT_EQ(c.lost_samples, 3u);
 }
 
+// Found by fuzz_iio_sysfs: t - last_ts overflowed int64 (UB) for far-apart garbage timestamps, and
+// the wrapped difference made a forward jump look like a step backwards.
+TEST_F(FakeIio, TimestampJumpBeyondInt64IsAGapNotUb) {
+  IioSampleSource src(cfg_, clock_);
+  src.configure();
+  append_dev(scans(src.layout(), {1, 2}, {-6'836'464'234'348'412'928, 8'192'047'722'186'932'224}));
+  src.activate();
+  auto b = std::make_unique<SampleBlock>();
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->count, 1u);
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->count, 1u);
+  EXPECT_EQ(b->flags, static_cast<std::uint32_t>(kBlockGap));
+  EXPECT_EQ(b->gap_samples, 4'000'000'000u);  // the lost-sample estimate is capped
+  const SampleSourceCounters c = src.counters();
+  EXPECT_EQ(c.gaps, 1u);
+  EXPECT_EQ(c.time_back, 0u);
+}
+
 TEST_F(FakeIio, JitterWithinToleranceIsNotAGap) {
   IioSampleSource src(cfg_, clock_);
   src.configure();

@@ -46,7 +46,9 @@ TEST(IioSysfsValue, BadRatesNameTheFileAndText) {
     EXPECT_NE(rate_error(bad), "accepted") << testing::PrintToString(std::string(bad));
   }
   // Non-printable bytes are not copied into the message; long texts are cut.
-  EXPECT_EQ(rate_error("\x01\xff"sv), "dev/sampling_frequency: not a positive sample rate: '?" "?'");
+  EXPECT_EQ(rate_error("\x01\xff"sv),
+            "dev/sampling_frequency: not a positive sample rate: '?"
+            "?'");
   EXPECT_EQ(rate_error(std::string(100, 'x')),
             "dev/sampling_frequency: not a positive sample rate: '" + std::string(64, 'x') + "...'");
 }
