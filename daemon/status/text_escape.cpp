@@ -94,26 +94,35 @@ std::size_t escape_utf8(std::string_view in, char* out, std::size_t cap, Ascii a
   return o.result();
 }
 
+/// The escapes JSON and Prometheus share (\" \\ \n); false when `c` is none of them.
+bool put_shared_escape(Out& o, char c) noexcept {
+  switch (c) {
+    case '"':
+      o.put("\\\"");
+      return true;
+    case '\\':
+      o.put("\\\\");
+      return true;
+    case '\n':
+      o.put("\\n");
+      return true;
+    default:
+      return false;
+  }
+}
+
 }  // namespace
 
 std::size_t escape_json_body(std::string_view in, char* out, std::size_t cap) noexcept {
   return escape_utf8(in, out, cap, [](Out& o, char c) noexcept {
     static constexpr char kHex[] = "0123456789abcdef";
+    if (put_shared_escape(o, c)) return;
     switch (c) {
-      case '"':
-        o.put("\\\"");
-        break;
-      case '\\':
-        o.put("\\\\");
-        break;
       case '\b':
         o.put("\\b");
         break;
       case '\f':
         o.put("\\f");
-        break;
-      case '\n':
-        o.put("\\n");
         break;
       case '\r':
         o.put("\\r");
@@ -136,21 +145,11 @@ std::size_t escape_json_body(std::string_view in, char* out, std::size_t cap) no
 
 std::size_t escape_prom_label_value(std::string_view in, char* out, std::size_t cap) noexcept {
   return escape_utf8(in, out, cap, [](Out& o, char c) noexcept {
-    switch (c) {
-      case '"':
-        o.put("\\\"");
-        break;
-      case '\\':
-        o.put("\\\\");
-        break;
-      case '\n':
-        o.put("\\n");
-        break;
-      case '\0':
-        o.put(kReplacementChar);
-        break;
-      default:
-        o.put(std::string_view(&c, 1));
+    if (put_shared_escape(o, c)) return;
+    if (c == '\0') {
+      o.put(kReplacementChar);
+    } else {
+      o.put(std::string_view(&c, 1));
     }
   });
 }
