@@ -9,7 +9,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
-targets=(${PTDA_FUZZ_TARGETS:-candump_line wav recording_toml baseline scenario iio_scan_type daemon_config})
+targets=(${PTDA_FUZZ_TARGETS:-candump_line wav recording_toml baseline scenario iio_scan_type daemon_config can_frame iio_sysfs
+  status_escape})
 build=build/fuzz
 
 if [ ! -f "$build/CMakeCache.txt" ]; then

@@ -10,6 +10,7 @@
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
 #include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/training.hpp"
 #include "ptda/formats/baseline_file.hpp"

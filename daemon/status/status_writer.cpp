@@ -13,6 +13,7 @@
 #include <string_view>
 
 #include "ptda/common/error.hpp"
+#include "status/text_escape.hpp"
 
 namespace ptda::daemon {
 
@@ -64,62 +65,24 @@ void TextBuffer::append_double(double v, std::string_view null_text) noexcept {
   append(std::string_view(buf, static_cast<std::size_t>(n)));
 }
 
-void TextBuffer::append_json_string(std::string_view s) noexcept {
-  static constexpr char kHex[] = "0123456789abcdef";
-  append_char('"');
-  for (const char c : s) {
-    switch (c) {
-      case '"':
-        append("\\\"");
-        break;
-      case '\\':
-        append("\\\\");
-        break;
-      case '\b':
-        append("\\b");
-        break;
-      case '\f':
-        append("\\f");
-        break;
-      case '\n':
-        append("\\n");
-        break;
-      case '\r':
-        append("\\r");
-        break;
-      case '\t':
-        append("\\t");
-        break;
-      default: {
-        const auto u = static_cast<unsigned char>(c);
-        if (u < 0x20) {
-          const char esc[6] = {'\\', 'u', '0', '0', kHex[u >> 4], kHex[u & 0xF]};
-          append(std::string_view(esc, 6));
-        } else {
-          append_char(c);
-        }
-      }
-    }
+void TextBuffer::append_escaped(EscapeFn escape, std::string_view s) noexcept {
+  if (overflow_) return;
+  const std::size_t n = escape(s, data_ + len_, cap_ - len_);
+  if (n == kEscapeOverflow) {
+    overflow_ = true;
+  } else {
+    len_ += n;
   }
+}
+
+void TextBuffer::append_json_string(std::string_view s) noexcept {
+  append_char('"');
+  append_escaped(escape_json_body, s);
   append_char('"');
 }
 
 void TextBuffer::append_label_value(std::string_view s) noexcept {
-  for (const char c : s) {
-    switch (c) {
-      case '"':
-        append("\\\"");
-        break;
-      case '\\':
-        append("\\\\");
-        break;
-      case '\n':
-        append("\\n");
-        break;
-      default:
-        append_char(c);
-    }
-  }
+  append_escaped(escape_prom_label_value, s);
 }
 
 std::size_t format_rfc3339_utc(std::int64_t unix_ns, char* out, std::size_t cap) noexcept {

@@ -4,14 +4,16 @@
 // same directory + rename, so a reader never sees a partial file).
 //
 // JSON layout (keys in this order; times are seconds as decimals, feature values %.9g, strings escaped
-// per RFC 8259 with \" \\ \b \f \n \r \t and \u00XX for other control characters):
+// per RFC 8259 with \" \\ \b \f \n \r \t and \u00XX for other control characters, NUL included, and
+// each ill-formed UTF-8 sequence replaced by U+FFFD: status/text_escape.hpp):
 //   {"version":1,"state":..,"phase":..,"reason":..,"uptime_s":..,"now_s":..,"now_utc":..,
 //    "wall_time_unix_ns":..,"method":..,"baseline":{"loaded":..,"path":..,"fs_hz":..,"window_len":..,"source":..,"classes":[{...}]},
 //    "last_window":{...}|null,"alarm":{...},"coverage":{...}|null,"training":{...}|null,
 //    "acquisition":{...},"can":{...},"slicer":{...},"pipeline":{...}}
 // Prometheus (text exposition format 0.0.4): `# HELP` and `# TYPE` for every metric family, names
 // `ptda_*`, `_total` for counters, units in names (`_seconds`, `_hertz`, `_radians_per_second`),
-// label values escaped (\\ \" \n). docs/systemd.md ("Status files") lists every metric.
+// label values escaped (\\ \" \n; ill-formed UTF-8 and NUL become U+FFFD). docs/systemd.md ("Status
+// files") lists every metric.
 // Times: every `*_s` time is on the daemon's status timeline (now_s; see StatusSnapshot::now_s), every
 // age/duration is now_s minus such a time (never negative), every `*_utc` is RFC 3339 UTC text with
 // milliseconds ("2026-11-25T04:31:07.250Z"), null when unknown.
@@ -204,9 +206,10 @@ class TextBuffer {
   /// %.9g; non-finite values are written as `null_text` (JSON: "null"; Prometheus: NaN/+Inf/-Inf when
   /// null_text is empty).
   void append_double(double v, std::string_view null_text) noexcept;
-  /// A JSON string literal with quotes (RFC 8259 escaping).
+  /// A JSON string literal with quotes (RFC 8259 escaping, valid UTF-8: status/text_escape.hpp).
   void append_json_string(std::string_view s) noexcept;
-  /// A Prometheus label value without quotes (escapes \\, \" and \n).
+  /// A Prometheus label value without quotes (escapes \\, \" and \n; valid UTF-8, NUL replaced:
+  /// status/text_escape.hpp).
   void append_label_value(std::string_view s) noexcept;
   [[nodiscard]] bool overflow() const noexcept { return overflow_; }
   [[nodiscard]] std::size_t size() const noexcept { return len_; }
@@ -217,6 +220,8 @@ class TextBuffer {
   }
 
  private:
+  using EscapeFn = std::size_t (*)(std::string_view, char*, std::size_t) noexcept;
+  void append_escaped(EscapeFn escape, std::string_view s) noexcept;
   char* data_;
   std::size_t cap_;
   std::size_t len_ = 0;

@@ -18,6 +18,7 @@
 
 #include "ptda/drivers/counter.hpp"
 #include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 

@@ -11,9 +11,11 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <utility>
 
+#include "adc/iio_sysfs_value.hpp"
 #include "ptda/common/error.hpp"
 
 namespace fs = std::filesystem;
@@ -102,11 +104,7 @@ void IioSampleSource::configure() {
   // 2. Rate, read back: drivers round to what the hardware supports.
   const fs::path freq = dir / "sampling_frequency";
   if (config_.fs_hz > 0.0) write_attr(freq, number_text(config_.fs_hz));
-  const std::string freq_text = read_attr(freq);
-  char* end = nullptr;
-  fs_hz_ = std::strtod(freq_text.c_str(), &end);
-  if (end == freq_text.c_str() || !(fs_hz_ > 0.0) || !std::isfinite(fs_hz_))
-    throw Error(freq.string(), 0, 0, "not a positive sample rate: '" + freq_text + "'");
+  fs_hz_ = parse_sysfs_rate_hz(read_attr(freq), freq.string());
   period_ns_ = 1e9 / fs_hz_;
   // 3. Timestamps on CLOCK_MONOTONIC (the default is CLOCK_REALTIME, which jumps with NTP).
   if (fs::exists(dir / "current_timestamp_clock")) write_attr(dir / "current_timestamp_clock", "monotonic");
@@ -140,15 +138,7 @@ void IioSampleSource::configure() {
     IioChannelSpec spec;
     spec.name = a;
     const fs::path index_path = se / ("in_" + a + "_index");
-    const std::string index_text = read_attr(index_path);
-    try {
-      std::size_t used = 0;
-      const unsigned long v = std::stoul(index_text, &used);
-      if (used != index_text.size()) throw std::invalid_argument("junk");
-      spec.index = static_cast<std::uint32_t>(v);
-    } catch (const std::exception&) {
-      throw Error(index_path.string(), 0, 0, "not a scan index: '" + index_text + "'");
-    }
+    spec.index = parse_sysfs_index(read_attr(index_path), index_path.string());
     const fs::path type_path = se / ("in_" + a + "_type");
     spec.type = parse_iio_scan_type(read_attr(type_path), type_path.string());
     specs.push_back(std::move(spec));
@@ -250,7 +240,13 @@ SourceStatus IioSampleSource::read(SampleBlock& out, std::int64_t timeout_ns) no
     if (ts_el != nullptr) {
       const std::int64_t t = decode_iio_value(s, *ts_el);
       if (have_last_ts_) {
-        const std::int64_t dt = t - last_ts_;
+        // Saturated: a garbage timestamp (any 64-bit value) must not overflow (UB) into a step
+        // backwards; it is a huge gap or a step back by its sign.
+        std::int64_t dt = 0;
+        if (__builtin_sub_overflow(t, last_ts_, &dt)) {
+          dt = t < last_ts_ ? std::numeric_limits<std::int64_t>::min()
+                            : std::numeric_limits<std::int64_t>::max();
+        }
         const bool back = dt <= 0;
         const bool gap = static_cast<double>(dt) > gap_limit_ns;
         if ((back || gap) && k > 0) break;  // a discontinuity always starts a new block

@@ -112,7 +112,7 @@ bool from_kernel_frame(const canfd_frame& in, std::size_t nbytes, std::int64_t t
     return true;
   }
   if (nbytes == CANFD_MTU) {
-    if (in.len > CANFD_MAX_DLEN || (in.can_id & (CAN_ERR_FLAG | CAN_RTR_FLAG)) != 0) return false;
+    if (!valid_fd_len(in.len) || (in.can_id & (CAN_ERR_FLAG | CAN_RTR_FLAG)) != 0) return false;
     out.flags = kCanFd;
     if ((in.flags & CANFD_BRS) != 0) out.flags |= kCanFdBrs;
     if ((in.flags & CANFD_ESI) != 0) out.flags |= kCanFdEsi;

@@ -59,7 +59,8 @@ inline constexpr std::size_t kCanCmsgBytes =
 /// Thread: any. Never allocates.
 [[nodiscard]] CanRxMeta parse_rx_cmsgs(const msghdr& msg) noexcept;
 /// Converts a kernel frame of `nbytes` (CAN_MTU or CANFD_MTU) into out. False for any other size or
-/// a length beyond the format. Thread: any. Never allocates.
+/// a length the format does not have (classic: above 8; FD: other than 0..8, 12, 16, 20, 24, 32, 48,
+/// 64), so every accepted frame converts back with to_kernel_frame(). Thread: any. Never allocates.
 [[nodiscard]] bool from_kernel_frame(const canfd_frame& in, std::size_t nbytes, std::int64_t t_ns,
                                      CanFrame& out) noexcept;
 /// Converts a frame for write(); returns CAN_MTU or CANFD_MTU, or 0 when the frame is invalid

@@ -11,17 +11,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text = ptda::fuzz::as_text(data, size);
-  std::vector<std::string_view> parts;
-  std::size_t start = 0;
-  for (;;) {
-    const std::size_t cut = text.find("\n#---\n", start);
-    if (cut == std::string_view::npos || parts.size() == 3) {
-      parts.push_back(text.substr(start));
-      break;
-    }
-    parts.push_back(text.substr(start, cut + 1 - start));
-    start = cut + 6;
-  }
+  const std::vector<std::string_view> parts = ptda::fuzz::split_parts(text, 4);
   const auto main = ptda::fuzz::write_scratch("ptdad.toml", parts[0]);
   std::vector<std::filesystem::path> dropins;
   for (std::size_t i = 1; i < parts.size(); ++i)

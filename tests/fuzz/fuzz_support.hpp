@@ -10,6 +10,7 @@
 #include <fstream>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace ptda::fuzz {
 
@@ -34,6 +35,22 @@ inline std::filesystem::path write_scratch(const std::string& name, std::string_
 
 inline std::string_view as_text(const std::uint8_t* data, std::size_t size) {
   return {reinterpret_cast<const char*>(data), size};
+}
+
+/// Splits `text` at lines "#---" (the separator line is dropped, each part keeps its last newline)
+/// into at most `max_parts` parts; the last part takes the rest.
+inline std::vector<std::string_view> split_parts(std::string_view text, std::size_t max_parts) {
+  std::vector<std::string_view> parts;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t cut = text.find("\n#---\n", start);
+    if (cut == std::string_view::npos || parts.size() + 1 == max_parts) {
+      parts.push_back(text.substr(start));
+      return parts;
+    }
+    parts.push_back(text.substr(start, cut + 1 - start));
+    start = cut + 6;
+  }
 }
 
 }  // namespace ptda::fuzz

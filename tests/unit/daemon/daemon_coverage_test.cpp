@@ -17,7 +17,9 @@
 #include "alarm/can_alarm_output.hpp"
 #include "daemon_fakes.hpp"
 #include "daemon_test_support.hpp"
+#include "fake_service_manager.hpp"
 #include "ptda/config/speed_codec.hpp"
+#include "status_text.hpp"
 
 namespace ptda::daemon::test {
 namespace {
@@ -28,49 +30,6 @@ std::shared_ptr<const SimRecording> healthy() {
   static const auto rec = make_sim_recording(arc_scenario(), 7);
   return rec;
 }
-
-/// The service manager's end of $NOTIFY_SOCKET (as daemon_notify_test.cpp): collects datagrams.
-class FakeManager {
- public:
-  explicit FakeManager(const fs::path& path) {
-    fd_ = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    sockaddr_un addr{};
-    addr.sun_family = AF_UNIX;
-    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
-    ::unlink(path.c_str());
-    bound_ = ::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
-    timeval tv{0, 20000};
-    ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    thread_ = std::thread([this] {
-      char buf[4096];
-      while (!stop_.load()) {
-        const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
-        if (n > 0) {
-          std::lock_guard lock(mutex_);
-          messages_.emplace_back(buf, static_cast<std::size_t>(n));
-        }
-      }
-    });
-  }
-  ~FakeManager() {
-    stop_ = true;
-    thread_.join();
-    ::close(fd_);
-  }
-  [[nodiscard]] bool bound() const { return bound_; }
-  std::vector<std::string> messages() {
-    std::lock_guard lock(mutex_);
-    return messages_;
-  }
-
- private:
-  int fd_ = -1;
-  bool bound_ = false;
-  std::atomic<bool> stop_{false};
-  std::mutex mutex_;
-  std::vector<std::string> messages_;
-  std::thread thread_;
-};
 
 struct Sink final : WindowSink {
   Sink() { w.resize(8192); }
@@ -114,16 +73,8 @@ std::shared_ptr<ChannelPlan> frames_with(const config::SpeedFrameSpec& spec, F f
   return p;
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-bool has(const std::string& text, const std::string& needle) {
-  return text.find(needle) != std::string::npos;
-}
+using ptda::test::has;
+using ptda::test::read_text;
 
 struct RunOutcome {
   std::vector<dsp::WindowResult> windows;

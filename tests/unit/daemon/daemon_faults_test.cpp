@@ -13,6 +13,7 @@
 #include "daemon_fakes.hpp"
 #include "daemon_test_support.hpp"
 #include "ptda/common/time.hpp"
+#include "status_text.hpp"
 
 namespace ptda::daemon::test {
 namespace {
@@ -67,12 +68,7 @@ std::string fake_config(const fs::path& dir, const std::string& extra = "",
          "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n" + extra + "\n" + pipe;
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using ptda::test::read_text;
 
 struct RunResult {
   std::vector<Win> windows;

@@ -24,20 +24,13 @@
 
 #include "daemon_test_support.hpp"
 #include "status/status_writer.hpp"
+#include "status_text.hpp"
 
 namespace ptda::daemon::test {
 namespace {
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-bool has(const std::string& text, const std::string& needle) {
-  return text.find(needle) != std::string::npos;
-}
+using ptda::test::has;
+using ptda::test::read_text;
 
 /// Unix seconds of RFC 3339 UTC text as the status writer writes it ("2026-11-25T04:31:07.250Z"); -1 when
 /// it does not parse.

@@ -19,6 +19,7 @@
 #include "core/daemon_config.hpp"
 #include "core/sim_backends.hpp"
 #include "ptda/config/speed_codec.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/formats/baseline_file.hpp"
 

@@ -11,6 +11,7 @@
 #include "daemon_fakes.hpp"
 #include "daemon_test_support.hpp"
 #include "ptda/common/error.hpp"
+#include "status_text.hpp"
 
 namespace ptda::daemon::test {
 namespace {
@@ -23,12 +24,7 @@ class Training : public ::testing::Test {
   static void SetUpTestSuite() { block_daemon_signals(); }
 };
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using ptda::test::read_text;
 
 /// The unsigned value after "key": inside status.json's "training" object (0 when absent).
 std::uint64_t json_u64(const std::string& text, const std::string& key) {

@@ -12,125 +12,15 @@
 
 #include "alloc_counter.hpp"
 #include "ptda/common/error.hpp"
+#include "status/text_escape.hpp"
+#include "status_text.hpp"
 
 namespace fs = std::filesystem;
 
 namespace ptda::daemon {
 namespace {
 
-// ------------------------------------------------------------------ a minimal JSON validator (RFC 8259)
-class JsonChecker {
- public:
-  explicit JsonChecker(std::string_view s) : s_(s) {}
-  /// True when the text is exactly one JSON value (plus whitespace).
-  bool valid() {
-    ws();
-    if (!value()) return false;
-    ws();
-    return i_ == s_.size();
-  }
-
- private:
-  void ws() {
-    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\r' || s_[i_] == '\t')) ++i_;
-  }
-  bool lit(std::string_view w) {
-    if (s_.substr(i_, w.size()) != w) return false;
-    i_ += w.size();
-    return true;
-  }
-  bool value() {
-    if (i_ >= s_.size()) return false;
-    switch (s_[i_]) {
-      case '{':
-        return object();
-      case '[':
-        return array();
-      case '"':
-        return string();
-      case 't':
-        return lit("true");
-      case 'f':
-        return lit("false");
-      case 'n':
-        return lit("null");
-      default:
-        return number();
-    }
-  }
-  bool object() {
-    ++i_;
-    ws();
-    if (i_ < s_.size() && s_[i_] == '}') return ++i_, true;
-    for (;;) {
-      ws();
-      if (!string()) return false;
-      ws();
-      if (!lit(":")) return false;
-      ws();
-      if (!value()) return false;
-      ws();
-      if (lit("}")) return true;
-      if (!lit(",")) return false;
-    }
-  }
-  bool array() {
-    ++i_;
-    ws();
-    if (i_ < s_.size() && s_[i_] == ']') return ++i_, true;
-    for (;;) {
-      ws();
-      if (!value()) return false;
-      ws();
-      if (lit("]")) return true;
-      if (!lit(",")) return false;
-    }
-  }
-  bool string() {
-    if (!lit("\"")) return false;
-    while (i_ < s_.size()) {
-      const auto c = static_cast<unsigned char>(s_[i_++]);
-      if (c == '"') return true;
-      if (c < 0x20) return false;
-      if (c == '\\') {
-        if (i_ >= s_.size()) return false;
-        const char e = s_[i_++];
-        if (e == 'u') {
-          for (int k = 0; k < 4; ++k) {
-            if (i_ >= s_.size() || std::isxdigit(static_cast<unsigned char>(s_[i_++])) == 0) return false;
-          }
-        } else if (std::string_view("\"\\/bfnrt").find(e) == std::string_view::npos) {
-          return false;
-        }
-      }
-    }
-    return false;
-  }
-  bool number() {
-    const std::size_t start = i_;
-    if (i_ < s_.size() && s_[i_] == '-') ++i_;
-    if (i_ >= s_.size() || !std::isdigit(static_cast<unsigned char>(s_[i_]))) return false;
-    if (s_[i_] == '0') {
-      ++i_;
-    } else {
-      while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_]))) ++i_;
-    }
-    if (i_ < s_.size() && s_[i_] == '.') {
-      ++i_;
-      if (i_ >= s_.size() || !std::isdigit(static_cast<unsigned char>(s_[i_]))) return false;
-      while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_]))) ++i_;
-    }
-    if (i_ < s_.size() && (s_[i_] == 'e' || s_[i_] == 'E')) {
-      ++i_;
-      if (i_ < s_.size() && (s_[i_] == '+' || s_[i_] == '-')) ++i_;
-      if (i_ >= s_.size() || !std::isdigit(static_cast<unsigned char>(s_[i_]))) return false;
-      while (i_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[i_]))) ++i_;
-    }
-    return i_ > start;
-  }
-  std::string_view s_;
-  std::size_t i_ = 0;
-};
+using test::JsonChecker;
 
 TEST(JsonChecker, RejectsBrokenJson) {  // the checker itself must be able to fail
   EXPECT_TRUE(JsonChecker(R"({"a":[1,-2.5e3,true,null,"x\"\u001f"]})").valid());
@@ -148,13 +38,6 @@ fs::path scratch(const std::string& name) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 StatusSnapshot known_snapshot() {
@@ -334,6 +217,46 @@ TEST(StatusWriter, EscapesStrings) {
   EXPECT_EQ(b.view(), "\"\\b\\f\\r\x7f/\"");
 }
 
+// Ill-formed UTF-8 and NUL bytes (a baseline path, a reason from a file) must not reach either file
+// raw: the JSON must stay valid UTF-8 and the Prometheus label values too (status/text_escape.hpp).
+TEST(StatusWriter, EscapesIllFormedUtf8AndNul) {
+  StatusWriterConfig c = json_only(scratch("utf8"));
+  c.prom_path = c.json_path.parent_path() / "ptda.prom";
+  StatusWriter w(c);
+  StatusSnapshot s;
+  s.reason.assign(
+      std::string_view("a\0b\xC0\x80"
+                       "c\xED\xA0\x80"
+                       "d\xE2\x82",
+                       12));
+  s.baseline_path.assign(
+      "/var/lib/ptda/\xE2\x82\xAC"
+      ".bin");
+  const std::string text(w.render_json(s));
+  EXPECT_NE(text.find("\"reason\":\"a\\u0000b\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "c"
+                      "\xEF\xBF\xBD\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "d\xEF\xBF\xBD\""),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("\"path\":\"/var/lib/ptda/\xE2\x82\xAC"
+                      ".bin\""),
+            std::string::npos)
+      << text;
+  EXPECT_TRUE(JsonChecker(text).valid()) << text;
+  EXPECT_TRUE(is_valid_utf8(text));
+  const std::string prom(w.render_prometheus(s));
+  EXPECT_NE(prom.find("reason=\"a\xEF\xBF\xBD"
+                      "b\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "c"
+                      "\xEF\xBF\xBD\xEF\xBF\xBD\xEF\xBF\xBD"
+                      "d\xEF\xBF\xBD\""),
+            std::string::npos)
+      << prom;
+  EXPECT_TRUE(is_valid_utf8(prom));
+  EXPECT_EQ(prom.find('\0'), std::string::npos);
+}
+
 TEST(StatusWriter, FixedStringTruncates) {
   FixedString<8> f;
   f.assign("0123456789");
@@ -341,20 +264,6 @@ TEST(StatusWriter, FixedStringTruncates) {
   EXPECT_EQ(f.text[7], '\0');
   f.assign("ab");
   EXPECT_EQ(f.view(), "ab");
-}
-
-/// The sample lines of one metric family (without HELP/TYPE).
-std::vector<std::string> samples_of(std::string_view text, std::string_view name) {
-  std::vector<std::string> out;
-  std::istringstream in{std::string(text)};
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind(std::string(name), 0) == 0 &&
-        (line.size() > name.size() && (line[name.size()] == ' ' || line[name.size()] == '{'))) {
-      out.push_back(line);
-    }
-  }
-  return out;
 }
 
 TEST(StatusWriter, PrometheusLines) {
@@ -366,67 +275,69 @@ TEST(StatusWriter, PrometheusLines) {
   s.baseline_path.assign("/var/lib/ptda/base\\line.bin");
   const std::string text(w.render_prometheus(s));
 
-  EXPECT_EQ(samples_of(text, "ptda_info"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_info"),
             std::vector<std::string>{
                 R"(ptda_info{method="ptda",phase="monitoring",reason="operator \"jo\"\\n\nnext",)"
                 R"(baseline_path="/var/lib/ptda/base\\line.bin",)"
                 R"(baseline_source="ptda train rec/2024-05-01"} 1)"});
   EXPECT_EQ(
-      samples_of(text, "ptda_state"),
+      test::prom_samples(text, "ptda_state"),
       (std::vector<std::string>{R"(ptda_state{state="configured"} 0)", R"(ptda_state{state="running"} 1)",
                                 R"(ptda_state{state="paused"} 0)", R"(ptda_state{state="refused"} 0)",
                                 R"(ptda_state{state="training"} 0)", R"(ptda_state{state="stopping"} 0)",
                                 R"(ptda_state{state="ended"} 0)"}));
-  EXPECT_EQ(samples_of(text, "ptda_rms_threshold"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_rms_threshold"),
             (std::vector<std::string>{R"(ptda_rms_threshold{class="0",bound="low"} 0.01)",
                                       R"(ptda_rms_threshold{class="0",bound="high"} 0.02)",
                                       R"(ptda_rms_threshold{class="1",bound="low"} 0.011)",
                                       R"(ptda_rms_threshold{class="1",bound="high"} 0.021)"}));
-  EXPECT_EQ(samples_of(text, "ptda_class_speed_radians_per_second"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_class_speed_radians_per_second"),
             (std::vector<std::string>{R"(ptda_class_speed_radians_per_second{class="0"} 0.5)",
                                       R"(ptda_class_speed_radians_per_second{class="1"} -0.25)"}));
-  EXPECT_EQ(samples_of(text, "ptda_window_rms"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_window_rms"),
             std::vector<std::string>{R"(ptda_window_rms{class="1"} 0.025)"});
-  EXPECT_EQ(samples_of(text, "ptda_window_age_seconds"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_window_age_seconds"),
             std::vector<std::string>{"ptda_window_age_seconds 1.375"});
-  EXPECT_EQ(samples_of(text, "ptda_alarm_level"), std::vector<std::string>{"ptda_alarm_level 2"});
-  EXPECT_EQ(samples_of(text, "ptda_alarm_level_duration_seconds"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_alarm_level"), std::vector<std::string>{"ptda_alarm_level 2"});
+  EXPECT_EQ(test::prom_samples(text, "ptda_alarm_level_duration_seconds"),
             std::vector<std::string>{"ptda_alarm_level_duration_seconds 10.5"});
-  EXPECT_EQ(samples_of(text, "ptda_alarm_cause"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_alarm_cause"),
             (std::vector<std::string>{
                 R"(ptda_alarm_cause{cause="rms"} 1)", R"(ptda_alarm_cause{cause="entropy"} 0)",
                 R"(ptda_alarm_cause{cause="sensor"} 0)", R"(ptda_alarm_cause{cause="speed"} 1)",
                 R"(ptda_alarm_cause{cause="baseline"} 0)", R"(ptda_alarm_cause{cause="internal"} 0)",
                 R"(ptda_alarm_cause{cause="coverage"} 0)"}));
   EXPECT_EQ(
-      samples_of(text, "ptda_coverage_state"),
+      test::prom_samples(text, "ptda_coverage_state"),
       (std::vector<std::string>{
           R"(ptda_coverage_state{state="waiting"} 0)", R"(ptda_coverage_state{state="full"} 0)",
           R"(ptda_coverage_state{state="partial"} 1)", R"(ptda_coverage_state{state="not judging"} 0)"}));
-  EXPECT_EQ(samples_of(text, "ptda_windows_judged_total"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_windows_judged_total"),
             std::vector<std::string>{"ptda_windows_judged_total 107"});
-  EXPECT_EQ(samples_of(text, "ptda_windows_unmatched_total"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_windows_unmatched_total"),
             (std::vector<std::string>{R"(ptda_windows_unmatched_total{reason="speed"} 1)",
                                       R"(ptda_windows_unmatched_total{reason="direction"} 0)",
                                       R"(ptda_windows_unmatched_total{reason="invalid"} 0)"}));
-  EXPECT_EQ(samples_of(text, "ptda_last_judged_window_age_seconds"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_last_judged_window_age_seconds"),
             std::vector<std::string>{"ptda_last_judged_window_age_seconds 0.875"});
-  EXPECT_EQ(samples_of(text, "ptda_motion_since_judged_seconds"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_motion_since_judged_seconds"),
             std::vector<std::string>{"ptda_motion_since_judged_seconds 0.5"});
-  EXPECT_EQ(samples_of(text, "ptda_class_windows_judged_total"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_class_windows_judged_total"),
             (std::vector<std::string>{R"(ptda_class_windows_judged_total{class="0"} 0)",
                                       R"(ptda_class_windows_judged_total{class="1"} 107)"}));
-  EXPECT_EQ(samples_of(text, "ptda_class_last_judged_window_age_seconds"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_class_last_judged_window_age_seconds"),
             std::vector<std::string>{R"(ptda_class_last_judged_window_age_seconds{class="1"} 0.875)"});
-  EXPECT_EQ(samples_of(text, "ptda_uptime_seconds"), std::vector<std::string>{"ptda_uptime_seconds 3600.25"});
-  EXPECT_EQ(samples_of(text, "ptda_acquisition_samples_total"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_uptime_seconds"),
+            std::vector<std::string>{"ptda_uptime_seconds 3600.25"});
+  EXPECT_EQ(test::prom_samples(text, "ptda_acquisition_samples_total"),
             std::vector<std::string>{"ptda_acquisition_samples_total 102400"});
-  EXPECT_EQ(samples_of(text, "ptda_watchdog_pings_total"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_watchdog_pings_total"),
             std::vector<std::string>{"ptda_watchdog_pings_total 7200"});
-  EXPECT_EQ(samples_of(text, "ptda_can_bus_state")[2], R"(ptda_can_bus_state{state="error_passive"} 1)");
-  EXPECT_EQ(samples_of(text, "ptda_can_remote_frames_total"),
+  EXPECT_EQ(test::prom_samples(text, "ptda_can_bus_state")[2],
+            R"(ptda_can_bus_state{state="error_passive"} 1)");
+  EXPECT_EQ(test::prom_samples(text, "ptda_can_remote_frames_total"),
             std::vector<std::string>{"ptda_can_remote_frames_total 2"});
-  EXPECT_TRUE(samples_of(text, "ptda_training_windows").empty());  // only while training
+  EXPECT_TRUE(test::prom_samples(text, "ptda_training_windows").empty());  // only while training
 
   EXPECT_NE(text.find("# HELP ptda_acquisition_samples_total Vibration samples read.\n"
                       "# TYPE ptda_acquisition_samples_total counter\n"
@@ -477,8 +388,8 @@ TEST(StatusWriter, WritesBothFilesAtomically) {
   c.prom_path = dir / "ptda.prom";
   StatusWriter w(c);
   ASSERT_EQ(w.write(known_snapshot()), StatusWriteResult::kOk);
-  EXPECT_EQ(slurp(c.json_path), kKnownJson);
-  const std::string prom = slurp(c.prom_path);
+  EXPECT_EQ(test::read_text(c.json_path), kKnownJson);
+  const std::string prom = test::read_text(c.prom_path);
   EXPECT_NE(prom.find("ptda_alarm_level 2\n"), std::string::npos);
   EXPECT_FALSE(fs::exists(dir / "status.json.tmp"));
   EXPECT_FALSE(fs::exists(dir / "ptda.prom.tmp"));
@@ -488,7 +399,7 @@ TEST(StatusWriter, WritesBothFilesAtomically) {
   StatusSnapshot s = known_snapshot();
   s.alarm_level = drivers::AlarmLevel::kNormal;
   ASSERT_EQ(w.write(s), StatusWriteResult::kOk);
-  EXPECT_NE(slurp(c.prom_path).find("ptda_alarm_level 0\n"), std::string::npos);
+  EXPECT_NE(test::read_text(c.prom_path).find("ptda_alarm_level 0\n"), std::string::npos);
   EXPECT_EQ(w.counters().writes, 2U);
   EXPECT_EQ(w.counters().io_errors, 0U);
 }

@@ -208,6 +208,25 @@ TEST_F(FakeIio, TimestampGapStartsANewFlaggedBlockAndAdvancesTheIndex) {
   EXPECT_EQ(c.lost_samples, 3u);
 }
 
+// Found by fuzz_iio_sysfs: t - last_ts overflowed int64 (UB) for far-apart garbage timestamps, and
+// the wrapped difference made a forward jump look like a step backwards.
+TEST_F(FakeIio, TimestampJumpBeyondInt64IsAGapNotUb) {
+  IioSampleSource src(cfg_, clock_);
+  src.configure();
+  append_dev(scans(src.layout(), {1, 2}, {-6'836'464'234'348'412'928, 8'192'047'722'186'932'224}));
+  src.activate();
+  auto b = std::make_unique<SampleBlock>();
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->count, 1u);
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->count, 1u);
+  EXPECT_EQ(b->flags, static_cast<std::uint32_t>(kBlockGap));
+  EXPECT_EQ(b->gap_samples, 4'000'000'000u);  // the lost-sample estimate is capped
+  const SampleSourceCounters c = src.counters();
+  EXPECT_EQ(c.gaps, 1u);
+  EXPECT_EQ(c.time_back, 0u);
+}
+
 TEST_F(FakeIio, JitterWithinToleranceIsNotAGap) {
   IioSampleSource src(cfg_, clock_);
   src.configure();
@@ -329,6 +348,24 @@ TEST_F(FakeIio, BadTypeOrRateIsAnError) {
   put(sys_ / "sampling_frequency", "fast\n");
   IioSampleSource src2(cfg_, clock_);
   EXPECT_THROW(src2.configure(), Error);
+}
+
+// strtod/stoul used to take "4000 Hz" as 4000 and "-1" as index 4294967295 (wrapped).
+TEST_F(FakeIio, SysfsValuesAreParsedStrictly) {
+  cfg_.fs_hz = 0;
+  put(sys_ / "sampling_frequency", "4000 Hz\n");
+  IioSampleSource src(cfg_, clock_);
+  EXPECT_THROW(src.configure(), Error);
+  put(sys_ / "sampling_frequency", "4000\n");
+  put(sys_ / "scan_elements" / "in_accel_x_index", "-1\n");
+  IioSampleSource src2(cfg_, clock_);
+  try {
+    src2.configure();
+    ADD_FAILURE() << "index -1 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("in_accel_x_index: not a scan index: '-1'"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST_F(FakeIio, ReadNeverAllocates) {

@@ -138,6 +138,21 @@ TEST(CanFrameConversion, ClassicExtendedRtrErrorAndFd) {
   k.len = 9;
   EXPECT_FALSE(from_kernel_frame(k, CAN_MTU, 0, f));
   EXPECT_FALSE(from_kernel_frame(k, 10, 0, f));
+
+  // Found by fuzz_can_frame: an FD length between the FD sizes (9..11, 13..15, ...) was accepted,
+  // and such a frame could not be converted back (to_kernel_frame refuses it).
+  fd = canfd_frame{};
+  fd.can_id = 0x123;
+  for (const int len : {9, 11, 14, 33, 63, 65}) {
+    fd.len = static_cast<__u8>(len);
+    EXPECT_FALSE(from_kernel_frame(fd, CANFD_MTU, 0, f)) << len;
+  }
+  for (const int len : {0, 8, 12, 20, 48, 64}) {
+    fd.len = static_cast<__u8>(len);
+    ASSERT_TRUE(from_kernel_frame(fd, CANFD_MTU, 0, f)) << len;
+    canfd_frame back{};
+    EXPECT_EQ(to_kernel_frame(f, back), static_cast<std::size_t>(CANFD_MTU)) << len;
+  }
 }
 
 TEST(CanFrameConversion, OutgoingFramesRoundTripAndInvalidOnesAreRefused) {

@@ -14,6 +14,7 @@
 
 #include "alloc_counter.hpp"
 #include "ptda/common/error.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/training.hpp"
 
 namespace ptda::dsp {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "ptda/common/error.hpp"
-#include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/training.hpp"
 
 namespace ptda::dsp {

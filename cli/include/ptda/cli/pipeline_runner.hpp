@@ -14,6 +14,7 @@
 
 #include "ptda/cli/args.hpp"
 #include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/coverage.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/types.hpp"

@@ -9,6 +9,7 @@
 
 #include "ptda/config/speed_codec.hpp"
 #include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 

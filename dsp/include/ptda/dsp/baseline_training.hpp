@@ -1,0 +1,44 @@
+// The training glue (dsp/src/baseline_training.cpp): segment classes from the regions of a healthy
+// recording, then the baseline from its collected windows. Offline (`ptda train`) and the daemon's
+// field training at finish: allocates and throws ptda::Error.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/training.hpp"
+#include "ptda/dsp/window_slicer.hpp"
+
+namespace ptda::dsp {
+
+/// Offline training input: every window of a healthy recording with its region (allocates).
+struct CollectedWindows {
+  std::vector<WindowRef> refs;
+  std::vector<std::vector<float>> windows;
+  std::vector<RegionInfo> regions;
+};
+
+struct ClassLearningConfig {
+  double speed_tol_rel = 0.05;  ///< regions within this relative speed of each other share a class
+  double speed_tol_abs_rad_s = 0.02;
+  std::uint32_t min_regions = 3;  ///< a class needs at least this many training regions (cycles)
+};
+
+/// Groups regions into segment classes by direction and speed (the class's duration is the median
+/// region length). Classes with fewer than min_regions regions are dropped. Ids 0.. in order:
+/// forward classes by speed, then backward classes by speed (docs/windows.md).
+/// Thread: any (offline). Allocates. Throws ptda::Error on a bad configuration (names the key).
+[[nodiscard]] std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& regions,
+                                                              const ClassLearningConfig& cfg);
+
+/// Builds the baseline: classes from the regions, then build_class_baseline() per class with the
+/// window's overlap group as leave-out group (windows of one region whose sample ranges overlap share
+/// a group). Classes with fewer than 3 groups are left out; kept classes are renumbered 0.. in order.
+/// source is left empty for the caller. Thread: any (offline). Allocates.
+/// Throws ptda::Error when no class has enough windows (says how many regions/windows per class).
+[[nodiscard]] Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig& classes,
+                                      const ThresholdPolicy& policy, double fs_hz,
+                                      const GearboxInfo& gearbox);
+
+}  // namespace ptda::dsp

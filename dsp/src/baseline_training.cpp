@@ -1,0 +1,262 @@
+// The training glue: segment classes from the regions of a healthy recording, then the baseline from
+// its collected windows (build_class_baseline() per class). Offline code (and the daemon's training
+// mode): allocates and throws ptda::Error. See docs/windows.md.
+#include "ptda/dsp/baseline_training.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/decision.hpp"
+
+namespace ptda::dsp {
+namespace {
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+}  // namespace
+
+std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& regions,
+                                                const ClassLearningConfig& cfg) {
+  if (!(std::isfinite(cfg.speed_tol_rel) && cfg.speed_tol_rel >= 0.0)) {
+    throw Error("classes.speed_tol_rel: must be finite and >= 0, got " + num(cfg.speed_tol_rel));
+  }
+  if (!(std::isfinite(cfg.speed_tol_abs_rad_s) && cfg.speed_tol_abs_rad_s >= 0.0)) {
+    throw Error("classes.speed_tol_abs_rad_s: must be finite and >= 0, got " + num(cfg.speed_tol_abs_rad_s));
+  }
+  if (cfg.min_regions == 0) throw Error("classes.min_regions: must be >= 1");
+  const auto tol_at = [&](double speed) {
+    return std::max(cfg.speed_tol_rel * speed, cfg.speed_tol_abs_rad_s);
+  };
+
+  struct Item {
+    double speed;  // |mean speed|
+    double duration_s;
+  };
+  std::vector<SegmentClass> out;
+  for (const std::int8_t dir : {std::int8_t{1}, std::int8_t{-1}}) {  // forward classes first
+    std::vector<Item> items;
+    for (const RegionInfo& r : regions) {
+      if ((r.direction < 0 ? -1 : 1) != dir) continue;
+      if (!std::isfinite(r.mean_speed_rad_s))
+        throw Error("learn_segment_classes: region " + std::to_string(r.seq) +
+                    " has a non-finite mean speed");
+      items.push_back(
+          Item{std::fabs(r.mean_speed_rad_s), static_cast<double>(r.t_end_ns - r.t_begin_ns) * 1e-9});
+    }
+    std::stable_sort(items.begin(), items.end(),
+                     [](const Item& a, const Item& b) { return a.speed < b.speed; });
+    // Greedy: a group is anchored at its slowest region and takes every region within the anchor's
+    // tolerance. Every member is then within the class tolerance of the class mean (the mean is at
+    // or above the anchor, so its tolerance is at least the anchor's), so training regions always
+    // match their own class.
+    std::size_t i = 0;
+    while (i < items.size()) {
+      const double anchor = items[i].speed;
+      std::size_t j = i;
+      double sum = 0.0;
+      std::vector<double> durations;
+      while (j < items.size() && items[j].speed - anchor <= tol_at(anchor)) {
+        sum += items[j].speed;
+        durations.push_back(items[j].duration_s);
+        ++j;
+      }
+      if (durations.size() >= cfg.min_regions) {
+        std::sort(durations.begin(), durations.end());
+        const std::size_t m = durations.size();
+        SegmentClass c;
+        c.direction = dir;
+        c.speed_rad_s = sum / static_cast<double>(m);
+        c.speed_tol_rad_s = tol_at(c.speed_rad_s);
+        c.duration_s = m % 2 == 1 ? durations[m / 2] : 0.5 * (durations[m / 2 - 1] + durations[m / 2]);
+        c.regions = static_cast<std::uint32_t>(m);
+        out.push_back(c);
+      }
+      i = j;
+    }
+  }
+  for (std::size_t k = 0; k < out.size(); ++k) out[k].id = static_cast<std::uint32_t>(k);
+  return out;
+}
+
+Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig& classes,
+                        const ThresholdPolicy& policy, double fs_hz, const GearboxInfo& gearbox) {
+  if (data.refs.size() != data.windows.size()) {
+    throw Error("train_baseline: " + std::to_string(data.refs.size()) + " window refs but " +
+                std::to_string(data.windows.size()) + " windows");
+  }
+  if (!(policy.holdout_fraction >= 0.0 && policy.holdout_fraction <= 0.9)) {
+    throw Error("thresholds.holdout_fraction: must be in [0, 0.9], got " + num(policy.holdout_fraction));
+  }
+  if (data.windows.empty()) {
+    throw Error("train_baseline: no constant-speed windows in the training data (" +
+                std::to_string(data.regions.size()) + " regions found)");
+  }
+  const std::size_t n = data.windows.front().size();
+  for (std::size_t i = 0; i < data.windows.size(); ++i) {
+    if (data.windows[i].size() != n) {
+      throw Error("train_baseline: window " + std::to_string(i) + " has " +
+                  std::to_string(data.windows[i].size()) + " samples, the first has " + std::to_string(n));
+    }
+  }
+
+  Baseline candidates;
+  for (const SegmentClass& c : learn_segment_classes(data.regions, classes)) {
+    ClassBaseline cb;
+    cb.segment = c;
+    candidates.classes.push_back(std::move(cb));
+  }
+
+  // Overlap groups: windows of one region whose sample ranges overlap (directly or through a chain)
+  // share a group, so leave-one-group-out never scores a window against a mean containing its own
+  // samples; disjoint windows of one long region are separate groups.
+  std::vector<std::uint64_t> group(data.refs.size(), 0);
+  {
+    std::vector<std::size_t> order(data.refs.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      const WindowRef& p = data.refs[a];
+      const WindowRef& q = data.refs[b];
+      return p.region_seq != q.region_seq ? p.region_seq < q.region_seq : p.first_sample < q.first_sample;
+    });
+    std::uint64_t next_group = 0;
+    std::int64_t reach = 0;  // end (exclusive) of the current group's samples
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      const WindowRef& r = data.refs[order[k]];
+      const bool same_region = k > 0 && data.refs[order[k - 1]].region_seq == r.region_seq;
+      if (!(same_region && r.first_sample < reach)) {
+        ++next_group;
+        reach = r.first_sample;
+      }
+      reach = std::max(reach, r.first_sample + static_cast<std::int64_t>(n));
+      group[order[k]] = next_group - 1;
+    }
+  }
+
+  struct Members {
+    std::vector<std::size_t> windows;
+    std::vector<std::uint64_t> groups;
+  };
+  std::vector<Members> members(candidates.classes.size());
+  std::size_t unmatched = 0;
+  for (std::size_t i = 0; i < data.refs.size(); ++i) {
+    const ClassBaseline* c = candidates.match(data.refs[i].speed_rad_s);
+    if (c == nullptr) {
+      ++unmatched;
+      continue;
+    }
+    Members& m = members[static_cast<std::size_t>(c - candidates.classes.data())];
+    m.windows.push_back(i);
+    m.groups.push_back(group[i]);
+  }
+
+  // Operating time of the training data: the time from each window's start to the next one's (in cut
+  // order), a pause longer than 10 median intervals (another recording, a program stop) counting as
+  // one median interval; the last window adds one median interval.
+  double hours = 0.0;
+  {
+    std::vector<double> dt_s;
+    for (std::size_t i = 1; i < data.refs.size(); ++i) {
+      const double d = static_cast<double>(data.refs[i].t_start_ns - data.refs[i - 1].t_start_ns) * 1e-9;
+      if (d > 0.0) dt_s.push_back(d);
+    }
+    if (!dt_s.empty()) {
+      std::vector<double> sorted = dt_s;
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                       sorted.end());
+      const double median = sorted[sorted.size() / 2];
+      double total = median;
+      for (std::size_t i = 1; i < data.refs.size(); ++i) {
+        const double d = static_cast<double>(data.refs[i].t_start_ns - data.refs[i - 1].t_start_ns) * 1e-9;
+        total += (d > 0.0 && d <= 10.0 * median) ? d : median;
+      }
+      hours = total / 3600.0;
+    }
+  }
+
+  Baseline out;
+  out.fs_hz = fs_hz;
+  out.window_len = static_cast<std::uint32_t>(n);
+  out.gearbox = gearbox;
+  out.policy = policy;
+  std::string summary;
+  for (std::size_t k = 0; k < candidates.classes.size(); ++k) {
+    const SegmentClass& seg = candidates.classes[k].segment;
+    std::vector<std::uint64_t> distinct = members[k].groups;
+    std::sort(distinct.begin(), distinct.end());
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    summary += "; class " + std::to_string(seg.id) + " (" + (seg.direction < 0 ? "-" : "+") +
+               num(seg.speed_rad_s) + " rad/s): " + std::to_string(seg.regions) + " regions, " +
+               std::to_string(members[k].windows.size()) + " windows in " + std::to_string(distinct.size()) +
+               " non-overlapping groups";
+    if (distinct.size() < 3) continue;
+    // Hold-out: the latest groups (group ids follow cut order), never fewer than 3 groups left to fit.
+    const std::size_t n_hold = std::min(
+        static_cast<std::size_t>(std::floor(policy.holdout_fraction * static_cast<double>(distinct.size()))),
+        distinct.size() - 3);
+    const std::uint64_t first_held = n_hold == 0 ? ~std::uint64_t{0} : distinct[distinct.size() - n_hold];
+    std::vector<std::vector<float>> windows;
+    std::vector<std::uint64_t> fit_groups;
+    std::vector<std::size_t> held;
+    windows.reserve(members[k].windows.size());
+    for (std::size_t j = 0; j < members[k].windows.size(); ++j) {
+      const std::size_t i = members[k].windows[j];
+      if (members[k].groups[j] >= first_held) {
+        held.push_back(i);
+        continue;
+      }
+      windows.push_back(data.windows[i]);
+      fit_groups.push_back(members[k].groups[j]);
+    }
+    SegmentClass renumbered = seg;
+    renumbered.id = static_cast<std::uint32_t>(out.classes.size());
+    ClassBaseline cb = build_class_baseline(renumbered, windows, fit_groups, policy);
+    cb.windows_per_hour = hours > 0.0 ? static_cast<double>(members[k].windows.size()) / hours : 0.0;
+    if (!held.empty()) {
+      WindowAnalyzer analyzer(n);
+      for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
+        HoldoutStats& h = cb.holdout[mi];
+        std::vector<double> zr;
+        std::vector<double> ze;
+        for (const std::size_t i : held) {
+          const Features f = analyzer.analyze(data.windows[i], cb, static_cast<Method>(mi));
+          const Verdict v = judge(f, cb.thresholds[mi]);
+          ++h.windows;
+          h.abnormal += v.abnormal() ? 1U : 0U;
+          h.rms_high += v.rms_out ? 1U : 0U;
+          h.rms_low += v.rms_low ? 1U : 0U;
+          h.entropy_out += v.entropy_out ? 1U : 0U;
+          const StandardScores z = standardize(f, cb.log_rms_stats[mi], cb.entropy_stats[mi],
+                                               small_sample_scale(cb.log_rms_stats[mi].n, policy));
+          if (std::isfinite(z.rms)) zr.push_back(z.rms);
+          if (std::isfinite(z.entropy)) ze.push_back(z.entropy);
+        }
+        const FeatureStats sr = feature_stats(zr);
+        const FeatureStats se = feature_stats(ze);
+        h.z_rms_mean = sr.mean;
+        h.z_rms_sd = sr.stddev;
+        h.z_entropy_mean = se.mean;
+        h.z_entropy_sd = se.stddev;
+      }
+    }
+    out.classes.push_back(std::move(cb));
+  }
+  if (out.classes.empty()) {
+    throw Error("train_baseline: no segment class has enough training data (needs >= " +
+                std::to_string(classes.min_regions) + " regions and >= 3 non-overlapping window groups): " +
+                std::to_string(data.regions.size()) + " regions, " + std::to_string(data.windows.size()) +
+                " windows, " + std::to_string(unmatched) + " windows matching no class" +
+                (candidates.classes.empty() ? std::string("; no class learned") : summary));
+  }
+  return out;
+}
+
+}  // namespace ptda::dsp
