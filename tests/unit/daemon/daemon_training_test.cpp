@@ -278,5 +278,63 @@ TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
   }
 }
 
+// Issue 14 item 6: a baseline that cannot be written (here its directory is a regular file: ENOTDIR;
+// root ignores permission bits) shows in status.json with its errno, the collected windows are kept,
+// and the write is retried with backoff until it works. Before: the failure was only logged, every
+// status period, and never reached status.json.
+TEST_F(Training, BaselineWriteFailureShowsInTheStatusAndIsRetried) {
+  const fs::path dir = scratch("training_write_failure");
+  const auto rec = make_sim_recording(arc_scenario(), 7);
+  FakeDevices dev(source_of(*rec), frames_of(*rec));
+  dev.gate.t_ns =
+      rec->loop_ns / 2;  // enough for 5 cycles per class; the stream does not end (state training)
+  std::string cfg = train_config(dir, 5);
+  const fs::path out_dir = dir / "out";
+  cfg.replace(cfg.find((dir / "trained.bin").string()), (dir / "trained.bin").string().size(),
+              (out_dir / "trained.bin").string());
+  write_text(dir / "ptdad.toml", cfg);
+  { std::ofstream blocker(out_dir); }
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  opt.train = true;
+  drivers::MonotonicClock clock;
+  Daemon d(opt, clock);
+  d.set_device_factory(&dev);
+  d.configure();
+  d.activate();
+  DaemonRunThread runner(d);
+
+  const fs::path status = dir / "status" / "status.json";
+  std::string text;
+  const auto baseline_entry = [&] {
+    text = read_text(status);
+    const auto at = text.find("\"baseline\":{\"failing\"");
+    return at == std::string::npos ? std::string() : text.substr(at, text.find('}', at) - at + 1);
+  };
+  std::string entry;
+  ASSERT_TRUE(wait_for([&] {
+    entry = baseline_entry();
+    return entry.find("\"failing\":true") != std::string::npos;
+  })) << text;
+  EXPECT_NE(entry.find("\"last_errno\":20,"), std::string::npos) << entry;
+  EXPECT_NE(entry.find("ENOTDIR (Not a directory)"), std::string::npos) << entry;
+  EXPECT_NE(text.find("\"state\":\"training\""), std::string::npos);
+  EXPECT_GT(json_u64(text, "windows"), 0U);  // still pooled
+
+  // The cause removed: the next retry writes the baseline and monitoring starts on it.
+  fs::remove(out_dir);
+  fs::create_directory(out_dir);
+  ASSERT_TRUE(wait_for([&] { return dev.pipelines == 2 && d.view().state != DaemonState::kTraining; }));
+  const dsp::Baseline b = formats::read_baseline(out_dir / "trained.bin");
+  EXPECT_FALSE(b.classes.empty());
+  EXPECT_EQ(temp_files(out_dir), 0U);
+  ASSERT_TRUE(wait_for([&] {
+    entry = baseline_entry();
+    return entry.find("\"failing\":false") != std::string::npos;
+  })) << text;
+  EXPECT_EQ(entry.find("\"failures\":0,"), std::string::npos) << entry;  // the past failures stay counted
+}
+
 }  // namespace
 }  // namespace ptda::daemon::test
