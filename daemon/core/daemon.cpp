@@ -265,11 +265,39 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   {
     // Stop the old pipeline first: a device (IIO buffer, GPIO line) has one user at a time.
     std::lock_guard lock(pipeline_mutex_);
-    if (pipeline_) pipeline_->deactivate();
+    if (pipeline_) {
+      pipeline_->deactivate();
+      // Field training goes on: keep the collected windows for the new pipeline (held here until it
+      // started, so a reload that fails keeps them for the restart with the previous configuration).
+      if (mode == PipelineMode::kTrain && pipeline_->mode() == PipelineMode::kTrain) {
+        carried_trainer_ = pipeline_->release_trainer();
+      }
+    }
     pipeline_.reset();
   }
+  if (mode == PipelineMode::kTrain) fresh->set_previous_trainer(carried_trainer_.get());
   fresh->configure();
   fresh->activate();
+  if (mode != PipelineMode::kTrain) {
+    carried_trainer_.reset();
+  } else if (fresh->training_carry()) {
+    const TrainingCarryOver& c = *fresh->training_carry();
+    char note[kStatusTextBytes];
+    if (c.kept) {
+      std::snprintf(note, sizeof note, "reload kept %llu collected windows and %llu cycles%s",
+                    static_cast<unsigned long long>(c.windows), static_cast<unsigned long long>(c.regions),
+                    c.windows_lost + c.regions_lost > 0 ? " (the rest did not fit the new pool size)" : "");
+      spdlog::info("field training: {}", note);
+    } else {
+      std::snprintf(note, sizeof note,
+                    "training restarted: the reload changed %s; %llu windows and %llu cycles discarded",
+                    c.why.c_str(), static_cast<unsigned long long>(c.windows_lost),
+                    static_cast<unsigned long long>(c.regions_lost));
+      spdlog::warn("field training: {} (windows of another length or rate cannot train one baseline)", note);
+    }
+    training_note_.assign(note);
+    carried_trainer_.reset();
+  }
   log_replay_origin(*fresh, clock_);
   if (stall_.load(std::memory_order_relaxed)) fresh->set_processing_stall(true);
   if (fresh->refused()) spdlog::error("monitoring refused: {}", fresh->refusal());
@@ -404,6 +432,7 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
       std::snprintf(reason, sizeof reason, "waiting for the first vibration block");
       break;
     case Phase::kTraining:
+      std::snprintf(reason, sizeof reason, "%s", training_note_.text.data());  // a reload's effect
       break;
     case Phase::kMonitoring:
       // "not judged yet" before the first judged window, "partial coverage: ..." when a class is missing.

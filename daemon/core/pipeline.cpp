@@ -261,6 +261,8 @@ void Pipeline::configure() {
     tc.thresholds = pc.thresholds;
     tc.gearbox = pc.gearbox;
     trainer_ = std::make_unique<FieldTrainer>(tc);
+    if (previous_trainer_ != nullptr) carry_ = trainer_->take_over(*previous_trainer_);
+    previous_trainer_ = nullptr;
     train_window_.assign(window_len, 0.0F);
   }
   AlarmManagerConfig amc;

@@ -196,6 +196,15 @@ class Pipeline {
   void set_device_factory(DeviceFactory* f) noexcept { factory_ = f; }
   /// Benchmark hook, set before activate(). Thread: main.
   void set_probe(PipelineProbe* probe) noexcept { probe_ = probe; }
+  /// Training mode: the trainer of the pipeline this one replaces (a reload); configure() copies its
+  /// pool when compatible (FieldTrainer::take_over; the result in training_carry()). Must stay alive
+  /// until configure() returns. Set before configure(). Thread: main.
+  void set_previous_trainer(const FieldTrainer* previous) noexcept { previous_trainer_ = previous; }
+  /// What configure() kept of the previous trainer (nullopt: none was set). Thread: main.
+  [[nodiscard]] const std::optional<TrainingCarryOver>& training_carry() const noexcept { return carry_; }
+  /// Hands the field trainer (with its pool) to the caller, e.g. to carry it into the pipeline of a
+  /// reload. Only after deactivate() (no thread adds to it then). Thread: main.
+  [[nodiscard]] std::unique_ptr<FieldTrainer> release_trainer() noexcept { return std::move(trainer_); }
   /// Test-only fault injection: while true the processing thread stops working and stops beating
   /// (it still honours stop). Thread: any. Never blocks.
   void set_processing_stall(bool stall) noexcept { stall_.store(stall, std::memory_order_relaxed); }
@@ -270,6 +279,8 @@ class Pipeline {
   std::unique_ptr<dsp::CoverageTracker> coverage_;  ///< with engine_
   std::unique_ptr<dsp::WindowSlicer> train_slicer_;
   std::unique_ptr<FieldTrainer> trainer_;
+  const FieldTrainer* previous_trainer_ = nullptr;
+  std::optional<TrainingCarryOver> carry_;
   std::vector<float> train_window_;
   std::unique_ptr<AlarmManager> alarm_;
   WindowSink* sink_ = nullptr;
