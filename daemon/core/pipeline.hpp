@@ -28,6 +28,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -238,6 +239,22 @@ class Pipeline {
   }
 
  private:
+  /// What a WAV recording tells the candump replay of the same recording: its start (the shared
+  /// timeline origin) and its CAN log.
+  struct RecordingLink {
+    std::optional<std::int64_t> start_unix_ns;
+    std::filesystem::path can_log;
+  };
+  // The steps of configure(), in order. Thread: main. Allocate; throw ptda::Error (device, file).
+  void make_test_devices();                       ///< DeviceFactory's source and channel
+  RecordingLink configure_vibration_source();     ///< [adc] backend; fs_hz_ checked against [acquisition]
+  void configure_can(const RecordingLink& link);  ///< [can] backend
+  void configure_outputs();                       ///< GPIO / CAN alarm outputs (+ the factory's)
+  void configure_monitoring();                    ///< baseline, engine, coverage (or refusal_)
+  void configure_training();                      ///< slicer and FieldTrainer (takes over a previous pool)
+  void configure_alarm_manager();                 ///< AlarmManager (warning, hold, latch)
+  void configure_rings_and_timing();              ///< rings, blocks, staleness and hold times, status
+
   void acquisition_loop() noexcept;
   void can_loop() noexcept;
   void processing_loop() noexcept;
