@@ -17,6 +17,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstddef>
 #include <cstdint>
@@ -70,12 +71,13 @@ inline void random_suffix(char* out) noexcept {
   static constexpr char kAlphabet[] = "0123456789abcdefghijklmnopqrstuvwxyz";
   std::uint8_t bytes[kTempSuffixChars] = {};
   if (::getrandom(bytes, sizeof bytes, GRND_NONBLOCK) != static_cast<ssize_t>(sizeof bytes)) {
-    static std::uint64_t counter = 0;
+    static std::atomic<std::uint64_t> counter{0};
     timespec ts{};
     ::clock_gettime(CLOCK_MONOTONIC, &ts);
     std::uint64_t x = static_cast<std::uint64_t>(ts.tv_nsec) ^
                       (static_cast<std::uint64_t>(ts.tv_sec) << 30U) ^
-                      (static_cast<std::uint64_t>(::getpid()) << 20U) ^ (++counter * 0x9E3779B97F4A7C15ULL);
+                      (static_cast<std::uint64_t>(::getpid()) << 20U) ^
+                      ((counter.fetch_add(1, std::memory_order_relaxed) + 1) * 0x9E3779B97F4A7C15ULL);
     for (std::uint8_t& b : bytes) {
       x ^= x >> 33U;
       x *= 0xFF51AFD7ED558CCDULL;
