@@ -16,6 +16,7 @@
 #include <system_error>
 
 #include "core/logging.hpp"
+#include "ptda/common/atomic_file.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
 
@@ -78,6 +79,15 @@ void log_replay_origin(const Pipeline& p, const drivers::Clock& clock) {
                real / 1'000'000'000, real % 1'000'000'000, *origin);
 }
 
+// Temporary files of `target` that a killed run left behind (common/atomic_file.hpp): the old
+// "<name>.tmp" / "<name>.tmp.<pid>" and the current "<name>.tmp-<random>", regular files we own only.
+void remove_stale_temp_files_of(const fs::path& target) {
+  if (target.empty()) return;
+  const fs::path dir = target.parent_path();
+  const std::size_t n = remove_stale_temp_files(dir.empty() ? "." : dir.c_str(), target.filename().native());
+  if (n > 0) spdlog::info("removed {} stale temporary file(s) of {}", n, target.string());
+}
+
 }  // namespace
 
 Daemon::Daemon(DaemonOptions options, drivers::Clock& clock) : options_(std::move(options)), clock_(clock) {}
@@ -112,7 +122,9 @@ void Daemon::build_status_writer() {
     fs::create_directories(cfg_.daemon.metrics_path.parent_path(), ec);
     wc.prom_path = cfg_.daemon.metrics_path;
   }
+  for (const fs::path& p : {wc.json_path, wc.prom_path}) remove_stale_temp_files_of(p);
   writer_.reset();
+  status_failing_logged_[0] = status_failing_logged_[1] = false;
   if (!wc.json_path.empty() || !wc.prom_path.empty()) writer_ = std::make_unique<StatusWriter>(wc);
 }
 
@@ -139,6 +151,8 @@ void Daemon::configure() {
   set_log_level(cfg_.daemon.log_level);
   notifier_ = SdNotifier(options_.notify_socket);
   mode_ = options_.train ? PipelineMode::kTrain : PipelineMode::kMonitor;
+  remove_stale_temp_files_of(cfg_.daemon.baseline);
+  if (mode_ == PipelineMode::kTrain) remove_stale_temp_files_of(cfg_.training.output);
   build_status_writer();
 
   auto p = std::make_unique<Pipeline>(cfg_, mode_, clock_);
@@ -251,11 +265,39 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   {
     // Stop the old pipeline first: a device (IIO buffer, GPIO line) has one user at a time.
     std::lock_guard lock(pipeline_mutex_);
-    if (pipeline_) pipeline_->deactivate();
+    if (pipeline_) {
+      pipeline_->deactivate();
+      // Field training goes on: keep the collected windows for the new pipeline (held here until it
+      // started, so a reload that fails keeps them for the restart with the previous configuration).
+      if (mode == PipelineMode::kTrain && pipeline_->mode() == PipelineMode::kTrain) {
+        carried_trainer_ = pipeline_->release_trainer();
+      }
+    }
     pipeline_.reset();
   }
+  if (mode == PipelineMode::kTrain) fresh->set_previous_trainer(carried_trainer_.get());
   fresh->configure();
   fresh->activate();
+  if (mode != PipelineMode::kTrain) {
+    carried_trainer_.reset();
+  } else if (fresh->training_carry()) {
+    const TrainingCarryOver& c = *fresh->training_carry();
+    char note[kStatusTextBytes];
+    if (c.kept) {
+      std::snprintf(note, sizeof note, "reload kept %llu collected windows and %llu cycles%s",
+                    static_cast<unsigned long long>(c.windows), static_cast<unsigned long long>(c.regions),
+                    c.windows_lost + c.regions_lost > 0 ? " (the rest did not fit the new pool size)" : "");
+      spdlog::info("field training: {}", note);
+    } else {
+      std::snprintf(note, sizeof note,
+                    "training restarted: the reload changed %s; %llu windows and %llu cycles discarded",
+                    c.why.c_str(), static_cast<unsigned long long>(c.windows_lost),
+                    static_cast<unsigned long long>(c.regions_lost));
+      spdlog::warn("field training: {} (windows of another length or rate cannot train one baseline)", note);
+    }
+    training_note_.assign(note);
+    carried_trainer_.reset();
+  }
   log_replay_origin(*fresh, clock_);
   if (stall_.load(std::memory_order_relaxed)) fresh->set_processing_stall(true);
   if (fresh->refused()) spdlog::error("monitoring refused: {}", fresh->refusal());
@@ -390,6 +432,7 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
       std::snprintf(reason, sizeof reason, "waiting for the first vibration block");
       break;
     case Phase::kTraining:
+      std::snprintf(reason, sizeof reason, "%s", training_note_.text.data());  // a reload's effect
       break;
     case Phase::kMonitoring:
       // "not judged yet" before the first judged window, "partial coverage: ..." when a class is missing.
@@ -672,6 +715,7 @@ void Daemon::check_training(std::int64_t now) {
   const bool timed_out = now - training_started_ns_ > seconds_to_ns(cfg_.training.max_duration_s);
   const bool ended = pipeline_->status().ended;
   if (!progress.ready && !((timed_out || ended) && progress.can_finish)) return;
+  if (baseline_health_.failing && now < baseline_retry_ns_) return;  // backoff after a failed write
   const fs::path out = cfg_.training.output.empty() ? cfg_.daemon.baseline : cfg_.training.output;
   if (before_write_ != nullptr) before_write_(before_write_arg_);  // test-only hook
   try {
@@ -680,6 +724,12 @@ void Daemon::check_training(std::int64_t now) {
     spdlog::info(
         "field training: baseline written to {} ({} segment class(es), {} windows); monitoring starts",
         out.string(), b.classes.size(), progress.windows);
+    if (baseline_health_.failing) {
+      spdlog::info("field training: writing {} works again after {} failed attempt(s)", out.string(),
+                   baseline_consecutive_);
+    }
+    baseline_health_.failing = false;
+    baseline_consecutive_ = 0;
     mode_ = PipelineMode::kMonitor;
     DaemonConfig next = cfg_;
     next.daemon.baseline = out;
@@ -688,9 +738,41 @@ void Daemon::check_training(std::int64_t now) {
     // monitoring pipeline only to stop it again.
     if (stop_requested_.load(std::memory_order_acquire)) return;
     restart_pipeline(next, mode_);
+  } catch (const WriteError& e) {
+    // Trained, but the file could not be written (full disk, EIO, read-only, a missing directory):
+    // shown in status.json / the metrics, retried after 1, 2, 4, ... status periods (at most 64),
+    // logged on the first failure and when it works again.
+    ++baseline_health_.failures;
+    baseline_health_.last_errno = e.err();
+    baseline_health_.last_step = "write";
+    if (!baseline_health_.failing) {
+      spdlog::error("field training: {}; the collected windows are kept, retrying with backoff", e.what());
+    }
+    baseline_health_.failing = true;
+    ++baseline_consecutive_;
+    const std::int64_t period = seconds_to_ns(cfg_.daemon.status_period_s);
+    baseline_retry_ns_ =
+        now + period * (std::int64_t{1} << std::min<std::uint32_t>(baseline_consecutive_ - 1, 6));
   } catch (const Error& e) {
     spdlog::error("field training: {}", e.what());
     training_started_ns_ = now;  // try again after another max_duration_s
+  }
+}
+
+// Logs a status/metrics file that starts failing and one that works again (not every failed period).
+// Lines stay under spdlog's inline buffer: no allocation.
+void Daemon::log_status_write_changes() noexcept {
+  for (const StateFile f : {StateFile::kStatus, StateFile::kMetrics}) {
+    const StateFileHealth h = writer_->health(f);
+    bool& was = status_failing_logged_[static_cast<std::size_t>(f)];
+    if (h.failing && !was) {
+      spdlog::error("{} file {}: write failed at {}: {} ({}); retrying with backoff", state_file_name(f),
+                    writer_->path(f), h.last_step, errno_text(h.last_errno), errno_name(h.last_errno));
+    } else if (!h.failing && was) {
+      spdlog::info("{} file {}: written again ({} failed attempt(s) in all)", state_file_name(f),
+                   writer_->path(f), h.failures);
+    }
+    was = h.failing;
   }
 }
 
@@ -703,9 +785,11 @@ void Daemon::supervise(std::int64_t now) noexcept {
   }
   fill_snapshot(now);
   if (pipeline_) log_alarm_changes(pipeline_->status());
+  snapshot_.state_files[static_cast<std::size_t>(StateFile::kBaseline)] = baseline_health_;
   if (writer_) {
     if (writer_->write(snapshot_) == StatusWriteResult::kOk)
       status_writes_.fetch_add(1, std::memory_order_relaxed);
+    log_status_write_changes();
   }
   Pipeline* p = pipeline_.get();
   if (p != nullptr) {

@@ -129,6 +129,7 @@ class Daemon {
   void fill_snapshot(std::int64_t now) noexcept;
   void update_state_and_reason(std::int64_t now) noexcept;
   void log_counter_changes() noexcept;
+  void log_status_write_changes() noexcept;
   void log_alarm_changes(const PipelineStatus& ps) noexcept;
   void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);
 
@@ -162,6 +163,12 @@ class Daemon {
   std::int64_t beat_changed_ns_[3] = {0, 0, 0};
   bool stalled_logged_ = false;
   std::int64_t training_started_ns_ = 0;
+  std::unique_ptr<FieldTrainer> carried_trainer_;   ///< the pool across a reload during training
+  FixedString<kStatusTextBytes> training_note_;     ///< what the last reload did to the pool
+  StateFileHealth baseline_health_;                 ///< field training's baseline writes
+  std::uint32_t baseline_consecutive_ = 0;          ///< failed baseline writes in a row
+  std::int64_t baseline_retry_ns_ = 0;              ///< no new attempt before (backoff)
+  bool status_failing_logged_[2] = {false, false};  ///< StateFile::kStatus, kMetrics
   StatusSnapshot snapshot_;
   PipelineCounters last_counters_{};
   drivers::SampleSourceCounters last_source_{};

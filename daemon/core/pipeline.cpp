@@ -87,18 +87,32 @@ Pipeline::~Pipeline() {
 }
 
 void Pipeline::configure() {
-  const config::PipelineConfig& pc = cfg_.pipeline;
-
-  // ---- vibration source
-  std::optional<std::int64_t> recording_start_unix;
-  fs::path recording_can;
-  if (factory_ != nullptr) {  // test-only hook: the test's devices replace the configured backends
-    source_ = factory_->make_source(clock_);
-    channel_ = factory_->make_channel(clock_);
-    source_fast_ = cfg_.adc.pace == Pace::kFast;
-    can_fast_ = cfg_.can.pace == Pace::kFast;
-    inputs_text_ = "test devices (" + std::string(pace_name(cfg_.adc.pace)) + ")";
+  // Test-only hook: the test's devices replace the configured backends.
+  if (factory_ != nullptr) make_test_devices();
+  const RecordingLink link = configure_vibration_source();
+  configure_can(link);
+  configure_outputs();
+  if (mode_ == PipelineMode::kMonitor) {
+    configure_monitoring();
+  } else {
+    configure_training();
   }
+  configure_alarm_manager();
+  configure_rings_and_timing();
+  configured_ = true;
+}
+
+void Pipeline::make_test_devices() {
+  source_ = factory_->make_source(clock_);
+  channel_ = factory_->make_channel(clock_);
+  source_fast_ = cfg_.adc.pace == Pace::kFast;
+  can_fast_ = cfg_.can.pace == Pace::kFast;
+  inputs_text_ = "test devices (" + std::string(pace_name(cfg_.adc.pace)) + ")";
+}
+
+Pipeline::RecordingLink Pipeline::configure_vibration_source() {
+  const config::PipelineConfig& pc = cfg_.pipeline;
+  RecordingLink link;
   if (!source_) switch (cfg_.adc.backend) {
       case AdcBackend::kSim: {
         sim_ = make_sim_recording(cfg_.adc.scenario, cfg_.adc.seed);
@@ -123,8 +137,8 @@ void Pipeline::configure() {
                                                : drivers::ReplayPace::kRealTime;
         wc.start_unix_ns = seconds_to_ns(meta.start_time_s);
         wc.timeline.origin_unix_ns = wc.start_unix_ns;  // origin_mono_ns: set by activate()
-        recording_start_unix = wc.start_unix_ns;
-        recording_can = cfg_.adc.recording / meta.can_file;
+        link.start_unix_ns = wc.start_unix_ns;
+        link.can_log = cfg_.adc.recording / meta.can_file;
         auto wav = std::make_unique<drivers::WavReplaySource>(wc, clock_);
         wav_replay_ = wav.get();
         source_ = std::move(wav);
@@ -160,8 +174,11 @@ void Pipeline::configure() {
                     adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
   }
   fs_mhz_ = std::llround(fs_hz_ * 1000.0);
+  return link;
+}
 
-  // ---- CAN channel
+void Pipeline::configure_can(const RecordingLink& link) {
+  const config::PipelineConfig& pc = cfg_.pipeline;
   if (!channel_) switch (cfg_.can.backend) {
       case CanBackend::kSim: {
         SimCanConfig cc;
@@ -174,10 +191,10 @@ void Pipeline::configure() {
       }
       case CanBackend::kCandump: {
         drivers::CandumpReplayConfig cc;
-        cc.path = cfg_.can.replay_file.empty() ? recording_can : cfg_.can.replay_file;
+        cc.path = cfg_.can.replay_file.empty() ? link.can_log : cfg_.can.replay_file;
         cc.pace = cfg_.can.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible
                                                : drivers::ReplayPace::kRealTime;
-        if (recording_start_unix) cc.timeline.origin_unix_ns = *recording_start_unix;
+        if (link.start_unix_ns) cc.timeline.origin_unix_ns = *link.start_unix_ns;
         auto candump = std::make_unique<drivers::CandumpReplayChannel>(cc, clock_);
         candump_replay_ = candump.get();
         channel_ = std::move(candump);
@@ -202,8 +219,9 @@ void Pipeline::configure() {
     }
   channel_->configure();
   fast_ = source_fast_ && can_fast_;
+}
 
-  // ---- alarm outputs
+void Pipeline::configure_outputs() {
   if (cfg_.alarm.gpio_enabled) {
     drivers::GpiodOutputConfig gc;
     gc.chip = cfg_.alarm.gpio_chip;
@@ -219,50 +237,59 @@ void Pipeline::configure() {
   }
   if (factory_ != nullptr) factory_->add_outputs(outputs_, *channel_);
   for (auto& o : outputs_) o->configure();
+}
 
-  // ---- monitoring or training
+void Pipeline::configure_monitoring() {
+  const config::PipelineConfig& pc = cfg_.pipeline;
   const std::uint32_t window_len = pc.extraction.window_len;
-  if (mode_ == PipelineMode::kMonitor) {
-    const fs::path& path = cfg_.daemon.baseline;
-    try {
-      auto baseline = std::make_unique<dsp::Baseline>(formats::read_baseline(path));
-      if (!same_rate(baseline->fs_hz, fs_hz_)) {
-        throw Error(path.string() + ": baseline was trained at " + num(baseline->fs_hz) + " Hz but the " +
-                    adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
-      }
-      if (baseline->window_len != window_len) {
-        throw Error(
-            path.string() + ": baseline window length is " + std::to_string(baseline->window_len) +
-            " samples but the configuration sets [extraction] window_len = " + std::to_string(window_len));
-      }
-      engine_ =
-          std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method, fs_hz_, 0);
-      dsp::CoverageConfig cc;
-      cc.timeout_s = cfg_.daemon.coverage_timeout_s;
-      cc.moving_speed_rad_s = pc.extraction.min_speed_rad_s;
-      cc.max_speed_gap_s = pc.extraction.max_speed_gap_s;
-      coverage_ = std::make_unique<dsp::CoverageTracker>(*baseline, cc);
-      baseline_ = std::move(baseline);
-    } catch (const Error& e) {
-      refusal_ = e.what();
-      engine_.reset();
-      coverage_.reset();
-      baseline_.reset();
+  const fs::path& path = cfg_.daemon.baseline;
+  try {
+    auto baseline = std::make_unique<dsp::Baseline>(formats::read_baseline(path));
+    if (!same_rate(baseline->fs_hz, fs_hz_)) {
+      throw Error(path.string() + ": baseline was trained at " + num(baseline->fs_hz) + " Hz but the " +
+                  adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
     }
-  } else {
-    train_slicer_ = std::make_unique<dsp::WindowSlicer>(pc.extraction, fs_hz_, 0);
-    FieldTrainerConfig tc;
-    tc.fs_hz = fs_hz_;
-    tc.window_len = window_len;
-    tc.max_windows = cfg_.training.max_windows;
-    tc.max_regions = cfg_.training.max_regions;
-    tc.target_cycles = cfg_.training.target_cycles;
-    tc.classes = pc.classes;
-    tc.thresholds = pc.thresholds;
-    tc.gearbox = pc.gearbox;
-    trainer_ = std::make_unique<FieldTrainer>(tc);
-    train_window_.assign(window_len, 0.0F);
+    if (baseline->window_len != window_len) {
+      throw Error(
+          path.string() + ": baseline window length is " + std::to_string(baseline->window_len) +
+          " samples but the configuration sets [extraction] window_len = " + std::to_string(window_len));
+    }
+    engine_ =
+        std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method, fs_hz_, 0);
+    dsp::CoverageConfig cc;
+    cc.timeout_s = cfg_.daemon.coverage_timeout_s;
+    cc.moving_speed_rad_s = pc.extraction.min_speed_rad_s;
+    cc.max_speed_gap_s = pc.extraction.max_speed_gap_s;
+    coverage_ = std::make_unique<dsp::CoverageTracker>(*baseline, cc);
+    baseline_ = std::move(baseline);
+  } catch (const Error& e) {
+    refusal_ = e.what();
+    engine_.reset();
+    coverage_.reset();
+    baseline_.reset();
   }
+}
+
+void Pipeline::configure_training() {
+  const config::PipelineConfig& pc = cfg_.pipeline;
+  const std::uint32_t window_len = pc.extraction.window_len;
+  train_slicer_ = std::make_unique<dsp::WindowSlicer>(pc.extraction, fs_hz_, 0);
+  FieldTrainerConfig tc;
+  tc.fs_hz = fs_hz_;
+  tc.window_len = window_len;
+  tc.max_windows = cfg_.training.max_windows;
+  tc.max_regions = cfg_.training.max_regions;
+  tc.target_cycles = cfg_.training.target_cycles;
+  tc.classes = pc.classes;
+  tc.thresholds = pc.thresholds;
+  tc.gearbox = pc.gearbox;
+  trainer_ = std::make_unique<FieldTrainer>(tc);
+  if (previous_trainer_ != nullptr) carry_ = trainer_->take_over(*previous_trainer_);
+  previous_trainer_ = nullptr;
+  train_window_.assign(window_len, 0.0F);
+}
+
+void Pipeline::configure_alarm_manager() {
   AlarmManagerConfig amc;
   amc.warning_enabled = cfg_.alarm.warning;
   amc.warning_k = cfg_.alarm.warning_k;
@@ -271,8 +298,10 @@ void Pipeline::configure() {
   amc.latch = cfg_.alarm.latch;
   alarm_time_ns_ = clock_.now_ns();
   alarm_ = std::make_unique<AlarmManager>(amc, alarm_time_ns_);
+}
 
-  // ---- rings, buffers, timing
+void Pipeline::configure_rings_and_timing() {
+  const config::PipelineConfig& pc = cfg_.pipeline;
   sample_ring_ = std::make_unique<SampleRing>();
   speed_ring_ = std::make_unique<SpeedRing>();
   acq_block_ = std::make_unique<drivers::SampleBlock>();
@@ -288,7 +317,6 @@ void Pipeline::configure() {
   st_ = PipelineStatus{};
   st_.phase = mode_ == PipelineMode::kMonitor && refused() ? Phase::kRefused : Phase::kStarting;
   published_.store(st_);
-  configured_ = true;
 }
 
 void Pipeline::activate() {

@@ -28,6 +28,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -196,6 +197,15 @@ class Pipeline {
   void set_device_factory(DeviceFactory* f) noexcept { factory_ = f; }
   /// Benchmark hook, set before activate(). Thread: main.
   void set_probe(PipelineProbe* probe) noexcept { probe_ = probe; }
+  /// Training mode: the trainer of the pipeline this one replaces (a reload); configure() copies its
+  /// pool when compatible (FieldTrainer::take_over; the result in training_carry()). Must stay alive
+  /// until configure() returns. Set before configure(). Thread: main.
+  void set_previous_trainer(const FieldTrainer* previous) noexcept { previous_trainer_ = previous; }
+  /// What configure() kept of the previous trainer (nullopt: none was set). Thread: main.
+  [[nodiscard]] const std::optional<TrainingCarryOver>& training_carry() const noexcept { return carry_; }
+  /// Hands the field trainer (with its pool) to the caller, e.g. to carry it into the pipeline of a
+  /// reload. Only after deactivate() (no thread adds to it then). Thread: main.
+  [[nodiscard]] std::unique_ptr<FieldTrainer> release_trainer() noexcept { return std::move(trainer_); }
   /// Test-only fault injection: while true the processing thread stops working and stops beating
   /// (it still honours stop). Thread: any. Never blocks.
   void set_processing_stall(bool stall) noexcept { stall_.store(stall, std::memory_order_relaxed); }
@@ -229,6 +239,22 @@ class Pipeline {
   }
 
  private:
+  /// What a WAV recording tells the candump replay of the same recording: its start (the shared
+  /// timeline origin) and its CAN log.
+  struct RecordingLink {
+    std::optional<std::int64_t> start_unix_ns;
+    std::filesystem::path can_log;
+  };
+  // The steps of configure(), in order. Thread: main. Allocate; throw ptda::Error (device, file).
+  void make_test_devices();                       ///< DeviceFactory's source and channel
+  RecordingLink configure_vibration_source();     ///< [adc] backend; fs_hz_ checked against [acquisition]
+  void configure_can(const RecordingLink& link);  ///< [can] backend
+  void configure_outputs();                       ///< GPIO / CAN alarm outputs (+ the factory's)
+  void configure_monitoring();                    ///< baseline, engine, coverage (or refusal_)
+  void configure_training();                      ///< slicer and FieldTrainer (takes over a previous pool)
+  void configure_alarm_manager();                 ///< AlarmManager (warning, hold, latch)
+  void configure_rings_and_timing();              ///< rings, blocks, staleness and hold times, status
+
   void acquisition_loop() noexcept;
   void can_loop() noexcept;
   void processing_loop() noexcept;
@@ -270,6 +296,8 @@ class Pipeline {
   std::unique_ptr<dsp::CoverageTracker> coverage_;  ///< with engine_
   std::unique_ptr<dsp::WindowSlicer> train_slicer_;
   std::unique_ptr<FieldTrainer> trainer_;
+  const FieldTrainer* previous_trainer_ = nullptr;
+  std::optional<TrainingCarryOver> carry_;
   std::vector<float> train_window_;
   std::unique_ptr<AlarmManager> alarm_;
   WindowSink* sink_ = nullptr;

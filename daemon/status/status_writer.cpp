@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include <span>
 #include <string_view>
 
+#include "ptda/common/atomic_file.hpp"
 #include "ptda/common/error.hpp"
 #include "status/text_escape.hpp"
 
@@ -276,7 +278,34 @@ constexpr CounterGroup kCounterGroups[] = {
     {"pipeline", kPipelineCounters, false},
 };
 
-void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
+constexpr StateFile kStateFiles[kStateFileCount] = {StateFile::kStatus, StateFile::kMetrics,
+                                                    StateFile::kBaseline};
+
+/// "state_files":{"status":{"failing":..,"failures":..,"last_errno":..,"last_error":".."},...}
+void render_state_files_json(Json& j, const StateFileHealth* files) noexcept {
+  j.key("state_files");
+  j.open('{');
+  for (const StateFile f : kStateFiles) {
+    const StateFileHealth& h = files[static_cast<std::size_t>(f)];
+    j.key(state_file_name(f));
+    j.open('{');
+    j.boolean("failing", h.failing);
+    j.u64("failures", h.failures);
+    j.i64("last_errno", h.last_errno);
+    // "rename: ENOENT (No such file or directory)"; "" when it never failed.
+    char text[160] = "";
+    if (h.last_errno != 0) {
+      std::snprintf(text, sizeof text, "%s: %s (%s)", h.last_step, errno_name(h.last_errno),
+                    errno_text(h.last_errno));
+    }
+    j.str("last_error", text);
+    j.close('}');
+  }
+  j.close('}');
+}
+
+/// `files`: the kStateFileCount entries of "state_files" (write() passes its live health).
+void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHealth* files) noexcept {
   Json j(b);
   j.open('{');
   j.u64("version", 1);
@@ -441,6 +470,7 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
     if (g.with_bus_state) j.str("bus_state", can_bus_state_name(s.can_bus_state));
     j.close('}');
   }
+  render_state_files_json(j, files);
   j.close('}');
   b.append_char('\n');
 }
@@ -523,7 +553,26 @@ std::string_view small_int(char (&buf)[16], std::int64_t v) noexcept {
   return {buf, static_cast<std::size_t>(r.ptr - buf)};
 }
 
-void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
+void render_state_files_prom(Prom& p, const StateFileHealth* files) noexcept {
+  const auto health = [files](StateFile f) -> const StateFileHealth& {
+    return files[static_cast<std::size_t>(f)];
+  };
+  p.family("ptda_state_write_failures_total", "counter",
+           "Failed writes of the daemon's files (status, metrics, baseline).");
+  for (const StateFile f : kStateFiles) {
+    p.sample_u64("ptda_state_write_failures_total", {{"file", state_file_name(f)}}, health(f).failures);
+  }
+  p.family("ptda_state_write_failing", "gauge", "1 while the latest write of the file failed (retried).");
+  for (const StateFile f : kStateFiles) {
+    p.sample("ptda_state_write_failing", {{"file", state_file_name(f)}}, health(f).failing ? 1.0 : 0.0);
+  }
+  p.family("ptda_state_write_last_errno", "gauge", "errno of the file's latest failed write (0: none).");
+  for (const StateFile f : kStateFiles) {
+    p.sample("ptda_state_write_last_errno", {{"file", state_file_name(f)}}, health(f).last_errno);
+  }
+}
+
+void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHealth* files) noexcept {
   Prom p(b);
   p.family("ptda_info", "gauge",
            "Constant 1; labels: monitoring method, phase, state reason, baseline path and source.");
@@ -668,6 +717,7 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s) noexcept {
         drivers::CanBusState::kErrorPassive, drivers::CanBusState::kBusOff}) {
     p.sample("ptda_can_bus_state", {{"state", can_bus_state_name(st)}}, st == s.can_bus_state ? 1.0 : 0.0);
   }
+  render_state_files_prom(p, files);
 }
 
 }  // namespace
@@ -688,19 +738,20 @@ StatusWriter::StatusWriter(const StatusWriterConfig& cfg) {
   }
   json_buf_.assign(cfg.buffer_bytes, '\0');
   prom_buf_.assign(cfg.buffer_bytes, '\0');
-  if (!cfg.json_path.empty()) {
-    json_path_ = cfg.json_path.string();
-    json_tmp_ = json_path_ + ".tmp";
-  }
-  if (!cfg.prom_path.empty()) {
-    prom_path_ = cfg.prom_path.string();
-    prom_tmp_ = prom_path_ + ".tmp";
-  }
+  recreate_dir_mode_ = cfg.recreate_dir_mode;
+  const auto target = [](Target& t, const std::filesystem::path& p) {
+    if (p.empty()) return;
+    t.path = p.string();
+    t.dir = p.parent_path().string();
+    t.name = p.filename().string();
+  };
+  target(json_, cfg.json_path);
+  target(prom_, cfg.prom_path);
 }
 
 std::string_view StatusWriter::render_json(const StatusSnapshot& s) noexcept {
   TextBuffer b(json_buf_.data(), json_buf_.size());
-  render_json_into(b, s);
+  render_json_into(b, s, s.state_files.data());
   if (b.overflow()) {
     ++counters_.overflows;
     return {};
@@ -710,7 +761,7 @@ std::string_view StatusWriter::render_json(const StatusSnapshot& s) noexcept {
 
 std::string_view StatusWriter::render_prometheus(const StatusSnapshot& s) noexcept {
   TextBuffer b(prom_buf_.data(), prom_buf_.size());
-  render_prom_into(b, s);
+  render_prom_into(b, s, s.state_files.data());
   if (b.overflow()) {
     ++counters_.overflows;
     return {};
@@ -718,40 +769,50 @@ std::string_view StatusWriter::render_prometheus(const StatusSnapshot& s) noexce
   return b.view();
 }
 
-StatusWriteResult StatusWriter::replace_file(const std::string& path, const std::string& tmp_path,
-                                             std::string_view text) noexcept {
-  const int fd = ::open(tmp_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) {
-    last_errno_ = errno;
-    ++counters_.io_errors;
+StateFileHealth StatusWriter::health(StateFile f) const noexcept {
+  if (f == StateFile::kStatus) return json_.health;
+  if (f == StateFile::kMetrics) return prom_.health;
+  return {};
+}
+
+StatusWriteResult StatusWriter::replace_file(Target& t, std::string_view text) noexcept {
+  if (t.skip > 0) {  // backoff after repeated failures: not an attempt
+    --t.skip;
     return StatusWriteResult::kIoError;
   }
-  // Readable by a node_exporter running as another user, whatever the service's UMask.
-  bool ok = ::fchmod(fd, 0644) == 0;
-  std::size_t done = 0;
-  while (ok && done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      ok = false;
-    } else {
-      done += static_cast<std::size_t>(n);
+  AtomicWriteOptions opt;
+  opt.mode = 0644;  // readable by a node_exporter running as another user, whatever the service's UMask
+  opt.exact_mode = true;
+  opt.durable = false;
+  AtomicWriteResult r = write_file_atomic(t.path.c_str(), text.data(), text.size(), opt);
+  if (r.err == ENOENT && std::string_view(r.step) == kStepOpenTemp && recreate_dir_mode_ != 0 &&
+      !t.dir.empty()) {
+    // The directory was removed under us (e.g. /run/ptda by hand): create it again, then retry once.
+    if (::mkdir(t.dir.c_str(), 0700) == 0) {
+      const int dfd = ::open(t.dir.c_str(), O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+      if (dfd >= 0) {
+        (void)::fchmod(dfd, recreate_dir_mode_);
+        ::close(dfd);
+      }
+      ++counters_.dirs_recreated;
+      r = write_file_atomic(t.path.c_str(), text.data(), text.size(), opt);
     }
   }
-  if (!ok) last_errno_ = errno;
-  if (::close(fd) != 0 && ok) {
-    ok = false;
-    last_errno_ = errno;
-  }
-  if (ok && ::rename(tmp_path.c_str(), path.c_str()) != 0) {
-    ok = false;
-    last_errno_ = errno;
-  }
-  if (!ok) {
-    ::unlink(tmp_path.c_str());
+  if (!r.ok()) {
+    last_errno_ = r.err;
     ++counters_.io_errors;
+    ++t.health.failures;
+    t.health.last_errno = r.err;
+    t.health.last_step = r.step;
+    // 1st failure: retry at the next call; then skip 1, 3, 7, ... calls (at most the cap).
+    const std::uint64_t consecutive = t.health.failing ? ++t.consecutive : (t.consecutive = 1);
+    t.health.failing = true;
+    const std::uint64_t skip = consecutive >= 5 ? kStatusMaxSkippedWrites : (1ULL << (consecutive - 1)) - 1;
+    t.skip = static_cast<std::uint32_t>(std::min<std::uint64_t>(skip, kStatusMaxSkippedWrites));
     return StatusWriteResult::kIoError;
   }
+  t.health.failing = false;
+  t.consecutive = 0;
   return StatusWriteResult::kOk;
 }
 
@@ -761,13 +822,29 @@ StatusWriteResult StatusWriter::write(const StatusSnapshot& s) noexcept {
   const auto merge = [&worst](StatusWriteResult r) {
     if (static_cast<int>(r) > static_cast<int>(worst)) worst = r;
   };
-  if (!json_path_.empty()) {
-    const std::string_view text = render_json(s);
-    merge(text.empty() ? StatusWriteResult::kOverflow : replace_file(json_path_, json_tmp_, text));
+  // "state_files": the writer's own health for status and metrics (the snapshot's baseline entry). A
+  // file a reader sees was written, so its own entry says "not failing"; the other shows its latest
+  // attempt.
+  std::array<StateFileHealth, kStateFileCount> files = s.state_files;
+  constexpr auto kStatus = static_cast<std::size_t>(StateFile::kStatus);
+  constexpr auto kMetrics = static_cast<std::size_t>(StateFile::kMetrics);
+  if (!json_.path.empty()) {
+    files[kStatus] = json_.health;
+    files[kStatus].failing = false;
+    files[kMetrics] = prom_.health;
+    TextBuffer b(json_buf_.data(), json_buf_.size());
+    render_json_into(b, s, files.data());
+    if (b.overflow()) ++counters_.overflows;
+    merge(b.overflow() ? StatusWriteResult::kOverflow : replace_file(json_, b.view()));
   }
-  if (!prom_path_.empty()) {
-    const std::string_view text = render_prometheus(s);
-    merge(text.empty() ? StatusWriteResult::kOverflow : replace_file(prom_path_, prom_tmp_, text));
+  if (!prom_.path.empty()) {
+    files[kStatus] = json_.health;
+    files[kMetrics] = prom_.health;
+    files[kMetrics].failing = false;
+    TextBuffer b(prom_buf_.data(), prom_buf_.size());
+    render_prom_into(b, s, files.data());
+    if (b.overflow()) ++counters_.overflows;
+    merge(b.overflow() ? StatusWriteResult::kOverflow : replace_file(prom_, b.view()));
   }
   return worst;
 }

@@ -9,7 +9,7 @@
 //   {"version":1,"state":..,"phase":..,"reason":..,"uptime_s":..,"now_s":..,"now_utc":..,
 //    "wall_time_unix_ns":..,"method":..,"baseline":{"loaded":..,"path":..,"fs_hz":..,"window_len":..,"source":..,"classes":[{...}]},
 //    "last_window":{...}|null,"alarm":{...},"coverage":{...}|null,"training":{...}|null,
-//    "acquisition":{...},"can":{...},"slicer":{...},"pipeline":{...}}
+//    "acquisition":{...},"can":{...},"slicer":{...},"pipeline":{...},"state_files":{...}}
 // Prometheus (text exposition format 0.0.4): `# HELP` and `# TYPE` for every metric family, names
 // `ptda_*`, `_total` for counters, units in names (`_seconds`, `_hertz`, `_radians_per_second`),
 // label values escaped (\\ \" \n; ill-formed UTF-8 and NUL become U+FFFD). docs/systemd.md ("Status
@@ -18,6 +18,8 @@
 // age/duration is now_s minus such a time (never negative), every `*_utc` is RFC 3339 UTC text with
 // milliseconds ("2026-11-25T04:31:07.250Z"), null when unknown.
 #pragma once
+
+#include <sys/types.h>
 
 #include <array>
 #include <cstddef>
@@ -94,6 +96,30 @@ enum class DaemonState : std::uint8_t {
   }
   return "?";
 }
+
+/// The files the daemon writes: status.json, the Prometheus textfile, the baseline (field training).
+enum class StateFile : std::uint8_t { kStatus = 0, kMetrics = 1, kBaseline = 2 };
+inline constexpr std::size_t kStateFileCount = 3;
+
+[[nodiscard]] constexpr std::string_view state_file_name(StateFile f) noexcept {
+  switch (f) {
+    case StateFile::kStatus:
+      return "status";
+    case StateFile::kMetrics:
+      return "metrics";
+    case StateFile::kBaseline:
+      return "baseline";
+  }
+  return "?";
+}
+
+/// Write failures of one state file (status.json "state_files", ptda_state_write_* metrics).
+struct StateFileHealth {
+  std::uint64_t failures = 0;   ///< failed write attempts (retries the backoff skips are not attempts)
+  std::int32_t last_errno = 0;  ///< errno of the latest failure (0: never failed)
+  const char* last_step = "";   ///< its step ("open of the temporary file", "write", "rename", ...)
+  bool failing = false;         ///< the latest attempt failed (retried with backoff)
+};
 
 inline constexpr std::size_t kStatusMaxClasses = 16;  ///< classes beyond this are not listed
 inline constexpr std::size_t kStatusTextBytes = 256;  ///< room for the coverage text and a suffix
@@ -188,6 +214,10 @@ struct StatusSnapshot {
   bool coverage_known = false;  ///< false: "coverage" is null and its metrics are left out
   double coverage_timeout_s = 0.0;
   dsp::CoverageState coverage;
+
+  // Write failures of the state files, indexed by StateFile. The daemon fills the baseline entry;
+  // StatusWriter::write() fills status and metrics from its own health (render_* print these).
+  std::array<StateFileHealth, kStateFileCount> state_files{};
 };
 
 /// RFC 3339 UTC text with milliseconds ("2026-11-25T04:31:07.250Z", 24 characters) of a unix time in
@@ -232,24 +262,30 @@ struct StatusWriterConfig {
   std::filesystem::path json_path;       ///< empty = no JSON file (e.g. /run/ptda/status.json)
   std::filesystem::path prom_path;       ///< empty = none; must end in ".prom" (e.g. .../ptda.prom)
   std::size_t buffer_bytes = 64 * 1024;  ///< per format
+  /// When a file's directory is missing (deleted under the running daemon), it is created again with
+  /// this mode (set with fchmod, whatever the umask); only the last path component. 0 = never.
+  mode_t recreate_dir_mode = 0755;
 };
+
+/// Consecutive failures of a file make write() skip it for 2^(n-1) - 1 calls, at most this many.
+inline constexpr std::uint32_t kStatusMaxSkippedWrites = 15;
 
 enum class StatusWriteResult : std::uint8_t {
   kOk = 0,
   kOverflow = 1,  ///< a rendering did not fit its buffer: that file was not replaced
-  kIoError = 2,   ///< open/write/rename failed: that file was not replaced (errno in last_errno())
+  kIoError = 2,   ///< open/write/rename failed or skipped by the backoff: that file was not replaced
 };
 
 struct StatusWriterCounters {
   std::uint64_t writes = 0;     ///< write() calls
   std::uint64_t overflows = 0;  ///< renderings that did not fit
   std::uint64_t io_errors = 0;
+  std::uint64_t dirs_recreated = 0;  ///< missing directories created again
 };
 
 class StatusWriter {
  public:
-  /// Allocates both buffers and the temporary-file names ("<path>.tmp": the textfile collector only
-  /// reads *.prom, so "x.prom.tmp" is never scraped). Throws ptda::Error ("status: ...") when a
+  /// Allocates both buffers and the path strings. Throws ptda::Error ("status: ...") when a
   /// prom path does not end in ".prom", the buffer is smaller than 1 KiB, or both paths are empty.
   /// Does not touch the file system. Thread: any (setup). Allocates.
   explicit StatusWriter(const StatusWriterConfig& cfg);
@@ -260,22 +296,39 @@ class StatusWriter {
   std::string_view render_json(const StatusSnapshot& s) noexcept;
   std::string_view render_prometheus(const StatusSnapshot& s) noexcept;
 
-  /// Renders both and replaces each configured file (write temp, rename; no fsync: the files live in
-  /// /run and are rewritten every few seconds). Returns the worst result. Thread: the supervisor.
-  /// Blocks on file I/O; never allocates.
+  /// Renders both and replaces each configured file with ptda::write_file_atomic (a temporary
+  /// "<path>.tmp-<random>" created O_EXCL|O_NOFOLLOW, fchmod 0644, rename; no fsync: the files live in
+  /// /run and are rewritten every few seconds). A missing directory is created again (see
+  /// recreate_dir_mode); a file whose writes keep failing is retried with backoff (see
+  /// kStatusMaxSkippedWrites). Returns the worst result. Thread: the supervisor. Blocks on file I/O;
+  /// never allocates.
   StatusWriteResult write(const StatusSnapshot& s) noexcept;
 
+  /// errno of the latest failed write of either file.
   [[nodiscard]] int last_errno() const noexcept { return last_errno_; }
   /// Thread: the writer thread.
   [[nodiscard]] StatusWriterCounters counters() const noexcept { return counters_; }
+  /// Failures of status.json (StateFile::kStatus) or the metrics file (kMetrics); kBaseline: empty.
+  /// Thread: the writer thread. Never allocates.
+  [[nodiscard]] StateFileHealth health(StateFile f) const noexcept;
+  /// The configured path of a file ("" when not configured). Thread: any.
+  [[nodiscard]] const std::string& path(StateFile f) const noexcept {
+    return f == StateFile::kStatus ? json_.path : prom_.path;
+  }
 
  private:
-  StatusWriteResult replace_file(const std::string& path, const std::string& tmp_path,
-                                 std::string_view text) noexcept;
+  struct Target {
+    std::string path, dir, name;  ///< dir "" = the current directory
+    StateFileHealth health;
+    std::uint64_t consecutive = 0;  ///< failed attempts in a row
+    std::uint32_t skip = 0;         ///< write() calls still to skip (backoff)
+  };
+  StatusWriteResult replace_file(Target& t, std::string_view text) noexcept;
 
   std::vector<char> json_buf_;
   std::vector<char> prom_buf_;
-  std::string json_path_, json_tmp_, prom_path_, prom_tmp_;
+  Target json_, prom_;
+  mode_t recreate_dir_mode_ = 0755;
   StatusWriterCounters counters_;
   int last_errno_ = 0;
 };

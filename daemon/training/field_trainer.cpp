@@ -85,6 +85,8 @@ bool FieldTrainer::add_window(const dsp::WindowRef& ref, std::span<const float> 
   std::copy(samples.begin(), samples.end(),
             samples_.begin() + static_cast<std::ptrdiff_t>(n * cfg_.window_len));
   refs_[n] = ref;
+  refs_[n].region_seq += region_seq_offset_;
+  refs_[n].first_sample += sample_offset_;
   window_count_.store(n + 1, std::memory_order_release);
   windows_.add();
   return true;
@@ -101,6 +103,7 @@ bool FieldTrainer::add_region(const dsp::RegionInfo& region) noexcept {
     return false;
   }
   regions_[n] = region;
+  regions_[n].seq += region_seq_offset_;
   region_count_.store(n + 1, std::memory_order_release);
   regions_added_.add();
   return true;
@@ -200,6 +203,51 @@ dsp::Baseline FieldTrainer::finish(const std::filesystem::path& path, FinishMode
   b.source = cfg_.source + ": " + summary;
   formats::write_baseline(path, b);
   return b;
+}
+
+TrainingCarryOver FieldTrainer::take_over(const FieldTrainer& previous) {
+  TrainingCarryOver r;
+  const Snapshot old = previous.published();
+  const FieldTrainerConfig& pc = previous.cfg_;
+  if (pc.window_len != cfg_.window_len) {
+    r.why =
+        "window_len " + std::to_string(pc.window_len) + " -> " + std::to_string(cfg_.window_len) + " samples";
+  } else if (std::fabs(pc.fs_hz - cfg_.fs_hz) > 1e-9 * std::max(pc.fs_hz, cfg_.fs_hz)) {
+    r.why = "sample rate " + fmt_speed(pc.fs_hz) + " -> " + fmt_speed(cfg_.fs_hz) + " Hz";
+  }
+  if (!r.why.empty()) {
+    r.windows_lost = old.windows;
+    r.regions_lost = old.regions;
+    return r;
+  }
+  r.kept = true;
+  r.windows = std::min<std::uint64_t>(old.windows, cfg_.max_windows);
+  r.regions = std::min<std::uint64_t>(old.regions, cfg_.max_regions);
+  r.windows_lost = old.windows - r.windows;
+  r.regions_lost = old.regions - r.regions;
+  std::copy_n(previous.samples_.begin(), static_cast<std::ptrdiff_t>(r.windows * cfg_.window_len),
+              samples_.begin());
+  std::copy_n(previous.refs_.begin(), static_cast<std::ptrdiff_t>(r.windows), refs_.begin());
+  std::copy_n(previous.regions_.begin(), static_cast<std::ptrdiff_t>(r.regions), regions_.begin());
+  // The new slicer numbers regions and samples from 0 again: continue after the copied ones.
+  std::uint64_t next_seq = previous.region_seq_offset_;
+  std::int64_t next_sample = previous.sample_offset_;
+  for (std::uint64_t i = 0; i < old.windows; ++i) {
+    next_seq = std::max(next_seq, previous.refs_[i].region_seq + 1);
+    next_sample = std::max(next_sample, previous.refs_[i].first_sample + std::int64_t{cfg_.window_len});
+  }
+  for (std::uint64_t i = 0; i < old.regions; ++i) next_seq = std::max(next_seq, previous.regions_[i].seq + 1);
+  region_seq_offset_ = next_seq;
+  sample_offset_ = next_sample;
+  const FieldTrainerCounters c = previous.counters();
+  windows_.set(r.windows);
+  regions_added_.set(r.regions);
+  windows_dropped_.set(c.windows_dropped + r.windows_lost);
+  regions_dropped_.set(c.regions_dropped + r.regions_lost);
+  windows_rejected_.set(c.windows_rejected);
+  window_count_.store(r.windows, std::memory_order_release);
+  region_count_.store(r.regions, std::memory_order_release);
+  return r;
 }
 
 void FieldTrainer::reset() noexcept {

@@ -61,6 +61,16 @@ struct TrainingProgress {
   bool can_finish = false;  ///< at least one class trainable (finish with kWhatIsThere may work)
 };
 
+/// What take_over() kept of a previous trainer's pool (a reload during field training).
+struct TrainingCarryOver {
+  bool kept = false;               ///< false: the pool was incompatible, nothing was copied (see why)
+  std::uint64_t windows = 0;       ///< windows copied
+  std::uint64_t regions = 0;       ///< regions (cycles) copied
+  std::uint64_t windows_lost = 0;  ///< beyond the new pool size (or all, when not kept)
+  std::uint64_t regions_lost = 0;
+  std::string why;  ///< when not kept: "window_len 4096 -> 2048 samples", "sample rate ... Hz"
+};
+
 enum class FinishMode : std::uint8_t {
   kRequireReady = 0,  ///< refuse unless progress().ready
   kWhatIsThere = 1,   ///< timeout / technician's explicit finish: train the classes that have enough
@@ -102,6 +112,16 @@ class FieldTrainer {
   /// Thread: the supervisor. Allocates (a copy of the pooled windows) and blocks (fsync).
   dsp::Baseline finish(const std::filesystem::path& path, FinishMode mode = FinishMode::kRequireReady) const;
 
+  /// Copies the pool of `previous` (the trainer of the pipeline a reload replaces) into this fresh one
+  /// so a reload does not lose the collected windows: possible when the sample rate and the window
+  /// length are the same (the windows are samples at that rate and length); pool size, class, threshold
+  /// and target settings may differ (they apply at finish; entries beyond a smaller pool are counted as
+  /// lost). Windows and regions added afterwards get region and sample numbers after the copied ones,
+  /// so the two slicers' numbering cannot merge windows into one overlap group. Call before the
+  /// processing thread starts. Thread: the main thread (configure). Allocates nothing; never throws
+  /// except std::bad_alloc for `why`.
+  TrainingCarryOver take_over(const FieldTrainer& previous);
+
   /// Empties the pool and the counters. Thread: the processing thread while the supervisor is not
   /// inside progress()/finish() (e.g. when training restarts). Never allocates.
   void reset() noexcept;
@@ -122,6 +142,8 @@ class FieldTrainer {
   std::vector<float> samples_;            ///< max_windows * window_len
   std::vector<dsp::WindowRef> refs_;      ///< max_windows
   std::vector<dsp::RegionInfo> regions_;  ///< max_regions
+  std::uint64_t region_seq_offset_ = 0;   ///< added to the slicer's region numbers (after take_over)
+  std::int64_t sample_offset_ = 0;        ///< added to the slicer's sample indices (after take_over)
   std::atomic<std::uint64_t> window_count_{0};
   std::atomic<std::uint64_t> region_count_{0};
   drivers::Counter windows_, regions_added_, windows_dropped_, regions_dropped_, windows_rejected_;

@@ -2,9 +2,6 @@
 // dump), so files move between x86 and ARM gateways unchanged. Layout: docs/recording-format.md.
 #include "ptda/formats/baseline_file.hpp"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -17,6 +14,7 @@
 #include <iterator>
 #include <limits>
 
+#include "ptda/common/atomic_file.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/common/file_check.hpp"
 #include "ptda/dsp/analyzer.hpp"
@@ -208,20 +206,6 @@ dsp::FeatureStats get_stats(Reader& r) {
   s.max = r.f64();
   s.n = r.u32();
   return s;
-}
-
-// Writes all of buf to fd, retrying short writes and EINTR.
-bool write_all(int fd, const std::uint8_t* p, std::size_t n) {
-  while (n > 0) {
-    const ssize_t k = ::write(fd, p, n);
-    if (k < 0) {
-      if (errno == EINTR) continue;
-      return false;
-    }
-    p += k;
-    n -= static_cast<std::size_t>(k);
-  }
-  return true;
 }
 
 }  // namespace
@@ -462,38 +446,15 @@ void write_baseline(const std::filesystem::path& path, const dsp::Baseline& base
   } catch (const Error& e) {
     throw Error(name + ": not written: " + e.what());
   }
-  std::filesystem::path dir = path.parent_path();
-  if (dir.empty()) dir = ".";
-  // Same directory as the target so rename() is atomic (same filesystem).
-  const std::string tmp = name + ".tmp." + std::to_string(::getpid());
-  const auto fail = [&](const char* step, int err, bool remove_tmp) {
-    if (remove_tmp) ::unlink(tmp.c_str());
-    throw Error(name + ": writing baseline failed at " + step + ": " + std::strerror(err));
-  };
-
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail("open of the temporary file", errno, false);
-  if (!write_all(fd, bytes.data(), bytes.size())) {
-    const int err = errno;
-    ::close(fd);
-    fail("write", err, true);
+  // "<name>.tmp-<random>" in the same directory, O_EXCL|O_NOFOLLOW, fsync, rename, fsync of the
+  // directory (common/atomic_file.hpp). Mode 0644 minus the umask (0600 under ptdad's UMask=0077).
+  AtomicWriteOptions opt;
+  opt.mode = 0644;
+  opt.durable = true;
+  const AtomicWriteResult r = write_file_atomic(name.c_str(), bytes.data(), bytes.size(), opt);
+  if (!r.ok()) {
+    throw WriteError(name + ": writing baseline failed at " + r.step + ": " + std::strerror(r.err), r.err);
   }
-  if (::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    fail("fsync", err, true);
-  }
-  if (::close(fd) != 0) fail("close", errno, true);
-  if (::rename(tmp.c_str(), name.c_str()) != 0) fail("rename", errno, true);
-  // Make the rename itself durable.
-  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd < 0) fail("open of the directory for fsync", errno, false);
-  if (::fsync(dfd) != 0) {
-    const int err = errno;
-    ::close(dfd);
-    fail("fsync of the directory", err, false);
-  }
-  ::close(dfd);
 }
 
 }  // namespace ptda::formats

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstring>
 
 #include "daemon_fakes.hpp"
 #include "daemon_test_support.hpp"
@@ -272,6 +273,141 @@ TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
                 by_signal ? "by SIGTERM" : "by request_stop()",
                 std::chrono::duration<double, std::milli>(took).count(), b.classes.size());
   }
+}
+
+/// The string value of status.json's "reason".
+std::string json_reason(const std::string& text) {
+  const auto at = text.find("\"reason\":\"");
+  if (at == std::string::npos) return "";
+  const auto from = at + 10;
+  return text.substr(from, text.find('"', from) - from);
+}
+
+// Issue 14 item 5: a SIGHUP during field training keeps the collected windows (before: the reload
+// built a new pipeline with an empty pool, so a technician who changed the log level lost the cycles
+// collected so far); a reload that changes the window length says that the training restarted.
+TEST_F(Training, ReloadKeepsTheCollectedWindowsUnlessTheWindowLengthChanges) {
+  const fs::path dir = scratch("training_reload");
+  const auto rec = make_sim_recording(arc_scenario(), 7);
+  FakeDevices dev(source_of(*rec), frames_of(*rec));
+  dev.gate.t_ns = rec->loop_ns / 5;  // every pipeline replays the stream from its start up to here
+  write_text(dir / "ptdad.toml", train_config(dir, 12));
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  opt.train = true;
+  drivers::MonotonicClock clock;
+  Daemon d(opt, clock);
+  d.set_device_factory(&dev);
+  d.configure();
+  d.activate();
+  DaemonRunThread runner(d);
+
+  const fs::path status = dir / "status" / "status.json";
+  std::string text;
+  // The current pipeline replayed up to the gate and status.json shows `carried` + its windows.
+  const auto settled = [&](std::uint64_t carried) {
+    return wait_for([&] {
+      text = read_text(status);
+      const DaemonView v = d.view();
+      return text.find("\"state\":\"training\"") != std::string::npos && v.pipeline.windows > 0 &&
+             v.pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000 &&
+             json_u64(text, "windows") == carried + v.pipeline.windows;
+    });
+  };
+  ASSERT_TRUE(settled(0)) << text;
+  const std::uint64_t windows = json_u64(text, "windows");
+  const std::uint64_t regions = json_u64(text, "regions");
+  ASSERT_GT(regions, 0U);
+
+  // 1. A reload that changes no window: the pool is kept; the new pipeline adds its own windows (the
+  // fake stream starts again, so the same number again).
+  std::string cfg = train_config(dir, 13);  // target_cycles applies at finish: compatible
+  write_text(dir / "ptdad.toml", cfg);
+  d.request_reload();
+  ASSERT_TRUE(wait_for([&] { return d.view().reloads == 1 && dev.pipelines == 2; }));
+  ASSERT_TRUE(settled(windows)) << text;
+  EXPECT_EQ(d.view().pipeline.windows, windows);
+  EXPECT_EQ(json_u64(text, "windows"), 2 * windows);
+  EXPECT_EQ(json_u64(text, "regions"), 2 * regions);
+  EXPECT_EQ(json_u64(text, "target_cycles"), 13U);
+  EXPECT_EQ(json_reason(text), "reload kept " + std::to_string(windows) + " collected windows and " +
+                                   std::to_string(regions) + " cycles");
+  EXPECT_FALSE(fs::exists(dir / "trained.bin"));
+
+  // 2. A reload that changes the window length: those windows cannot train one baseline with the new
+  // ones; the pool starts again, and the status says so.
+  for (const char* key : {"window_len = 3200", "hop = 3200"}) {
+    const auto at = cfg.find(key);
+    ASSERT_NE(at, std::string::npos) << key;
+    cfg.replace(at, std::strlen(key), std::string(key).substr(0, std::strlen(key) - 4) + "1600");
+  }
+  write_text(dir / "ptdad.toml", cfg);
+  d.request_reload();
+  ASSERT_TRUE(wait_for([&] { return d.view().reloads == 2 && dev.pipelines == 3; }));
+  ASSERT_TRUE(settled(0)) << text;
+  EXPECT_EQ(d.view().window_len, 1600U);
+  EXPECT_EQ(json_reason(text), "training restarted: the reload changed window_len 3200 -> 1600 samples; " +
+                                   std::to_string(2 * windows) + " windows and " +
+                                   std::to_string(2 * regions) + " cycles discarded");
+}
+
+// Issue 14 item 6: a baseline that cannot be written (here its directory is a regular file: ENOTDIR;
+// root ignores permission bits) shows in status.json with its errno, the collected windows are kept,
+// and the write is retried with backoff until it works. Before: the failure was only logged, every
+// status period, and never reached status.json.
+TEST_F(Training, BaselineWriteFailureShowsInTheStatusAndIsRetried) {
+  const fs::path dir = scratch("training_write_failure");
+  const auto rec = make_sim_recording(arc_scenario(), 7);
+  FakeDevices dev(source_of(*rec), frames_of(*rec));
+  dev.gate.t_ns =
+      rec->loop_ns / 2;  // enough for 5 cycles per class; the stream does not end (state training)
+  std::string cfg = train_config(dir, 5);
+  const fs::path out_dir = dir / "out";
+  cfg.replace(cfg.find((dir / "trained.bin").string()), (dir / "trained.bin").string().size(),
+              (out_dir / "trained.bin").string());
+  write_text(dir / "ptdad.toml", cfg);
+  { std::ofstream blocker(out_dir); }
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  opt.train = true;
+  drivers::MonotonicClock clock;
+  Daemon d(opt, clock);
+  d.set_device_factory(&dev);
+  d.configure();
+  d.activate();
+  DaemonRunThread runner(d);
+
+  const fs::path status = dir / "status" / "status.json";
+  std::string text;
+  const auto baseline_entry = [&] {
+    text = read_text(status);
+    const auto at = text.find("\"baseline\":{\"failing\"");
+    return at == std::string::npos ? std::string() : text.substr(at, text.find('}', at) - at + 1);
+  };
+  std::string entry;
+  ASSERT_TRUE(wait_for([&] {
+    entry = baseline_entry();
+    return entry.find("\"failing\":true") != std::string::npos;
+  })) << text;
+  EXPECT_NE(entry.find("\"last_errno\":20,"), std::string::npos) << entry;
+  EXPECT_NE(entry.find("ENOTDIR (Not a directory)"), std::string::npos) << entry;
+  EXPECT_NE(text.find("\"state\":\"training\""), std::string::npos);
+  EXPECT_GT(json_u64(text, "windows"), 0U);  // still pooled
+
+  // The cause removed: the next retry writes the baseline and monitoring starts on it.
+  fs::remove(out_dir);
+  fs::create_directory(out_dir);
+  ASSERT_TRUE(wait_for([&] { return dev.pipelines == 2 && d.view().state != DaemonState::kTraining; }));
+  const dsp::Baseline b = formats::read_baseline(out_dir / "trained.bin");
+  EXPECT_FALSE(b.classes.empty());
+  EXPECT_EQ(temp_files(out_dir), 0U);
+  ASSERT_TRUE(wait_for([&] {
+    entry = baseline_entry();
+    return entry.find("\"failing\":false") != std::string::npos;
+  })) << text;
+  EXPECT_EQ(entry.find("\"failures\":0,"), std::string::npos) << entry;  // the past failures stay counted
 }
 
 }  // namespace

@@ -261,6 +261,58 @@ TEST(FieldTrainer, AddingMakesNoAllocations) {
   EXPECT_EQ(accepted, 150);  // 100 windows + 50 regions
 }
 
+// Issue 14 item 5: a reload during field training hands the old pool to the new pipeline's trainer.
+TEST(FieldTrainer, TakeOverKeepsThePoolAndNumbersNewWindowsAfterIt) {
+  FieldTrainer old(config());
+  Feeder f(old);
+  f.cycle(kFwd, 3);
+  f.cycle(kFwd, 3);
+  FieldTrainerConfig next = config();
+  next.target_cycles = 5;  // applies at finish: compatible
+  FieldTrainer fresh(next);
+  const TrainingCarryOver c = fresh.take_over(old);
+  EXPECT_TRUE(c.kept);
+  EXPECT_EQ(c.windows, 6U);
+  EXPECT_EQ(c.regions, 2U);
+  EXPECT_EQ(c.windows_lost + c.regions_lost, 0U);
+  // The new pipeline's slicer numbers regions and samples from 0 again: the same numbers as the
+  // copied cycle 0. Without the offset its windows would overlap cycle 0's and merge into its groups.
+  Feeder g(fresh);
+  g.cycle(kFwd, 3);
+  const TrainingProgress p = fresh.progress();
+  ASSERT_EQ(p.classes.size(), 1U);
+  EXPECT_EQ(p.classes[0].cycles, 3U);
+  EXPECT_EQ(p.classes[0].windows, 9U);
+  EXPECT_EQ(p.classes[0].groups, 9U);
+  EXPECT_EQ(p.target_cycles, 5U);
+  EXPECT_EQ(fresh.counters().windows, 9U);
+
+  // A smaller pool: what does not fit is counted as dropped.
+  FieldTrainerConfig small = config();
+  small.max_windows = 4;
+  FieldTrainer smaller(small);
+  const TrainingCarryOver s = smaller.take_over(fresh);
+  EXPECT_TRUE(s.kept);
+  EXPECT_EQ(s.windows, 4U);
+  EXPECT_EQ(s.windows_lost, 5U);
+  EXPECT_EQ(smaller.progress().windows, 4U);
+  EXPECT_EQ(smaller.progress().windows_dropped, 5U);
+
+  // Another window length or sample rate: nothing is copied, and why is said.
+  FieldTrainerConfig shorter = config();
+  shorter.window_len = kLen / 2;
+  FieldTrainer other(shorter);
+  const TrainingCarryOver o = other.take_over(fresh);
+  EXPECT_FALSE(o.kept);
+  EXPECT_EQ(o.why, "window_len 64 -> 32 samples");
+  EXPECT_EQ(o.windows_lost, 9U);
+  EXPECT_EQ(other.progress().windows, 0U);
+  FieldTrainerConfig faster = config();
+  faster.fs_hz = 2 * kFs;
+  FieldTrainer rate(faster);
+  EXPECT_EQ(rate.take_over(fresh).why, "sample rate 1000 -> 2000 Hz");
+}
+
 TEST(FieldTrainer, RejectsBadConfiguration) {
   FieldTrainerConfig c = config();
   c.window_len = 0;

@@ -1,7 +1,10 @@
 #include "status/status_writer.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -116,6 +119,8 @@ StatusSnapshot known_snapshot() {
   c.latest_t_ns = 5'000'000'000'000;
   c.moving_ns = 3'000'000'000'000;
   c.moving_at_last_judged_ns = 2'999'500'000'000;
+  // Field training's baseline write failed 3 times on a full disk and still fails.
+  s.state_files[2] = StateFileHealth{3, ENOSPC, "write", true};
   return s;
 }
 
@@ -146,7 +151,11 @@ constexpr std::string_view kKnownJson =
     R"("rx_overflow_drops":0,"bus_off":0,"bus_state":"error_passive"},)"
     R"("slicer":{"regions":24,"windows":108,"windows_invalid":0,"windows_lost":0},)"
     R"("pipeline":{"ring_overflows":0,"windows_scored":107,"windows_abnormal":4,"alarms_raised":1,)"
-    R"("watchdog_pings":7200}})"
+    R"("watchdog_pings":7200},)"
+    R"("state_files":{"status":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
+    R"("metrics":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
+    R"("baseline":{"failing":true,"failures":3,"last_errno":28,)"
+    R"x("last_error":"write: ENOSPC (No space left on device)"}}})x"
     "\n";
 
 StatusWriterConfig json_only(const fs::path& dir, std::size_t bytes = 64 * 1024) {
@@ -391,8 +400,9 @@ TEST(StatusWriter, WritesBothFilesAtomically) {
   EXPECT_EQ(test::read_text(c.json_path), kKnownJson);
   const std::string prom = test::read_text(c.prom_path);
   EXPECT_NE(prom.find("ptda_alarm_level 2\n"), std::string::npos);
-  EXPECT_FALSE(fs::exists(dir / "status.json.tmp"));
-  EXPECT_FALSE(fs::exists(dir / "ptda.prom.tmp"));
+  for (const auto& e : fs::directory_iterator(dir)) {
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+  }
   EXPECT_EQ(fs::status(c.prom_path).permissions() & fs::perms::all,
             fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read);
   // Rewriting replaces the content.
@@ -449,6 +459,7 @@ TEST(StatusWriter, TooSmallBufferIsCountedNotOverflowed) {
 TEST(StatusWriter, IoErrorIsReported) {
   StatusWriterConfig c;
   c.json_path = scratch("io") / "missing-dir" / "status.json";
+  c.recreate_dir_mode = 0;  // a missing directory is not created again
   StatusWriter w(c);
   EXPECT_EQ(w.write(known_snapshot()), StatusWriteResult::kIoError);
   EXPECT_EQ(w.last_errno(), ENOENT);
@@ -468,6 +479,149 @@ TEST(StatusWriter, RejectsBadConfiguration) {
   c.prom_path = "/run/ptda/ptda.prom";
   c.buffer_bytes = 100;
   EXPECT_THROW(StatusWriter{c}, Error);
+}
+
+}  // namespace
+}  // namespace ptda::daemon
+
+namespace ptda::daemon {
+namespace {
+
+std::size_t dir_entries(const fs::path& dir) {
+  std::size_t n = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++n;
+  return n;
+}
+
+// Issue 14 item 2. The old writer opened "<path>.tmp" with O_CREAT|O_TRUNC (following a symlink) and
+// fchmod'ed it 0644: with the status directory writable by another user, a symlink planted there made
+// ptdad (root) overwrite a file of the attacker's choice and make it world-readable.
+TEST(StatusWriter, PlantedSymlinksAreNotFollowed) {
+  const fs::path dir = scratch("symlink");
+  const fs::path victim = scratch("symlink_victim") / "shadow";
+  {
+    std::ofstream out(victim);
+    out << "root:secret\n";
+  }
+  fs::permissions(victim, fs::perms::owner_read | fs::perms::owner_write);
+  fs::create_symlink(victim, dir / "status.json.tmp");  // the old predictable names
+  fs::create_symlink(victim, dir / "ptda.prom.tmp");
+  fs::create_symlink(victim, dir / "ptda.prom");  // and the target itself
+  StatusWriterConfig c;
+  c.json_path = dir / "status.json";
+  c.prom_path = dir / "ptda.prom";
+  StatusWriter w(c);
+  ASSERT_EQ(w.write(known_snapshot()), StatusWriteResult::kOk);
+  EXPECT_EQ(slurp(victim), "root:secret\n");
+  EXPECT_EQ(fs::status(victim).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write);
+  EXPECT_EQ(slurp(c.json_path), kKnownJson);
+  EXPECT_FALSE(fs::is_symlink(c.prom_path));
+  EXPECT_NE(slurp(c.prom_path).find("ptda_alarm_level 2\n"), std::string::npos);
+}
+
+// docs/systemd.md: status.json and *.prom are 0644 whatever the service's UMask (0077).
+TEST(StatusWriter, FilesAre0644UnderAStrictUmask) {
+  const fs::path dir = scratch("umask");
+  StatusWriterConfig c;
+  c.json_path = dir / "status.json";
+  c.prom_path = dir / "ptda.prom";
+  StatusWriter w(c);
+  const mode_t old = ::umask(077);
+  const StatusWriteResult r = w.write(known_snapshot());
+  ::umask(old);
+  ASSERT_EQ(r, StatusWriteResult::kOk);
+  constexpr fs::perms k0644 =
+      fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read;
+  EXPECT_EQ(fs::status(c.json_path).permissions() & fs::perms::all, k0644);
+  EXPECT_EQ(fs::status(c.prom_path).permissions() & fs::perms::all, k0644);
+}
+
+// Issue 14 item 6: a status directory deleted under the running daemon is created again (0755, as
+// systemd's RuntimeDirectory), and writing goes on. Before: every write failed with ENOENT, silently.
+TEST(StatusWriter, DeletedDirectoryIsCreatedAgain) {
+  const fs::path dir = scratch("recreate") / "run-ptda";
+  fs::create_directories(dir);
+  StatusWriter w(json_only(dir));
+  ASSERT_EQ(w.write(known_snapshot()), StatusWriteResult::kOk);
+  fs::remove_all(dir);
+  const mode_t old = ::umask(077);
+  const StatusWriteResult r = w.write(known_snapshot());
+  ::umask(old);
+  ASSERT_EQ(r, StatusWriteResult::kOk);
+  EXPECT_EQ(slurp(dir / "status.json"), kKnownJson);
+  EXPECT_EQ(fs::status(dir).permissions() & fs::perms::all,
+            fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
+                fs::perms::others_exec);
+  EXPECT_EQ(w.counters().dirs_recreated, 1U);
+  EXPECT_FALSE(w.health(StateFile::kStatus).failing);
+  EXPECT_EQ(w.health(StateFile::kStatus).failures, 0U);
+}
+
+// Issue 14 item 6: a failing file is visible (health: failures, errno, step), retried with backoff
+// (attempts after 1, 2, 4, 8, 16 calls, then every 16), and written again once the cause is gone.
+// Root ignores permission bits, so the failure is a path component that is a regular file (ENOTDIR),
+// which also defeats the directory re-creation.
+TEST(StatusWriter, FailuresAreCountedWithErrnoRetriedWithBackoffAndRecover) {
+  const fs::path dir = scratch("backoff");
+  const fs::path blocker = dir / "status";
+  { std::ofstream out(blocker); }
+  StatusWriterConfig c;
+  c.json_path = blocker / "status.json";
+  c.prom_path = dir / "ptda.prom";
+  StatusWriter w(c);
+  std::vector<std::uint64_t> failures;
+  for (int i = 0; i < 40; ++i) {
+    EXPECT_EQ(w.write(known_snapshot()), StatusWriteResult::kIoError);
+    failures.push_back(w.health(StateFile::kStatus).failures);
+  }
+  // Attempts at calls 1, 2, 4, 8, 16, 32 (1-based): skip 0, 1, 3, 7, 15, 15 calls after them.
+  EXPECT_EQ(failures[0], 1U);
+  EXPECT_EQ(failures[1], 2U);
+  EXPECT_EQ(failures[2], 2U);
+  EXPECT_EQ(failures[3], 3U);
+  EXPECT_EQ(failures[6], 3U);
+  EXPECT_EQ(failures[7], 4U);
+  EXPECT_EQ(failures[15], 5U);
+  EXPECT_EQ(failures[31], 6U);
+  EXPECT_EQ(failures[39], 6U);
+  const StateFileHealth h = w.health(StateFile::kStatus);
+  EXPECT_TRUE(h.failing);
+  EXPECT_EQ(h.last_errno, ENOTDIR);
+  EXPECT_STREQ(h.last_step, "open of the temporary file");
+  EXPECT_EQ(w.last_errno(), ENOTDIR);
+  // The metrics file is written all along and carries the status file's failure.
+  ASSERT_EQ(w.write(known_snapshot()), StatusWriteResult::kIoError);
+  const std::string prom = slurp(c.prom_path);
+  EXPECT_NE(prom.find("ptda_state_write_failures_total{file=\"status\"} 6\n"), std::string::npos) << prom;
+  EXPECT_NE(prom.find("ptda_state_write_failing{file=\"status\"} 1\n"), std::string::npos);
+  EXPECT_NE(prom.find("ptda_state_write_last_errno{file=\"status\"} 20\n"), std::string::npos);
+  EXPECT_NE(prom.find("ptda_state_write_failing{file=\"metrics\"} 0\n"), std::string::npos);
+  EXPECT_NE(prom.find("ptda_state_write_failures_total{file=\"baseline\"} 3\n"), std::string::npos);
+  EXPECT_FALSE(w.health(StateFile::kMetrics).failing);
+
+  // The cause removed: written again within the backoff (at most 16 calls), the count kept.
+  fs::remove(blocker);
+  fs::create_directory(blocker);
+  int calls = 0;
+  while (w.write(known_snapshot()) != StatusWriteResult::kOk && calls < 40) ++calls;
+  EXPECT_LE(calls, 16);
+  EXPECT_FALSE(w.health(StateFile::kStatus).failing);
+  EXPECT_EQ(w.health(StateFile::kStatus).failures, 6U);
+  // status.json itself: not failing (it was written), the past failures and their errno.
+  const std::string json = slurp(c.json_path);
+  EXPECT_NE(json.find(R"x("state_files":{"status":{"failing":false,"failures":6,"last_errno":20,)x"
+                      R"x("last_error":"open of the temporary file: ENOTDIR (Not a directory)"},)x"
+                      R"x("metrics":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)x"),
+            std::string::npos)
+      << json;
+  EXPECT_TRUE(JsonChecker(json).valid());
+  EXPECT_EQ(dir_entries(blocker), 1U);  // no temporary file left
+  // After a success the next failure is attempted at once again.
+  fs::remove_all(blocker);
+  { std::ofstream out(blocker); }
+  EXPECT_EQ(w.write(known_snapshot()), StatusWriteResult::kIoError);
+  EXPECT_EQ(w.health(StateFile::kStatus).failures, 7U);
 }
 
 }  // namespace

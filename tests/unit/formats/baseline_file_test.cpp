@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <string>
@@ -225,7 +226,7 @@ TEST(BaselineFile, RoundTripIsExact) {
   // No temporary file is left behind.
   std::size_t files = 0;
   for (const auto& e : fs::directory_iterator(dir)) {
-    EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << e.path();
+    EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << e.path();
     ++files;
   }
   EXPECT_EQ(files, 2U);
@@ -486,6 +487,31 @@ TEST(BaselineFile, InconsistentBaselineIsNotWritten) {
   fs::remove_all(dir);
 }
 
+// Issue 14 item 2: the old writer opened "<path>.tmp.<pid>" O_CREAT|O_TRUNC without O_NOFOLLOW, so a
+// symlink planted there (a baseline directory writable by another user) made ptdad (root) overwrite
+// the file it pointed to. Now the temporary name is random and created O_EXCL|O_NOFOLLOW.
+TEST(BaselineFile, SymlinkAtThePredictableTemporaryNameIsNotFollowed) {
+  const fs::path dir = temp_dir("symlink");
+  const fs::path victim_dir = temp_dir("symlink_victim");
+  const fs::path victim = victim_dir / "victim";
+  {
+    std::ofstream out(victim, std::ios::binary);
+    out << "not a baseline";
+  }
+  const fs::path p = dir / "baseline.bin";
+  fs::create_symlink(victim, dir / ("baseline.bin.tmp." + std::to_string(::getpid())));
+  fs::create_symlink(victim, dir / "baseline.bin.tmp");
+  const Baseline b = make_baseline(16, 3);
+  write_baseline(p, b);
+  expect_equal(read_baseline(p), b);
+  std::ifstream in(victim, std::ios::binary);
+  const std::string victim_text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(victim_text, "not a baseline");
+  EXPECT_FALSE(fs::is_symlink(p));
+  fs::remove_all(dir);
+  fs::remove_all(victim_dir);
+}
+
 TEST(BaselineFile, FailedWriteLeavesPreviousFileIntact) {
   const fs::path dir = temp_dir("atomic");
   const Baseline a = make_baseline(32, 10);
@@ -526,7 +552,7 @@ TEST(BaselineFile, FailedWriteLeavesPreviousFileIntact) {
   EXPECT_EQ(read_file(p), before);
   expect_equal(read_baseline(p), a);
   for (const auto& e : fs::directory_iterator(dir))
-    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
 
   // A successful write replaces the file as a whole.
   write_baseline(p, b);

@@ -22,7 +22,9 @@ namespace ptda::formats {
 inline constexpr std::uint32_t kBaselineFormatVersion = 3;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 
-/// Throws ptda::Error (naming the path and the failed step); never leaves a partial file at `path`.
+/// Throws ptda::Error for an inconsistent baseline, ptda::WriteError (naming the path, the failed step
+/// and the errno) when writing fails; never leaves a partial file at `path`. The temporary file is
+/// "<path>.tmp-<random>", created O_EXCL|O_NOFOLLOW (common/atomic_file.hpp), mode 0644 minus the umask.
 /// Thread: any (offline / configure time). Blocks (fsync) and allocates.
 void write_baseline(const std::filesystem::path& path, const dsp::Baseline& baseline);
 
