@@ -543,7 +543,8 @@ dsp::Baseline read_baseline(const std::filesystem::path& path) {
   const std::string name = path.string();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(name + ": baseline file not found");
-  require_regular_file(path, kMaxBaselineFileBytes, "baseline file");  // no FIFO, device, directory
+  // No FIFO, device or directory; not writable by others when running as root (issue 14 item 8).
+  require_trusted_file(path, kMaxBaselineFileBytes, "baseline file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(name + ": cannot open baseline: " + std::strerror(errno));
   std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

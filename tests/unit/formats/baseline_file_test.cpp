@@ -551,6 +551,27 @@ TEST(BaselineFile, ForgedValuesAreRefusedWithTheirLocation) {
   fs::remove_all(d);
 }
 
+// Issue 14 item 8: as root, a baseline others can write is refused with the fix.
+TEST(BaselineFile, WorldWritableBaselineIsRefusedAsRoot) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs euid 0 (FileCheckTest covers the check with an injected euid)";
+  const fs::path d = temp_dir("writable");
+  write_baseline(d / "b.bin", make_baseline(8, 4));
+  ASSERT_EQ(::chmod((d / "b.bin").c_str(), 0666), 0);
+  try {
+    (void)read_baseline(d / "b.bin");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              (d / "b.bin").string() +
+                  ": baseline file is world-writable (mode 0666) and ptda runs as root: another user could "
+                  "change what it does. Fix: chmod go-w " +
+                  (d / "b.bin").string());
+  }
+  ASSERT_EQ(::chmod((d / "b.bin").c_str(), 0644), 0);
+  EXPECT_NO_THROW((void)read_baseline(d / "b.bin"));
+  fs::remove_all(d);
+}
+
 TEST(BaselineFile, InconsistentBaselineIsNotWritten) {
   const fs::path dir = temp_dir("inconsistent");
   Baseline b = make_baseline(8, 3);
