@@ -354,6 +354,7 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   const bool table = jsonl_path != "-" && !a.has("quiet");
 
   opts.progress_label = "monitor " + in.rec.dir.filename().string();
+  opts.config_source = in.config_path;
   MonitorResult r = monitor_recording(in.rec, in.cfg, in.baseline, method, in.fs_hz, {}, opts);
   if (!range.whole()) {
     const auto first = static_cast<std::ptrdiff_t>(range.first(r.windows.size()));

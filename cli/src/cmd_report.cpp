@@ -155,6 +155,7 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
       }
       RunOptions opts;
       opts.progress_label = "report " + trend.method + " " + labels[i];
+      opts.config_source = in.config_path;
       const MonitorResult r = monitor_recording(in.rec, in.cfg, baseline, method, fs_hz, observer, opts);
       const MonitorSummary s = summarize(r.windows, in.rec.t0_ns);
       for (const auto& w : r.windows) {

@@ -73,6 +73,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     }
     RunOptions opts;
     opts.progress_label = "train " + rec.dir.filename().string();
+    opts.config_source = config_path;
     CollectResult c = collect_windows(rec, cfg, fs, opts);
     out << "recording " << dir << ": " << fixed(rec.duration_s, 2) << " s at " << general(fs, 10) << " Hz, "
         << c.data.regions.size() << " constant-speed regions, " << c.data.refs.size() << " windows\n";
@@ -124,7 +125,9 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
                 ", min_duration_s " + general(cfg.extraction.min_duration_s) + ")");
   }
 
-  dsp::Baseline baseline = dsp::train_baseline(all, cfg.classes, cfg.thresholds, fs_hz, cfg.gearbox);
+  std::vector<std::string> dropped;
+  dsp::Baseline baseline =
+      dsp::train_baseline(all, cfg.classes, cfg.thresholds, fs_hz, cfg.gearbox, &dropped);
   baseline.source = source;
   baseline.training = training;
   formats::write_baseline(a.value("out"), baseline);
@@ -197,6 +200,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     }
   }
   for (const std::string& w : dsp::training_warnings(baseline)) out << "warning: " << w << "\n";
+  for (const std::string& d : dropped) out << "warning: no class for " << d << ": dropped, never judged\n";
   return kExitOk;
 }
 

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "ptda/cli/progress.hpp"
+#include "ptda/common/can_frame.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
 #include "ptda/config/speed_codec.hpp"
@@ -102,13 +103,19 @@ CanCounters run_recording(const RecordingInfo& rec, const config::PipelineConfig
         can_done = true;
         return;
       }
+      if (counters.frames == 0) counters.first_frame_t_ns = record.frame.t_ns;
+      counters.last_frame_t_ns = record.frame.t_ns;
       ++counters.frames;
+      if ((record.frame.flags & kCanError) == 0)
+        ++counters.ids[record.frame.id | (record.frame.extended() ? CanCounters::kExtendedIdKey : 0U)];
       config::DecodedSpeed decoded;
       switch (config::decode_speed(record.frame, cfg.speed_frame, decoded)) {
         case config::DecodeResult::kOk:
-          ++counters.speed_frames;
           pending = dsp::SpeedSample{record.frame.t_ns - latency_ns, decoded.speed_rad_s, decoded.angle_rad,
                                      decoded.has_angle};
+          if (counters.speed_frames == 0) counters.first_speed_t_ns = pending->t_ns;
+          counters.last_speed_t_ns = pending->t_ns;
+          ++counters.speed_frames;
           break;
         case config::DecodeResult::kOtherId:
           ++counters.other_id;
@@ -157,7 +164,81 @@ CanCounters run_recording(const RecordingInfo& rec, const config::PipelineConfig
   }
   sink.on_finish();
   progress.done();
+  counters.comment_lines = can.comment_lines();
+  counters.first_comment_line = can.first_comment_line();
+  check_can_input(rec, cfg, counters, options.config_source);
   return counters;
+}
+
+namespace {
+
+std::string can_id_text(std::uint32_t key) {
+  const bool ext = (key & CanCounters::kExtendedIdKey) != 0;
+  char buf[32];
+  std::snprintf(buf, sizeof buf, ext ? "0x%08X (extended)" : "0x%03X", key & ~CanCounters::kExtendedIdKey);
+  return buf;
+}
+
+// Seconds from the recording's start (3 decimals), the time base of `ptda monitor`'s table.
+std::string rel_s(std::int64_t t_ns, std::int64_t t0_ns) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.3f", static_cast<double>(t_ns - t0_ns) * 1e-9);
+  return buf;
+}
+
+}  // namespace
+
+void check_can_input(const RecordingInfo& rec, const config::PipelineConfig& cfg, const CanCounters& can,
+                     const std::string& config_source) {
+  const std::string log = rec.can_path.string();
+  if (can.frames == 0) {
+    if (can.comment_lines > 0) {
+      throw Error(log + ":" + std::to_string(can.first_comment_line) + ": not a candump log: none of its " +
+                  std::to_string(can.comment_lines) +
+                  " non-blank lines is a frame \"(seconds.fraction) iface ID#DATA\" (lines not starting "
+                  "with '(' are comments); point can_file in " +
+                  (rec.dir / "recording.toml").string() + " at the `candump -l` log");
+    }
+    throw Error(log +
+                ": the CAN log has no frames (empty or blank): no joint speed, so no window can be cut");
+  }
+  const config::SpeedFrameSpec& spec = cfg.speed_frame;
+  if (can.speed_frames == 0) {
+    const std::uint32_t key = spec.id | (spec.extended ? CanCounters::kExtendedIdKey : 0U);
+    const auto it = can.ids.find(key);
+    if (it == can.ids.end()) {
+      // Most frequent first; ties by id.
+      std::vector<std::pair<std::uint32_t, std::uint64_t>> seen(can.ids.begin(), can.ids.end());
+      std::stable_sort(seen.begin(), seen.end(),
+                       [](const auto& a, const auto& b) { return a.second > b.second; });
+      std::string ids;
+      const std::size_t shown = std::min<std::size_t>(seen.size(), 8);
+      for (std::size_t i = 0; i < shown; ++i) {
+        ids += (i == 0 ? "" : ", ") + can_id_text(seen[i].first) + " (" + std::to_string(seen[i].second) +
+               " frames)";
+      }
+      if (seen.size() > shown) ids += ", and " + std::to_string(seen.size() - shown) + " more ids";
+      if (seen.empty()) ids = "none but error frames";
+      throw Error(log + ": no frame with id " + can_id_text(key) + " in the CAN log (" +
+                  std::to_string(can.frames) + " frames); ids seen: " + ids +
+                  ". Set id (and extended) in [can.speed_frame] of " + config_source +
+                  " to the joint's speed frame");
+    }
+    throw Error(log + ": none of the " + std::to_string(it->second) + " frames with id " + can_id_text(key) +
+                " decoded as a speed sample (" + std::to_string(can.wrong_dlc) +
+                " with a length other than " + "dlc = " + std::to_string(spec.dlc) + ", " +
+                std::to_string(can.rtr) + " remote frames); check [can.speed_frame] dlc in " + config_source);
+  }
+  // The vibration covers [t0, t0 + duration); the speed samples [first, last]. Disjoint: nothing can
+  // be cut, whatever the configuration says.
+  const std::int64_t vib_end_ns = rec.t0_ns + seconds_to_ns(rec.duration_s);
+  if (can.last_speed_t_ns < rec.t0_ns || can.first_speed_t_ns >= vib_end_ns) {
+    throw Error(log + ": the CAN speed frames (" + rel_s(can.first_speed_t_ns, rec.t0_ns) + " to " +
+                rel_s(can.last_speed_t_ns, rec.t0_ns) + " s) do not overlap the vibration recording " +
+                rec.wav_path.string() + " (0.000 to " + rel_s(vib_end_ns, rec.t0_ns) +
+                " s); times in seconds from start_time " + num(rec.meta.start_time_s) + " of " +
+                (rec.dir / "recording.toml").string() + ": check start_time and the log's clock");
+  }
 }
 
 namespace {

@@ -1,5 +1,7 @@
 #include "ptda/config/toml_reader.hpp"
 
+#include <unistd.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -50,7 +52,9 @@ toml::table parse_toml(std::string_view text, const std::string& source) {
 
 toml::table read_toml_file(const std::filesystem::path& path) {
   // A regular file of bounded size: a FIFO or /dev/zero must not hang or flood configure (issue 14).
-  return parse_toml(read_regular_file(path, kMaxConfigFileBytes, "configuration file"), path.string());
+  // Root must not run a configuration others can write (issue 14 item 8).
+  return parse_toml(read_regular_file(path, kMaxConfigFileBytes, "configuration file", ::geteuid()),
+                    path.string());
 }
 
 std::string_view toml_type_name(toml::node_type type) noexcept {
@@ -158,6 +162,8 @@ bool TableReader::read(std::string_view key, std::string& out) {
   if (node == nullptr) return false;
   const auto* s = node->as_string();
   if (s == nullptr) fail_value(key, "must be a string, not " + with_article(node->type()));
+  // Every string is a path or a name: a NUL would cut it, megabytes of it are a mistake (item 8).
+  if (const std::string problem = string_value_problem(s->get()); !problem.empty()) fail_value(key, problem);
   out = s->get();
   return true;
 }

@@ -25,7 +25,8 @@ std::string num(double v) {
 }  // namespace
 
 std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& regions,
-                                                const ClassLearningConfig& cfg) {
+                                                const ClassLearningConfig& cfg,
+                                                std::vector<std::string>* dropped) {
   if (!(std::isfinite(cfg.speed_tol_rel) && cfg.speed_tol_rel >= 0.0)) {
     throw Error("classes.speed_tol_rel: must be finite and >= 0, got " + num(cfg.speed_tol_rel));
   }
@@ -79,6 +80,10 @@ std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& r
         c.duration_s = m % 2 == 1 ? durations[m / 2] : 0.5 * (durations[m / 2 - 1] + durations[m / 2]);
         c.regions = static_cast<std::uint32_t>(m);
         out.push_back(c);
+      } else if (dropped != nullptr) {
+        dropped->push_back("speed " + std::string(dir < 0 ? "-" : "+") +
+                           num(sum / static_cast<double>(j - i)) + " rad/s: " + std::to_string(j - i) +
+                           " region(s), fewer than classes.min_regions = " + std::to_string(cfg.min_regions));
       }
       i = j;
     }
@@ -88,7 +93,8 @@ std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& r
 }
 
 Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig& classes,
-                        const ThresholdPolicy& policy, double fs_hz, const GearboxInfo& gearbox) {
+                        const ThresholdPolicy& policy, double fs_hz, const GearboxInfo& gearbox,
+                        std::vector<std::string>* dropped) {
   if (data.refs.size() != data.windows.size()) {
     throw Error("train_baseline: " + std::to_string(data.refs.size()) + " window refs but " +
                 std::to_string(data.windows.size()) + " windows");
@@ -108,8 +114,10 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
     }
   }
 
+  // Why each speed group or class is left out, for the caller and for the error below.
+  std::vector<std::string> why;
   Baseline candidates;
-  for (const SegmentClass& c : learn_segment_classes(data.regions, classes)) {
+  for (const SegmentClass& c : learn_segment_classes(data.regions, classes, &why)) {
     ClassBaseline cb;
     cb.segment = c;
     candidates.classes.push_back(std::move(cb));
@@ -197,7 +205,14 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
                num(seg.speed_rad_s) + " rad/s): " + std::to_string(seg.regions) + " regions, " +
                std::to_string(members[k].windows.size()) + " windows in " + std::to_string(distinct.size()) +
                " non-overlapping groups";
-    if (distinct.size() < 3) continue;
+    if (distinct.size() < 3) {
+      why.push_back(
+          "speed " + std::string(seg.direction < 0 ? "-" : "+") + num(seg.speed_rad_s) +
+          " rad/s: " + std::to_string(seg.regions) + " regions but its " +
+          std::to_string(members[k].windows.size()) + " windows fall in " + std::to_string(distinct.size()) +
+          " non-overlapping group(s), leave-one-group-out needs >= 3 (longer regions or more cycles)");
+      continue;
+    }
     // Hold-out: the latest groups (group ids follow cut order), never fewer than 3 groups left to fit.
     const std::size_t n_hold = std::min(
         static_cast<std::size_t>(std::floor(policy.holdout_fraction * static_cast<double>(distinct.size()))),
@@ -250,12 +265,16 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
     out.classes.push_back(std::move(cb));
   }
   if (out.classes.empty()) {
+    std::string reasons;
+    for (const std::string& w : why) reasons += "; dropped " + w;
     throw Error("train_baseline: no segment class has enough training data (needs >= " +
-                std::to_string(classes.min_regions) + " regions and >= 3 non-overlapping window groups): " +
-                std::to_string(data.regions.size()) + " regions, " + std::to_string(data.windows.size()) +
-                " windows, " + std::to_string(unmatched) + " windows matching no class" +
-                (candidates.classes.empty() ? std::string("; no class learned") : summary));
+                std::to_string(classes.min_regions) +
+                " regions and >= 3 non-overlapping window groups): " + std::to_string(data.regions.size()) +
+                " regions, " + std::to_string(data.windows.size()) + " windows" +
+                (unmatched > 0 ? ", " + std::to_string(unmatched) + " of them in dropped speed groups" : "") +
+                (candidates.classes.empty() ? std::string("; no class learned") : summary) + reasons);
   }
+  if (dropped != nullptr) dropped->insert(dropped->end(), why.begin(), why.end());
   return out;
 }
 

@@ -18,6 +18,7 @@
 #include "ptda/common/error.hpp"
 #include "ptda/common/file_check.hpp"
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/real_fft.hpp"
 
 namespace ptda::formats {
 namespace {
@@ -152,6 +153,79 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
   }
 }
 
+// Shortest text that reads back as the same double (for messages).
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+// Semantic checks of one class: every value finite and in its physical range, bands with lo < hi,
+// standard deviations > 0, counts that agree. `cls` names the class; throws at the first failure.
+void check_class_values(const dsp::ClassBaseline& c, const std::string& cls) {
+  const auto bad = [&](const std::string& what) { throw Error(cls + ": " + what); };
+  const auto finite = [&](double v, const std::string& field) {
+    if (!std::isfinite(v)) bad(field + " is " + num(v) + ", not a finite number");
+  };
+  const auto non_negative = [&](double v, const std::string& field) {
+    finite(v, field);
+    if (v < 0.0) bad(field + " is " + num(v) + ", must be >= 0");
+  };
+  finite(c.segment.speed_rad_s, "speed_rad_s");
+  if (!(c.segment.speed_rad_s > 0.0))
+    bad("speed_rad_s is " + num(c.segment.speed_rad_s) + ", must be > 0 (a constant-speed class)");
+  non_negative(c.segment.speed_tol_rad_s, "speed_tol_rad_s");
+  non_negative(c.segment.duration_s, "duration_s");
+  non_negative(c.windows_per_hour, "windows_per_hour");
+  if (c.n_windows == 0) bad("n_windows is 0 (a class is trained on at least one window)");
+  for (std::size_t k = 0; k < c.mean_magnitude.size(); ++k)
+    non_negative(c.mean_magnitude[k], "mean_magnitude[" + std::to_string(k) + "]");
+  for (std::size_t j = 0; j < c.tda_mean.size(); ++j)
+    finite(c.tda_mean[j], "tda_mean[" + std::to_string(j) + "]");
+  for (std::size_t m = 0; m < dsp::kMethodCount; ++m) {
+    const std::string method = "method " + std::string(dsp::method_name(static_cast<dsp::Method>(m))) + ", ";
+    const auto band = [&](const dsp::Band& b, const std::string& name) {
+      finite(b.lo, method + name + " band lo");
+      finite(b.hi, method + name + " band hi");
+      if (!(b.lo < b.hi))
+        bad(method + name + " band is [" + num(b.lo) + ", " + num(b.hi) + "], needs lo < hi");
+    };
+    band(c.thresholds[m].rms, "rms_res");
+    band(c.thresholds[m].entropy, "entropy_res");
+    if (!(c.thresholds[m].rms.hi > 0.0))
+      bad(method + "rms_res band hi is " + num(c.thresholds[m].rms.hi) + ", must be > 0 (rms_res >= 0)");
+    const auto stats = [&](const dsp::FeatureStats& s, const std::string& name) {
+      const std::string f = method + name + " ";
+      finite(s.mean, f + "mean");
+      finite(s.min, f + "min");
+      finite(s.max, f + "max");
+      non_negative(s.stddev, f + "stddev");
+      if (s.n >= 2 && !(s.stddev > 0.0))
+        bad(f + "stddev is 0 over " + std::to_string(s.n) + " windows, must be > 0");
+      if (s.n > 0 && !(s.min <= s.max)) bad(f + "min " + num(s.min) + " is above max " + num(s.max));
+      if (s.n > c.n_windows)
+        bad(f + "n is " + std::to_string(s.n) + ", more than the class's " + std::to_string(c.n_windows) +
+            " windows");
+    };
+    stats(c.rms_stats[m], "rms_res stats");
+    stats(c.entropy_stats[m], "entropy_res stats");
+    stats(c.log_rms_stats[m], "ln(rms_res) stats");
+    const dsp::HoldoutStats& h = c.holdout[m];
+    const std::string ho = method + "hold-out ";
+    for (const auto& [count, name] :
+         {std::pair{h.abnormal, "abnormal"}, std::pair{h.rms_high, "rms_high"},
+          std::pair{h.rms_low, "rms_low"}, std::pair{h.entropy_out, "entropy_out"}}) {
+      if (count > h.windows)
+        bad(ho + name + " is " + std::to_string(count) + ", more than its " + std::to_string(h.windows) +
+            " windows");
+    }
+    finite(h.z_rms_mean, ho + "z_rms_mean");
+    non_negative(h.z_rms_sd, ho + "z_rms_sd");
+    finite(h.z_entropy_mean, ho + "z_entropy_mean");
+    non_negative(h.z_entropy_sd, ho + "z_entropy_sd");
+  }
+}
+
 void put_holdout(Writer& w, const dsp::HoldoutStats& h) {
   w.u32(h.windows);
   w.u32(h.abnormal);
@@ -210,6 +284,41 @@ dsp::FeatureStats get_stats(Reader& r) {
 
 }  // namespace
 
+void validate_baseline(const dsp::Baseline& b, const std::string& where) {
+  const std::string w = where + ": implausible baseline: ";
+  if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0 && b.fs_hz <= kMaxBaselineFsHz))
+    throw Error(w + "fs_hz is " + num(b.fs_hz) + ", must be > 0 and <= " + num(kMaxBaselineFsHz));
+  if (!dsp::RealFft::supported_length(b.window_len))
+    throw Error(w + "window_len " + std::to_string(b.window_len) +
+                " is not a supported FFT length (even, >= 4, prime factors 2, 3, 5 only)");
+  if (b.window_len > kMaxBaselineWindowLen)
+    throw Error(w + "window_len " + std::to_string(b.window_len) + " is above " +
+                std::to_string(kMaxBaselineWindowLen));
+  if (!(std::isfinite(b.gearbox.ratio) && b.gearbox.ratio >= 0.0))
+    throw Error(w + "gearbox ratio is " + num(b.gearbox.ratio) + ", must be finite and >= 0");
+  const dsp::ThresholdPolicy& p = b.policy;
+  if (!(p.false_alarm_rate > 0.0 && p.false_alarm_rate < 1.0))
+    throw Error(w + "policy false_alarm_rate is " + num(p.false_alarm_rate) + ", must be in (0, 1)");
+  if (!(std::isfinite(p.margin) && p.margin >= 0.0))
+    throw Error(w + "policy margin is " + num(p.margin) + ", must be finite and >= 0");
+  if (!(p.confidence > 0.0 && p.confidence < 1.0))
+    throw Error(w + "policy confidence is " + num(p.confidence) + ", must be in (0, 1)");
+  if (!(p.holdout_fraction >= 0.0 && p.holdout_fraction < 1.0))
+    throw Error(w + "policy holdout_fraction is " + num(p.holdout_fraction) + ", must be in [0, 1)");
+  for (std::size_t i = 0; i < b.classes.size(); ++i) {
+    const dsp::ClassBaseline& c = b.classes[i];
+    check_class_values(c, w + "class " + std::to_string(i) + " (id " + std::to_string(c.segment.id) + ")");
+  }
+  for (std::size_t i = 0; i < b.training.size(); ++i) {
+    const dsp::TrainingRecording& t = b.training[i];
+    const std::string tr = w + "training recording " + std::to_string(i) + ": ";
+    if (!std::isfinite(t.from_unix_s) || !std::isfinite(t.to_unix_s))
+      throw Error(tr + "time range " + num(t.from_unix_s) + " to " + num(t.to_unix_s) + " is not finite");
+    if (t.to_unix_s < t.from_unix_s)
+      throw Error(tr + "ends (" + num(t.to_unix_s) + " s) before it starts (" + num(t.from_unix_s) + " s)");
+  }
+}
+
 std::uint32_t crc32(const void* data, std::size_t len, std::uint32_t crc) noexcept {
   const auto* p = static_cast<const std::uint8_t*>(data);
   std::uint32_t c = ~crc;
@@ -219,6 +328,7 @@ std::uint32_t crc32(const void* data, std::size_t len, std::uint32_t crc) noexce
 
 std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   check_baseline(b, "baseline");
+  validate_baseline(b, "baseline");
   Writer w;
   w.bytes(kMagic.data(), kMagic.size());
   w.u32(kBaselineFormatVersion);
@@ -419,9 +529,9 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
     b.policy.ptda_line_gain = (options & kOptionLineGain) != 0U;
   }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
-  if (!(std::isfinite(b.fs_hz) && b.fs_hz > 0.0))
-    throw Error(source + ": inconsistent baseline: fs_hz must be positive");
-  if (b.window_len == 0) throw Error(source + ": inconsistent baseline: window_len is 0");
+  // A CRC only proves the bytes are what some writer produced: a forged or buggy file with NaN,
+  // inverted bands or a zero spread would blind the monitor, so the values are checked too.
+  validate_baseline(b, source);
   dsp::prepare_line_groups(b);
   return b;
 }
@@ -430,7 +540,8 @@ dsp::Baseline read_baseline(const std::filesystem::path& path) {
   const std::string name = path.string();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(name + ": baseline file not found");
-  require_regular_file(path, kMaxBaselineFileBytes, "baseline file");  // no FIFO, device, directory
+  // No FIFO, device or directory; not writable by others when running as root (issue 14 item 8).
+  require_trusted_file(path, kMaxBaselineFileBytes, "baseline file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(name + ": cannot open baseline: " + std::strerror(errno));
   std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -298,6 +298,11 @@ bool CandumpReader::next(CandumpRecord& out) {
     if (!any) return false;
     ++line_no_;
     if (parse_candump_line_into(line_, source_, line_no_, out)) return true;
+    if (!line_.empty() && line_[0] != '(' &&
+        line_.find_first_not_of(" \t\r") != std::string::npos) {  // a comment, not a blank line
+      if (comment_lines_ == 0) first_comment_line_ = line_no_;
+      ++comment_lines_;
+    }
   }
 }
 

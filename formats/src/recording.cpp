@@ -54,6 +54,8 @@ class Checker {
     if (!n.is_string()) fail(n.source(), "'" + std::string(key) + "' in " + table + " must be a string");
     std::string s = n.as_string()->get();
     if (s.empty()) fail(n.source(), "'" + std::string(key) + "' in " + table + " must not be empty");
+    if (const std::string problem = string_value_problem(s); !problem.empty())
+      fail(n.source(), "'" + std::string(key) + "' in " + table + " " + problem);
     return s;
   }
 

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "ptda/common/error.hpp"
+#include "ptda/common/file_check.hpp"
 #include "ptda/sim/simulator.hpp"
 #include "sim_internal.hpp"
 
@@ -79,6 +80,8 @@ class Reader {
     const toml::node* n = node(key);
     if (n == nullptr) return def;
     if (!n->is_string()) throw error_at(n->source(), full(key) + ": expected a string");
+    if (const std::string problem = string_value_problem(n->as_string()->get()); !problem.empty())
+      throw error_at(n->source(), full(key) + ": " + problem);
     return n->as_string()->get();
   }
   std::vector<double> numbers(const std::string& key) {
@@ -402,6 +405,9 @@ void parse_can(Reader& r, CanSpec& c, const std::string& source) {
   c.iface = r.string("iface", c.iface);
   require(!c.iface.empty() && c.iface.find_first_of(" \t()#") == std::string::npos, r, "iface",
           "must be a non-empty interface name without blanks");
+  require(c.iface.size() <= kMaxInterfaceNameBytes, r, "iface",
+          "is " + std::to_string(c.iface.size()) + " bytes long; an interface name has at most " +
+              std::to_string(kMaxInterfaceNameBytes) + " (IFNAMSIZ 16 with the NUL)");
   if (const toml::table* sf = r.table("speed_frame")) {
     Reader sr(*sf, "can.speed_frame", source);
     sr.known_keys({"id", "extended", "dlc", "has_angle", "speed", "angle"});

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "golden_support.hpp"
 
@@ -178,6 +179,92 @@ TEST_F(CliEnd2End, MalformedCandumpLineIsExitOneWithFileAndLine) {
     EXPECT_EQ(r.err.rfind("ptda " + cmd + ": " + (bad / "can.log").string() + ":801", 0), 0U) << r.err;
   }
   EXPECT_FALSE(fs::exists(dir_ / "never.bin")) << "no baseline is written from a broken recording";
+}
+
+// Runs train (to dir_/never.bin) and monitor on a recording with config cfg.
+std::vector<RunResult> train_and_monitor(const fs::path& dir, const fs::path& recording,
+                                         const std::string& cfg, const std::string& baseline,
+                                         const std::string& tag) {
+  std::vector<RunResult> out;
+  out.push_back(run_ptda(
+      {"train", "--recording", recording.string(), "--config", cfg, "--out", (dir / "never.bin").string()},
+      dir, tag + "_train"));
+  out.push_back(
+      run_ptda({"monitor", "--recording", recording.string(), "--config", cfg, "--baseline", baseline}, dir,
+               tag + "_monitor"));
+  return out;
+}
+
+// Issue 14 item 7: a file that is not a candump log used to give 0 windows (train: "no constant-speed
+// windows", monitor: exit 3 or 0). Now exit 1 naming the file and its first line.
+TEST_F(CliEnd2End, NotACandumpLogIsExitOneWithFileAndLine) {
+  const fs::path bad = dir_ / "rec_not_candump";
+  fs::remove_all(bad);
+  fs::copy(dir_ / "rec", bad);
+  std::ofstream(bad / "can.log", std::ios::trunc) << "\ntime,speed\n0.0,62.8\n0.004,62.8\n";
+  const std::vector<RunResult> r = train_and_monitor(dir_, bad, config(), baseline(), "not_candump");
+  for (std::size_t i = 0; i < 2; ++i) {
+    const std::string cmd = i == 0 ? "train" : "monitor";
+    EXPECT_EQ(r[i].exit_code, 1) << cmd << r[i].out;
+    EXPECT_EQ(r[i].err,
+              "ptda " + cmd + ": " + (bad / "can.log").string() +
+                  ":2: not a candump log: none of its 3 non-blank lines is a frame \"(seconds.fraction) "
+                  "iface ID#DATA\" (lines not starting with '(' are comments); point can_file in " +
+                  (bad / "recording.toml").string() + " at the `candump -l` log\n");
+  }
+  EXPECT_EQ(r[1].out.find("alarm      never raised"), std::string::npos) << r[1].out;
+  std::ofstream(bad / "can.log", std::ios::trunc) << "\n\n";
+  const RunResult empty =
+      run_ptda({"monitor", "--recording", bad.string(), "--config", config(), "--baseline", baseline()}, dir_,
+               "empty_can");
+  EXPECT_EQ(empty.exit_code, 1);
+  EXPECT_EQ(empty.err,
+            "ptda monitor: " + (bad / "can.log").string() +
+                ": the CAN log has no frames (empty or blank): no joint speed, so no window can be cut\n");
+  EXPECT_FALSE(fs::exists(dir_ / "never.bin"));
+}
+
+// Issue 14 item 9 / issue 17: a wrong speed id named with the ids that are in the log and the fix.
+TEST_F(CliEnd2End, WrongSpeedIdNamesTheIdsSeenAndTheKeyToSet) {
+  const fs::path cfg = dir_ / "config_id185.toml";
+  std::ofstream(cfg) << kConfig << "[can.speed_frame]\nid = 0x185\n";
+  const std::vector<RunResult> r =
+      train_and_monitor(dir_, dir_ / "rec", cfg.string(), baseline(), "wrong_id");
+  for (std::size_t i = 0; i < 2; ++i) {
+    const std::string cmd = i == 0 ? "train" : "monitor";
+    EXPECT_EQ(r[i].exit_code, 1) << cmd << r[i].out;
+    EXPECT_EQ(r[i].err,
+              "ptda " + cmd + ": " + (dir_ / "rec" / "can.log").string() +
+                  ": no frame with id 0x185 in the CAN log (1601 frames); ids seen: 0x184 (1601 frames). "
+                  "Set id (and extended) in [can.speed_frame] of " +
+                  cfg.string() + " to the joint's speed frame\n");
+  }
+  EXPECT_EQ(r[1].out.find("alarm      never raised"), std::string::npos) << r[1].out;
+  EXPECT_FALSE(fs::exists(dir_ / "never.bin"));
+}
+
+// Issue 14 item 7: vibration and CAN timelines that do not overlap (start_time 1000 s too late).
+TEST_F(CliEnd2End, NonOverlappingTimelinesAreExitOneWithBothRanges) {
+  const fs::path late = dir_ / "rec_late";
+  fs::remove_all(late);
+  fs::copy(dir_ / "rec", late);
+  std::string toml = read_file(late / "recording.toml");
+  const std::size_t at = toml.find("start_time = ");
+  ASSERT_NE(at, std::string::npos) << toml;
+  toml.replace(at, toml.find('\n', at) - at, "start_time = 1700001000.0");
+  std::ofstream(late / "recording.toml", std::ios::trunc) << toml;
+  const std::vector<RunResult> r = train_and_monitor(dir_, late, config(), baseline(), "late");
+  for (std::size_t i = 0; i < 2; ++i) {
+    const std::string cmd = i == 0 ? "train" : "monitor";
+    EXPECT_EQ(r[i].exit_code, 1) << cmd << r[i].out;
+    EXPECT_EQ(r[i].err, "ptda " + cmd + ": " + (late / "can.log").string() +
+                            ": the CAN speed frames (-1000.000 to -993.600 s) do not overlap the vibration "
+                            "recording " +
+                            (late / "vibration.wav").string() +
+                            " (0.000 to 6.400 s); times in seconds from start_time 1700001000 of " +
+                            (late / "recording.toml").string() + ": check start_time and the log's clock\n");
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "never.bin"));
 }
 
 TEST_F(CliEnd2End, MismatchesAreExitOneNamingBothSides) {

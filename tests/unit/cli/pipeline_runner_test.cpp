@@ -229,6 +229,64 @@ TEST(Redebounce, RecomputesKOfNOverTheSubsetAndSkipsUnclassified) {
   }
 }
 
+// check_can_input's cases beyond the golden test: the speed id present but never decodable, extended
+// ids, many ids, a log of error frames only, and timelines that overlap partly (accepted).
+TEST(CheckCanInput, NamesTheIdsAndTheReason) {
+  RecordingInfo rec;
+  rec.dir = "rec";
+  rec.can_path = "rec/can.log";
+  rec.wav_path = "rec/vibration.wav";
+  rec.t0_ns = kT0Ns;
+  rec.duration_s = 10.0;
+  rec.meta.start_time_s = 1.7e9;
+  config::PipelineConfig cfg;  // speed id 0x184, standard, dlc 8
+  const auto message = [&](const CanCounters& c) {
+    try {
+      check_can_input(rec, cfg, c, "cfg.toml");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  CanCounters dlc;
+  dlc.frames = 7;
+  dlc.ids[0x184] = 5;
+  dlc.ids[0x100] = 2;
+  dlc.wrong_dlc = 4;
+  dlc.rtr = 1;
+  EXPECT_EQ(
+      message(dlc),
+      "rec/can.log: none of the 5 frames with id 0x184 decoded as a speed sample (4 with a length other "
+      "than dlc = 8, 1 remote frames); check [can.speed_frame] dlc in cfg.toml");
+  CanCounters many;
+  for (std::uint32_t id = 0x200; id < 0x20A; ++id) many.ids[id] = 10 + (id - 0x200);
+  many.ids[0x184 | CanCounters::kExtendedIdKey] = 100;  // the right number, but extended
+  many.frames = 100 + 145;
+  EXPECT_EQ(
+      message(many),
+      "rec/can.log: no frame with id 0x184 in the CAN log (245 frames); ids seen: 0x00000184 (extended) "
+      "(100 frames), 0x209 (19 frames), 0x208 (18 frames), 0x207 (17 frames), 0x206 (16 frames), 0x205 "
+      "(15 frames), 0x204 (14 frames), 0x203 (13 frames), and 3 more ids. Set id (and extended) in "
+      "[can.speed_frame] of cfg.toml to the joint's speed frame");
+  CanCounters errors;
+  errors.frames = 3;
+  errors.error_frames = 3;
+  EXPECT_NE(message(errors).find("(3 frames); ids seen: none but error frames."), std::string::npos)
+      << message(errors);
+  // Speed samples from 9 s before to 1 s after the start: they overlap, accepted.
+  CanCounters partly;
+  partly.frames = partly.speed_frames = 2;
+  partly.ids[0x184] = 2;
+  partly.first_speed_t_ns = kT0Ns - 9 * kNsPerS;
+  partly.last_speed_t_ns = kT0Ns + kNsPerS;
+  EXPECT_EQ(message(partly), "(no error)");
+  partly.last_speed_t_ns = kT0Ns - 1;  // ends 1 ns before the first sample
+  EXPECT_EQ(message(partly),
+            "rec/can.log: the CAN speed frames (-9.000 to -0.000 s) do not overlap the vibration recording "
+            "rec/vibration.wav (0.000 to 10.000 s); times in seconds from start_time 1700000000 of "
+            "rec/recording.toml: check start_time and the log's clock");
+}
+
 TEST(Redebounce, RestartsTheCusumOverTheSubset) {
   // Class 0 windows with z_rms = 3 (k 1: +2 per window), stale statistics from the full run.
   std::vector<dsp::WindowResult> w(5);

@@ -62,3 +62,47 @@ TEST_F(FileCheckTest, RefusesTooLargeMissingAndSpecialFiles) {
 }
 
 }  // namespace
+
+// Issue 14 item 8: running as root, a configuration or baseline file others can write is refused with
+// the fix. euid is injected, so both sides are tested whoever runs the test.
+TEST_F(FileCheckTest, GroupOrWorldWritableFilesAreRefusedOnlyForRoot) {
+  const fs::path p = dir_ / "ptdad.toml";
+  std::ofstream(p) << "x = 1\n";
+  ASSERT_EQ(::chmod(p.c_str(), 0664), 0);
+  EXPECT_EQ(
+      error_of([&] { ptda::require_trusted_file(p, 100, "configuration file", 0); }),
+      p.string() +
+          ": configuration file is group-writable (mode 0664) and ptda runs as root: another user could "
+          "change what it does. Fix: chmod go-w " +
+          p.string());
+  EXPECT_EQ(error_of([&] { (void)ptda::read_regular_file(p, 100, "configuration file", 0); }),
+            error_of([&] { ptda::require_trusted_file(p, 100, "configuration file", 0); }));
+  EXPECT_NO_THROW(ptda::require_trusted_file(p, 100, "configuration file", 1000));  // not root: allowed
+  EXPECT_EQ(ptda::read_regular_file(p, 100, "configuration file", 1000), "x = 1\n");
+  EXPECT_EQ(ptda::read_regular_file(p, 100, "configuration file"), "x = 1\n");  // no euid: no check
+  ASSERT_EQ(::chmod(p.c_str(), 0602), 0);
+  EXPECT_NE(error_of([&] {
+              ptda::require_trusted_file(p, 100, "baseline file", 0);
+            }).find(": baseline file is world-writable (mode 0602) and ptda runs as root"),
+            std::string::npos);
+  ASSERT_EQ(::chmod(p.c_str(), 0644), 0);
+  EXPECT_NO_THROW(ptda::require_trusted_file(p, 100, "configuration file", 0));
+  EXPECT_EQ(ptda::read_regular_file(p, 100, "configuration file", 0), "x = 1\n");
+  // The default euid is the process's own: as root (the test machine) the 0664 file is refused.
+  ASSERT_EQ(::chmod(p.c_str(), 0664), 0);
+  if (::geteuid() == 0) {
+    EXPECT_THROW(ptda::require_trusted_file(p, 100, "configuration file"), ptda::Error);
+  } else {
+    EXPECT_NO_THROW(ptda::require_trusted_file(p, 100, "configuration file"));
+  }
+}
+
+TEST(StringValueProblem, NulAndLength) {
+  EXPECT_EQ(ptda::string_value_problem("/etc/ptda/ptdad.toml"), "");
+  EXPECT_EQ(ptda::string_value_problem(std::string("/etc/a\0b", 8)),
+            "contains a NUL byte (\\u0000) at byte 6; paths and names cannot");
+  EXPECT_EQ(ptda::string_value_problem(std::string(4096, 'x')), "");
+  EXPECT_EQ(ptda::string_value_problem(std::string(4097, 'x')), "is 4097 bytes long, at most 4096 allowed");
+  EXPECT_EQ(ptda::string_value_problem("can0123456789abc", ptda::kMaxInterfaceNameBytes),
+            "is 16 bytes long, at most 15 allowed");
+}

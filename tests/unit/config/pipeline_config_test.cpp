@@ -3,6 +3,7 @@
 #include "ptda/config/pipeline_config.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -624,6 +625,28 @@ TEST(PipelineConfigExamples, EveryExampleParses) {
   for (const PipelineConfig* c : {&joint, &arc, &spot, &gfd}) {
     expect_config_eq(parse_pipeline_config(format_pipeline_config(*c), "formatted.toml"), *c);
   }
+}
+
+// Issue 14 item 8: as root, a configuration file (or drop-in) others can write is refused, saying how
+// to fix it (common/file_check.hpp tests both sides with an injected euid).
+TEST(PipelineConfigPermissions, GroupWritableConfigIsRefusedAsRoot) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs euid 0 (FileCheckTest covers the check with an injected euid)";
+  const fs::path dir = temp_dir();
+  const fs::path base = write_file(dir / "writable.toml", "[extraction]\nwindow_len = 4096\n");
+  ASSERT_EQ(::chmod(base.c_str(), 0664), 0);
+  try {
+    (void)load_pipeline_config(base);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              base.string() +
+                  ": configuration file is group-writable (mode 0664) and ptda runs as root: another user "
+                  "could change what it does. Fix: chmod go-w " +
+                  base.string());
+  }
+  ASSERT_EQ(::chmod(base.c_str(), 0644), 0);
+  EXPECT_NO_THROW((void)load_pipeline_config(base));
+  fs::remove_all(dir);
 }
 
 }  // namespace

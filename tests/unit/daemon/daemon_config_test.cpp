@@ -89,6 +89,17 @@ TEST(DaemonConfig, ErrorsAreLocated) {
       << error_of("[extraction]\nwindow_len = 4097\n");
 }
 
+// Issue 14 item 8: a NUL inside a path (TOML "\u0000") and absurdly long strings are located errors.
+TEST(DaemonConfig, NulInPathsAndOverlongNamesAreLocatedErrors) {
+  const std::string nul = kMinimal + "[daemon]\nbaseline = \"/var/lib/ptda/a\\u0000.bin\"\n";
+  EXPECT_EQ(error_of(nul),
+            "t.toml:6:12: daemon.baseline contains a NUL byte (\\u0000) at byte 15; paths and names cannot");
+  const std::string long_path = kMinimal + "[daemon]\nstatus_dir = \"/" + std::string(5000, 'x') + "\"\n";
+  EXPECT_EQ(error_of(long_path), "t.toml:6:14: daemon.status_dir is 5001 bytes long, at most 4096 allowed");
+  EXPECT_EQ(error_of(kMinimal + "[can]\ninterface = \"" + std::string(16, 'c') + "\"\n"),
+            "t.toml:6:13: can.interface must be a network interface name of 1..15 characters");
+}
+
 TEST(DaemonConfig, CrossChecksPointAtTheKeyThatWasSet) {
   EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[adc]\nbackend = \"wav\"\n"),
             "t.toml:4:11: adc.backend = \"wav\" needs adc.recording (a recording directory)");

@@ -512,12 +512,12 @@ TEST(StatusWriter, PlantedSymlinksAreNotFollowed) {
   c.prom_path = dir / "ptda.prom";
   StatusWriter w(c);
   ASSERT_EQ(w.write(known_snapshot()), StatusWriteResult::kOk);
-  EXPECT_EQ(slurp(victim), "root:secret\n");
+  EXPECT_EQ(test::read_text(victim), "root:secret\n");
   EXPECT_EQ(fs::status(victim).permissions() & fs::perms::all,
             fs::perms::owner_read | fs::perms::owner_write);
-  EXPECT_EQ(slurp(c.json_path), kKnownJson);
+  EXPECT_EQ(test::read_text(c.json_path), kKnownJson);
   EXPECT_FALSE(fs::is_symlink(c.prom_path));
-  EXPECT_NE(slurp(c.prom_path).find("ptda_alarm_level 2\n"), std::string::npos);
+  EXPECT_NE(test::read_text(c.prom_path).find("ptda_alarm_level 2\n"), std::string::npos);
 }
 
 // docs/systemd.md: status.json and *.prom are 0644 whatever the service's UMask (0077).
@@ -549,7 +549,7 @@ TEST(StatusWriter, DeletedDirectoryIsCreatedAgain) {
   const StatusWriteResult r = w.write(known_snapshot());
   ::umask(old);
   ASSERT_EQ(r, StatusWriteResult::kOk);
-  EXPECT_EQ(slurp(dir / "status.json"), kKnownJson);
+  EXPECT_EQ(test::read_text(dir / "status.json"), kKnownJson);
   EXPECT_EQ(fs::status(dir).permissions() & fs::perms::all,
             fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
                 fs::perms::others_exec);
@@ -592,7 +592,7 @@ TEST(StatusWriter, FailuresAreCountedWithErrnoRetriedWithBackoffAndRecover) {
   EXPECT_EQ(w.last_errno(), ENOTDIR);
   // The metrics file is written all along and carries the status file's failure.
   ASSERT_EQ(w.write(known_snapshot()), StatusWriteResult::kIoError);
-  const std::string prom = slurp(c.prom_path);
+  const std::string prom = test::read_text(c.prom_path);
   EXPECT_NE(prom.find("ptda_state_write_failures_total{file=\"status\"} 6\n"), std::string::npos) << prom;
   EXPECT_NE(prom.find("ptda_state_write_failing{file=\"status\"} 1\n"), std::string::npos);
   EXPECT_NE(prom.find("ptda_state_write_last_errno{file=\"status\"} 20\n"), std::string::npos);
@@ -609,7 +609,7 @@ TEST(StatusWriter, FailuresAreCountedWithErrnoRetriedWithBackoffAndRecover) {
   EXPECT_FALSE(w.health(StateFile::kStatus).failing);
   EXPECT_EQ(w.health(StateFile::kStatus).failures, 6U);
   // status.json itself: not failing (it was written), the past failures and their errno.
-  const std::string json = slurp(c.json_path);
+  const std::string json = test::read_text(c.json_path);
   EXPECT_NE(json.find(R"x("state_files":{"status":{"failing":false,"failures":6,"last_errno":20,)x"
                       R"x("last_error":"open of the temporary file: ENOTDIR (Not a directory)"},)x"
                       R"x("metrics":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)x"),

@@ -193,7 +193,13 @@ TEST(TrainBaseline, OverlappingWindowsOfARegionShareAGroup) {
   policy.kind = ThresholdPolicy::Kind::kQuantile;
   policy.false_alarm_rate = 0.01;
 
-  const Baseline b = train_baseline(d, ClassLearningConfig{}, policy, 2000.0, gb);
+  std::vector<std::string> dropped;
+  const Baseline b = train_baseline(d, ClassLearningConfig{}, policy, 2000.0, gb, &dropped);
+  // The class left out is named with its reason (issue 17), for `ptda train` to print.
+  ASSERT_EQ(dropped.size(), 1U);
+  EXPECT_EQ(dropped[0],
+            "speed -2 rad/s: 3 regions but its 4 windows fall in 2 non-overlapping group(s), "
+            "leave-one-group-out needs >= 3 (longer regions or more cycles)");
   EXPECT_EQ(b.fs_hz, 2000.0);
   EXPECT_EQ(b.window_len, kN);
   EXPECT_EQ(b.gearbox.ratio, 33.86);
@@ -240,6 +246,10 @@ TEST(TrainBaseline, OneLongConstantSpeedRegionGivesManyGroupsWhenWindowsAreDisjo
     const std::string msg = e.what();
     EXPECT_NE(msg.find("1 regions, 6 windows"), std::string::npos) << msg;
     EXPECT_NE(msg.find("6 windows in 1 non-overlapping groups"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("; dropped speed +1.5 rad/s: 1 regions but its 6 windows fall in 1 non-overlapping "
+                       "group(s), leave-one-group-out needs >= 3"),
+              std::string::npos)
+        << msg;
   }
 }
 
@@ -261,7 +271,9 @@ TEST(TrainBaseline, ErrorsNameTheProblem) {
     ADD_FAILURE() << "no error";
   } catch (const Error& e) {
     const std::string msg = e.what();
-    EXPECT_NE(msg.find("2 regions, 6 windows, 6 windows matching no class; no class learned"),
+    // Which speed group was dropped and why, not an anonymous count of "windows matching no class".
+    EXPECT_NE(msg.find("2 regions, 6 windows, 6 of them in dropped speed groups; no class learned; dropped "
+                       "speed +1 rad/s: 2 region(s), fewer than classes.min_regions = 3"),
               std::string::npos)
         << msg;
   }

@@ -3,6 +3,7 @@
 #include "ptda/formats/baseline_file.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
 
@@ -40,43 +41,47 @@ fs::path temp_dir(const std::string& name) {
   return d;
 }
 
+// A random baseline that passes validate_baseline: bands lo < hi, spreads > 0, counts within the
+// class's windows, magnitudes >= 0.
 Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-10.0, 10.0);
+  std::uniform_real_distribution<double> pos(0.01, 10.0);
   Baseline b;
   b.fs_hz = 25600.0;
   b.window_len = n;
   b.gearbox = {ptda::dsp::GearboxInfo::Kind::kCycloidal, 10, 40, 41, 164.0};
   b.policy = {ptda::dsp::ThresholdPolicy::Kind::kQuantile, 1e-3, 0.1, 0.95, 0.25};
+  const auto stats = [&](std::uint32_t windows) {
+    const double mean = u(rng);
+    return ptda::dsp::FeatureStats{mean, pos(rng), mean - pos(rng), mean + pos(rng),
+                                   static_cast<std::uint32_t>(rng() % (windows - 1)) + 2};
+  };
   for (std::uint32_t k = 0; k < 3; ++k) {
     ptda::dsp::ClassBaseline c;
     c.segment = {k + 7, static_cast<std::int8_t>(k % 2 == 0 ? 1 : -1), 0.5 + k, 0.05, 1.25, 12 + k};
     c.n_windows = 40 + k;
     c.mean_magnitude.resize(n / 2 + 1);
     c.tda_mean.resize(n);
-    for (auto& v : c.mean_magnitude) v = static_cast<float>(u(rng));
+    for (auto& v : c.mean_magnitude) v = static_cast<float>(pos(rng));
     for (auto& v : c.tda_mean) v = static_cast<float>(u(rng));
     for (std::size_t m = 0; m < ptda::dsp::kMethodCount; ++m) {
-      c.thresholds[m] = {{u(rng), u(rng)}, {u(rng), u(rng)}};
-      c.rms_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
-      c.entropy_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
-      c.log_rms_stats[m] = {u(rng), u(rng), u(rng), u(rng), static_cast<std::uint32_t>(rng())};
-      c.holdout[m] = {static_cast<std::uint32_t>(rng()),
-                      static_cast<std::uint32_t>(rng()),
-                      static_cast<std::uint32_t>(rng()),
-                      static_cast<std::uint32_t>(rng()),
-                      static_cast<std::uint32_t>(rng()),
-                      u(rng),
-                      u(rng),
-                      u(rng),
-                      u(rng)};
+      const double rms_lo = pos(rng);
+      const double ent_lo = u(rng);
+      c.thresholds[m] = {{rms_lo, rms_lo + pos(rng)}, {ent_lo, ent_lo + pos(rng)}};
+      c.rms_stats[m] = stats(c.n_windows);
+      c.entropy_stats[m] = stats(c.n_windows);
+      c.log_rms_stats[m] = stats(c.n_windows);
+      const auto held = static_cast<std::uint32_t>(rng() % 1000);
+      const auto part = [&] { return static_cast<std::uint32_t>(rng() % (held + 1)); };
+      c.holdout[m] = {held, part(), part(), part(), part(), u(rng), pos(rng), u(rng), pos(rng)};
     }
     c.windows_per_hour = 1440.0 + k;
     b.classes.push_back(c);
   }
-  // Infinite bands and a NaN stat must survive bit for bit.
-  b.classes[0].thresholds[0].rms.hi = std::numeric_limits<double>::infinity();
-  b.classes[1].rms_stats[2].stddev = std::numeric_limits<double>::quiet_NaN();
+  // Signed zero and extreme finite values must survive bit for bit.
+  b.classes[0].thresholds[0].rms.hi = std::numeric_limits<double>::max();
+  b.classes[1].rms_stats[2].mean = -0.0;
   b.source = "trained on rec/healthy-01 by ptda 0.1.0";
   b.training = {ptda::dsp::TrainingRecording{"wav:4867590:e1a78178:ch0", "rec/healthy-01", 1.7e9 + 0.375,
                                              1.7e9 + 30.5, 50},
@@ -213,7 +218,7 @@ TEST(Crc32, MatchesZlib) {
 
 TEST(BaselineFile, RoundTripIsExact) {
   const fs::path dir = temp_dir("roundtrip");
-  for (const std::uint32_t n : {1U, 2U, 7U, 256U, 4096U}) {
+  for (const std::uint32_t n : {4U, 6U, 250U, 256U, 4096U}) {
     const Baseline b = make_baseline(n, n);
     write_baseline(dir / "b.bin", b);
     expect_equal(read_baseline(dir / "b.bin"), b);
@@ -462,6 +467,143 @@ TEST(BaselineFile, ReadsVersion1GoldenFile) {
   const Bytes v3 = serialize_baseline(b);
   EXPECT_EQ(v3[8], 3);
   expect_equal(parse_baseline(v3, "v3"), b);
+}
+
+namespace {
+
+void put_u64(Bytes& b, std::size_t at, std::uint64_t v) {
+  for (int i = 0; i < 8; ++i) b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+// A copy of `good` with the double at `at` replaced and the CRC recomputed: a forged file the CRC
+// cannot catch.
+Bytes forged_f64(const Bytes& good, std::size_t at, double v) {
+  Bytes b = good;
+  put_u64(b, at, std::bit_cast<std::uint64_t>(v));
+  fix_crc(b);
+  return b;
+}
+Bytes forged_f32(const Bytes& good, std::size_t at, float v) {
+  Bytes b = good;
+  put_u32(b, at, std::bit_cast<std::uint32_t>(v));
+  fix_crc(b);
+  return b;
+}
+Bytes forged_u32(const Bytes& good, std::size_t at, std::uint32_t v) {
+  Bytes b = good;
+  put_u32(b, at, v);
+  fix_crc(b);
+  return b;
+}
+
+}  // namespace
+
+// Issue 14 item 4: a CRC-valid baseline with NaN, infinite or inverted bands, a zero spread or counts
+// that disagree is refused with the class, method and field, instead of blinding the monitor.
+TEST(BaselineFile, ForgedValuesAreRefusedWithTheirLocation) {
+  const Bytes good = serialize_baseline(make_baseline(8, 2));
+  ASSERT_NO_THROW((void)parse_baseline(good, "b.bin"));
+  // Offsets within a class record for window_len 8 (docs/recording-format.md): 5 mean magnitudes,
+  // 8 TDA samples, then 3 x 32 bytes of bands, 3 x 36 of each statistics block, 8 windows/h, 3 x 52
+  // hold-out.
+  constexpr std::size_t kPerClass = 681;
+  const auto cls = [](std::size_t i) { return kOffClasses + i * kPerClass; };
+  const auto band = [&](std::size_t i, std::size_t m) { return cls(i) + 97 + 32 * m; };
+  const auto rms_stats = [&](std::size_t i, std::size_t m) { return cls(i) + 193 + 36 * m; };
+  const auto log_stats = [&](std::size_t i, std::size_t m) { return cls(i) + 409 + 36 * m; };
+  const auto holdout = [&](std::size_t i, std::size_t m) { return cls(i) + 525 + 52 * m; };
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::string p = "b.bin: implausible baseline: ";
+
+  EXPECT_EQ(message_of(forged_f64(good, 20, inf)), p + "fs_hz is inf, must be > 0 and <= 10000000");
+  EXPECT_EQ(message_of(forged_f64(good, 54, 2.0)), p + "policy false_alarm_rate is 2, must be in (0, 1)");
+  EXPECT_EQ(message_of(forged_f64(good, cls(0) + 5, inf)),
+            p + "class 0 (id 7): speed_rad_s is inf, not a finite number");
+  EXPECT_EQ(message_of(forged_f64(good, cls(2) + 5, 0.0)),
+            p + "class 2 (id 9): speed_rad_s is 0, must be > 0 (a constant-speed class)");
+  EXPECT_EQ(message_of(forged_f32(good, cls(0) + 41 + 4 * 3, -1.0F)),
+            p + "class 0 (id 7): mean_magnitude[3] is -1, must be >= 0");
+  EXPECT_EQ(message_of(forged_f32(good, cls(1) + 65 + 4 * 6, std::numeric_limits<float>::quiet_NaN())),
+            p + "class 1 (id 8): tda_mean[6] is nan, not a finite number");
+  // Bands: NaN, infinite, inverted (lo >= hi), an rms_res band entirely below 0.
+  EXPECT_EQ(message_of(forged_f64(good, band(1, 2) + 8, std::numeric_limits<double>::quiet_NaN())),
+            p + "class 1 (id 8): method ptda, rms_res band hi is nan, not a finite number");
+  EXPECT_EQ(message_of(forged_f64(good, band(0, 1) + 16, -inf)),
+            p + "class 0 (id 7): method tda, entropy_res band lo is -inf, not a finite number");
+  EXPECT_EQ(message_of(forged_f64(good, band(0, 1) + 16, 1e6))
+                .rfind(p + "class 0 (id 7): method tda, entropy_res band is [1000000, ", 0),
+            0U);
+  EXPECT_NE(message_of(forged_f64(good, band(0, 1) + 16, 1e6)).find("], needs lo < hi"), std::string::npos);
+  Bytes below = forged_f64(good, band(2, 0), -2.0);
+  below = forged_f64(below, band(2, 0) + 8, -1.0);
+  EXPECT_EQ(message_of(below),
+            p + "class 2 (id 9): method raw, rms_res band hi is -1, must be > 0 (rms_res >= 0)");
+  // Statistics: a zero or negative spread, NaN, more windows than the class has.
+  EXPECT_EQ(message_of(forged_f64(good, rms_stats(2, 0) + 8, 0.0))
+                .rfind(p + "class 2 (id 9): method raw, rms_res stats stddev is 0 over ", 0),
+            0U);
+  EXPECT_EQ(message_of(forged_f64(good, log_stats(1, 2) + 8, -0.5)),
+            p + "class 1 (id 8): method ptda, ln(rms_res) stats stddev is -0.5, must be >= 0");
+  EXPECT_EQ(message_of(forged_f64(good, rms_stats(0, 2), std::numeric_limits<double>::quiet_NaN())),
+            p + "class 0 (id 7): method ptda, rms_res stats mean is nan, not a finite number");
+  EXPECT_EQ(message_of(forged_u32(good, rms_stats(0, 1) + 32, 1000)),
+            p + "class 0 (id 7): method tda, rms_res stats n is 1000, more than the class's 40 windows");
+  // Hold-out: more abnormal windows than scored, a NaN z spread.
+  Bytes held = forged_u32(good, holdout(1, 0), 3);
+  held = forged_u32(held, holdout(1, 0) + 4, 4);
+  EXPECT_EQ(message_of(held),
+            p + "class 1 (id 8): method raw, hold-out abnormal is 4, more than its 3 windows");
+  EXPECT_EQ(message_of(forged_f64(good, holdout(0, 2) + 28, std::numeric_limits<double>::quiet_NaN())),
+            p + "class 0 (id 7): method ptda, hold-out z_rms_sd is nan, not a finite number");
+  // Class speeds and window counts.
+  EXPECT_EQ(message_of(forged_u32(good, cls(1) + 33, 0)),
+            p + "class 1 (id 8): n_windows is 0 (a class is trained on at least one window)");
+
+  // Through the file API the path leads the message, and the writer refuses the same values.
+  const fs::path d = temp_dir("forged");
+  write_file(d / "f.bin", forged_f64(good, band(1, 2) + 8, inf));
+  try {
+    (void)read_baseline(d / "f.bin");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), (d / "f.bin").string() +
+                                         ": implausible baseline: class 1 (id 8): method "
+                                         "ptda, rms_res band hi is inf, not a finite number");
+  }
+  Baseline bad = make_baseline(8, 2);
+  bad.classes[2].entropy_stats[1].stddev = 0.0;
+  try {
+    write_baseline(d / "w.bin", bad);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(
+        std::string(e.what()).find(": not written: baseline: implausible baseline: class 2 (id 9): method "
+                                   "tda, entropy_res stats stddev is 0 over "),
+        std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(d / "w.bin"));
+  fs::remove_all(d);
+}
+
+// Issue 14 item 8: as root, a baseline others can write is refused with the fix.
+TEST(BaselineFile, WorldWritableBaselineIsRefusedAsRoot) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs euid 0 (FileCheckTest covers the check with an injected euid)";
+  const fs::path d = temp_dir("writable");
+  write_baseline(d / "b.bin", make_baseline(8, 4));
+  ASSERT_EQ(::chmod((d / "b.bin").c_str(), 0666), 0);
+  try {
+    (void)read_baseline(d / "b.bin");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              (d / "b.bin").string() +
+                  ": baseline file is world-writable (mode 0666) and ptda runs as root: another user could "
+                  "change what it does. Fix: chmod go-w " +
+                  (d / "b.bin").string());
+  }
+  ASSERT_EQ(::chmod((d / "b.bin").c_str(), 0644), 0);
+  EXPECT_NO_THROW((void)read_baseline(d / "b.bin"));
+  fs::remove_all(d);
 }
 
 TEST(BaselineFile, InconsistentBaselineIsNotWritten) {

@@ -96,6 +96,22 @@ TEST(ScenarioParse, WrongTypesAndValuesNameTheKey) {
                "t.toml:9:18: vibration.dmf_amplitudes: only a cycloidal gearbox");
 }
 
+// Issue 14 item 8: a 200 KB interface name once made an 836 MB can.log; names are limited (IFNAMSIZ)
+// and NUL bytes refused, with the key's location.
+TEST(ScenarioParse, InterfaceNameLengthAndNulAreLimited) {
+  expect_error(std::string(kMinimal) + "[can]\niface = \"" + std::string(200000, 'c') + "\"\n",
+               "t.toml:5:9: can.iface: is 200000 bytes long, at most 4096 allowed");
+  expect_error(std::string(kMinimal) + "[can]\niface = \"" + std::string(16, 'c') + "\"\n",
+               "t.toml:5:9: can.iface: is 16 bytes long; an interface name has at most 15 (IFNAMSIZ 16 with "
+               "the NUL)");
+  expect_error(std::string(kMinimal) + "[can]\niface = \"can\\u00000\"\n",
+               "t.toml:5:9: can.iface: contains a NUL byte (\\u0000) at byte 3; paths and names cannot");
+  EXPECT_EQ(
+      parse_scenario(std::string(kMinimal) + "[can]\niface = \"" + std::string(15, 'c') + "\"\n", "t.toml")
+          .can.iface,
+      std::string(15, 'c'));
+}
+
 TEST(ScenarioParse, SyntaxErrorHasLineAndColumn) {
   expect_error("[motion]\nvia_points_rad = [0.0, 1.0\n", "t.toml:2:28: Error while parsing array");
   expect_error("[motion\n", "t.toml:1:");

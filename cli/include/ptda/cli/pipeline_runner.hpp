@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <span>
 #include <string>
 #include <vector>
@@ -57,7 +58,25 @@ struct CanCounters {
   std::uint64_t wrong_dlc = 0;     ///< the speed id with an unexpected length
   std::uint64_t rtr = 0;           ///< remote frames with the speed id
   std::uint64_t error_frames = 0;  ///< bus error frames
+  /// Frames per identifier (error frames excluded); extended ids carry kExtendedIdKey.
+  std::map<std::uint32_t, std::uint64_t> ids;
+  static constexpr std::uint32_t kExtendedIdKey = 0x80000000U;
+  std::int64_t first_frame_t_ns = 0;  ///< log time of the first and last frame (when frames > 0)
+  std::int64_t last_frame_t_ns = 0;
+  std::int64_t first_speed_t_ns = 0;  ///< first and last decoded speed sample (latency applied)
+  std::int64_t last_speed_t_ns = 0;
+  std::uint64_t comment_lines = 0;  ///< non-blank lines that are not frames (candump comments)
+  long first_comment_line = 0;
 };
+
+/// Refuses CAN input the pipeline cannot use, after the recording was streamed: a file with no frame
+/// (not a candump log: "<log>:<line>: not a candump log ..."), a log without a usable frame of the
+/// configured speed id ("no frame with id 0x184 in the CAN log (N frames); ids seen: ...; set id in
+/// [can.speed_frame] of <config>"), and speed frames whose time range does not overlap the vibration
+/// recording's (both ranges, in seconds from the recording's start_time). Throws ptda::Error;
+/// `config_source` names the configuration in the advice. Thread: any; allocates for the message.
+void check_can_input(const RecordingInfo& rec, const config::PipelineConfig& cfg, const CanCounters& can,
+                     const std::string& config_source);
 
 /// Receives the interleaved streams. Speed samples up to the end time of a block are delivered before
 /// the block; on_block_end() follows each block (poll windows there).
@@ -78,10 +97,13 @@ struct RunOptions {
   /// Coverage of a monitor run (dsp/coverage.hpp): motion without a judged window before "not judging".
   /// The daemon's [daemon] coverage_timeout_s default.
   double coverage_timeout_s = 60.0;
+  /// The configuration file, named in the advice of check_can_input (which run_recording calls).
+  std::string config_source = "the configuration";
 };
 
 /// Streams the recording into sink. Returns the CAN decode counters. Throws ptda::Error on unreadable
-/// or malformed input (WAV short/corrupt, malformed candump line with file:line).
+/// or malformed input (WAV short/corrupt, malformed candump line with file:line) and, at the end, on
+/// CAN input the pipeline cannot use (check_can_input).
 CanCounters run_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg, PipelineSink& sink,
                           const RunOptions& options = {});
 

@@ -1,6 +1,8 @@
 // Input files must be regular files of bounded size (issue 14 item 3): a FIFO hung `configure`,
 // /dev/zero exhausted memory. Every reader calls require_regular_file() (or read_regular_file())
-// before reading. Header-only like the rest of common/.
+// before reading. Configuration and baseline files must not be writable by others when running as
+// root, and configuration strings must be usable as paths and names (item 8). Header-only like the
+// rest of common/.
 #pragma once
 
 #include <fcntl.h>
@@ -9,8 +11,10 @@
 
 #include <cerrno>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -22,6 +26,26 @@ namespace ptda {
 inline constexpr std::uint64_t kMaxConfigFileBytes = 16ULL << 20U;   ///< TOML: config, drop-in, scenario
 inline constexpr std::uint64_t kMaxBaselineFileBytes = 1ULL << 30U;  ///< a baseline
 inline constexpr std::uint64_t kNoSizeLimit = ~std::uint64_t{0};     ///< streamed files (WAV, CAN log)
+
+/// Longest string value accepted from a configuration file (PATH_MAX): paths and names beyond it are
+/// mistakes, and a 200 KB interface name once produced an 836 MB can.log.
+inline constexpr std::size_t kMaxConfigStringBytes = 4096;
+/// Longest network interface name (IFNAMSIZ 16 including the terminating NUL).
+inline constexpr std::size_t kMaxInterfaceNameBytes = 15;
+
+/// Why a string from a configuration cannot be used as a path or name, or "" when it can: a NUL byte
+/// (TOML allows "\u0000"; every system call would cut the path there) or more than max_bytes.
+/// Thread: any. Allocates only for a non-empty answer.
+[[nodiscard]] inline std::string string_value_problem(std::string_view s,
+                                                      std::size_t max_bytes = kMaxConfigStringBytes) {
+  const std::size_t nul = s.find('\0');
+  if (nul != std::string_view::npos)
+    return "contains a NUL byte (\\u0000) at byte " + std::to_string(nul) + "; paths and names cannot";
+  if (s.size() > max_bytes)
+    return "is " + std::to_string(s.size()) + " bytes long, at most " + std::to_string(max_bytes) +
+           " allowed";
+  return {};
+}
 
 namespace detail {
 inline std::string file_kind(mode_t mode) {
@@ -44,6 +68,21 @@ inline void check_stat(const std::string& name, const struct stat& st, std::uint
 }
 }  // namespace detail
 
+/// Issue 14 item 8: when the process runs as root (euid 0), a configuration or baseline file that
+/// group or other users may write lets them steer (or blind) a root daemon. Throws ptda::Error
+/// "<name>: <what> is group- or world-writable (mode 0664) ... fix: chmod go-w <name>" when euid is 0
+/// and st has S_IWGRP or S_IWOTH; otherwise returns. `euid` is a parameter so tests can pose as root
+/// or not. Thread: any. Allocates only to throw.
+inline void require_not_writable_by_others(const std::string& name, const struct stat& st,
+                                           std::string_view what, uid_t euid) {
+  if (euid != 0 || (st.st_mode & (S_IWGRP | S_IWOTH)) == 0) return;
+  char mode[8];
+  std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777U));
+  const char* who = (st.st_mode & S_IWOTH) != 0 ? "world-writable" : "group-writable";
+  throw Error(name + ": " + std::string(what) + " is " + who + " (mode " + mode +
+              ") and ptda runs as root: another user could change what it does. Fix: chmod go-w " + name);
+}
+
 /// Throws ptda::Error "<path>: ..." unless path (symlinks followed) is an existing regular file of at
 /// most max_bytes. `what` names the file's role ("baseline", "configuration file"). Never opens the
 /// file, so a FIFO cannot block it. Thread: any (configure time). Allocates only to throw.
@@ -58,8 +97,20 @@ inline void require_regular_file(const std::filesystem::path& path, std::uint64_
 /// The whole content of a regular file of at most max_bytes. Opened non-blocking and checked with
 /// fstat on the open descriptor, so a FIFO or device swapped in after a check cannot hang or flood
 /// it. Throws ptda::Error naming the path. Thread: any (configure time). Blocks (reads); allocates.
+/// As require_regular_file, then require_not_writable_by_others (for configuration and baseline files).
+inline void require_trusted_file(const std::filesystem::path& path, std::uint64_t max_bytes,
+                                 std::string_view what, uid_t euid = ::geteuid()) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0)
+    throw Error(path.string() + ": cannot open " + std::string(what) + ": " + std::strerror(errno));
+  detail::check_stat(path.string(), st, max_bytes, what);
+  require_not_writable_by_others(path.string(), st, what, euid);
+}
+
+/// With `euid` given, the permission check of require_not_writable_by_others runs on the open file
+/// too (configuration files: pass ::geteuid()).
 inline std::string read_regular_file(const std::filesystem::path& path, std::uint64_t max_bytes,
-                                     std::string_view what) {
+                                     std::string_view what, std::optional<uid_t> euid = std::nullopt) {
   const std::string name = path.string();
   const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
   if (fd < 0) throw Error(name + ": cannot open " + std::string(what) + ": " + std::strerror(errno));
@@ -71,6 +122,7 @@ inline std::string read_regular_file(const std::filesystem::path& path, std::uin
   if (::fstat(fd, &st) != 0)
     throw Error(name + ": cannot stat " + std::string(what) + ": " + std::strerror(errno));
   detail::check_stat(name, st, max_bytes, what);
+  if (euid) require_not_writable_by_others(name, st, what, *euid);
   std::string text(static_cast<std::size_t>(st.st_size), '\0');
   std::size_t got = 0;
   while (got < text.size()) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "ptda/dsp/baseline.hpp"
@@ -26,19 +27,24 @@ struct ClassLearningConfig {
 };
 
 /// Groups regions into segment classes by direction and speed (the class's duration is the median
-/// region length). Classes with fewer than min_regions regions are dropped. Ids 0.. in order:
-/// forward classes by speed, then backward classes by speed (docs/windows.md).
+/// region length). Classes with fewer than min_regions regions are dropped; when `dropped` is given,
+/// one line per dropped speed group is appended to it ("speed +1.5 rad/s: 2 regions, fewer than
+/// classes.min_regions = 3"). Ids 0.. in order: forward classes by speed, then backward classes by
+/// speed (docs/windows.md).
 /// Thread: any (offline). Allocates. Throws ptda::Error on a bad configuration (names the key).
 [[nodiscard]] std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& regions,
-                                                              const ClassLearningConfig& cfg);
+                                                              const ClassLearningConfig& cfg,
+                                                              std::vector<std::string>* dropped = nullptr);
 
 /// Builds the baseline: classes from the regions, then build_class_baseline() per class with the
 /// window's overlap group as leave-out group (windows of one region whose sample ranges overlap share
 /// a group). Classes with fewer than 3 groups are left out; kept classes are renumbered 0.. in order.
 /// source is left empty for the caller. Thread: any (offline). Allocates.
-/// Throws ptda::Error when no class has enough windows (says how many regions/windows per class).
+/// When `dropped` is given, one line per class (or speed group) left out is appended, saying which
+/// (direction, speed) and why (too few regions, too few non-overlapping window groups).
+/// Throws ptda::Error when no class has enough windows: the message lists every dropped class and why.
 [[nodiscard]] Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig& classes,
-                                      const ThresholdPolicy& policy, double fs_hz,
-                                      const GearboxInfo& gearbox);
+                                      const ThresholdPolicy& policy, double fs_hz, const GearboxInfo& gearbox,
+                                      std::vector<std::string>* dropped = nullptr);
 
 }  // namespace ptda::dsp

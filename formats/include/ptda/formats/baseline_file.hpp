@@ -39,6 +39,18 @@ void write_baseline(const std::filesystem::path& path, const dsp::Baseline& base
 /// read_baseline. Thread: any; allocates.
 [[nodiscard]] dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::string& source);
 
+/// Largest sample rate and window length a baseline may declare (10 MHz, 2^24 samples).
+inline constexpr double kMaxBaselineFsHz = 1e7;
+inline constexpr std::uint32_t kMaxBaselineWindowLen = 1U << 24;
+
+/// The semantic checks parse_baseline and serialize_baseline run after the structure is known good:
+/// every number finite, fs_hz and window_len plausible (a supported FFT length), every band lo < hi
+/// (rms_res hi > 0), standard deviations > 0 over >= 2 windows, mean magnitudes >= 0, class speeds > 0,
+/// counts within the class's windows, policy values in range, training times ordered. Throws
+/// ptda::Error "<where>: implausible baseline: class I (id K): method M, <field> ..." naming the first
+/// failing class, method and field. Thread: any; allocates only for the message.
+void validate_baseline(const dsp::Baseline& baseline, const std::string& where);
+
 /// CRC-32 (IEEE 802.3, reflected, poly 0xEDB88320), as zlib's crc32. Exposed for tests. Pass the
 /// previous result as `crc` to continue over several buffers. Thread: any; never allocates.
 [[nodiscard]] std::uint32_t crc32(const void* data, std::size_t len, std::uint32_t crc = 0) noexcept;

@@ -46,12 +46,18 @@ class CandumpReader {
   CandumpReader& operator=(const CandumpReader&) = delete;
   bool next(CandumpRecord& out);
   [[nodiscard]] long line_no() const noexcept { return line_no_; }
+  /// Non-blank lines skipped as comments (not starting with '(') so far, and the number of the first
+  /// (0 when none): a file of only such lines is not a candump log (cli/pipeline_runner says so).
+  [[nodiscard]] std::uint64_t comment_lines() const noexcept { return comment_lines_; }
+  [[nodiscard]] long first_comment_line() const noexcept { return first_comment_line_; }
 
  private:
   std::filesystem::path path_;
   std::string source_;  // path_ as text, for error messages without a per-line conversion
   std::FILE* f_ = nullptr;
   long line_no_ = 0;
+  std::uint64_t comment_lines_ = 0;
+  long first_comment_line_ = 0;
   std::string line_;
 };
 
