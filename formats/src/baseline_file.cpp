@@ -521,6 +521,7 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
       t.windows = body.u32();
     }
   }
+  b.policy.ptda_line_gain = false;  // versions 1 and 2 were trained with the paper's PTDA
   if (version >= 3) {
     const std::uint32_t options = body.u32();
     if ((options & ~kOptionLineGain) != 0U)

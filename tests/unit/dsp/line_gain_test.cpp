@@ -116,6 +116,9 @@ TEST(LineGain, PrepareFollowsThePolicy) {
   c.mean_magnitude.assign(kBins, 1.0F);
   c.mean_magnitude[60] = 50.0F;
   b.classes.push_back(c);
+  EXPECT_TRUE(b.policy.ptda_line_gain);  // the default since session 5
+  b.policy.ptda_line_gain = false;
+  b.classes[0].line_groups = {LineGroup{1, 2}};
   prepare_line_groups(b);
   EXPECT_TRUE(b.classes[0].line_groups.empty());
   b.policy.ptda_line_gain = true;

@@ -51,7 +51,7 @@ Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
   b.fs_hz = 25600.0;
   b.window_len = n;
   b.gearbox = {ptda::dsp::GearboxInfo::Kind::kCycloidal, 10, 40, 41, 164.0};
-  b.policy = {ptda::dsp::ThresholdPolicy::Kind::kQuantile, 1e-3, 0.1, 0.95, 0.25};
+  b.policy = {ptda::dsp::ThresholdPolicy::Kind::kQuantile, 1e-3, 0.1, 0.95, 0.25, false};  // no line gain
   const auto stats = [&](std::uint32_t windows) {
     const double mean = u(rng);
     return ptda::dsp::FeatureStats{mean, pos(rng), mean - pos(rng), mean + pos(rng),

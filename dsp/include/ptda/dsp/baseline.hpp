@@ -51,8 +51,9 @@ struct ThresholdPolicy {
   /// PTDA with a per-window gain on each line group of the healthy mean spectrum (`[monitor]
   /// line_gain`, docs/method.md §3): a harmonic whose level moved with load or temperature leaves no
   /// residual, sidebands, impacts and the floor still do. Stored in the baseline (format >= 3) because
-  /// the bands are only valid for the residual they were trained on.
-  bool ptda_line_gain = false;
+  /// the bands are only valid for the residual they were trained on. On by default since session 5
+  /// (docs/method.md §8: a new day's harmonic levels no longer alarm); false is the paper's PTDA.
+  bool ptda_line_gain = true;
 };
 
 /// Bins [begin, end) of one spectral line of the healthy mean magnitude (with its leakage skirt).
