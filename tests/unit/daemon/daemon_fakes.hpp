@@ -230,7 +230,7 @@ class FakeDevices final : public DeviceFactory {
   FakeSource* last_source = nullptr;
   FakeChannel* last_channel = nullptr;
   drivers::RecordingAlarmOutput* last_output = nullptr;
-  int pipelines = 0;
+  std::atomic<int> pipelines{0};  // counted by the daemon thread, read by the test thread
 
  private:
   std::shared_ptr<const SourcePlan> source_;

@@ -129,7 +129,7 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   // on it (a new pipeline, the replay from its start) and runs to the end of the replay.
   dev.gate.t_ns = std::numeric_limits<std::int64_t>::max();
   runner.join();
-  EXPECT_EQ(dev.pipelines, 2);
+  EXPECT_EQ(dev.pipelines.load(), 2);
   const dsp::Baseline b = formats::read_baseline(dir / "trained.bin");
   ASSERT_FALSE(b.classes.empty());
   for (const dsp::ClassBaseline& c : b.classes)
@@ -268,7 +268,7 @@ TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
     const dsp::Baseline b = formats::read_baseline(dir / "trained.bin");  // complete and valid
     EXPECT_FALSE(b.classes.empty());
     EXPECT_EQ(temp_files(dir), 0U);
-    EXPECT_EQ(dev.pipelines, by_signal ? 2 : 1);  // request_stop: no monitoring pipeline was started
+    EXPECT_EQ(dev.pipelines.load(), by_signal ? 2 : 1);  // request_stop: no monitoring pipeline was started
     std::printf("stop %s right before the write: stopped %.1f ms later, baseline valid (%zu classes)\n",
                 by_signal ? "by SIGTERM" : "by request_stop()",
                 std::chrono::duration<double, std::milli>(took).count(), b.classes.size());
