@@ -20,7 +20,7 @@ WindowAnalyzer::WindowAnalyzer(std::size_t n)
       fft_(n),
       d_(n, 0.0F),
       r_(n, 0.0F),
-      mag_(n / 2 + 1, 0.0F),
+      mag_(n / 2 + 1, 0.0),
       X_(n / 2 + 1),
       D_(n / 2 + 1),
       R_(n / 2 + 1) {}
@@ -60,15 +60,14 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
       fft_.forward(r_, R_);
       break;
     case Method::kPtda:
-      // The deterministic magnitude (in d_ until the inverse transform overwrites it): the healthy mean
+      // |X[k]| once per bin (double: the paper's PTDA stays bit-identical with or without groups); the
+      // deterministic magnitude goes to d_ until the inverse transform overwrites it: the healthy mean
       // a[k], or g a[k] inside a line group.
-      for (std::size_t k = 0; k < bins; ++k) d_[k] = mean_magnitude[k];
-      if (!line_groups.empty()) {
-        for (std::size_t k = 0; k < bins; ++k) {
-          const double re = X_[k].real();
-          const double im = X_[k].imag();
-          mag_[k] = static_cast<float>(std::sqrt(re * re + im * im));
-        }
+      for (std::size_t k = 0; k < bins; ++k) {
+        const double re = X_[k].real();
+        const double im = X_[k].imag();
+        mag_[k] = std::sqrt(re * re + im * im);
+        d_[k] = mean_magnitude[k];
       }
       for (const LineGroup& g : line_groups) {
         const std::size_t lo = std::max<std::size_t>(g.begin, 1);
@@ -84,12 +83,10 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
       }
       for (std::size_t k = 0; k < bins; ++k) {
         // D[k] = |D[k]| e^{j theta_x[k]}; a zero bin has no phase, take 0.
-        const double re = X_[k].real();
-        const double im = X_[k].imag();
-        const double mag = std::sqrt(re * re + im * im);
+        const double mag = mag_[k];
         const double a = d_[k];
         if (mag > 0.0) {
-          D_[k] = {static_cast<float>(a * re / mag), static_cast<float>(a * im / mag)};
+          D_[k] = {static_cast<float>(a * X_[k].real() / mag), static_cast<float>(a * X_[k].imag() / mag)};
         } else {
           D_[k] = {static_cast<float>(a), 0.0F};
         }

@@ -9,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "number_text.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/dsp/analyzer.hpp"
 #include "ptda/dsp/decision.hpp"
@@ -16,11 +17,7 @@
 namespace ptda::dsp {
 namespace {
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
+using detail::num;
 
 }  // namespace
 

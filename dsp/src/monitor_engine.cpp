@@ -8,17 +8,14 @@
 #include <string>
 #include <utility>
 
+#include "number_text.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/dsp/training.hpp"
 
 namespace ptda::dsp {
 namespace {
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
+using detail::num;
 
 // Checked before anything is built from the baseline, so a mismatch names the real cause.
 const Baseline& checked(const Baseline& b, const ExtractionConfig& cfg, double fs_hz) {

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <string>
 
+#include "number_text.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
 #include "ptda/dsp/real_fft.hpp"
@@ -32,11 +33,7 @@ void require(bool ok, const char* key, const std::string& what) {
   if (!ok) throw Error(std::string(key) + ": " + what);
 }
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
+using detail::num;
 
 }  // namespace
 

@@ -54,7 +54,8 @@ class WindowAnalyzer {
  private:
   std::size_t n_;
   RealFft fft_;
-  std::vector<float> d_, r_, mag_;
+  std::vector<float> d_, r_;
+  std::vector<double> mag_;  ///< |X[k]| of the last PTDA window
   std::vector<std::complex<float>> X_, D_, R_;
 };
 
