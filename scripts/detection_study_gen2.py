@@ -57,6 +57,7 @@ def main():
     ap.add_argument("--test-cycles", type=int, default=24)
     ap.add_argument("--day-var", type=float, default=0.05)
     ap.add_argument("--line-gain", action="store_true", help="[monitor] line_gain = true in every config")
+    ap.add_argument("--floor-gain", action="store_true", help="[monitor] floor_gain = true in every config")
     ap.add_argument("--reuse", default="", help="take the recordings of an earlier run's OUT (same seeds, "
                     "severities and lengths) instead of writing them again")
     a = ap.parse_args()
@@ -73,6 +74,11 @@ def main():
         info = g2detect.make_machine(seed, mdir, 1.0, a.train_cycles, a.test_cycles, a.day_var,
                                      sets=() if a.reuse else ("train", "healthy"), line_gain=a.line_gain)
         cfg = os.path.join(mdir, "config.toml")
+        if a.floor_gain:
+            with open(cfg) as f:
+                text = f.read()
+            with open(cfg, "w") as f:
+                f.write(text.replace("\nline_gain = ", "\nfloor_gain = true\nline_gain = ", 1))
         base = os.path.join(mdir, "baseline.bin")
         rc = run([a.ptda, "train", "--recording", os.path.join(src, "train"), "--config", cfg, "--out", base],
                  os.path.join(mdir, "train.txt"))

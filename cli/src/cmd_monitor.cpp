@@ -297,6 +297,13 @@ MonitorInputs load_monitor_inputs(const std::string& recording, const std::strin
               << " was trained with line_gain = " << (in.baseline.policy.ptda_line_gain ? "true" : "false")
               << "; the baseline's setting is used (retrain to change it)\n";
   }
+  if (in.cfg.thresholds.ptda_floor_gain != in.baseline.policy.ptda_floor_gain) {
+    std::cerr << "warning: " << config_path
+              << ": [monitor] floor_gain = " << (in.cfg.thresholds.ptda_floor_gain ? "true" : "false")
+              << ", but " << baseline_path
+              << " was trained with floor_gain = " << (in.baseline.policy.ptda_floor_gain ? "true" : "false")
+              << "; the baseline's setting is used (retrain to change it)\n";
+  }
   return in;
 }
 

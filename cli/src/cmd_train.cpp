@@ -147,6 +147,9 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     for (const auto& c : baseline.classes) out << " " << c.line_groups.size();
     out << ")\n";
   }
+  if (baseline.policy.ptda_floor_gain)
+    out << "  PTDA floor gain: on (the floor outside the line groups gets the window's median gain; rms_res "
+           "is referred to the training floor)\n";
   const dsp::SequentialConfig& seq = cfg.decision.sequential;
   out << "  decision: alarm when " << cfg.decision.k << " of the last " << cfg.decision.n
       << " windows are abnormal";

@@ -260,6 +260,8 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     // PTDA with a per-window gain on each line of the healthy spectrum (docs/method.md §3); training
     // stores it in the baseline, which then decides for monitoring.
     r.read("line_gain", cfg_.thresholds.ptda_line_gain);
+    // The floor's own per-window gain, rms_res referred to the training floor (docs/method.md §2).
+    r.read("floor_gain", cfg_.thresholds.ptda_floor_gain);
     r.finish();
   }
 
@@ -456,6 +458,7 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "cusum_alarm = " << shortest(cfg.decision.sequential.h_alarm) << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
      << "line_gain = " << (cfg.thresholds.ptda_line_gain ? "true" : "false") << "\n"
+     << "floor_gain = " << (cfg.thresholds.ptda_floor_gain ? "true" : "false") << "\n"
      << "\n[gearbox]\n"
      << "kind = \"" << gearbox_kind_name(cfg.gearbox.kind) << "\"\n";
   // Teeth only for a known kind, ratio only when known: exactly what parses back to this config.

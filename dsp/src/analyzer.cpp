@@ -21,17 +21,19 @@ WindowAnalyzer::WindowAnalyzer(std::size_t n)
       d_(n, 0.0F),
       r_(n, 0.0F),
       mag_(n / 2 + 1, 0.0),
+      ratio_(n / 2 + 1, 0.0),
+      in_line_(n / 2 + 1, 0),
       X_(n / 2 + 1),
       D_(n / 2 + 1),
       R_(n / 2 + 1) {}
 
 Features WindowAnalyzer::analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept {
-  return analyze_with(x, cls.mean_magnitude, cls.tda_mean, method, cls.line_groups);
+  return analyze_with(x, cls.mean_magnitude, cls.tda_mean, method, cls.line_groups, cls.floor_gain);
 }
 
 Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
                                       std::span<const float> tda_mean, Method method,
-                                      std::span<const LineGroup> line_groups) noexcept {
+                                      std::span<const LineGroup> line_groups, bool floor_gain) noexcept {
   const std::size_t bins = n_ / 2 + 1;
   // Cheap guard: a size mismatch is a caller bug, but on a real-time path it must not become UB.
   // NaN features are never inside a band, so such a window is judged abnormal, never silently normal.
@@ -41,6 +43,7 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
   if (!sizes_ok) return Features{kNaN, kNaN};
 
   fft_.forward(x, X_);
+  floor_gain_ = 1.0;
   switch (method) {
     case Method::kRaw:
       for (std::size_t n = 0; n < n_; ++n) {
@@ -81,6 +84,27 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
         const double gain = den > 0.0 ? num / den : 1.0;
         for (std::size_t k = lo; k < hi; ++k) d_[k] = static_cast<float>(gain * mean_magnitude[k]);
       }
+      if (floor_gain) {
+        // The median, not a least-squares gain: sidebands and impact combs of a defect fill a minority
+        // of the floor bins and must not be absorbed into the floor level.
+        std::fill(in_line_.begin(), in_line_.end(), static_cast<unsigned char>(0));
+        for (const LineGroup& g : line_groups) {
+          const std::size_t hi = std::min<std::size_t>(g.end, bins);
+          for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1;
+        }
+        std::size_t m = 0;
+        for (std::size_t k = 1; k < bins; ++k) {
+          if (in_line_[k] == 0 && mean_magnitude[k] > 0.0F) ratio_[m++] = mag_[k] / mean_magnitude[k];
+        }
+        if (m > 0) {
+          const auto mid = ratio_.begin() + static_cast<std::ptrdiff_t>(m / 2);
+          std::nth_element(ratio_.begin(), mid, ratio_.begin() + static_cast<std::ptrdiff_t>(m));
+          if (*mid > 0.0 && std::isfinite(*mid)) floor_gain_ = *mid;
+        }
+        for (std::size_t k = 1; k < bins; ++k) {
+          if (in_line_[k] == 0) d_[k] = static_cast<float>(floor_gain_ * mean_magnitude[k]);
+        }
+      }
       for (std::size_t k = 0; k < bins; ++k) {
         // D[k] = |D[k]| e^{j theta_x[k]}; a zero bin has no phase, take 0.
         const double mag = mag_[k];
@@ -97,7 +121,7 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
       fft_.forward(r_, R_);
       break;
   }
-  return Features{rms(r_), spectral_entropy(R_)};
+  return Features{rms(r_) / floor_gain_, spectral_entropy(R_)};
 }
 
 std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
@@ -136,6 +160,7 @@ std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
 
 void prepare_line_groups(Baseline& baseline) {
   for (ClassBaseline& c : baseline.classes) {
+    c.floor_gain = baseline.policy.ptda_floor_gain;
     if (baseline.policy.ptda_line_gain) {
       c.line_groups = find_line_groups(c.mean_magnitude);
     } else {

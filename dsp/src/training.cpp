@@ -245,6 +245,7 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   // leave-one-out residual too (a group's gain is fitted per window, so the grouping barely depends on
   // the one window left out).
   if (policy.ptda_line_gain) cls.line_groups = find_line_groups(cls.mean_magnitude);
+  cls.floor_gain = policy.ptda_floor_gain;
 
   // Leave-one-group-out: each window is scored against the means of the windows of the other groups.
   // One group's sums are formed at a time (O(M) FFTs overall, O(N) extra memory).
@@ -270,8 +271,8 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     for (std::size_t j = 0; j < n; ++j) loo_x[j] = static_cast<float>((total_x[j] - group_x[j]) / others);
     for (const std::size_t i : idx) {
       for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
-        const Features f =
-            analyzer.analyze_with(windows[i], loo_mag, loo_x, static_cast<Method>(mi), cls.line_groups);
+        const Features f = analyzer.analyze_with(windows[i], loo_mag, loo_x, static_cast<Method>(mi),
+                                                 cls.line_groups, cls.floor_gain);
         rms_values[mi].push_back(f.rms_res);
         entropy_values[mi].push_back(f.entropy_res);
       }

@@ -29,6 +29,7 @@ constexpr std::size_t kPreambleBytes = 20;
 constexpr std::size_t kCrcBytes = 4;
 // Version 3 option flags (u32 before the CRC).
 constexpr std::uint32_t kOptionLineGain = 1U;
+constexpr std::uint32_t kOptionFloorGain = 2U;
 // Smallest possible class record (window_len 1: one magnitude and one mean sample); bounds n_classes
 // before anything is allocated for it.
 // id, direction, 3 speeds/duration, regions, n_windows, 2 x (count + one float), thresholds, stats.
@@ -383,8 +384,10 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
     w.f64(t.to_unix_s);
     w.u32(t.windows);
   }
-  // Version 3: option flags (bit 0: PTDA line gain); appended so every earlier offset stays put.
-  w.u32(b.policy.ptda_line_gain ? kOptionLineGain : 0U);
+  // Version 3: option flags (bit 0: PTDA line gain, bit 1: floor gain); appended so every earlier offset
+  // stays put.
+  w.u32((b.policy.ptda_line_gain ? kOptionLineGain : 0U) |
+        (b.policy.ptda_floor_gain ? kOptionFloorGain : 0U));
   w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
   w.u32(crc32(w.buf().data(), w.buf().size()));
   return std::move(w.buf());
@@ -522,12 +525,15 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
     }
   }
   b.policy.ptda_line_gain = false;  // versions 1 and 2 were trained with the paper's PTDA
+  b.policy.ptda_floor_gain = false;
   if (version >= 3) {
     const std::uint32_t options = body.u32();
-    if ((options & ~kOptionLineGain) != 0U)
-      body.fail("unknown option bits " + hex32(options & ~kOptionLineGain) +
-                " (this build knows bit 0, line_gain)");
+    constexpr std::uint32_t known = kOptionLineGain | kOptionFloorGain;
+    if ((options & ~known) != 0U)
+      body.fail("unknown option bits " + hex32(options & ~known) +
+                " (this build knows bit 0, line_gain, and bit 1, floor_gain)");
     b.policy.ptda_line_gain = (options & kOptionLineGain) != 0U;
+    b.policy.ptda_floor_gain = (options & kOptionFloorGain) != 0U;
   }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
   // A CRC only proves the bytes are what some writer produced: a forged or buggy file with NaN,

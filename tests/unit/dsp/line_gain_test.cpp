@@ -110,6 +110,79 @@ TEST(LineGain, NoAllocationPerWindow) {
   EXPECT_TRUE(std::isfinite(f.rms_res));
 }
 
+// Floor gain (docs/method.md §2): a window that is the healthy one scaled by 1.25 (a floor and lines 25 %
+// higher on another day) has floor gain exactly 1.25 and no residual, where the line gain alone leaves
+// 0.25 of the floor in it.
+TEST(FloorGain, AScaledWindowHasTheScaleAsGainAndNoResidual) {
+  std::mt19937 rng(11);
+  std::vector<float> x0 = tones({40, 97, 250}, {1.0, 0.5, 2.0}, {0.3, -1.2, 2.0}, 0.05, rng);
+  // DC is no part of the floor (a sensor offset keeps the healthy mean): remove it from the test signal.
+  double dc = 0.0;
+  for (const float v : x0) dc += v;
+  for (float& v : x0) v -= static_cast<float>(dc / kN);
+  WindowAnalyzer an(kN);
+  std::vector<float> mean(kBins);
+  an.magnitude(x0, mean);
+  const std::vector<LineGroup> groups = find_line_groups(mean);
+  ASSERT_EQ(groups.size(), 3U);
+  std::vector<float> x(kN);
+  for (std::size_t t = 0; t < kN; ++t) x[t] = 1.25F * x0[t];
+  const std::vector<float> tda(kN, 0.0F);
+  const Features lines_only = an.analyze_with(x, mean, tda, Method::kPtda, groups, false);
+  EXPECT_EQ(an.floor_gain(), 1.0);
+  // The floor part left by the line gain alone: 0.25 of the floor's rms (about 0.05).
+  EXPECT_GT(lines_only.rms_res, 0.2 * 0.05);
+  const Features f = an.analyze_with(x, mean, tda, Method::kPtda, groups, true);
+  EXPECT_NEAR(an.floor_gain(), 1.25, 1e-5);
+  EXPECT_LT(f.rms_res, 1e-3 * lines_only.rms_res);
+}
+
+// The median ignores a sparse change: a new line on one floor bin (a sideband) leaves g_f at 1.25 and
+// stays in the residual whole, referred to the training floor: the time-domain residual of one bin k
+// with residual magnitude M is a cosine of rms sqrt(2) M / N, divided by g_f.
+TEST(FloorGain, ASidebandStaysInTheResidualReferredToTheTrainingFloor) {
+  std::mt19937 rng(12);
+  const std::vector<float> x0 = tones({40, 97, 250}, {1.0, 0.5, 2.0}, {0.3, -1.2, 2.0}, 0.05, rng);
+  WindowAnalyzer an(kN);
+  std::vector<float> mean(kBins);
+  an.magnitude(x0, mean);
+  const std::vector<LineGroup> groups = find_line_groups(mean);
+  std::vector<float> x(kN);
+  for (std::size_t t = 0; t < kN; ++t)
+    x[t] =
+        static_cast<float>(1.25 * x0[t] + 0.2 * std::cos(2.0 * std::numbers::pi * double(103 * t % kN) / kN));
+  std::vector<float> mag(kBins);
+  an.magnitude(x, mag);
+  const double m = mag[103] - 1.25 * mean[103];
+  const std::vector<float> tda(kN, 0.0F);
+  const Features f = an.analyze_with(x, mean, tda, Method::kPtda, groups, true);
+  EXPECT_NEAR(an.floor_gain(), 1.25, 1e-5);
+  const double expected = std::sqrt(2.0) * std::abs(m) / kN / 1.25;
+  EXPECT_NEAR(f.rms_res, expected, 1e-3 * expected);
+  // Through analyze(): the class carries the flag.
+  ClassBaseline cls;
+  cls.mean_magnitude = mean;
+  cls.tda_mean = tda;
+  cls.line_groups = groups;
+  cls.floor_gain = true;
+  EXPECT_EQ(an.analyze(x, cls, Method::kPtda).rms_res, f.rms_res);
+}
+
+// A silent channel has no floor to refer to: g_f stays 1, so it still shows as a low residual.
+TEST(FloorGain, ASilentWindowKeepsGainOne) {
+  std::vector<float> mean(kBins, 1.0F);
+  mean[40] = 800.0F;
+  const std::vector<LineGroup> groups = find_line_groups(mean);
+  const std::vector<float> x(kN, 0.0F);
+  const std::vector<float> tda(kN, 0.0F);
+  WindowAnalyzer an(kN);
+  test::AllocScope scope;
+  const Features f = an.analyze_with(x, mean, tda, Method::kPtda, groups, true);
+  EXPECT_EQ(scope.count(), 0U);
+  EXPECT_EQ(an.floor_gain(), 1.0);
+  EXPECT_TRUE(std::isfinite(f.rms_res));
+}
+
 TEST(LineGain, PrepareFollowsThePolicy) {
   Baseline b;
   ClassBaseline c;
@@ -126,6 +199,10 @@ TEST(LineGain, PrepareFollowsThePolicy) {
   ASSERT_EQ(b.classes[0].line_groups.size(), 1U);
   EXPECT_EQ(b.classes[0].line_groups[0].begin, 59U);
   EXPECT_EQ(b.classes[0].line_groups[0].end, 62U);
+  EXPECT_FALSE(b.classes[0].floor_gain);
+  b.policy.ptda_floor_gain = true;
+  prepare_line_groups(b);
+  EXPECT_TRUE(b.classes[0].floor_gain);
 }
 
 }  // namespace

@@ -335,6 +335,21 @@ TEST(BaselineFile, Version3OptionsAndVersion2Files) {
   ASSERT_EQ(lg.classes[0].line_groups.size(), 1U);  // prepared by the reader: bins [1, 4)
   EXPECT_EQ(lg.classes[0].line_groups[0].begin, 1U);
   EXPECT_EQ(lg.classes[0].line_groups[0].end, 4U);
+  EXPECT_FALSE(lg.policy.ptda_floor_gain);
+  EXPECT_FALSE(lg.classes[0].floor_gain);
+  // Bit 1: the floor gain, also handed to every class by the reader.
+  b.policy.ptda_floor_gain = true;
+  const Bytes fg_bytes = serialize_baseline(b);
+  EXPECT_EQ(fg_bytes[fg_bytes.size() - 8], 3U);  // options word (little-endian): bits 0 and 1
+  const Baseline fg = parse_baseline(fg_bytes, "fg.bin");
+  EXPECT_TRUE(fg.policy.ptda_floor_gain);
+  EXPECT_TRUE(fg.classes[0].floor_gain);
+  // An unknown bit is refused, naming the known ones.
+  Bytes bit2 = fg_bytes;
+  bit2[bit2.size() - 8] = 7;
+  fix_crc(bit2);
+  EXPECT_NE(message_of(bit2).find("unknown option bits 0x00000004 (this build knows"), std::string::npos)
+      << message_of(bit2);
 }
 
 TEST(BaselineFile, EveryCorruptionIsReported) {
@@ -399,10 +414,12 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   // The second recording's bytes are then read as the v3 option flags: a located error either way.
   EXPECT_EQ(message_of(fewer).rfind("b.bin: inconsistent baseline at byte", 0), 0U) << message_of(fewer);
   Bytes options = good;
-  put_u32(options, good.size() - 8, 0x6U);  // bits 1 and 2 mean nothing to this build
+  put_u32(options, good.size() - 8, 0xCU);  // bits 2 and 3 mean nothing to this build
   fix_crc(options);
-  EXPECT_EQ(message_of(options), "b.bin: inconsistent baseline at byte " + std::to_string(good.size() - 4) +
-                                     ": unknown option bits 0x00000006 (this build knows bit 0, line_gain)");
+  EXPECT_EQ(
+      message_of(options),
+      "b.bin: inconsistent baseline at byte " + std::to_string(good.size() - 4) +
+          ": unknown option bits 0x0000000C (this build knows bit 0, line_gain, and bit 1, floor_gain)");
 
   // The same checks through the file API name the path.
   const fs::path d = temp_dir("corrupt");

@@ -36,10 +36,17 @@ class WindowAnalyzer {
   /// line_groups (PTDA only; empty = the paper's PTDA): each group's deterministic magnitude is the
   /// mean magnitude times the window's own least-squares gain g = sum(a |X|) / sum(a^2) over the
   /// group, so D[k] = g a[k] e^{j theta_x[k]}. Groups outside [1, N/2] are ignored.
+  /// floor_gain (PTDA only): every bin k >= 1 outside the groups gets D[k] = g_f a[k] e^{j theta_x[k]}
+  /// with g_f the median of |X[k]| / a[k] over those bins (a[k] > 0), and rms_res is divided by g_f
+  /// (the residual referred to the training floor). g_f that is not > 0 (a dead channel) is taken as 1,
+  /// so a silent sensor still shows as a low residual.
   /// Same size rule, thread and allocation contract as analyze().
   Features analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
                         std::span<const float> tda_mean, Method method,
-                        std::span<const LineGroup> line_groups = {}) noexcept;
+                        std::span<const LineGroup> line_groups = {}, bool floor_gain = false) noexcept;
+
+  /// The floor gain g_f of the last PTDA window analysed with floor_gain (1 otherwise).
+  [[nodiscard]] double floor_gain() const noexcept { return floor_gain_; }
 
   /// Buffers of the last analyze() call (valid until the next call), for reports and tests.
   [[nodiscard]] std::span<const float> deterministic() const noexcept { return d_; }
@@ -55,7 +62,10 @@ class WindowAnalyzer {
   std::size_t n_;
   RealFft fft_;
   std::vector<float> d_, r_;
-  std::vector<double> mag_;  ///< |X[k]| of the last PTDA window
+  std::vector<double> mag_;             ///< |X[k]| of the last PTDA window
+  std::vector<double> ratio_;           ///< floor-gain scratch: |X[k]| / a[k] over the floor bins
+  std::vector<unsigned char> in_line_;  ///< floor-gain scratch: bin k lies in a line group
+  double floor_gain_ = 1.0;
   std::vector<std::complex<float>> X_, D_, R_;
 };
 

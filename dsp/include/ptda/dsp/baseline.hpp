@@ -54,6 +54,12 @@ struct ThresholdPolicy {
   /// the bands are only valid for the residual they were trained on. On by default since session 5
   /// (docs/method.md §8: a new day's harmonic levels no longer alarm); false is the paper's PTDA.
   bool ptda_line_gain = true;
+  /// PTDA with a per-window gain on the floor (`[monitor] floor_gain`, docs/method.md §2): the bins
+  /// outside every line group get the window's own floor gain g_f (the median of |X[k]| / a[k] over
+  /// them), and rms_res is referred to the training floor (divided by g_f), so a floor that is a few
+  /// percent higher on another day is not read as a defect. Sidebands and impacts are sparse and move
+  /// the median little. Stored in the baseline (format >= 3, option bit 1).
+  bool ptda_floor_gain = false;
 };
 
 /// Bins [begin, end) of one spectral line of the healthy mean magnitude (with its leakage skirt).
@@ -102,6 +108,9 @@ struct ClassBaseline {
   /// Runtime only (not stored): the line groups of mean_magnitude when the policy asks for PTDA line
   /// gains (find_line_groups(), filled by prepare_line_groups()), else empty = the paper's PTDA.
   std::vector<LineGroup> line_groups;
+  /// Runtime only (not stored): the policy's ptda_floor_gain, set by prepare_line_groups() and by
+  /// training, so analyze() needs only the class.
+  bool floor_gain = false;
 };
 
 /// Gearbox description, kept in the baseline so a report can name the mesh frequencies.
