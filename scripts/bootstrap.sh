@@ -13,7 +13,7 @@ BASE=(
   build-essential cmake pkgconf clang-format clang-tidy git
   libeigen3-dev libkissfft-dev libspdlog-dev libfmt-dev libtomlplusplus-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libgpiod-dev libsystemd-dev can-utils
+  libgpiod-dev libsystemd-dev can-utils systemd
   python3-numpy
 )
 CROSS=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev)

@@ -13,6 +13,15 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// Level referral absorbs level changes up to this factor (6 dB) either way; beyond it the excess counts,
+// so a vibration four times the training level still raises rms_res (docs/method.md §2, "Floor gain").
+constexpr double kLevelAllowance = 2.0;
+
+double referral(double gain) noexcept {
+  if (!(gain > 0.0) || !std::isfinite(gain)) return 1.0;
+  return 1.0 / std::clamp(gain, 1.0 / kLevelAllowance, kLevelAllowance);
+}
+
 }  // namespace
 
 WindowAnalyzer::WindowAnalyzer(std::size_t n)
@@ -23,6 +32,7 @@ WindowAnalyzer::WindowAnalyzer(std::size_t n)
       mag_(n / 2 + 1, 0.0),
       ratio_(n / 2 + 1, 0.0),
       in_line_(n / 2 + 1, 0),
+      refer_(n / 2 + 1, 1.0),
       X_(n / 2 + 1),
       D_(n / 2 + 1),
       R_(n / 2 + 1) {}
@@ -82,12 +92,16 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
           den += static_cast<double>(mean_magnitude[k]) * mean_magnitude[k];
         }
         const double gain = den > 0.0 ? num / den : 1.0;
-        for (std::size_t k = lo; k < hi; ++k) d_[k] = static_cast<float>(gain * mean_magnitude[k]);
+        for (std::size_t k = lo; k < hi; ++k) {
+          d_[k] = static_cast<float>(gain * mean_magnitude[k]);
+          refer_[k] = referral(gain);
+        }
       }
       if (floor_gain) {
         // The median, not a least-squares gain: sidebands and impact combs of a defect fill a minority
         // of the floor bins and must not be absorbed into the floor level.
         std::fill(in_line_.begin(), in_line_.end(), static_cast<unsigned char>(0));
+        refer_[0] = 1.0;  // DC: a sensor offset, neither line nor floor
         for (const LineGroup& g : line_groups) {
           const std::size_t hi = std::min<std::size_t>(g.end, bins);
           for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1;
@@ -102,7 +116,10 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
           if (*mid > 0.0 && std::isfinite(*mid)) floor_gain_ = *mid;
         }
         for (std::size_t k = 1; k < bins; ++k) {
-          if (in_line_[k] == 0) d_[k] = static_cast<float>(floor_gain_ * mean_magnitude[k]);
+          if (in_line_[k] == 0) {
+            d_[k] = static_cast<float>(floor_gain_ * mean_magnitude[k]);
+            refer_[k] = referral(floor_gain_);
+          }
         }
       }
       for (std::size_t k = 0; k < bins; ++k) {
@@ -119,9 +136,21 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
       for (std::size_t n = 0; n < n_; ++n) r_[n] = x[n] - d_[n];
       // The features are those of the time-domain residual r itself, so transform it.
       fft_.forward(r_, R_);
+      if (floor_gain) {
+        // Level referral: each part of the residual back to the level it had in training (a line
+        // group's by its gain, the floor's by g_f), so a day with other levels leaves the features
+        // where they were. RMS by Parseval over the referred one-sided spectrum.
+        double sum_sq = 0.0;
+        for (std::size_t k = 0; k < bins; ++k) {
+          R_[k] *= static_cast<float>(refer_[k]);
+          const double p = std::norm(R_[k]);
+          sum_sq += (k == 0 || 2 * k == n_) ? p : 2.0 * p;
+        }
+        return Features{std::sqrt(sum_sq) / static_cast<double>(n_), spectral_entropy(R_)};
+      }
       break;
   }
-  return Features{rms(r_) / floor_gain_, spectral_entropy(R_)};
+  return Features{rms(r_), spectral_entropy(R_)};
 }
 
 std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {

@@ -97,6 +97,37 @@ TEST_F(FileCheckTest, GroupOrWorldWritableFilesAreRefusedOnlyForRoot) {
   }
 }
 
+// The directories too: a group-writable parent (not sticky) lets another user replace the file, so it
+// is refused for root, naming the directory and the fix; a sticky world-writable one (/tmp) is not.
+TEST_F(FileCheckTest, WritableParentDirectoriesAreRefusedOnlyForRoot) {
+  const fs::path sub = dir_ / "etc";
+  fs::create_directories(sub);
+  const fs::path p = sub / "ptdad.toml";
+  std::ofstream(p) << "x = 1\n";
+  ASSERT_EQ(::chmod(p.c_str(), 0644), 0);
+  ASSERT_EQ(::chmod(sub.c_str(), 0775), 0);
+  EXPECT_EQ(error_of([&] { ptda::require_trusted_file(p, 100, "configuration file", 0); }),
+            sub.string() + ": directory holding the configuration file " + p.string() +
+                " is group-writable (mode 0775) and ptda runs as root: another user could replace the file. "
+                "Fix: chmod go-w " +
+                sub.string());
+  EXPECT_EQ(error_of([&] { (void)ptda::read_regular_file(p, 100, "configuration file", 0); }),
+            error_of([&] { ptda::require_trusted_file(p, 100, "configuration file", 0); }));
+  EXPECT_NO_THROW(ptda::require_trusted_file(p, 100, "configuration file", 1000));  // not root
+  // Reached through a symlink from a safe directory: the real directory is still checked.
+  const fs::path link = dir_ / "link.toml";
+  fs::create_symlink(p, link);
+  EXPECT_NE(error_of([&] {
+              ptda::require_trusted_file(link, 100, "baseline file", 0);
+            }).find(sub.string() + ": directory holding the baseline file"),
+            std::string::npos);
+  // Sticky and world-writable (like /tmp): only the owner may rename the file, accepted.
+  ASSERT_EQ(::chmod(sub.c_str(), 01777), 0);
+  EXPECT_NO_THROW(ptda::require_trusted_file(p, 100, "configuration file", 0));
+  ASSERT_EQ(::chmod(sub.c_str(), 0755), 0);
+  EXPECT_NO_THROW(ptda::require_trusted_file(link, 100, "configuration file", 0));
+}
+
 TEST(StringValueProblem, NulAndLength) {
   EXPECT_EQ(ptda::string_value_problem("/etc/ptda/ptdad.toml"), "");
   EXPECT_EQ(ptda::string_value_problem(std::string("/etc/a\0b", 8)),

@@ -168,6 +168,45 @@ TEST(FloorGain, ASidebandStaysInTheResidualReferredToTheTrainingFloor) {
   EXPECT_EQ(an.analyze(x, cls, Method::kPtda).rms_res, f.rms_res);
 }
 
+// Level referral: a whole window scaled by 1.9 (another day, every level nearly doubled, the defect with
+// them) gives the same features, where the line gain alone leaves the doubled floor in rms_res. The defect
+// here is a tone on a line's skirt bin (inside a group) and one on a floor bin.
+TEST(FloorGain, AWindowScaledAsAWholeKeepsItsFeatures) {
+  std::mt19937 rng(13);
+  std::vector<float> x0 = tones({40, 97, 250}, {1.0, 0.5, 2.0}, {0.3, -1.2, 2.0}, 0.05, rng);
+  WindowAnalyzer an(kN);
+  std::vector<float> mean(kBins);
+  an.magnitude(x0, mean);
+  const std::vector<LineGroup> groups = find_line_groups(mean);
+  std::mt19937 rng2(14);
+  std::vector<float> x1 =
+      tones({40, 41, 97, 180, 250}, {1.0, 0.1, 0.5, 0.05, 2.0}, {0.4, 1.0, -1.1, 0.2, 2.1}, 0.05, rng2);
+  double dc = 0.0;  // DC keeps the healthy mean (a sensor offset does not scale): none here
+  for (const float v : x1) dc += v;
+  for (float& v : x1) v -= static_cast<float>(dc / kN);
+  // 1.9, not 2: every gain of x1 (about 1) times the scale must stay inside the 6 dB allowance.
+  std::vector<float> x2(kN);
+  for (std::size_t t = 0; t < kN; ++t) x2[t] = 1.9F * x1[t];
+  const std::vector<float> tda(kN, 0.0F);
+  const Features a1 = an.analyze_with(x1, mean, tda, Method::kPtda, groups, true);
+  const double physical_rms1 = rms(an.residual());  // x1's residual before the referral
+  const Features a2 = an.analyze_with(x2, mean, tda, Method::kPtda, groups, true);
+  EXPECT_NEAR(a2.rms_res, a1.rms_res, 1e-5 * a1.rms_res);
+  EXPECT_NEAR(a2.entropy_res, a1.entropy_res, 1e-5);
+  const Features l1 = an.analyze_with(x1, mean, tda, Method::kPtda, groups, false);
+  const Features l2 = an.analyze_with(x2, mean, tda, Method::kPtda, groups, false);
+  EXPECT_GT(l2.rms_res, 1.5 * l1.rms_res);  // the raised floor stays in: 1.9 |X| - a
+  // Beyond the 6 dB allowance the excess counts: at four times the level every part is referred by 2
+  // only, so rms_res is twice x1's physical residual (a vibration that quadrupled must not look healthy).
+  std::vector<float> x4(kN);
+  for (std::size_t t = 0; t < kN; ++t) x4[t] = 4.0F * x1[t];
+  const Features a4 = an.analyze_with(x4, mean, tda, Method::kPtda, groups, true);
+  EXPECT_NEAR(a4.rms_res, 2.0 * physical_rms1, 1e-4 * physical_rms1);
+  EXPECT_GT(a4.rms_res, 1.8 * a1.rms_res);
+  // The defect is seen: against the healthy window itself the referred residual is far smaller.
+  EXPECT_GT(a1.rms_res, 10.0 * an.analyze_with(x0, mean, tda, Method::kPtda, groups, true).rms_res);
+}
+
 // A silent channel has no floor to refer to: g_f stays 1, so it still shows as a low residual.
 TEST(FloorGain, ASilentWindowKeepsGainOne) {
   std::vector<float> mean(kBins, 1.0F);
@@ -199,6 +238,9 @@ TEST(LineGain, PrepareFollowsThePolicy) {
   ASSERT_EQ(b.classes[0].line_groups.size(), 1U);
   EXPECT_EQ(b.classes[0].line_groups[0].begin, 59U);
   EXPECT_EQ(b.classes[0].line_groups[0].end, 62U);
+  EXPECT_TRUE(b.classes[0].floor_gain);  // the default since session 6
+  b.policy.ptda_floor_gain = false;
+  prepare_line_groups(b);
   EXPECT_FALSE(b.classes[0].floor_gain);
   b.policy.ptda_floor_gain = true;
   prepare_line_groups(b);

@@ -108,6 +108,7 @@ void expect_equal(const Baseline& a, const Baseline& b) {
   EXPECT_EQ(a.policy.confidence, b.policy.confidence);
   EXPECT_EQ(a.policy.holdout_fraction, b.policy.holdout_fraction);
   EXPECT_EQ(a.policy.ptda_line_gain, b.policy.ptda_line_gain);
+  EXPECT_EQ(a.policy.ptda_floor_gain, b.policy.ptda_floor_gain);
   EXPECT_EQ(a.source, b.source);
   ASSERT_EQ(a.training.size(), b.training.size());
   for (std::size_t i = 0; i < a.training.size(); ++i) {
@@ -259,7 +260,7 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
   EXPECT_EQ(bytes[8], 3);  // version 3, little-endian
   EXPECT_EQ(
       bytes[bytes.size() - 8] | bytes[bytes.size() - 7] | bytes[bytes.size() - 6] | bytes[bytes.size() - 5],
-      0);  // v3 option flags before the CRC: none
+      2);  // v3 option flags before the CRC: bit 1, the floor gain (default); this baseline has no line gain
   EXPECT_EQ(bytes[9] | bytes[10] | bytes[11], 0);
   std::uint64_t size = 0;
   for (int i = 0; i < 8; ++i)
@@ -317,6 +318,7 @@ TEST(BaselineFile, Version1FilesAreStillRead) {
 // with no options, and the line-gain option survives a round trip and prepares the line groups.
 TEST(BaselineFile, Version3OptionsAndVersion2Files) {
   Baseline b = make_baseline(8, 2);
+  b.policy.ptda_floor_gain = false;  // as a version-2 file reads: no options
   const Bytes v3 = serialize_baseline(b);
   Bytes v2(v3.begin(), v3.end() - 8);  // without the options and the CRC
   v2[8] = 2;

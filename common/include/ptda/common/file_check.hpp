@@ -83,6 +83,41 @@ inline void require_not_writable_by_others(const std::string& name, const struct
               ") and ptda runs as root: another user could change what it does. Fix: chmod go-w " + name);
 }
 
+/// Issue 14 item 8, the directories: running as root, a file is only as safe as the directories that
+/// hold it. Whoever may write a parent directory can rename the file away and put their own in its
+/// place. Throws ptda::Error "<dir>: directory holding <name> is group- or world-writable (mode 0775)
+/// ... Fix: chmod go-w <dir>" for the first such directory from the file's parent up to "/", both along
+/// the path as given (made absolute) and along its canonical form (symlinks resolved). A sticky
+/// directory (mode 1777, /tmp) is accepted: there only a file's owner may rename or remove it. Owners
+/// are not checked. No check when euid is not 0. Thread: any (configure time). Allocates.
+inline void require_parents_not_writable_by_others(const std::filesystem::path& path, std::string_view what,
+                                                   uid_t euid) {
+  if (euid != 0) return;
+  const auto check_chain = [&](std::filesystem::path dir) {
+    while (!dir.empty()) {
+      struct stat st {};
+      if (::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode) && (st.st_mode & (S_IWGRP | S_IWOTH)) != 0 &&
+          (st.st_mode & S_ISVTX) == 0) {
+        char mode[8];
+        std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777U));
+        const char* who = (st.st_mode & S_IWOTH) != 0 ? "world-writable" : "group-writable";
+        throw Error(dir.string() + ": directory holding the " + std::string(what) + " " + path.string() +
+                    " is " + who + " (mode " + mode +
+                    ") and ptda runs as root: another user could replace the file. Fix: chmod go-w " +
+                    dir.string());
+      }
+      const std::filesystem::path up = dir.parent_path();
+      if (up == dir) break;
+      dir = up;
+    }
+  };
+  std::error_code ec;
+  const std::filesystem::path abs = std::filesystem::absolute(path, ec);
+  if (!ec) check_chain(abs.lexically_normal().parent_path());
+  const std::filesystem::path real = std::filesystem::canonical(path, ec);
+  if (!ec) check_chain(real.parent_path());
+}
+
 /// Throws ptda::Error "<path>: ..." unless path (symlinks followed) is an existing regular file of at
 /// most max_bytes. `what` names the file's role ("baseline", "configuration file"). Never opens the
 /// file, so a FIFO cannot block it. Thread: any (configure time). Allocates only to throw.
@@ -97,7 +132,8 @@ inline void require_regular_file(const std::filesystem::path& path, std::uint64_
 /// The whole content of a regular file of at most max_bytes. Opened non-blocking and checked with
 /// fstat on the open descriptor, so a FIFO or device swapped in after a check cannot hang or flood
 /// it. Throws ptda::Error naming the path. Thread: any (configure time). Blocks (reads); allocates.
-/// As require_regular_file, then require_not_writable_by_others (for configuration and baseline files).
+/// As require_regular_file, then require_not_writable_by_others and
+/// require_parents_not_writable_by_others (for configuration and baseline files).
 inline void require_trusted_file(const std::filesystem::path& path, std::uint64_t max_bytes,
                                  std::string_view what, uid_t euid = ::geteuid()) {
   struct stat st {};
@@ -105,6 +141,7 @@ inline void require_trusted_file(const std::filesystem::path& path, std::uint64_
     throw Error(path.string() + ": cannot open " + std::string(what) + ": " + std::strerror(errno));
   detail::check_stat(path.string(), st, max_bytes, what);
   require_not_writable_by_others(path.string(), st, what, euid);
+  require_parents_not_writable_by_others(path, what, euid);
 }
 
 /// With `euid` given, the permission check of require_not_writable_by_others runs on the open file
@@ -122,7 +159,10 @@ inline std::string read_regular_file(const std::filesystem::path& path, std::uin
   if (::fstat(fd, &st) != 0)
     throw Error(name + ": cannot stat " + std::string(what) + ": " + std::strerror(errno));
   detail::check_stat(name, st, max_bytes, what);
-  if (euid) require_not_writable_by_others(name, st, what, *euid);
+  if (euid) {
+    require_not_writable_by_others(name, st, what, *euid);
+    require_parents_not_writable_by_others(path, what, *euid);
+  }
   std::string text(static_cast<std::size_t>(st.st_size), '\0');
   std::size_t got = 0;
   while (got < text.size()) {

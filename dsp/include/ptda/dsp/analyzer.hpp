@@ -37,10 +37,12 @@ class WindowAnalyzer {
   /// mean magnitude times the window's own least-squares gain g = sum(a |X|) / sum(a^2) over the
   /// group, so D[k] = g a[k] e^{j theta_x[k]}. Groups outside [1, N/2] are ignored.
   /// floor_gain (PTDA only): every bin k >= 1 outside the groups gets D[k] = g_f a[k] e^{j theta_x[k]}
-  /// with g_f the median of |X[k]| / a[k] over those bins (a[k] > 0), and rms_res is divided by g_f
-  /// (the residual referred to the training floor). g_f that is not > 0 (a dead channel) is taken as 1,
-  /// so a silent sensor still shows as a low residual.
-  /// Same size rule, thread and allocation contract as analyze().
+  /// with g_f the median of |X[k]| / a[k] over those bins (a[k] > 0), and both features are those of
+  /// the level-referred residual spectrum: R[k] divided by the gain of its part (its group's g, or g_f;
+  /// DC by 1) clamped to [1/2, 2] (level changes beyond 6 dB count), rms_res by Parseval. residual() stays
+  /// the physical residual; residual_spectrum() is the referred one. g_f that is not > 0 (a dead channel) is
+  /// taken as 1, so a silent sensor still shows as a low residual. Same size rule, thread and allocation
+  /// contract as analyze().
   Features analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
                         std::span<const float> tda_mean, Method method,
                         std::span<const LineGroup> line_groups = {}, bool floor_gain = false) noexcept;
@@ -65,6 +67,7 @@ class WindowAnalyzer {
   std::vector<double> mag_;             ///< |X[k]| of the last PTDA window
   std::vector<double> ratio_;           ///< floor-gain scratch: |X[k]| / a[k] over the floor bins
   std::vector<unsigned char> in_line_;  ///< floor-gain scratch: bin k lies in a line group
+  std::vector<double> refer_;           ///< floor gain: 1 / the gain of bin k's part (group or floor)
   double floor_gain_ = 1.0;
   std::vector<std::complex<float>> X_, D_, R_;
 };

@@ -59,7 +59,7 @@ struct ThresholdPolicy {
   /// them), and rms_res is referred to the training floor (divided by g_f), so a floor that is a few
   /// percent higher on another day is not read as a defect. Sidebands and impacts are sparse and move
   /// the median little. Stored in the baseline (format >= 3, option bit 1).
-  bool ptda_floor_gain = false;
+  bool ptda_floor_gain = true;
 };
 
 /// Bins [begin, end) of one spectral line of the healthy mean magnitude (with its leakage skirt).
