@@ -138,7 +138,8 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   data.signal_unit = inputs.front().rec.meta.unit;
   data.gearbox = baseline.gearbox;
   for (const auto& c : baseline.classes) {
-    data.class_speeds_rad_s.emplace_back(static_cast<std::int32_t>(c.segment.id), c.segment.speed_rad_s);
+    data.class_speeds_rad_s.emplace_back(static_cast<std::int32_t>(c.segment.id),
+                                         c.segment.direction * c.segment.speed_rad_s);
   }
   data.summary.emplace_back("baseline", baseline_path);
   data.summary.emplace_back("trained on", baseline.source);

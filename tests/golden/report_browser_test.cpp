@@ -8,8 +8,11 @@
 #include <sys/wait.h>
 
 #include <cstdlib>
+#include <fstream>
 #include <regex>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "golden_support.hpp"
@@ -140,6 +143,7 @@ TEST(ReportBrowser, ChromiumRendersEverySectionAndOneAlarmTime) {
   // Gearbox header: tooth counts, R and the GMF of each class.
   EXPECT_NE(d.find("z_in = 28, z_spur = 23, z_pin = 40; reduction ratio R = 33.8571"), std::string::npos);
   EXPECT_EQ(count(d, "<td>526.6"), 2U) << "GMF of both classes";
+  EXPECT_NE(d.find("<tr><td>class 1</td><td>-3.490</td>"), std::string::npos) << "class 1 turns backwards";
 
   // One alarm time everywhere, the same as `ptda monitor` prints.
   const std::string t = monitor_alarm + " s";
@@ -163,6 +167,84 @@ TEST(ReportBrowser, ChromiumRendersEverySectionAndOneAlarmTime) {
   ASSERT_EQ(shot.exit_code, 0) << shot.err;
   ASSERT_TRUE(fs::exists(png)) << shot.err;
   EXPECT_GT(fs::file_size(png), 200000U) << "a blank 1250x4000 page compresses to a few kB";
+  EXPECT_EQ(count(d, "class=\"note\""), 0U);  // the healthy recording has no abnormal window here
+
+  // A looser band (false-alarm rate 0.1 per window and feature) and a 5-of-5 alarm rule: the healthy
+  // recording then has an isolated abnormal window and no alarm. Its example says so.
+  std::string loose = read_file(cfg);
+  for (const auto& [from, to] :
+       {std::pair<std::string, std::string>{"false_alarm_rate = 1e-3", "false_alarm_rate = 0.1"},
+        std::pair<std::string, std::string>{"\nk = 3\n", "\nk = 5\n"}}) {
+    const auto p = loose.find(from);
+    ASSERT_NE(p, std::string::npos) << from << " not in " << cfg;
+    loose.replace(p, from.size(), to);
+  }
+  const fs::path loose_cfg = dir / "loose.toml";
+  std::ofstream(loose_cfg) << loose;
+  const std::string loose_base = (dir / "loose.bin").string();
+  ASSERT_EQ(run_ptda({"train", "--recording", (dir / "train").string(), "--config", loose_cfg.string(),
+                      "--out", loose_base},
+                     dir, "train-loose")
+                .exit_code,
+            0);
+  const fs::path html2 = dir / "healthy.html";
+  const RunResult rep2 =
+      run_ptda({"report", "--recording", (dir / "fresh").string(), "--label", "healthy", "--config",
+                loose_cfg.string(), "--baseline", loose_base, "--html", html2.string()},
+               dir, "report-loose");
+  ASSERT_EQ(rep2.exit_code, 0) << rep2.err;
+  const RunResult dom2 = run_chromium(chromium, {"--dump-dom"}, html2, dir, "dom-loose");
+  ASSERT_EQ(dom2.exit_code, 0) << dom2.err;
+  const std::string v2 = capture(dom2.out, R"(<b>healthy</b>: ([^<]*)</li>)", "healthy verdict (loose)");
+  EXPECT_EQ(v2.rfind("no alarm (ptda); 1 of 40 judged windows abnormal", 0), 0U) << v2;
+  EXPECT_NE(v2.find("isolated, below the 5-of-5 alarm rule"), std::string::npos) << v2;
+  EXPECT_NE(dom2.out.find("healthy: most abnormal window"), std::string::npos);
+  EXPECT_EQ(count(dom2.out, "class=\"note\""), 1U);
+  EXPECT_NE(dom2.out.find("This recording raises no alarm, yet this window is judged abnormal."),
+            std::string::npos);
+}
+
+// --envelope-band: a given band is used for every example; a bad one is a usage error naming the
+// option and the limit (no chromium needed).
+TEST(ReportCli, EnvelopeBandOption) {
+  const fs::path dir = scratch_dir("report_envelope_band");
+  const fs::path src = source_dir();
+  const std::string cfg = (src / "config/examples/joint_rotation.toml").string();
+  const std::string scn = (src / "config/scenarios/joint_rotation_healthy.toml").string();
+  for (const auto& [out, seed] : {std::pair{"train", "101"}, std::pair{"fresh", "202"}}) {
+    ASSERT_EQ(
+        run_ptda({"simulate", "--scenario", scn, "--out", (dir / out).string(), "--seed", seed}, dir, out)
+            .exit_code,
+        0);
+  }
+  const std::string base = (dir / "base.bin").string();
+  ASSERT_EQ(run_ptda({"train", "--recording", (dir / "train").string(), "--config", cfg, "--out", base}, dir,
+                     "train")
+                .exit_code,
+            0);
+  const std::vector<std::string> common = {"report",   "--recording", (dir / "fresh").string(),
+                                           "--config", cfg,           "--baseline",
+                                           base,       "--html",      (dir / "r.html").string()};
+  auto with = [&](const std::string& band) {
+    auto a = common;
+    a.push_back("--envelope-band");
+    a.push_back(band);
+    return a;
+  };
+  const RunResult ok = run_ptda(with("2000:4000"), dir, "ok");
+  ASSERT_EQ(ok.exit_code, 0) << ok.err;
+  const std::string html = read_file(dir / "r.html");
+  EXPECT_EQ(count(html, ": envelope spectrum, band 2000-4000 Hz"), 2U);  // one example, raw and PTDA
+  EXPECT_NE(html.find("given by --envelope-band"), std::string::npos);
+  for (const auto& [band, text] :
+       {std::pair{"4000:3000", "need 0 <= LO < HI <= fs/2 = 12800 Hz, got '4000:3000'"},
+        std::pair{"100:20000", "need 0 <= LO < HI <= fs/2 = 12800 Hz"},
+        std::pair{"3000", "expected LO:HI in Hz such as 2000:4000, got '3000'"},
+        std::pair{"a:100", "--envelope-band"}}) {
+    const RunResult bad = run_ptda(with(band), dir, "bad");
+    EXPECT_EQ(bad.exit_code, 2) << band << ": " << bad.err;
+    EXPECT_NE(bad.err.find(text), std::string::npos) << band << ": " << bad.err;
+  }
 }
 
 }  // namespace
