@@ -37,10 +37,11 @@ std::size_t count(const std::string& hay, const std::string& needle) {
 /// Runs chromium headless with the given mode arguments on file; stdout/stderr into dir/<tag>.out/.err.
 RunResult run_chromium(const std::string& chromium, const std::vector<std::string>& mode,
                        const fs::path& file, const fs::path& dir, const std::string& tag) {
-  std::string cmd = "timeout 180 " + shell_quote(chromium) +
-                    " --headless --no-sandbox --disable-gpu --no-first-run --hide-scrollbars"
-                    " --enable-logging=stderr --v=0 --user-data-dir=" +
-                    shell_quote((dir / "chromium-profile").string());
+  std::string cmd =
+      "timeout 180 " + shell_quote(chromium) +
+      " --headless --no-sandbox --disable-gpu --disable-dev-shm-usage --no-first-run --hide-scrollbars"
+      " --enable-logging=stderr --v=0 --user-data-dir=" +
+      shell_quote((dir / "chromium-profile").string());
   for (const auto& m : mode) cmd += " " + shell_quote(m);
   cmd += " " + shell_quote("file://" + fs::absolute(file).string());
   const fs::path out = dir / (tag + ".out");
