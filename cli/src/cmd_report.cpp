@@ -1,7 +1,8 @@
 // ptda report --recording DIR [...] --config FILE --baseline BASELINE --html OUT [--label NAME ...]
 #include <cmath>
-#include <numbers>
+#include <optional>
 #include <ostream>
+#include <string_view>
 
 #include "ptda/cli/args.hpp"
 #include "ptda/cli/commands.hpp"
@@ -21,34 +22,42 @@ namespace {
 
 constexpr std::array<dsp::Method, 3> kMethods = {dsp::Method::kRaw, dsp::Method::kTda, dsp::Method::kPtda};
 
-/// GMF (eq. 3) and its harmonics below Nyquist for a joint speed; empty when the gearbox is unknown.
-std::vector<double> gmf_markers(const dsp::GearboxInfo& g, double speed_rad_s, double fs_hz) {
-  std::vector<double> f;
-  if (g.kind == dsp::GearboxInfo::Kind::kUnknown || g.z_in == 0 || g.ratio <= 0.0) return f;
-  const double f_in = g.ratio * std::abs(speed_rad_s) / (2.0 * std::numbers::pi);
-  const double gmf = static_cast<double>(g.z_in) * f_in;
-  for (int k = 1; k <= 8 && k * gmf < fs_hz / 2.0; ++k) f.push_back(k * gmf);
-  return f;
-}
-
-/// A window captured during the PTDA run for the report's example plots.
+/// A window kept during the verdict method's run as a candidate example. Only the best candidate of
+/// each kind per recording is kept, so memory stays at a few windows whatever the recording length.
 struct CapturedWindow {
-  std::string title;
+  bool valid = false;
+  double excess = 0.0;  ///< band_excess(): > 0 outside the band
+  dsp::WindowResult result;
   std::vector<float> raw;
-  std::int32_t class_id = -1;
-  double speed_rad_s = 0.0;
 };
 
-WindowExample make_example(const CapturedWindow& c, const dsp::Baseline& baseline, double fs_hz,
-                           dsp::WindowAnalyzer& analyzer) {
+struct RecordingEvidence {
+  CapturedWindow most_abnormal;   ///< the abnormal window furthest outside its band
+  CapturedWindow closest_normal;  ///< the normal window closest to its band
+};
+
+const dsp::ClassBaseline* find_class(const dsp::Baseline& baseline, std::int32_t class_id) {
+  for (const auto& k : baseline.classes) {
+    if (static_cast<std::int32_t>(k.segment.id) == class_id) return &k;
+  }
+  return nullptr;
+}
+
+std::string feature_text(const dsp::WindowResult& w) {
+  const auto& t = w.thresholds;
+  return "rms_res " + general(w.features.rms_res, 5) + " (band " + general(t.rms.lo, 5) + ".." +
+         general(t.rms.hi, 5) + "), entropy_res " + fixed(w.features.entropy_res, 4) + " (band " +
+         fixed(t.entropy.lo, 4) + ".." + fixed(t.entropy.hi, 4) + ")";
+}
+
+WindowExample make_example(const CapturedWindow& c, const std::string& title, const dsp::Baseline& baseline,
+                           double fs_hz, dsp::WindowAnalyzer& analyzer) {
   WindowExample ex;
-  ex.title = c.title;
+  ex.title = title;
   ex.fs_hz = fs_hz;
   ex.raw = c.raw;
-  const dsp::ClassBaseline* cls = nullptr;
-  for (const auto& k : baseline.classes) {
-    if (static_cast<std::int32_t>(k.segment.id) == c.class_id) cls = &k;
-  }
+  ex.orders = gear_orders(baseline.gearbox, c.result.ref.speed_rad_s);
+  const dsp::ClassBaseline* cls = find_class(baseline, c.result.class_id);
   if (cls == nullptr) return ex;
   (void)analyzer.analyze(c.raw, *cls, dsp::Method::kTda);
   ex.det_tda.assign(analyzer.deterministic().begin(), analyzer.deterministic().end());
@@ -56,8 +65,23 @@ WindowExample make_example(const CapturedWindow& c, const dsp::Baseline& baselin
   (void)analyzer.analyze(c.raw, *cls, dsp::Method::kPtda);
   ex.det_ptda.assign(analyzer.deterministic().begin(), analyzer.deterministic().end());
   ex.res_ptda.assign(analyzer.residual().begin(), analyzer.residual().end());
-  ex.marker_freqs_hz = gmf_markers(baseline.gearbox, c.speed_rad_s, fs_hz);
   return ex;
+}
+
+EnvelopeBand parse_envelope_band(const std::string& text, double fs_hz) {
+  const auto colon = text.find(':');
+  if (colon == std::string::npos) {
+    throw UsageError("--envelope-band: expected LO:HI in Hz such as 2000:4000, got '" + text + "'");
+  }
+  EnvelopeBand b;
+  b.lo_hz = parse_double_arg(std::string_view(text).substr(0, colon), "envelope-band");
+  b.hi_hz = parse_double_arg(std::string_view(text).substr(colon + 1), "envelope-band");
+  if (!(b.lo_hz >= 0.0) || !(b.lo_hz < b.hi_hz) || !(b.hi_hz <= fs_hz / 2.0)) {
+    throw UsageError("--envelope-band: need 0 <= LO < HI <= fs/2 = " + general(fs_hz / 2.0, 10) +
+                     " Hz, got '" + text + "'");
+  }
+  b.reason = "given by --envelope-band";
+  return b;
 }
 
 }  // namespace
@@ -65,15 +89,21 @@ WindowExample make_example(const CapturedWindow& c, const dsp::Baseline& baselin
 int cmd_report(std::span<const std::string> args, std::ostream& out) {
   ArgParser parser(
       "report",
-      "--recording DIR [--recording DIR ...] --config FILE --baseline BASELINE --html OUT [--label NAME ...]",
+      "--recording DIR [--recording DIR ...] --config FILE --baseline BASELINE --html OUT [--label NAME "
+      "...]\n"
+      "       [--envelope-band LO:HI]",
       "Monitors each recording with raw, TDA and PTDA residuals and writes one self-contained HTML file:\n"
-      "example windows (raw, deterministic and residual parts in time and frequency, like the paper's\n"
-      "Figs. 8-11), the feature trends against the class bands, and the counts per method.");
+      "a verdict per recording, the gearbox orders, the feature trends against the class bands on a time\n"
+      "axis, and per recording its most abnormal window and its normal window closest to the band (raw,\n"
+      "deterministic and residual parts in time, as dB spectra, zoomed on the GMF harmonics, and as\n"
+      "envelope spectra).");
   parser.option("recording", "DIR", "recording directory (e.g. a healthy and a faulty one)", true, true)
       .option("config", "FILE", "pipeline configuration TOML", true)
       .option("baseline", "BASELINE", "baseline file written by ptda train", true)
       .option("html", "OUT", "HTML file to write", true)
-      .option("label", "NAME", "name of each recording in the report, in --recording order", false, true);
+      .option("label", "NAME", "name of each recording in the report, in --recording order", false, true)
+      .option("envelope-band", "LO:HI",
+              "band of the envelope spectra in Hz (default: chosen from the most abnormal window)");
   const ParsedArgs a = parser.parse(args);
   if (a.help()) {
     out << parser.help_text();
@@ -98,12 +128,18 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   }
   const dsp::Baseline& baseline = inputs.front().baseline;
   const double fs_hz = inputs.front().fs_hz;
+  const dsp::Method verdict_method = inputs.front().cfg.method;
+  const std::string verdict_name(dsp::method_name(verdict_method));
+  std::optional<EnvelopeBand> given_band;
+  if (a.has("envelope-band")) given_band = parse_envelope_band(a.value("envelope-band"), fs_hz);
 
   ReportData data;
   data.title = "PTDA condition monitoring report";
   data.signal_unit = inputs.front().rec.meta.unit;
-  if (!baseline.classes.empty()) {
-    data.marker_freqs_hz = gmf_markers(baseline.gearbox, baseline.classes.front().segment.speed_rad_s, fs_hz);
+  data.gearbox = baseline.gearbox;
+  for (const auto& c : baseline.classes) {
+    data.class_speeds_rad_s.emplace_back(static_cast<std::int32_t>(c.segment.id),
+                                         c.segment.direction * c.segment.speed_rad_s);
   }
   data.summary.emplace_back("baseline", baseline_path);
   data.summary.emplace_back("trained on", baseline.source);
@@ -115,42 +151,40 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   data.summary.emplace_back("alarm rule",
                             std::to_string(inputs.front().cfg.decision.k) + " abnormal of the last " +
                                 std::to_string(inputs.front().cfg.decision.n) + " scored windows");
+  data.summary.emplace_back("verdict method", verdict_name);
+  data.summary.emplace_back("times", "seconds from the start of each recording");
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    RecordingSummary r;
+    r.label = labels[i];
+    r.duration_s = inputs[i].rec.duration_s;
+    data.recordings.push_back(std::move(r));
+  }
 
-  std::vector<CapturedWindow> captured;
+  std::vector<RecordingEvidence> evidence(inputs.size());
   out << pad_right("recording", 18) << pad_right("method", 8) << pad_left("scored", 8)
       << pad_left("abnormal", 10) << pad_left("alarm at [s]", 14) << pad_left("mean rms_res", 14)
       << pad_left("mean entropy", 14) << "\n";
   for (const dsp::Method method : kMethods) {
     MethodTrend trend;
     trend.method = std::string(dsp::method_name(method));
+    trend.window_s = static_cast<double>(baseline.window_len) / fs_hz;
     for (const auto& c : baseline.classes) {
       trend.class_thresholds.emplace_back(static_cast<std::int32_t>(c.segment.id),
                                           c.thresholds[static_cast<std::size_t>(method)]);
     }
-    double t_offset_s = 0.0;
-    std::uint32_t seq = 0;
     for (std::size_t i = 0; i < inputs.size(); ++i) {
       const MonitorInputs& in = inputs[i];
-      bool have_first = false;
-      bool have_abnormal = false;
       WindowObserver observer;
-      if (method == dsp::Method::kPtda) {
-        observer = [&](const dsp::WindowResult& w, const dsp::MonitorEngine& engine) {
+      if (method == verdict_method) {
+        observer = [&ev = evidence[i]](const dsp::WindowResult& w, const dsp::MonitorEngine& engine) {
           if (w.status != dsp::WindowStatus::kScored) return;
-          const bool first = !have_first;
-          const bool abnormal = !have_abnormal && w.verdict.abnormal();
-          if (!first && !abnormal) return;
-          CapturedWindow c;
-          c.title = labels[i] + ", window " + std::to_string(w.ref.seq) + " at " +
-                    fixed(ns_to_seconds(w.ref.t_start_ns - in.rec.t0_ns), 3) + " s (class " +
-                    std::to_string(w.class_id) + ", " + fixed(w.ref.speed_rad_s, 3) + " rad/s)" +
-                    (w.verdict.abnormal() ? ", abnormal by PTDA" : ", first scored");
-          c.raw.assign(engine.last_window().begin(), engine.last_window().end());
-          c.class_id = w.class_id;
-          c.speed_rad_s = w.ref.speed_rad_s;
-          captured.push_back(std::move(c));
-          have_first = true;
-          if (w.verdict.abnormal()) have_abnormal = true;
+          const double e = band_excess(w.features, w.thresholds);
+          CapturedWindow& slot = w.verdict.abnormal() ? ev.most_abnormal : ev.closest_normal;
+          if (slot.valid && !(e > slot.excess)) return;
+          slot.valid = true;
+          slot.excess = e;
+          slot.result = w;
+          slot.raw.assign(engine.last_window().begin(), engine.last_window().end());
         };
       }
       RunOptions opts;
@@ -161,8 +195,8 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
       for (const auto& w : r.windows) {
         if (w.status != dsp::WindowStatus::kScored) continue;
         TrendPoint p;
-        p.t_s = t_offset_s + ns_to_seconds(w.ref.t_start_ns - in.rec.t0_ns);
-        p.window_seq = seq++;
+        p.t_s = ns_to_seconds(w.ref.t_start_ns - in.rec.t0_ns);
+        p.window_seq = w.ref.seq;
         p.class_id = w.class_id;
         p.rms_res = w.features.rms_res;
         p.entropy_res = w.features.entropy_res;
@@ -171,33 +205,135 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
         p.recording = labels[i];
         trend.points.push_back(std::move(p));
       }
-      t_offset_s += in.rec.duration_s;
-      const std::string alarm_at =
-          s.first_alarm ? fixed(ns_to_seconds(s.first_alarm->ref.t_start_ns - in.rec.t0_ns), 3) : "never";
+      const auto rel_s = [&](const dsp::WindowResult& w) {
+        return ns_to_seconds(w.ref.t_start_ns - in.rec.t0_ns);
+      };
+      const std::string alarm_at = s.first_alarm ? fixed(rel_s(*s.first_alarm), 3) : "never";
       const double mean_rms = s.scored > 0 ? s.rms_sum / static_cast<double>(s.scored) : 0.0;
       const double mean_ent = s.scored > 0 ? s.entropy_sum / static_cast<double>(s.scored) : 0.0;
       out << pad_right(labels[i], 18) << pad_right(trend.method, 8) << pad_left(std::to_string(s.scored), 8)
           << pad_left(std::to_string(s.abnormal), 10) << pad_left(alarm_at, 14)
           << pad_left(general(mean_rms, 5), 14) << pad_left(fixed(mean_ent, 4), 14) << "\n";
-      data.summary.emplace_back(labels[i] + " / " + trend.method,
-                                std::to_string(s.scored) + " scored, " + std::to_string(s.abnormal) +
-                                    " abnormal, alarm " +
-                                    (s.first_alarm ? "at " + alarm_at + " s" : "never") + ", mean rms_res " +
-                                    general(mean_rms, 5) + ", mean entropy_res " + fixed(mean_ent, 4));
+      data.summary.emplace_back(
+          labels[i] + " / " + trend.method,
+          std::to_string(s.scored) + " scored, " + std::to_string(s.abnormal) + " abnormal, alarm " +
+              (s.first_alarm ? "at " + report_time(rel_s(*s.first_alarm)) + " (window " +
+                                   std::to_string(s.first_alarm->ref.seq) + ")"
+                             : std::string("never")) +
+              ", mean rms_res " + general(mean_rms, 5) + ", mean entropy_res " + fixed(mean_ent, 4));
+      if (method != verdict_method) continue;
+      RecordingSummary& rs = data.recordings[i];
+      const std::string counts = std::to_string(s.abnormal) + " of " + std::to_string(s.scored) +
+                                 " judged windows abnormal (rms " + std::to_string(s.rms_out) + ", entropy " +
+                                 std::to_string(s.entropy_out) + ")";
+      if (s.scored == 0) {
+        rs.verdict = "NOT JUDGED: none of the " + std::to_string(s.windows) +
+                     " windows matched a class of the baseline (check speeds and classes)";
+      } else if (s.first_alarm) {
+        rs.alarm = true;
+        rs.verdict =
+            "ALARM (" + verdict_name + ") first raised at " + report_time(rel_s(*s.first_alarm)) +
+            " (window " + std::to_string(s.first_alarm->ref.seq) + ", " +
+            utc_time(ns_to_seconds(s.first_alarm->ref.t_start_ns)) + "); " + counts +
+            (s.first_abnormal ? ", first at " + report_time(rel_s(*s.first_abnormal)) : std::string());
+      } else {
+        rs.verdict = "no alarm (" + verdict_name + "); " + counts +
+                     (s.abnormal > 0 ? ": isolated, below the " + std::to_string(in.cfg.decision.k) + "-of-" +
+                                           std::to_string(in.cfg.decision.n) + " alarm rule"
+                                     : std::string());
+      }
+      if (s.no_class > 0) {
+        rs.verdict += "; " + std::to_string(s.no_class) + " window(s) matched no class";
+      }
     }
     data.trends.push_back(std::move(trend));
   }
 
+  // Example windows by evidence: per recording its most abnormal window and its normal window closest
+  // to the band.
   dsp::WindowAnalyzer analyzer(baseline.window_len);
-  for (const auto& c : captured) data.examples.push_back(make_example(c, baseline, fs_hz, analyzer));
+  const auto title_of = [&](std::size_t i, const CapturedWindow& c, const char* what) {
+    const dsp::WindowResult& w = c.result;
+    return labels[i] + ": " + what + ", window " + std::to_string(w.ref.seq) + " at " +
+           report_time(ns_to_seconds(w.ref.t_start_ns - inputs[i].rec.t0_ns)) + " (class " +
+           std::to_string(w.class_id) + ", " + fixed(w.ref.speed_rad_s, 3) + " rad/s)";
+  };
+  const CapturedWindow* band_window = nullptr;
+  const CapturedWindow* band_reference = nullptr;
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    const auto& ev = evidence[i];
+    if (ev.most_abnormal.valid && (band_window == nullptr || ev.most_abnormal.excess > band_window->excess)) {
+      band_window = &ev.most_abnormal;
+    }
+  }
+  for (const auto& ev : evidence) {
+    if (!ev.closest_normal.valid) continue;
+    if (band_reference == nullptr ||
+        (band_window != nullptr && ev.closest_normal.result.class_id == band_window->result.class_id &&
+         band_reference->result.class_id != band_window->result.class_id)) {
+      band_reference = &ev.closest_normal;
+    }
+  }
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    const auto& ev = evidence[i];
+    if (ev.most_abnormal.valid) {
+      WindowExample ex = make_example(ev.most_abnormal, title_of(i, ev.most_abnormal, "most abnormal window"),
+                                      baseline, fs_hz, analyzer);
+      ex.evidence = "Chosen as the window furthest outside its band (" + fixed(ev.most_abnormal.excess, 2) +
+                    " band widths): " + feature_text(ev.most_abnormal.result) + ".";
+      if (!data.recordings[i].alarm) {
+        ex.note =
+            "This recording raises no alarm, yet this window is judged abnormal. With a false-alarm "
+            "budget per window, an isolated abnormal window is expected now and then on healthy data; "
+            "compare its spectra with the normal example below before suspecting damage.";
+      }
+      data.examples.push_back(std::move(ex));
+    }
+    if (ev.closest_normal.valid) {
+      WindowExample ex =
+          make_example(ev.closest_normal, title_of(i, ev.closest_normal, "normal window closest to the band"),
+                       baseline, fs_hz, analyzer);
+      ex.evidence = "Chosen as the judged-normal window closest to its band (" +
+                    fixed(-ev.closest_normal.excess, 2) +
+                    " band widths inside): " + feature_text(ev.closest_normal.result) + ".";
+      data.examples.push_back(std::move(ex));
+    }
+  }
+  // One envelope band for the whole report, so the examples compare directly.
+  if (given_band) {
+    data.envelope_band = *given_band;
+  } else if (band_window != nullptr || band_reference != nullptr) {
+    const CapturedWindow& w = band_window != nullptr ? *band_window : *band_reference;
+    const CapturedWindow* ref = band_window != nullptr ? band_reference : nullptr;
+    const dsp::ClassBaseline* cls = find_class(baseline, w.result.class_id);
+    const double gmf = gear_orders(baseline.gearbox, w.result.ref.speed_rad_s).gmf_hz;
+    if (cls != nullptr) {
+      (void)analyzer.analyze(w.raw, *cls, dsp::Method::kPtda);
+      const std::vector<float> res(analyzer.residual().begin(), analyzer.residual().end());
+      std::vector<float> ref_res;
+      const dsp::ClassBaseline* rcls = ref != nullptr ? find_class(baseline, ref->result.class_id) : nullptr;
+      if (rcls != nullptr) {
+        (void)analyzer.analyze(ref->raw, *rcls, dsp::Method::kPtda);
+        ref_res.assign(analyzer.residual().begin(), analyzer.residual().end());
+      }
+      data.envelope_band = choose_envelope_band(res, ref_res, fs_hz, gmf);
+      data.envelope_band.reason += band_window != nullptr
+                                       ? "; PTDA residuals: the most abnormal window against the normal "
+                                         "window closest to the band"
+                                       : "; PTDA residual of the normal window closest to the band";
+    }
+  }
   data.notes.push_back(
       "Residuals: raw = the window itself; TDA = window minus the healthy time-domain mean (eq. 5); "
       "PTDA = window minus the IDFT of the healthy mean magnitude with the window's own phase "
       "(eqs. 7-9).");
   data.notes.push_back(
-      "A window is abnormal when rms_res or entropy_res leaves its class band; the alarm needs " +
+      "A window is abnormal when rms_res is above its band or entropy_res leaves its band; the alarm needs " +
       std::to_string(inputs.front().cfg.decision.k) + " abnormal windows among the last " +
-      std::to_string(inputs.front().cfg.decision.n) + " scored ones.");
+      std::to_string(inputs.front().cfg.decision.n) +
+      " scored ones. Verdicts and example windows use the "
+      "configured method (" +
+      verdict_name + ").");
   write_html_report(html_path, data);
   out << "report written to " << html_path << " (" << data.examples.size() << " example windows, "
       << data.trends.size() << " methods)\n";

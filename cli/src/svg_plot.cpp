@@ -232,6 +232,67 @@ Spectrum amplitude_spectrum(std::span<const float> x, double fs_hz) {
   return s;
 }
 
+std::vector<double> amplitude_db(std::span<const double> amplitude, double floor_db) {
+  if (!std::isfinite(floor_db)) throw Error("svg::amplitude_db: floor_db must be finite");
+  std::vector<double> out(amplitude.size());
+  const double floor_amp = std::pow(10.0, floor_db / 20.0);
+  for (std::size_t k = 0; k < amplitude.size(); ++k) {
+    const double a = amplitude[k];
+    if (std::isnan(a)) {
+      out[k] = a;
+    } else if (!(a > floor_amp)) {
+      out[k] = floor_db;
+    } else {
+      out[k] = 20.0 * std::log10(a);
+    }
+  }
+  return out;
+}
+
+Spectrum envelope_spectrum(std::span<const float> x, double fs_hz, double f_lo_hz, double f_hi_hz) {
+  if (!(fs_hz > 0.0) || !std::isfinite(fs_hz)) throw Error("svg::envelope_spectrum: fs_hz must be > 0");
+  if (!dsp::RealFft::supported_length(x.size())) {
+    throw Error("svg::envelope_spectrum: length " + std::to_string(x.size()) +
+                " is not supported by RealFft (even, >= 4, prime factors 2, 3, 5 only)");
+  }
+  if (!std::isfinite(f_lo_hz) || !std::isfinite(f_hi_hz) || !(f_lo_hz < f_hi_hz) || f_lo_hz < 0.0 ||
+      f_hi_hz > fs_hz / 2.0) {
+    throw Error("svg::envelope_spectrum: band " + format_fixed(std::isfinite(f_lo_hz) ? f_lo_hz : 0.0, 1) +
+                ".." + format_fixed(std::isfinite(f_hi_hz) ? f_hi_hz : 0.0, 1) +
+                " Hz must satisfy 0 <= low < high <= fs/2 = " + format_fixed(fs_hz / 2.0, 1) + " Hz");
+  }
+  dsp::RealFft fft(x.size());
+  const std::size_t n_bins = fft.bins();
+  std::vector<std::complex<float>> bins(n_bins), band(n_bins), hilbert(n_bins);
+  fft.forward(x, bins);
+  const double df = fs_hz / static_cast<double>(x.size());
+  std::size_t kept = 0;
+  for (std::size_t k = 1; k + 1 < n_bins; ++k) {
+    const double f = static_cast<double>(k) * df;
+    if (f < f_lo_hz || f > f_hi_hz) continue;
+    band[k] = bins[k];
+    hilbert[k] = std::complex<float>(bins[k].imag(), -bins[k].real());  // -j X[k]
+    ++kept;
+  }
+  if (kept == 0) {
+    throw Error("svg::envelope_spectrum: band " + format_fixed(f_lo_hz, 1) + ".." + format_fixed(f_hi_hz, 1) +
+                " Hz holds no frequency bin (resolution " + format_fixed(df, 3) + " Hz)");
+  }
+  std::vector<float> b(x.size()), h(x.size());
+  fft.inverse(band, b);
+  fft.inverse(hilbert, h);
+  double mean = 0.0;
+  std::vector<double> env(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    env[i] = std::hypot(static_cast<double>(b[i]), static_cast<double>(h[i]));
+    mean += env[i];
+  }
+  mean /= static_cast<double>(x.size());
+  std::vector<float> centred(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) centred[i] = static_cast<float>(env[i] - mean);
+  return amplitude_spectrum(centred, fs_hz);
+}
+
 Layout compute_layout(const Plot& plot, const PlotStyle& style) {
   Layout l;
   double x_lo = std::numeric_limits<double>::infinity(), x_hi = -x_lo;
@@ -310,6 +371,15 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
   const int fpx = style.font_px;
   const int lfpx = legend_font_px(style);
   const double right = l.left_px + l.width_px, bottom = l.top_px + l.height_px;
+  std::vector<std::pair<double, std::string>> x_ticks;
+  if (plot.x_tick_labels.empty()) {
+    for (const double v : l.x_ticks.values) x_ticks.emplace_back(v, format_fixed(v, l.x_ticks.decimals));
+  } else {
+    const double tol = (l.x_hi - l.x_lo) * kTickTolerance;
+    for (const auto& t : plot.x_tick_labels) {
+      if (std::isfinite(t.first) && t.first >= l.x_lo - tol && t.first <= l.x_hi + tol) x_ticks.push_back(t);
+    }
+  }
   std::string o;
   o.reserve(4096);
   o += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + std::to_string(style.width_px) +
@@ -365,7 +435,7 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
       o += "<line x1=\"" + px(l.left_px) + "\" y1=\"" + px(l.y_px(v)) + "\" x2=\"" + px(right) + "\" y2=\"" +
            px(l.y_px(v)) + "\" stroke=\"#e6e6e6\"/>";
     }
-    for (const double v : l.x_ticks.values) {
+    for (const auto& [v, text] : x_ticks) {
       o += "<line x1=\"" + px(l.x_px(v)) + "\" y1=\"" + px(l.top_px) + "\" x2=\"" + px(l.x_px(v)) +
            "\" y2=\"" + px(bottom) + "\" stroke=\"#e6e6e6\"/>";
     }
@@ -457,12 +527,11 @@ std::string render_svg(const Plot& plot, const PlotStyle& style) {
            px(yp + fpx * 0.35) + "\" text-anchor=\"end\">" + format_fixed(v, l.y_ticks.decimals) +
            "</text>\n";
     }
-    for (const double v : l.x_ticks.values) {
+    for (const auto& [v, text] : x_ticks) {
       const double xp = l.x_px(v);
       o += "<line x1=\"" + px(xp) + "\" y1=\"" + px(bottom) + "\" x2=\"" + px(xp) + "\" y2=\"" +
            px(bottom + 4.0) + "\" stroke=\"#333333\"/><text x=\"" + px(xp) + "\" y=\"" +
-           px(bottom + 6.0 + fpx) + "\" text-anchor=\"middle\">" + format_fixed(v, l.x_ticks.decimals) +
-           "</text>\n";
+           px(bottom + 6.0 + fpx) + "\" text-anchor=\"middle\">" + escape_xml(text) + "</text>\n";
     }
   }
   if (!plot.x_label.empty()) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -228,6 +229,73 @@ TEST(SvgRender, CloseMarkerTextsAreStaggered) {
     EXPECT_NE(s.find(">m" + std::to_string(k) + "</text>"), std::string::npos);
   }
   EXPECT_EQ(s.find("outside"), std::string::npos);  // beyond the x range
+}
+
+TEST(SvgEnvelope, AmSignalGivesTheModulationLine) {
+  // x = A (1 + m cos 2 pi fm t) cos 2 pi fc t: the envelope is A (1 + m cos 2 pi fm t), so the
+  // envelope spectrum has one line at fm of amplitude A m. Frequencies on bins (fs / N = 2 Hz).
+  const std::size_t n = 12800;
+  const double fs = 25600.0, fc = 3000.0, fm = 24.0, a = 1.5, m = 0.4;
+  std::vector<float> x(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / fs;
+    x[i] = static_cast<float>(a * (1.0 + m * std::cos(2.0 * std::numbers::pi * fm * t)) *
+                              std::cos(2.0 * std::numbers::pi * fc * t));
+  }
+  const Spectrum e = envelope_spectrum(x, fs, 2500.0, 3500.0);
+  ASSERT_EQ(e.freq_hz.size(), n / 2 + 1);
+  const std::size_t k_fm = 12;  // 24 Hz / 2 Hz
+  EXPECT_DOUBLE_EQ(e.freq_hz[k_fm], fm);
+  EXPECT_NEAR(e.amplitude[k_fm], a * m, 1e-4);
+  EXPECT_NEAR(e.amplitude[0], 0.0, 1e-4);  // mean removed
+  std::size_t k_max = 1;
+  for (std::size_t k = 1; k < e.amplitude.size(); ++k) {
+    if (e.amplitude[k] > e.amplitude[k_max]) k_max = k;
+  }
+  EXPECT_EQ(k_max, k_fm);
+  for (std::size_t k = 1; k < e.amplitude.size(); ++k) {
+    if (k != k_fm) {
+      EXPECT_LT(e.amplitude[k], 1e-3) << k;  // no other line (m < 1: no harmonics)
+    }
+  }
+  // A band that misses the carrier and both sidebands sees nothing.
+  const Spectrum off = envelope_spectrum(x, fs, 5000.0, 6000.0);
+  EXPECT_LT(off.amplitude[k_fm], 1e-4);
+  // Errors: band outside (0, fs/2], empty band, unsupported length.
+  EXPECT_THROW((void)envelope_spectrum(x, fs, 3500.0, 2500.0), ptda::Error);
+  EXPECT_THROW((void)envelope_spectrum(x, fs, 2500.0, 13000.0), ptda::Error);
+  EXPECT_THROW((void)envelope_spectrum(x, fs, 3000.5, 3001.5), ptda::Error);
+  EXPECT_THROW((void)envelope_spectrum(std::vector<float>(1001), fs, 100.0, 200.0), ptda::Error);
+}
+
+TEST(SvgDb, ConversionAndFloor) {
+  const std::vector<double> a = {1.0, 10.0, 0.1, 1e-3, 1e-5, 0.0, -1.0, std::nan("")};
+  const std::vector<double> db = amplitude_db(a, -80.0);
+  ASSERT_EQ(db.size(), a.size());
+  EXPECT_NEAR(db[0], 0.0, 1e-12);
+  EXPECT_NEAR(db[1], 20.0, 1e-12);
+  EXPECT_NEAR(db[2], -20.0, 1e-12);
+  EXPECT_NEAR(db[3], -60.0, 1e-12);
+  EXPECT_EQ(db[4], -80.0);  // -100 dB: on the floor
+  EXPECT_EQ(db[5], -80.0);  // zero: on the floor, not -inf
+  EXPECT_EQ(db[6], -80.0);
+  EXPECT_TRUE(std::isnan(db[7]));  // not drawn
+  EXPECT_THROW((void)amplitude_db(a, -std::numeric_limits<double>::infinity()), ptda::Error);
+}
+
+TEST(SvgRender, CustomXTickLabels) {
+  Plot p;
+  Series s;
+  s.x = {0.0, 10.0, 20.0};
+  s.y = {1.0, 2.0, 3.0};
+  p.series.push_back(s);
+  p.x_tick_labels = {{0.0, "0"}, {12.0, "0"}, {20.0, "8"}, {25.0, "outside"}};
+  const std::string svg = render_svg(p);
+  const Layout l = compute_layout(p);
+  EXPECT_NE(svg.find("x=\"" + format_fixed(l.x_px(12.0), kPixelDecimals) + "\" y=\""), std::string::npos);
+  EXPECT_NE(svg.find("text-anchor=\"middle\">8</text>"), std::string::npos);
+  EXPECT_EQ(svg.find(">outside</text>"), std::string::npos);
+  EXPECT_EQ(svg.find(">10</text>"), std::string::npos);  // no automatic ticks
 }
 
 TEST(SvgSpectrum, SineAmplitudeAndUnsupportedLength) {

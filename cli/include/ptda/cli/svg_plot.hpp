@@ -49,6 +49,21 @@ struct Spectrum {
 };
 [[nodiscard]] Spectrum amplitude_spectrum(std::span<const float> x, double fs_hz);
 
+/// Amplitudes in dB re 1 unit: 20 log10(a). Values below floor_db (zeros and negatives included)
+/// are set to floor_db, so a spectrum with exact zeros still plots; NaN stays NaN (not drawn).
+/// Throws ptda::Error when floor_db is not finite. Thread: any. Allocates the result.
+[[nodiscard]] std::vector<double> amplitude_db(std::span<const double> amplitude, double floor_db);
+
+/// Envelope spectrum (demodulation): the FFT of x is band-passed to [f_lo_hz, f_hi_hz] (bins outside
+/// set to zero, DC and Nyquist always removed), the band signal b[n] and its Hilbert transform h[n]
+/// (the band bins times -j) come back by two inverse real FFTs, the envelope is
+/// e[n] = sqrt(b^2 + h^2) = |analytic signal|, and the result is amplitude_spectrum(e - mean(e)).
+/// For x = A (1 + m cos 2 pi fm t) cos 2 pi fc t with the band around fc +- fm, the line at fm has
+/// amplitude A m. Throws ptda::Error when fs_hz <= 0, the length is not supported by RealFft, or the
+/// band is empty or not inside (0, fs/2). Thread: any. Allocates.
+[[nodiscard]] Spectrum envelope_spectrum(std::span<const float> x, double fs_hz, double f_lo_hz,
+                                         double f_hi_hz);
+
 /// A data series. kLine draws a polyline (decimated by min_max_envelope to the pixel columns);
 /// kMarkers draws a circle per point; kRings an open circle per point (e.g. abnormal windows).
 struct Series {
@@ -92,7 +107,10 @@ struct Plot {
   std::vector<VLine> vlines;
   std::string legend_span_label;  ///< unused unless non-empty: legend entry for the spans' color
   std::optional<double> x_min, x_max, y_min, y_max;  ///< fixed axis limits; unset: from the data
-  std::string empty_message = "no data";             ///< shown when there is nothing to draw
+  /// Custom x ticks (position, text), e.g. times that restart at 0 for each recording of a trend;
+  /// empty: automatic nice ticks. Ticks outside the x range are not drawn.
+  std::vector<std::pair<double, std::string>> x_tick_labels;
+  std::string empty_message = "no data";  ///< shown when there is nothing to draw
 };
 
 struct PlotStyle {
