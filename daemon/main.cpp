@@ -119,6 +119,7 @@ int main(int argc, char** argv) {
       const std::filesystem::path dir =
           cli.options.config_dir ? *cli.options.config_dir : cli.options.config_file.parent_path() / "conf.d";
       const DaemonConfig cfg = load_daemon_config(cli.options.config_file, list_dropins(dir));
+      for (const std::string& w : cfg.pipeline.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
       std::printf("%s: configuration is valid (%zu file(s); adc %s, can %s, window %u samples, method %s)\n",
                   cli.options.config_file.c_str(), cfg.files.size(), adc_backend_name(cfg.adc.backend),
                   can_backend_name(cfg.can.backend), cfg.pipeline.extraction.window_len,

@@ -286,6 +286,7 @@ MonitorInputs load_monitor_inputs(const std::string& recording, const std::strin
   in.baseline_path = baseline_path;
   in.rec = open_recording(recording);
   in.cfg = config::load_pipeline_config(config_path);
+  for (const std::string& w : in.cfg.warnings) std::cerr << "warning: " << w << "\n";
   in.baseline = formats::read_baseline(baseline_path);
   in.fs_hz = pipeline_fs_hz(in.rec, in.cfg, config_path);
   check_baseline_matches(in.baseline, baseline_path, in.cfg, config_path, in.fs_hz, in.rec.wav_path.string());

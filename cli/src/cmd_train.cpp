@@ -1,6 +1,7 @@
 // ptda train --recording DIR [--recording DIR ...] --config FILE --out BASELINE [--windows FROM:TO]
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <ostream>
 
 #include "ptda/cli/args.hpp"
@@ -50,6 +51,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   if (a.has("windows")) range = parse_fraction_range(a.value("windows"), "windows");
   const std::string config_path = a.value("config");
   const config::PipelineConfig cfg = config::load_pipeline_config(config_path);
+  for (const std::string& w : cfg.warnings) std::cerr << "warning: " << w << "\n";
 
   dsp::CollectedWindows all;
   double fs_hz = 0.0;
