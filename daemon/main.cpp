@@ -30,7 +30,9 @@ constexpr const char* kUsage =
     "options:\n"
     "  --config FILE      main configuration (default /etc/ptda/ptda.toml)\n"
     "  --config-dir DIR   drop-ins DIR/*.toml applied in lexical order (default: conf.d next to FILE)\n"
-    "  --check-config     validate the configuration and exit: 0 = valid, 1 = \"file:line:column: what\"\n"
+    "  --check-config     validate the configuration and open every path it names (baseline, recording,\n"
+    "                     scenario, devices; with --train the baseline's directory instead of the\n"
+    "                     baseline) and exit: 0 = valid, 1 = \"file:line:column: what\" or a path problem\n"
     "  --train            field training: collect healthy windows, write the baseline, then monitor\n"
     "  --status-dir DIR   write status.json to DIR instead of [daemon] status_dir\n"
     "  --foreground       log to the terminal even under systemd (default: journal when\n"
@@ -119,6 +121,13 @@ int main(int argc, char** argv) {
       const std::filesystem::path dir =
           cli.options.config_dir ? *cli.options.config_dir : cli.options.config_file.parent_path() / "conf.d";
       const DaemonConfig cfg = load_daemon_config(cli.options.config_file, list_dropins(dir));
+      for (const std::string& w : cfg.pipeline.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+      // Syntax alone is not "valid": every path must open (a missing baseline or recording is an error).
+      const std::vector<std::string> problems = check_config_paths(cfg, cli.options.train);
+      for (const std::string& p : problems) {
+        std::fprintf(stderr, "%s: %s\n", cli.options.config_file.c_str(), p.c_str());
+      }
+      if (!problems.empty()) return kExitError;
       std::printf("%s: configuration is valid (%zu file(s); adc %s, can %s, window %u samples, method %s)\n",
                   cli.options.config_file.c_str(), cfg.files.size(), adc_backend_name(cfg.adc.backend),
                   can_backend_name(cfg.can.backend), cfg.pipeline.extraction.window_len,

@@ -359,8 +359,16 @@ check "user ptda (adduser): home /var/lib/ptda, shell /usr/sbin/nologin" \
   sh -c "chroot '$root' getent passwd ptda | grep -q ':/var/lib/ptda:/usr/sbin/nologin\$'"
 check "user ptda is in groups ptda and ptda-hw" sh -c "chroot '$root' id -nG ptda | tr ' ' '\n' | sort | tr '\n' ' ' | grep -qx 'ptda ptda-hw '"
 check "/var/lib/ptda is ptda:ptda 0750" test "$(perms /var/lib/ptda)" = "ptda:ptda 750"
-out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config 2>&1)" || fail "ptdad --config /etc/ptda/ptda.toml --check-config: $out"
-ok "ptdad --config /etc/ptda/ptda.toml --check-config: $out"
+# A fresh install has no baseline: --check-config opens every path (issue 17), so the shipped
+# configuration is ready for field training (--train: the baseline's directory must exist) and plain
+# --check-config names the missing baseline.
+out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config --train 2>&1)" || fail "ptdad --config /etc/ptda/ptda.toml --check-config --train: $out"
+ok "ptdad --config /etc/ptda/ptda.toml --check-config --train: $out"
+if out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config 2>&1)"; then
+  fail "ptdad --check-config without a baseline said valid: $out"
+fi
+echo "$out" | grep -q "baseline: /var/lib/ptda/baseline.bin" || fail "ptdad --check-config without a baseline: $out"
+ok "ptdad --check-config without a baseline: exit 1, $out"
 apt_get a-purge purge ptdad ptda-common
 [ -z "$(version_of ptdad)" ] || fail "ptdad still known to dpkg after purge: $(status_of ptdad)"
 ok "purged"
@@ -412,8 +420,16 @@ check "ptdad.service enabled (multi-user.target.wants symlink)" sh -c "[ \"\$(re
 check "deb-systemd-helper recorded the enablement" test -e "$root/var/lib/systemd/deb-systemd-helper-enabled/ptdad.service.dsh-also"
 
 echo "  -- the programs"
-out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config 2>&1)" || fail "ptdad --config /etc/ptda/ptda.toml --check-config: $out"
-ok "ptdad --config /etc/ptda/ptda.toml --check-config: $out"
+# A fresh install has no baseline: --check-config opens every path (issue 17), so the shipped
+# configuration is ready for field training (--train: the baseline's directory must exist) and plain
+# --check-config names the missing baseline.
+out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config --train 2>&1)" || fail "ptdad --config /etc/ptda/ptda.toml --check-config --train: $out"
+ok "ptdad --config /etc/ptda/ptda.toml --check-config --train: $out"
+if out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config 2>&1)"; then
+  fail "ptdad --check-config without a baseline said valid: $out"
+fi
+echo "$out" | grep -q "baseline: /var/lib/ptda/baseline.bin" || fail "ptdad --check-config without a baseline: $out"
+ok "ptdad --check-config without a baseline: exit 1, $out"
 out="$(in_root ptdad --version 2>&1)" || fail "ptdad --version: $out"
 [ "$out" = "ptdad ${version%-*}" ] || fail "ptdad --version says '$out', expected 'ptdad ${version%-*}'"
 ok "ptdad --version: $out"
@@ -453,7 +469,7 @@ baseline_sum="$(sha256sum < "$root/var/lib/ptda/baseline.bin")"
 dropin_sum="$(sha256sum < "$root/etc/ptda/conf.d/50-site.toml")"
 conf_sum="$(sha256sum < "$root/etc/ptda/ptda.toml")"
 ok "wrote /etc/ptda/conf.d/50-site.toml and a fake /var/lib/ptda/baseline.bin (64 KiB, ptda:ptda 0600)"
-out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config 2>&1)" || fail "check-config with the edit and the drop-in: $out"
+out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config --train 2>&1)" || fail "check-config with the edit and the drop-in: $out"
 ok "ptdad --check-config with the edit and the drop-in: $out"
 
 local_state_kept() { # when
@@ -511,7 +527,7 @@ apt_get b-reinstall install "/tmp/debs/ptdad_${v2}.deb"
 ok "reinstall: ptdad $v2 installed, no conffile question"
 local_state_kept "reinstall"
 check "reinstall: enabled again" sh -c "[ \"\$(readlink '$wants')\" = /lib/systemd/system/ptdad.service ]"
-out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config 2>&1)" || fail "reinstall: check-config: $out"
+out="$(in_root ptdad --config /etc/ptda/ptda.toml --check-config --train 2>&1)" || fail "reinstall: check-config: $out"
 ok "reinstall: ptdad --check-config: $out"
 
 echo "  -- purge"

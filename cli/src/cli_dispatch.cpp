@@ -20,6 +20,8 @@ struct Command {
 constexpr Command kCommands[] = {
     {"simulate", "simulate a robot joint + gearbox into a recording directory", &cmd_simulate},
     {"import", "turn one column of a CSV(.gz) file into a constant-speed recording", &cmd_import},
+    {"doctor", "commissioning check: CAN id, speed scale, plateaus vs. window, baseline vs. job",
+     &cmd_doctor},
     {"train", "learn the healthy baseline (segment classes, averages, thresholds)", &cmd_train},
     {"monitor", "score every window of a recording against a baseline (table + JSONL)", &cmd_monitor},
     {"report", "compare raw, TDA and PTDA over recordings in one HTML report", &cmd_report},
@@ -39,7 +41,8 @@ std::string overview_help() {
     s += "  " + std::string(c.name) + std::string(10 - c.name.size(), ' ') + std::string(c.summary) + "\n";
   }
   s += "\n'ptda <command> --help' describes each command's options.\n"
-       "exit codes: 0 ok, 1 data or runtime error, 2 usage error.\n";
+       "exit codes: 0 ok, 1 data or runtime error, 2 usage error, 3 nothing cut or judged, 4 a\n"
+       "commissioning mistake (run 'ptda doctor'); docs/cli.md lists them per command.\n";
   return s;
 }
 

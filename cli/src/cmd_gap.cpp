@@ -74,6 +74,7 @@ int cmd_gap(std::span<const std::string> args, std::ostream& out) {
   }
   if (a.has("threads")) opt.threads = static_cast<unsigned>(parse_u64_arg(a.value("threads"), "threads"));
   const sim::Scenario nominal = sim::load_scenario(a.value("scenario"));
+  for (const std::string& w : nominal.warnings) std::cerr << "warning: " << w << "\n";
   const gap::GapRecording real =
       gap::load_recording(a.value("real"), nominal.can.speed_frame, nominal.can.delay_s);
   if (!a.has("quiet")) opt.log = [](const std::string& s) { std::cerr << "ptda gap: " << s << "\n"; };

@@ -6,6 +6,7 @@
 
 #include "ptda/cli/args.hpp"
 #include "ptda/cli/commands.hpp"
+#include "ptda/cli/doctor.hpp"
 #include "ptda/cli/jsonl.hpp"
 #include "ptda/cli/monitor_output.hpp"
 #include "ptda/cli/pipeline_runner.hpp"
@@ -286,6 +287,7 @@ MonitorInputs load_monitor_inputs(const std::string& recording, const std::strin
   in.baseline_path = baseline_path;
   in.rec = open_recording(recording);
   in.cfg = config::load_pipeline_config(config_path);
+  for (const std::string& w : in.cfg.warnings) std::cerr << "warning: " << w << "\n";
   in.baseline = formats::read_baseline(baseline_path);
   in.fs_hz = pipeline_fs_hz(in.rec, in.cfg, config_path);
   check_baseline_matches(in.baseline, baseline_path, in.cfg, config_path, in.fs_hz, in.rec.wav_path.string());
@@ -391,6 +393,14 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   // With the JSONL on stdout the warnings go to stderr, so the JSONL stays clean.
   std::ostream& warn = jsonl_path == "-" ? std::cerr : out;
   print_coverage_warnings(warn, r.coverage, in.baseline, opts.coverage_timeout_s);
+  if (r.coverage.judged == 0) {
+    // Why nothing was judged, in the words of `ptda doctor`.
+    const DoctorReport d =
+        diagnose_commissioning(in.rec, in.cfg, in.config_path, &in.baseline, in.baseline_path);
+    for (const DoctorFinding& f : d.findings) {
+      if (f.kind == DoctorFinding::Kind::kProblem) warn << "diagnosis: " << f.text << "\n";
+    }
+  }
   print_training_overlap(warn, in.baseline, recording_id(in.rec), r.windows, in.rec.t0_ns);
   std::size_t judged = 0;
   for (const auto& w : r.windows) judged += w.status == dsp::WindowStatus::kScored ? 1 : 0;

@@ -1,5 +1,6 @@
 // ptda simulate --scenario FILE --out DIR [--seed N]
 #include <cmath>
+#include <iostream>
 #include <numbers>
 #include <ostream>
 
@@ -25,6 +26,7 @@ int cmd_simulate(std::span<const std::string> args, std::ostream& out) {
   std::optional<std::uint64_t> seed;
   if (a.has("seed")) seed = parse_u64_arg(a.value("seed"), "seed");
   const sim::Scenario scenario = sim::load_scenario(a.value("scenario"));
+  for (const std::string& w : scenario.warnings) std::cerr << "warning: " << w << "\n";
   const sim::SimulationSummary s = sim::simulate_to_directory(scenario, a.value("out"), seed);
 
   out << "simulated '" << scenario.name << "' (seed " << s.seed << ") into " << a.value("out") << "\n";

@@ -1,10 +1,12 @@
 // ptda train --recording DIR [--recording DIR ...] --config FILE --out BASELINE [--windows FROM:TO]
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <ostream>
 
 #include "ptda/cli/args.hpp"
 #include "ptda/cli/commands.hpp"
+#include "ptda/cli/doctor.hpp"
 #include "ptda/cli/pipeline_runner.hpp"
 #include "ptda/cli/text.hpp"
 #include "ptda/common/error.hpp"
@@ -50,6 +52,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   if (a.has("windows")) range = parse_fraction_range(a.value("windows"), "windows");
   const std::string config_path = a.value("config");
   const config::PipelineConfig cfg = config::load_pipeline_config(config_path);
+  for (const std::string& w : cfg.warnings) std::cerr << "warning: " << w << "\n";
 
   dsp::CollectedWindows all;
   double fs_hz = 0.0;
@@ -61,6 +64,8 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     std::size_t begin = 0, end = 0;
   };
   std::vector<Span> spans;
+  std::vector<RecordingInfo> recs;
+  std::vector<DoctorReport> diagnoses;
   for (const auto& dir : a.values("recording")) {
     const RecordingInfo rec = open_recording(dir);
     const double fs = pipeline_fs_hz(rec, cfg, config_path);
@@ -75,6 +80,10 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     opts.progress_label = "train " + rec.dir.filename().string();
     opts.config_source = config_path;
     CollectResult c = collect_windows(rec, cfg, fs, opts);
+    // The commissioning checks of `ptda doctor` (speed scale against the vibration, plateaus against
+    // the window): a baseline on a wrong speed scale must not be written silently.
+    diagnoses.push_back(diagnose_commissioning(rec, cfg, config_path, nullptr, ""));
+    recs.push_back(rec);
     out << "recording " << dir << ": " << fixed(rec.duration_s, 2) << " s at " << general(fs, 10) << " Hz, "
         << c.data.regions.size() << " constant-speed regions, " << c.data.refs.size() << " windows\n";
     out << "  slicer: " << c.slicer.windows_invalid << " invalid and " << c.slicer.windows_lost
@@ -118,6 +127,25 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     out << "windows " << a.value("windows") << ": kept " << all.refs.size() << " of " << n << " windows ("
         << all.regions.size() << " regions)\n";
     source += " --windows " + a.value("windows");
+  }
+  for (std::size_t i = 0; i < diagnoses.size(); ++i) {
+    for (const DoctorFinding& f : diagnoses[i].findings) {
+      if (f.kind == DoctorFinding::Kind::kProblem)
+        out << "warning: " << recs[i].dir.string() << ": " << f.text << "\n";
+    }
+  }
+  if (all.refs.empty()) {
+    out << "error: no constant-speed windows in the training recording(s) (window_len "
+        << cfg.extraction.window_len << ", min_duration_s " << general(cfg.extraction.min_duration_s)
+        << "): nothing to train on; the warnings above say why (ptda doctor gives the whole check)\n";
+    return kExitNotJudged;
+  }
+  for (std::size_t i = 0; i < diagnoses.size(); ++i) {
+    if (diagnoses[i].scale.mismatch()) {
+      out << "error: " << recs[i].dir.string() << ": not training on a wrong speed scale: "
+          << scale_mismatch_text(diagnoses[i].scale, cfg, config_path) << "\n";
+      return kExitCommissioning;
+    }
   }
   if (all.refs.empty()) {
     throw Error("no constant-speed windows in the training recording(s): check [extraction] in " +

@@ -59,6 +59,13 @@ void format_signal(std::ostringstream& os, const char* name, const SignalSpec& s
 
 }  // namespace
 
+std::string little_endian_deprecation(const std::string& where, const std::string& key, bool little) {
+  return where + ": " + key + " = " + (little ? "true" : "false") +
+         " is deprecated (accepted until the next release): write byte_order = \"" +
+         (little ? "little" : "big") +
+         "\" instead, the spelling shared by pipeline configurations and simulator scenarios";
+}
+
 std::string_view threshold_kind_name(ThresholdKind kind) noexcept {
   switch (kind) {
     case ThresholdKind::kGaussian:
@@ -152,8 +159,26 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
         ignore_owned(sr);
         get(sr, "start_byte", sig.start_byte, std::uint8_t{0}, std::uint8_t{7});
         get(sr, "length", sig.length, std::uint8_t{1}, std::uint8_t{8});
-        choice(sr, "byte_order", sig.little_endian,
-               std::initializer_list<std::pair<std::string_view, bool>>{{"little", true}, {"big", false}});
+        const bool order_given = sr.read_choice(
+            "byte_order", sig.little_endian,
+            std::initializer_list<std::pair<std::string_view, bool>>{{"little", true}, {"big", false}});
+        if (order_given) note(sr, "byte_order");
+        // The scenario spelling before issue 17, accepted for one release.
+        bool little = true;
+        if (sr.read("little_endian", little)) {
+          const SourceLocation at = sr.location("little_endian", false);
+          const std::string order = little ? "little" : "big";
+          if (order_given && little != sig.little_endian) {
+            fail_at(at, sr.qualified("little_endian") + " = " + (little ? "true" : "false") +
+                            " contradicts byte_order = \"" + (sig.little_endian ? "little" : "big") +
+                            "\" in the same table: delete little_endian (deprecated) and keep the right "
+                            "byte_order");
+          }
+          cfg_.warnings.push_back(little_endian_deprecation(
+              at.source + ":" + std::to_string(at.line) + ":" + std::to_string(at.column),
+              sr.qualified("little_endian"), little));
+          sig.little_endian = little;
+        }
         get(sr, "signed", sig.is_signed);
         double scale = 0.0;
         if (sr.read("scale", scale, -1e12, 1e12)) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <map>
 #include <system_error>
 
@@ -9,6 +10,10 @@
 #include "ptda/config/pipeline_config_builder.hpp"
 #include "ptda/config/toml_reader.hpp"
 #include "ptda/drivers/sample_source.hpp"
+#include "ptda/formats/baseline_file.hpp"
+#include "ptda/formats/recording.hpp"
+#include "ptda/formats/wav.hpp"
+#include "ptda/sim/simulator.hpp"
 
 namespace ptda::daemon {
 
@@ -359,6 +364,70 @@ DaemonConfig parse_daemon_config(std::string_view toml_text, const std::string& 
   out.pipeline = pipeline.finish();
   tables.finish(out);
   return out;
+}
+
+std::vector<std::string> check_config_paths(const DaemonConfig& cfg, bool train) {
+  std::vector<std::string> problems;
+  std::error_code ec;
+  if (train) {
+    const fs::path out = cfg.training.output.empty() ? cfg.daemon.baseline : cfg.training.output;
+    const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
+    if (!fs::is_directory(dir, ec)) {
+      problems.push_back("[training] output / [daemon] baseline " + out.string() + ": the directory " +
+                         dir.string() + " does not exist, so field training could not write the baseline");
+    }
+  } else {
+    try {
+      const dsp::Baseline b = formats::read_baseline(cfg.daemon.baseline);
+      if (b.window_len != cfg.pipeline.extraction.window_len) {
+        problems.push_back(
+            "[daemon] baseline " + cfg.daemon.baseline.string() + " was trained with window_len " +
+            std::to_string(b.window_len) + " but [extraction] window_len is " +
+            std::to_string(cfg.pipeline.extraction.window_len) + ": use the job's configuration or retrain");
+      }
+      if (cfg.pipeline.fs_hz != 0.0 && std::fabs(b.fs_hz - cfg.pipeline.fs_hz) > 1e-9 * b.fs_hz) {
+        problems.push_back("[daemon] baseline " + cfg.daemon.baseline.string() + " was trained at " +
+                           std::to_string(b.fs_hz) + " Hz but [acquisition] fs_hz is " +
+                           std::to_string(cfg.pipeline.fs_hz));
+      }
+    } catch (const Error& e) {
+      problems.push_back(
+          "[daemon] baseline: " + std::string(e.what()) +
+          ": without a baseline the daemon refuses monitoring. Train one (ptda train, or ptdad "
+          "--train; check that with --check-config --train) or fix the path");
+    }
+  }
+  if (cfg.adc.backend == AdcBackend::kWav) {
+    try {
+      const formats::RecordingMeta meta = formats::read_recording_meta(cfg.adc.recording);
+      formats::WavReader wav(cfg.adc.recording / meta.vibration_file);
+      if (cfg.can.backend == CanBackend::kCandump && cfg.can.replay_file.empty() &&
+          !fs::is_regular_file(cfg.adc.recording / meta.can_file, ec)) {
+        problems.push_back("[adc] recording " + cfg.adc.recording.string() + ": its CAN log " +
+                           (cfg.adc.recording / meta.can_file).string() + " does not exist");
+      }
+    } catch (const Error& e) {
+      problems.push_back("[adc] recording: " + std::string(e.what()));
+    }
+  } else if (cfg.adc.backend == AdcBackend::kSim) {
+    try {
+      (void)sim::load_scenario(cfg.adc.scenario);
+    } catch (const Error& e) {
+      problems.push_back("[adc] scenario: " + std::string(e.what()));
+    }
+  } else {
+    for (const fs::path& p : {cfg.adc.sysfs_dir, cfg.adc.device}) {
+      if (!fs::exists(p, ec))
+        problems.push_back("[adc] " + p.string() +
+                           " does not exist (is the IIO driver loaded? see docs/drivers.md)");
+    }
+  }
+  if (cfg.can.backend == CanBackend::kCandump && !cfg.can.replay_file.empty() &&
+      !fs::is_regular_file(cfg.can.replay_file, ec)) {
+    problems.push_back("[can] replay_file " + cfg.can.replay_file.string() +
+                       " does not exist or is not a file");
+  }
+  return problems;
 }
 
 }  // namespace ptda::daemon

@@ -134,6 +134,14 @@ struct DaemonConfig {
 [[nodiscard]] DaemonConfig load_daemon_config(const std::filesystem::path& main_file,
                                               const std::vector<std::filesystem::path>& dropins = {});
 
+/// What `ptdad --check-config` adds to the syntax check: opens every path the configuration names and
+/// returns one sentence per problem (empty = ready to run). Monitoring (train = false): the baseline
+/// must read (formats::read_baseline) and fit [extraction] window_len and [acquisition] fs_hz; field
+/// training (train = true): the directory the baseline will be written to must exist. [adc] wav: the
+/// recording directory and its WAV; [can] candump: the log; [adc] sim: the scenario parses; [adc] iio:
+/// the sysfs directory and the device node exist. Thread: any. Allocates, reads files (blocks).
+[[nodiscard]] std::vector<std::string> check_config_paths(const DaemonConfig& cfg, bool train);
+
 /// As load_daemon_config() for TOML text (tests); `source` names it and relative paths are relative
 /// to the current directory. Thread: any. Allocates.
 [[nodiscard]] DaemonConfig parse_daemon_config(std::string_view toml_text, const std::string& source);

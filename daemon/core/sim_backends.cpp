@@ -1,5 +1,6 @@
 #include "core/sim_backends.hpp"
 
+#include <spdlog/spdlog.h>
 #include <stdlib.h>
 #include <unistd.h>
 
@@ -64,6 +65,7 @@ class TempDir {
 
 std::shared_ptr<const SimRecording> make_sim_recording(const fs::path& scenario_path, std::uint32_t seed) {
   const sim::Scenario scenario = sim::load_scenario(scenario_path);
+  for (const std::string& w : scenario.warnings) spdlog::warn("{}", w);
   // Simulate through the recording writer and read it back: the simulator backend then serves exactly
   // the bytes `ptda simulate` would write (quantised codes, candump microsecond timestamps).
   TempDir dir;

@@ -13,6 +13,7 @@
 
 #include "ptda/common/error.hpp"
 #include "ptda/common/file_check.hpp"
+#include "ptda/config/pipeline_config.hpp"
 #include "ptda/sim/simulator.hpp"
 #include "sim_internal.hpp"
 
@@ -375,18 +376,41 @@ void parse_sensor(Reader& r, SensorSpec& s) {
   r.finish();
 }
 
-void parse_signal(Reader& r, config::SignalSpec& s) {
-  r.known_keys({"start_byte", "length", "little_endian", "signed", "scale", "offset"});
+// The byte order is `byte_order = "little" | "big"`, as in pipeline configurations (config/README.md);
+// the older `little_endian = true | false` is accepted for one release with a warning naming file:line.
+void parse_signal(Reader& r, config::SignalSpec& s, std::vector<std::string>& warnings) {
+  r.known_keys({"start_byte", "length", "byte_order", "little_endian", "signed", "scale", "offset"});
   s.start_byte = static_cast<std::uint8_t>(r.integer("start_byte", s.start_byte, 0, 63));
   s.length = static_cast<std::uint8_t>(r.integer("length", s.length, 1, 8));
-  s.little_endian = r.boolean("little_endian", s.little_endian);
+  const bool order_given = r.has("byte_order");
+  if (order_given) {
+    const std::string order = r.string("byte_order", "");
+    if (order != "little" && order != "big")
+      throw r.error("byte_order", "must be one of \"little\", \"big\", not \"" + order + "\"");
+    s.little_endian = order == "little";
+  }
+  if (r.has("little_endian")) {
+    const bool little = r.boolean("little_endian", s.little_endian);
+    const auto it = r.raw().find("little_endian");
+    const toml::source_region& at = it->first.source();
+    if (order_given && little != s.little_endian) {
+      throw r.error_at(at, r.full("little_endian") + " = " + (little ? "true" : "false") +
+                               " contradicts byte_order = \"" + (s.little_endian ? "little" : "big") +
+                               "\" in the same table: delete little_endian (deprecated) and keep the "
+                               "right byte_order");
+    }
+    warnings.push_back(config::little_endian_deprecation(
+        r.source() + ":" + std::to_string(at.begin.line) + ":" + std::to_string(at.begin.column),
+        r.full("little_endian"), little));
+    s.little_endian = little;
+  }
   s.is_signed = r.boolean("signed", s.is_signed);
   s.scale = r.number("scale", s.scale);
   s.offset = r.number("offset", s.offset);
   r.finish();
 }
 
-void parse_can(Reader& r, CanSpec& c, const std::string& source) {
+void parse_can(Reader& r, CanSpec& c, const std::string& source, std::vector<std::string>& warnings) {
   r.known_keys({"period_s", "clock_offset_s", "clock_drift_ppm", "delay_s", "jitter_s", "other_frames_per_s",
                 "iface", "speed_frame"});
   c.period_s = r.number("period_s", c.period_s);
@@ -410,19 +434,30 @@ void parse_can(Reader& r, CanSpec& c, const std::string& source) {
               std::to_string(kMaxInterfaceNameBytes) + " (IFNAMSIZ 16 with the NUL)");
   if (const toml::table* sf = r.table("speed_frame")) {
     Reader sr(*sf, "can.speed_frame", source);
-    sr.known_keys({"id", "extended", "dlc", "has_angle", "speed", "angle"});
+    sr.known_keys({"id", "extended", "dlc", "period_s", "has_angle", "speed", "angle"});
     auto& spec = c.speed_frame;
     spec.extended = sr.boolean("extended", spec.extended);
     spec.id = static_cast<std::uint32_t>(sr.integer("id", spec.id, 0, spec.extended ? 0x1FFFFFFF : 0x7FF));
     spec.dlc = static_cast<std::uint8_t>(sr.integer("dlc", spec.dlc, 0, 8));
     spec.has_angle = sr.boolean("has_angle", spec.has_angle);
+    // period_s here is the pipeline configuration's key for the same period as [can] period_s, so a
+    // [can.speed_frame] block copies both ways.
+    if (sr.has("period_s")) {
+      const double period_s = sr.number("period_s", c.period_s);
+      require(period_s >= 1e-4 && period_s <= 1.0, sr, "period_s", "must be in [0.0001, 1] s");
+      require(!r.has("period_s") || period_s == c.period_s, sr, "period_s",
+              "disagrees with [can] period_s = " + std::to_string(c.period_s) + " (give the period once)");
+      c.period_s = period_s;
+      require(c.clock_offset_s < c.period_s, r, "clock_offset_s", "must be in [0, period_s)");
+      require(c.jitter_s < c.period_s, r, "jitter_s", "must be in [0, period_s) so frames stay in order");
+    }
     if (const toml::table* t = sr.table("speed")) {
       Reader x(*t, "can.speed_frame.speed", source);
-      parse_signal(x, spec.speed);
+      parse_signal(x, spec.speed, warnings);
     }
     if (const toml::table* t = sr.table("angle")) {
       Reader x(*t, "can.speed_frame.angle", source);
-      parse_signal(x, spec.angle);
+      parse_signal(x, spec.angle, warnings);
     }
     sr.finish();
     try {
@@ -537,7 +572,7 @@ Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
   }
   if (const toml::table* t = r.table("can")) {
     Reader x(*t, "can", source);
-    parse_can(x, s.can, source);
+    parse_can(x, s.can, source, s.warnings);
   }
   if (const toml::table* t = r.table("drift")) {
     Reader x(*t, "drift", source);

@@ -291,10 +291,10 @@ TEST(PipelineConfigErrors, UnknownKeysAndTables) {
       "cfg.toml:1:1: unknown key 'fs_hz' at the top level (known: acquisition, can, extraction, classes, "
       "thresholds, decision, monitor, gearbox)");
   // Nested: the key's own column.
-  EXPECT_EQ(
-      error_of("[extraction]\nwindow_len = 4096\n[can.speed_frame.speed]\n  lenght = 2\n"),
-      "cfg.toml:4:3: unknown key 'lenght' in [can.speed_frame.speed] (known: start_byte, length, byte_order, "
-      "signed, scale, offset)");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 4096\n[can.speed_frame.speed]\n  lenght = 2\n"),
+            "cfg.toml:4:3: unknown key 'lenght' in [can.speed_frame.speed] (known: start_byte, length, "
+            "byte_order, little_endian, "
+            "signed, scale, offset)");
 }
 
 TEST(PipelineConfigErrors, IgnoredTables) {
@@ -647,6 +647,42 @@ TEST(PipelineConfigPermissions, GroupWritableConfigIsRefusedAsRoot) {
   ASSERT_EQ(::chmod(base.c_str(), 0644), 0);
   EXPECT_NO_THROW((void)load_pipeline_config(base));
   fs::remove_all(dir);
+}
+
+// One CAN frame schema (issue 17): `byte_order` is the spelling; the scenarios' old `little_endian`
+// is accepted for one release with a warning naming file:line:column, and a pair that disagrees is an
+// error at the deprecated key.
+TEST(SpeedFrameSchema, DeprecatedLittleEndianIsAcceptedWithAWarningNamingFileLine) {
+  const PipelineConfig cfg = parse_pipeline_config(std::string(kMinimal) +
+                                                       "[can.speed_frame.speed]\n"
+                                                       "little_endian = false\n"
+                                                       "[can.speed_frame.angle]\n"
+                                                       "byte_order = \"big\"\n",
+                                                   "cfg.toml");
+  EXPECT_FALSE(cfg.speed_frame.speed.little_endian);
+  EXPECT_FALSE(cfg.speed_frame.angle.little_endian);
+  ASSERT_EQ(cfg.warnings.size(), 1U);
+  EXPECT_EQ(cfg.warnings[0],
+            "cfg.toml:4:1: can.speed_frame.speed.little_endian = false is deprecated (accepted until the "
+            "next release): write byte_order = \"big\" instead, the spelling shared by pipeline "
+            "configurations and simulator scenarios");
+  EXPECT_TRUE(parse_pipeline_config(std::string(kMinimal) + "[can.speed_frame.speed]\nbyte_order = "
+                                                            "\"little\"\n",
+                                    "cfg.toml")
+                  .warnings.empty());
+}
+
+TEST(SpeedFrameSchema, ConflictingByteOrderAndLittleEndianIsAnError) {
+  EXPECT_EQ(error_of(std::string(kMinimal) +
+                     "[can.speed_frame.angle]\nbyte_order = \"big\"\nlittle_endian = true\n"),
+            "cfg.toml:5:1: can.speed_frame.angle.little_endian = true contradicts byte_order = \"big\" in "
+            "the same table: delete little_endian (deprecated) and keep the right byte_order");
+  // Agreeing: accepted, still a deprecation warning.
+  const PipelineConfig cfg = parse_pipeline_config(
+      std::string(kMinimal) + "[can.speed_frame.angle]\nbyte_order = \"big\"\nlittle_endian = false\n",
+      "cfg.toml");
+  EXPECT_FALSE(cfg.speed_frame.angle.little_endian);
+  EXPECT_EQ(cfg.warnings.size(), 1U);
 }
 
 }  // namespace

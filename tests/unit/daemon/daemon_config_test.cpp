@@ -169,5 +169,44 @@ TEST(DaemonConfig, ShippedExamplesAreValid) {
   }
 }
 
+// `ptdad --check-config` (issue 17): syntax is not enough, every path must open.
+TEST(DaemonConfigPaths, MissingBaselineAndRecordingAreProblemsNamingThePath) {
+  const fs::path dir = scratch("config_paths");
+  const fs::path baseline = dir / "missing.bin";
+  DaemonConfig cfg = parse_daemon_config(sim_config(baseline, dir, "fast"), "t.toml");
+  std::vector<std::string> p = check_config_paths(cfg, false);
+  ASSERT_EQ(p.size(), 1U);
+  EXPECT_NE(p[0].find("[daemon] baseline: " + baseline.string()), std::string::npos) << p[0];
+  EXPECT_NE(p[0].find("refuses monitoring. Train one"), std::string::npos) << p[0];
+  // Field training writes the baseline: its directory is what must exist.
+  EXPECT_TRUE(check_config_paths(cfg, true).empty());
+  cfg.daemon.baseline = dir / "no_such_dir" / "b.bin";
+  p = check_config_paths(cfg, true);
+  ASSERT_EQ(p.size(), 1U);
+  EXPECT_NE(p[0].find("the directory " + (dir / "no_such_dir").string() + " does not exist"),
+            std::string::npos)
+      << p[0];
+
+  // A real baseline: no problem; then a replay of a recording that is not there.
+  write_sim_baseline(baseline);
+  cfg = parse_daemon_config(sim_config(baseline, dir, "fast"), "t.toml");
+  EXPECT_TRUE(check_config_paths(cfg, false).empty());
+  cfg.adc.backend = AdcBackend::kWav;
+  cfg.adc.recording = dir / "no_recording";
+  cfg.can.backend = CanBackend::kCandump;
+  p = check_config_paths(cfg, false);
+  ASSERT_EQ(p.size(), 1U);
+  EXPECT_NE(p[0].find("[adc] recording: " + (dir / "no_recording").string()), std::string::npos) << p[0];
+  cfg.adc.backend = AdcBackend::kSim;
+  cfg.adc.scenario = dir / "no_scenario.toml";
+  cfg.can.replay_file = dir / "no.log";
+  p = check_config_paths(cfg, false);
+  ASSERT_EQ(p.size(), 2U);
+  EXPECT_NE(p[0].find("[adc] scenario: " + (dir / "no_scenario.toml").string()), std::string::npos) << p[0];
+  EXPECT_NE(p[1].find("[can] replay_file " + (dir / "no.log").string() + " does not exist"),
+            std::string::npos)
+      << p[1];
+}
+
 }  // namespace
 }  // namespace ptda::daemon::test

@@ -3,9 +3,12 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "ptda/common/error.hpp"
+#include "ptda/config/pipeline_config.hpp"
 #include "ptda/sim/simulator.hpp"
 
 namespace ptda::sim {
@@ -167,6 +170,88 @@ scale = 0.01
   EXPECT_EQ(s.can.speed_frame.speed.length, 2U);
   EXPECT_DOUBLE_EQ(s.can.speed_frame.speed.scale, 0.01);
   EXPECT_DOUBLE_EQ(s.can.speed_frame.period_s, 0.01);  // one period key: [can] period_s
+}
+
+// One CAN frame schema (issue 17): the [can.speed_frame] block copies between scenarios and pipeline
+// configurations both ways and means the same frame.
+std::string read_text(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// The lines from "[can.speed_frame]" up to the first table that is not one of its sub-tables.
+std::string speed_frame_block(const std::string& toml) {
+  std::istringstream in(toml);
+  std::string line;
+  std::string block;
+  bool inside = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] == '[') inside = line.rfind("[can.speed_frame", 0) == 0;
+    if (inside) block += line + "\n";
+  }
+  return block;
+}
+
+void expect_same_frame(const config::SpeedFrameSpec& a, const config::SpeedFrameSpec& b) {
+  EXPECT_EQ(a.id, b.id);
+  EXPECT_EQ(a.extended, b.extended);
+  EXPECT_EQ(a.dlc, b.dlc);
+  EXPECT_EQ(a.has_angle, b.has_angle);
+  EXPECT_DOUBLE_EQ(a.period_s, b.period_s);
+  for (const auto& [x, y] : {std::pair{a.speed, b.speed}, std::pair{a.angle, b.angle}}) {
+    EXPECT_EQ(x.start_byte, y.start_byte);
+    EXPECT_EQ(x.length, y.length);
+    EXPECT_EQ(x.little_endian, y.little_endian);
+    EXPECT_EQ(x.is_signed, y.is_signed);
+    EXPECT_DOUBLE_EQ(x.scale, y.scale);
+    EXPECT_DOUBLE_EQ(x.offset, y.offset);
+  }
+}
+
+TEST(SpeedFrameSchema, ScenarioBlockCopiesIntoAPipelineConfigAndBack) {
+  const std::filesystem::path scenario_file = scenario_path("joint_rotation_healthy.toml");
+  const Scenario scenario = load_scenario(scenario_file);
+  EXPECT_TRUE(scenario.warnings.empty()) << scenario.warnings.front();
+  const std::string scenario_block = speed_frame_block(read_text(scenario_file));
+  ASSERT_NE(scenario_block.find("byte_order = \"little\""), std::string::npos) << scenario_block;
+  const config::PipelineConfig cfg =
+      config::parse_pipeline_config("[extraction]\nwindow_len = 4096\n" + scenario_block, "cfg.toml");
+  EXPECT_TRUE(cfg.warnings.empty());
+  config::SpeedFrameSpec from_scenario = scenario.can.speed_frame;
+  from_scenario.period_s = cfg.speed_frame.period_s;  // the block has no period: [can] period_s holds it
+  expect_same_frame(cfg.speed_frame, from_scenario);
+
+  // The pipeline example's block (with period_s) into a scenario.
+  const std::string example_block = speed_frame_block(
+      read_text(std::filesystem::path(PTDA_SOURCE_DIR) / "config/examples/joint_rotation.toml"));
+  const config::PipelineConfig example = config::load_pipeline_config(std::filesystem::path(PTDA_SOURCE_DIR) /
+                                                                      "config/examples/joint_rotation.toml");
+  const Scenario back = parse_scenario(std::string(kMinimal) + example_block, "t.toml");
+  EXPECT_TRUE(back.warnings.empty());
+  expect_same_frame(back.can.speed_frame, example.speed_frame);
+  EXPECT_DOUBLE_EQ(back.can.period_s, example.speed_frame.period_s);
+}
+
+TEST(SpeedFrameSchema, ScenarioAcceptsTheOldSpellingWithAWarningAndRefusesAConflict) {
+  const Scenario s = parse_scenario(std::string(kMinimal) +
+                                        "[can.speed_frame.speed]\n"
+                                        "little_endian = false\n",
+                                    "t.toml");
+  EXPECT_FALSE(s.can.speed_frame.speed.little_endian);
+  ASSERT_EQ(s.warnings.size(), 1U);
+  EXPECT_EQ(s.warnings[0],
+            "t.toml:5:1: can.speed_frame.speed.little_endian = false is deprecated (accepted until the next "
+            "release): write byte_order = \"big\" instead, the spelling shared by pipeline configurations "
+            "and simulator scenarios");
+  expect_error(
+      std::string(kMinimal) + "[can.speed_frame.speed]\nbyte_order = \"little\"\nlittle_endian = false\n",
+      "t.toml:6:1: can.speed_frame.speed.little_endian = false contradicts byte_order = \"little\"");
+  expect_error(std::string(kMinimal) + "[can.speed_frame.speed]\nbyte_order = \"intel\"\n",
+               "can.speed_frame.speed.byte_order: must be one of \"little\", \"big\", not \"intel\"");
+  expect_error(std::string(kMinimal) + "[can]\nperiod_s = 0.01\n[can.speed_frame]\nperiod_s = 0.004\n",
+               "can.speed_frame.period_s: disagrees with [can] period_s");
 }
 
 TEST(ScenarioLoad, MissingFileNamesPath) {

@@ -14,12 +14,16 @@ inline constexpr int kExitFailure = 1;  ///< data or runtime error (bad file, mi
 inline constexpr int kExitUsage = 2;    ///< the command line is wrong
 /// `ptda monitor` judged nothing: no window was scored, or the run ended in "not judging" (coverage).
 inline constexpr int kExitNotJudged = 3;
+/// The inputs cannot work together (a commissioning mistake): `ptda doctor` found a problem, or `ptda
+/// train` refused a recording whose vibration contradicts its CAN speed (docs/cli.md, exit statuses).
+inline constexpr int kExitCommissioning = 4;
 
 int cmd_simulate(std::span<const std::string> args, std::ostream& out);
 int cmd_import(std::span<const std::string> args, std::ostream& out);
 int cmd_train(std::span<const std::string> args, std::ostream& out);
 int cmd_monitor(std::span<const std::string> args, std::ostream& out);
 int cmd_report(std::span<const std::string> args, std::ostream& out);
+int cmd_doctor(std::span<const std::string> args, std::ostream& out);
 int cmd_evaluate(std::span<const std::string> args, std::ostream& out);
 int cmd_gap(std::span<const std::string> args, std::ostream& out);
 int cmd_gap_bench(std::span<const std::string> args, std::ostream& out);

@@ -25,7 +25,17 @@ struct PipelineConfig {
   dsp::DecisionConfig decision;             ///< [decision]
   dsp::Method method = dsp::Method::kPtda;  ///< [monitor] method
   dsp::GearboxInfo gearbox;                 ///< [gearbox]
+  /// Accepted but deprecated spellings, one "file:line:col: what to write instead" each (the tools
+  /// print them as warnings; see little_endian_deprecation()).
+  std::vector<std::string> warnings;
 };
+
+/// The message for the pre-issue-17 spelling `little_endian = true|false` of a CAN signal's byte order
+/// (scenarios used it, pipeline configurations `byte_order`): "<where>: <key> = true is deprecated
+/// (...): write byte_order = \"little\" instead ...". Shared by the pipeline and scenario parsers.
+/// Thread: any. Allocates.
+[[nodiscard]] std::string little_endian_deprecation(const std::string& where, const std::string& key,
+                                                    bool little);
 
 /// Parses TOML text. Unknown keys and tables, wrong types and out-of-range values are errors; absent
 /// keys keep the defaults above ([extraction] window_len is required). Throws ptda::Error

@@ -149,6 +149,9 @@ struct Scenario {
   SensorSpec sensor;
   CanSpec can;
   std::string source;  ///< where it was read from (for messages)
+  /// Accepted but deprecated spellings, one "file:line:col: what to write instead" each (printed as
+  /// warnings by the tools that read scenarios).
+  std::vector<std::string> warnings;
 };
 
 /// The gearbox as the analysis side describes it (for baselines/reports). Any thread; no allocation.

@@ -1,0 +1,601 @@
+#include "ptda/cli/doctor.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <map>
+#include <numbers>
+#include <ostream>
+
+#include "ptda/cli/text.hpp"
+#include "ptda/common/can_frame.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/config/speed_codec.hpp"
+#include "ptda/dsp/real_fft.hpp"
+#include "ptda/dsp/window_slicer.hpp"
+#include "ptda/formats/candump.hpp"
+
+namespace ptda::cli {
+
+namespace {
+
+using Kind = DoctorFinding::Kind;
+
+std::string id_text(std::uint32_t key) {
+  const bool ext = (key & CanCounters::kExtendedIdKey) != 0;
+  char buf[32];
+  std::snprintf(buf, sizeof buf, ext ? "0x%08X (extended)" : "0x%03X", key & ~CanCounters::kExtendedIdKey);
+  return buf;
+}
+
+std::string speed_text(double v) {
+  return general(v, 4) + " rad/s";
+}
+
+// The largest FFT-friendly (factors 2, 3, 5; even) length <= n, or 0.
+std::uint32_t fft_length_at_most(double n) {
+  for (auto m = static_cast<std::int64_t>(std::floor(n)); m >= 4; --m) {
+    if (dsp::RealFft::supported_length(static_cast<std::size_t>(m))) return static_cast<std::uint32_t>(m);
+  }
+  return 0;
+}
+
+double gmf_hz(const dsp::GearboxInfo& g, double speed_rad_s) {
+  return static_cast<double>(g.z_in) * g.ratio * std::fabs(speed_rad_s) / (2.0 * std::numbers::pi);
+}
+
+// Decoded speeds of one id with the configured layout; empty when the layout cannot apply.
+struct IdTrial {
+  std::uint32_t key = 0;
+  std::uint64_t frames = 0;
+  std::vector<double> speeds;
+};
+
+// How much a series of decoded values looks like a joint speed: in range, moving, and smooth
+// (consecutive frames close compared with the range). 0..1.
+double speed_likeness(const std::vector<double>& v, double max_speed_rad_s, double min_speed_rad_s) {
+  if (v.size() < 10) return 0.0;
+  std::size_t in_range = 0;
+  double lo = v.front(), hi = v.front();
+  for (double x : v) {
+    if (std::isfinite(x) && std::fabs(x) <= max_speed_rad_s) ++in_range;
+    lo = std::min(lo, x);
+    hi = std::max(hi, x);
+  }
+  const double range = hi - lo;
+  if (!(range > min_speed_rad_s)) return 0.0;
+  std::vector<double> steps;
+  steps.reserve(v.size());
+  for (std::size_t i = 1; i < v.size(); ++i) steps.push_back(std::fabs(v[i] - v[i - 1]));
+  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+  const double smooth = 1.0 - std::min(1.0, 20.0 * steps[steps.size() / 2] / range);
+  return static_cast<double>(in_range) / static_cast<double>(v.size()) * smooth;
+}
+
+// Groups regions by direction and |speed| with the [classes] tolerance (sorted by speed, greedy).
+struct Region {
+  std::int8_t direction;
+  double speed_rad_s;  // |mean speed|
+  double duration_s;
+  std::int64_t t_begin_ns, t_end_ns;
+  std::uint64_t windows = 0;
+  bool edge = false;  // cut by the start or the end of the recording
+};
+
+std::vector<std::vector<Region>> group_regions(std::vector<Region> regions,
+                                               const dsp::ClassLearningConfig& c) {
+  std::sort(regions.begin(), regions.end(), [](const Region& a, const Region& b) {
+    return a.direction != b.direction ? a.direction < b.direction : a.speed_rad_s < b.speed_rad_s;
+  });
+  std::vector<std::vector<Region>> groups;
+  double sum = 0.0;
+  for (const Region& r : regions) {
+    if (!groups.empty()) {
+      const double mean = sum / static_cast<double>(groups.back().size());
+      const double tol = std::max(c.speed_tol_abs_rad_s, c.speed_tol_rel * mean);
+      if (groups.back().front().direction == r.direction && std::fabs(r.speed_rad_s - mean) <= tol) {
+        groups.back().push_back(r);
+        sum += r.speed_rad_s;
+        continue;
+      }
+    }
+    groups.push_back({r});
+    sum = r.speed_rad_s;
+  }
+  return groups;
+}
+
+std::string signed_speed(std::int8_t direction, double speed_rad_s) {
+  return std::string(direction < 0 ? "-" : "+") + general(speed_rad_s, 4);
+}
+
+// Streams the recording: the speed samples, the regions of a relaxed slicer (any plateau of 0.12 s
+// or more), the windows the configured slicer cuts, and the relaxed window at the highest speed.
+class DoctorSink final : public PipelineSink {
+ public:
+  DoctorSink(const dsp::ExtractionConfig& configured, const dsp::ExtractionConfig& relaxed, double fs_hz,
+             std::int64_t t0_ns)
+      : configured_(configured, fs_hz, t0_ns),
+        relaxed_(relaxed, fs_hz, t0_ns),
+        buf_(configured.window_len),
+        relaxed_buf_(relaxed.window_len) {}
+
+  void on_speed(const dsp::SpeedSample& s) override {
+    if (speeds.empty()) first_speed_t_ns = s.t_ns;
+    last_speed_t_ns = s.t_ns;
+    speeds.push_back(s.speed_rad_s);
+    configured_.push_speed(s);
+    relaxed_.push_speed(s);
+  }
+  void on_samples(std::span<const float> block) override {
+    configured_.push_samples(block);
+    relaxed_.push_samples(block);
+  }
+  void on_block_end() override { drain(); }
+  void on_finish() override {
+    configured_.finish();
+    relaxed_.finish();
+    drain();
+  }
+
+  std::vector<double> speeds;
+  std::int64_t first_speed_t_ns = 0, last_speed_t_ns = 0;
+  std::vector<dsp::RegionInfo> regions;
+  std::vector<dsp::WindowRef> windows;
+  std::vector<float> fastest_window;
+  double fastest_speed_rad_s = 0.0;
+
+ private:
+  void drain() {
+    dsp::WindowRef ref;
+    while (configured_.pop(ref, buf_)) {
+      windows.push_back(ref);
+      // The configured windows are longer (a finer spectrum): preferred for the GMF check.
+      if (!configured_fastest_ || std::fabs(ref.speed_rad_s) > fastest_speed_rad_s) {
+        configured_fastest_ = true;
+        fastest_speed_rad_s = std::fabs(ref.speed_rad_s);
+        fastest_window = buf_;
+      }
+    }
+    dsp::RegionInfo r;
+    while (configured_.pop_region(r)) {
+    }
+    while (relaxed_.pop(ref, relaxed_buf_)) {
+      if (!configured_fastest_ && std::fabs(ref.speed_rad_s) > fastest_speed_rad_s) {
+        fastest_speed_rad_s = std::fabs(ref.speed_rad_s);
+        fastest_window = relaxed_buf_;
+      }
+    }
+    while (relaxed_.pop_region(r)) regions.push_back(r);
+  }
+
+  bool configured_fastest_ = false;
+  dsp::WindowSlicer configured_;
+  dsp::WindowSlicer relaxed_;
+  std::vector<float> buf_;
+  std::vector<float> relaxed_buf_;
+};
+
+}  // namespace
+
+bool DoctorReport::problems() const noexcept {
+  return std::any_of(findings.begin(), findings.end(),
+                     [](const DoctorFinding& f) { return f.kind == Kind::kProblem; });
+}
+
+ScaleCheck check_speed_scale(std::span<const float> window, double fs_hz, double speed_rad_s,
+                             const dsp::GearboxInfo& gearbox) {
+  ScaleCheck s;
+  s.can_speed_rad_s = std::fabs(speed_rad_s);
+  s.expected_gmf_hz = gmf_hz(gearbox, speed_rad_s);
+  const std::size_t n = window.size();
+  if (gearbox.z_in == 0 || !(gearbox.ratio > 0.0) || !(s.expected_gmf_hz > 0.0) ||
+      !dsp::RealFft::supported_length(n))
+    return s;
+  // Hann-windowed magnitude spectrum and its median level.
+  std::vector<float> x(window.begin(), window.end());
+  double mean = 0.0;
+  for (float v : x) mean += v;
+  mean /= static_cast<double>(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double w =
+        0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(n));
+    x[i] = static_cast<float>((x[i] - mean) * w);
+  }
+  dsp::RealFft fft(n);
+  std::vector<std::complex<float>> spec(fft.bins());
+  fft.forward(x, spec);
+  std::vector<double> mag(spec.size());
+  for (std::size_t k = 0; k < spec.size(); ++k) mag[k] = std::abs(spec[k]);
+  std::vector<double> sorted(mag.begin() + 1, mag.end());
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
+  const double floor = std::max(sorted[sorted.size() / 2], 1e-30);
+  const double bin_hz = fs_hz / static_cast<double>(n);
+
+  // Mean over the comb's harmonics of the largest bin within +-max(1.5 bins, 1 %) of k * f.
+  const auto comb = [&](double f, double* peak_hz) {
+    double sum = 0.0;
+    int terms = 0;
+    double best = 0.0;
+    for (int k = 1; k <= 12; ++k) {
+      const double fk = k * f;
+      if (fk >= 0.45 * fs_hz) break;
+      const double half = std::max(1.5 * bin_hz, 0.01 * fk);
+      const auto lo = static_cast<std::size_t>(std::max(1.0, std::floor((fk - half) / bin_hz)));
+      const auto hi = std::min(mag.size() - 1, static_cast<std::size_t>(std::ceil((fk + half) / bin_hz)));
+      double m = 0.0;
+      std::size_t at = lo;
+      for (std::size_t b = lo; b <= hi; ++b) {
+        if (mag[b] > m) {
+          m = mag[b];
+          at = b;
+        }
+      }
+      sum += m / floor;
+      ++terms;
+      if (m > best && peak_hz != nullptr) {
+        best = m;
+        *peak_hz = static_cast<double>(at) * bin_hz / k;
+      }
+    }
+    return terms >= 3 ? sum / terms : 0.0;
+  };
+  constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  const double factors[] = {1.0, 10.0, 0.1, 100.0, 0.01, 1000.0, 0.001, kTwoPi, 1.0 / kTwoPi};
+  s.checked = true;
+  double peak_hz = s.expected_gmf_hz;
+  s.score_at_1 = comb(s.expected_gmf_hz, &peak_hz);
+  s.score = s.score_at_1;
+  s.measured_gmf_hz = peak_hz;
+  for (double f : factors) {
+    if (f == 1.0) continue;
+    double p = 0.0;
+    const double score = comb(f * s.expected_gmf_hz, &p);
+    if (score > s.score && score >= 2.0 * s.score_at_1 && score >= 4.0) {
+      s.score = score;
+      s.factor = f;
+      s.measured_gmf_hz = p;
+    }
+  }
+  return s;
+}
+
+std::string scale_mismatch_text(const ScaleCheck& s, const config::PipelineConfig& cfg,
+                                const std::string& config_source) {
+  const double scale = cfg.speed_frame.speed.scale;
+  return "the vibration's GMF comb is at " + general(s.measured_gmf_hz, 5) + " Hz, " +
+         general(s.measured_gmf_hz / s.expected_gmf_hz, 4) + " times the " + general(s.expected_gmf_hz, 5) +
+         " Hz that the CAN speed " + speed_text(s.can_speed_rad_s) +
+         " and [gearbox] (GMF = z_in x ratio x speed / 2 pi) predict: the joint really turns at about " +
+         speed_text(s.can_speed_rad_s * s.factor) + ", so the speed scale is off by a factor " +
+         general(s.factor, 4) + ". Fix: set [can.speed_frame.speed] scale = " + general(scale * s.factor, 6) +
+         " (now " + general(scale, 6) + ") in " + config_source +
+         " (if the scale is right, check the [gearbox] teeth instead)";
+}
+
+DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                                    const std::string& config_source, const dsp::Baseline* baseline,
+                                    const std::string& baseline_source) {
+  DoctorReport rep;
+  const auto add = [&](Kind k, const char* topic, std::string text) {
+    rep.findings.push_back(DoctorFinding{k, topic, std::move(text)});
+  };
+  const double fs_hz = static_cast<double>(rec.wav.sample_rate_hz);
+  if (cfg.fs_hz != 0.0 && std::fabs(cfg.fs_hz - fs_hz) > 1e-9 * fs_hz) {
+    add(Kind::kProblem, "recording",
+        "[acquisition] fs_hz = " + general(cfg.fs_hz, 10) + " Hz but the recording is sampled at " +
+            general(fs_hz, 10) + " Hz. Fix: set fs_hz = " + general(fs_hz, 10) + " (or 0) in " +
+            config_source);
+    return rep;
+  }
+
+  // ---- CAN: frames per id, frames decoded, the most likely speed id ----
+  const config::SpeedFrameSpec& spec = cfg.speed_frame;
+  const std::uint32_t configured_key = spec.id | (spec.extended ? CanCounters::kExtendedIdKey : 0U);
+  std::map<std::uint32_t, IdTrial> trials;
+  {
+    formats::CandumpReader can(rec.can_path);
+    formats::CandumpRecord record;
+    while (can.next(record)) {
+      ++rep.can_frames;
+      if ((record.frame.flags & kCanError) != 0) continue;
+      const std::uint32_t key =
+          record.frame.id | (record.frame.extended() ? CanCounters::kExtendedIdKey : 0U);
+      ++rep.can_ids[key];
+      IdTrial& t = trials[key];
+      t.key = key;
+      ++t.frames;
+      config::SpeedFrameSpec s = spec;
+      s.id = record.frame.id;
+      s.extended = record.frame.extended();
+      config::DecodedSpeed d;
+      if (config::decode_speed(record.frame, s, d) == config::DecodeResult::kOk) {
+        t.speeds.push_back(d.speed_rad_s);
+        if (key == configured_key) ++rep.speed_frames;
+      }
+    }
+  }
+  if (rep.can_frames > 0) {
+    std::string ids;
+    for (const auto& [key, n] : rep.can_ids)
+      ids += (ids.empty() ? "" : ", ") + id_text(key) + " x " + std::to_string(n);
+    add(Kind::kOk, "can",
+        std::to_string(rep.can_frames) + " CAN frames (" + ids + "); " + std::to_string(rep.speed_frames) +
+            " decoded as speed with id " + id_text(configured_key) + " and the configured layout");
+  }
+  const IdTrial* best = nullptr;
+  double best_score = 0.0;
+  for (const auto& [key, t] : trials) {
+    const double score =
+        speed_likeness(t.speeds, cfg.extraction.max_speed_rad_s, cfg.extraction.min_speed_rad_s);
+    if (score > best_score) {
+      best_score = score;
+      best = &t;
+    }
+  }
+
+  // The recording itself (check_can_input's messages for CAN input that cannot work).
+  dsp::ExtractionConfig relaxed = cfg.extraction;
+  relaxed.window_len = std::max<std::uint32_t>(64, fft_length_at_most(std::min(0.1 * fs_hz, 65536.0)));
+  relaxed.hop = relaxed.window_len;
+  relaxed.max_windows_per_region = 0;
+  relaxed.guard_s = 0.0;
+  relaxed.min_duration_s = 1.2 * relaxed.window_len / fs_hz;
+  DoctorSink sink(cfg.extraction, relaxed, fs_hz, rec.t0_ns);
+  RunOptions opts;
+  opts.progress = false;
+  opts.config_source = config_source;
+  try {
+    (void)run_recording(rec, cfg, sink, opts);
+  } catch (const Error& e) {
+    std::string text = e.what();
+    if (best != nullptr && best->key != configured_key && best_score > 0.5) {
+      const auto [lo, hi] = std::minmax_element(best->speeds.begin(), best->speeds.end());
+      text += ". The most likely speed frame is " + id_text(best->key) + " (" + std::to_string(best->frames) +
+              " frames, decoding to " + general(*lo, 4) + " .. " + general(*hi, 4) +
+              " rad/s with the configured layout): set id = 0x" +
+              [&] {
+                char b[16];
+                std::snprintf(b, sizeof b, "%X", best->key & ~CanCounters::kExtendedIdKey);
+                return std::string(b);
+              }() +
+              ((best->key & CanCounters::kExtendedIdKey) != 0 ? " and extended = true" : "") +
+              " in [can.speed_frame]";
+    }
+    add(Kind::kProblem, "can", text);
+    return rep;
+  }
+
+  // ---- speed range against [extraction] and [gearbox] ----
+  if (!sink.speeds.empty()) {
+    const auto [lo, hi] = std::minmax_element(sink.speeds.begin(), sink.speeds.end());
+    rep.speed_min_rad_s = *lo;
+    rep.speed_max_rad_s = *hi;
+    const double peak = std::max(std::fabs(*lo), std::fabs(*hi));
+    std::string text = "decoded speed " + general(*lo, 4) + " .. " + general(*hi, 4) + " rad/s";
+    const dsp::GearboxInfo& g = cfg.gearbox;
+    if (g.z_in > 0 && g.ratio > 0.0) {
+      const double f_in = g.ratio * peak / (2.0 * std::numbers::pi);
+      text += "; at " + speed_text(peak) + " the input shaft turns at " + general(f_in, 4) + " Hz (" +
+              general(60.0 * f_in, 5) + " rpm) and the GMF is " + general(gmf_hz(g, peak), 5) + " Hz";
+      if (gmf_hz(g, peak) >= 0.5 * fs_hz) {
+        add(Kind::kProblem, "speed",
+            text + ", above half the sample rate (" + general(0.5 * fs_hz, 6) +
+                " Hz): the speed scale or the [gearbox] teeth in " + config_source + " are wrong");
+      } else if (60.0 * f_in > 20000.0) {
+        add(Kind::kProblem, "speed",
+            text + ": no motor turns that fast; check [can.speed_frame.speed] scale and [gearbox] ratio in " +
+                config_source);
+      } else {
+        add(Kind::kOk, "speed", text);
+      }
+    } else {
+      add(Kind::kNote, "speed",
+          text + "; [gearbox] gives no teeth, so the GMF check is skipped (set z_in, z_spur, z_pin in " +
+              config_source + ")");
+    }
+    if (peak < cfg.extraction.min_speed_rad_s) {
+      add(Kind::kProblem, "speed",
+          "the joint never turns faster than " + speed_text(peak) +
+              ", below [extraction] min_speed_rad_s = " + general(cfg.extraction.min_speed_rad_s) +
+              ": everything counts as standstill. Check the speed scale, or lower min_speed_rad_s in " +
+              config_source);
+    }
+  }
+
+  // ---- the vibration's own GMF against the CAN speed ----
+  if (!sink.fastest_window.empty()) {
+    rep.scale = check_speed_scale(sink.fastest_window, fs_hz, sink.fastest_speed_rad_s, cfg.gearbox);
+    if (rep.scale.mismatch()) {
+      add(Kind::kProblem, "scale", scale_mismatch_text(rep.scale, cfg, config_source));
+    } else if (rep.scale.checked && rep.scale.score_at_1 >= 4.0) {
+      add(Kind::kOk, "scale",
+          "the vibration's GMF comb (" + general(rep.scale.measured_gmf_hz, 5) + " Hz at " +
+              speed_text(rep.scale.can_speed_rad_s) + ") matches the CAN speed and [gearbox]");
+    } else if (rep.scale.checked) {
+      add(Kind::kNote, "scale",
+          "no clear GMF comb near the " + general(rep.scale.expected_gmf_hz, 5) + " Hz expected at " +
+              speed_text(rep.scale.can_speed_rad_s) +
+              " (nor at 10, 100 or 2 pi times it): check the [gearbox] teeth in " + config_source);
+    }
+  }
+
+  // ---- plateaus per speed against the window ----
+  std::vector<Region> regions;
+  // Plateaus cut by the start or the end of the recording are not plateau lengths.
+  const auto edge_ns = static_cast<std::int64_t>(3.0 * cfg.speed_frame.period_s * 1e9);
+  for (const dsp::RegionInfo& r : sink.regions) {
+    regions.push_back(Region{
+        r.direction, std::fabs(r.mean_speed_rad_s), (r.t_end_ns - r.t_begin_ns) * 1e-9, r.t_begin_ns,
+        r.t_end_ns, 0,
+        r.t_begin_ns <= sink.first_speed_t_ns + edge_ns || r.t_end_ns >= sink.last_speed_t_ns - edge_ns});
+  }
+  // Pieces of one plateau (broken by a single speed outlier) are merged back: same direction and
+  // speed, at most 3 speed periods apart.
+  {
+    std::vector<Region> merged;
+    for (const Region& r : regions) {
+      if (!merged.empty()) {
+        Region& p = merged.back();
+        const double tol =
+            std::max(cfg.classes.speed_tol_abs_rad_s, cfg.classes.speed_tol_rel * p.speed_rad_s);
+        if (p.direction == r.direction && std::fabs(p.speed_rad_s - r.speed_rad_s) <= tol &&
+            r.t_begin_ns - p.t_end_ns <= edge_ns) {
+          p.speed_rad_s =
+              (p.speed_rad_s * p.duration_s + r.speed_rad_s * r.duration_s) / (p.duration_s + r.duration_s);
+          p.t_end_ns = r.t_end_ns;
+          p.edge = p.edge || r.edge;
+          p.duration_s = (p.t_end_ns - p.t_begin_ns) * 1e-9;
+          continue;
+        }
+      }
+      merged.push_back(r);
+    }
+    regions = std::move(merged);
+  }
+  for (const dsp::WindowRef& w : sink.windows) {
+    for (Region& r : regions) {
+      if (w.t_start_ns >= r.t_begin_ns - 1000000 && w.t_start_ns <= r.t_end_ns) {
+        ++r.windows;
+        break;
+      }
+    }
+  }
+  const double window_s = cfg.extraction.window_len / fs_hz;
+  const std::uint32_t min_regions = std::max<std::uint32_t>(1, cfg.classes.min_regions);
+  double shortest_all = 0.0;
+  std::uint32_t dropped_all = 0, plateaus_all = 0;
+  for (auto g : group_regions(regions, cfg.classes)) {
+    // Plateaus cut by the start or the end of the recording are not plateau lengths (unless nothing
+    // else is left, e.g. a constant-speed recording).
+    if (std::any_of(g.begin(), g.end(), [](const Region& r) { return !r.edge; }))
+      std::erase_if(g, [](const Region& r) { return r.edge; });
+    if (g.size() < min_regions) continue;  // a blend's short constant stretch, not a plateau
+    // Pieces under half the median length are fragments (a plateau broken by a speed outlier or a CAN
+    // gap), not plateaus of their own.
+    std::vector<double> lengths;
+    for (const Region& r : g) lengths.push_back(r.duration_s);
+    std::nth_element(lengths.begin(), lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2),
+                     lengths.end());
+    const double half_median = 0.5 * lengths[lengths.size() / 2];
+    std::erase_if(g, [&](const Region& r) { return r.duration_s < half_median && r.windows == 0; });
+    PlateauGroup pg;
+    pg.direction = g.front().direction;
+    std::vector<double> d;
+    for (const Region& r : g) {
+      pg.speed_rad_s += r.speed_rad_s / static_cast<double>(g.size());
+      d.push_back(r.duration_s);
+      pg.windows += r.windows;
+      if (r.windows > 0) ++pg.plateaus_with_windows;
+    }
+    std::sort(d.begin(), d.end());
+    pg.plateaus = static_cast<std::uint32_t>(g.size());
+    pg.shortest_s = d.front();
+    pg.median_s = d[d.size() / 2];
+    pg.longest_s = d.back();
+    shortest_all = shortest_all == 0.0 ? pg.shortest_s : std::min(shortest_all, pg.shortest_s);
+    dropped_all += pg.plateaus - pg.plateaus_with_windows;
+    plateaus_all += pg.plateaus;
+    rep.groups.push_back(pg);
+  }
+  std::string plateau_text;
+  for (const PlateauGroup& pg : rep.groups) {
+    plateau_text += std::string(plateau_text.empty() ? "" : "; ") +
+                    signed_speed(pg.direction, pg.speed_rad_s) + " rad/s: " + std::to_string(pg.plateaus) +
+                    " plateaus of " + fixed(pg.shortest_s, 3) + " .. " + fixed(pg.longest_s, 3) +
+                    " s (median " + fixed(pg.median_s, 3) + " s), " + std::to_string(pg.windows) +
+                    " windows from " + std::to_string(pg.plateaus_with_windows);
+  }
+  if (rep.groups.empty()) {
+    add(Kind::kProblem, "plateaus",
+        "no constant-speed plateau repeats at least " + std::to_string(min_regions) +
+            " times (speed tolerance [extraction] speed_tol_rel = " + general(cfg.extraction.speed_tol_rel) +
+            ", speed_tol_abs_rad_s = " + general(cfg.extraction.speed_tol_abs_rad_s) +
+            "): record the joint moving at constant speeds, or widen the tolerance in " + config_source);
+  } else {
+    const std::uint32_t fit_len = fft_length_at_most((shortest_all - cfg.extraction.guard_s) * fs_hz * 0.95);
+    const std::string fix =
+        fit_len == 0
+            ? std::string("the plateaus are too short for any window")
+            : "window_len = " + std::to_string(fit_len) + " (" + fixed(fit_len / fs_hz, 3) +
+                  " s) with min_duration_s = " + fixed(fit_len / fs_hz + cfg.extraction.guard_s + 0.01, 3) +
+                  " fits every plateau (guard_s " + general(cfg.extraction.guard_s) + ")";
+    const std::string window = "[extraction] window_len = " + std::to_string(cfg.extraction.window_len) +
+                               " (" + fixed(window_s, 3) +
+                               " s), min_duration_s = " + general(cfg.extraction.min_duration_s);
+    if (dropped_all == plateaus_all) {
+      add(Kind::kProblem, "plateaus",
+          window + " is longer than every plateau (" + plateau_text + "): no window is cut. Fix: " + fix +
+              " in " + config_source);
+    } else if (dropped_all > 0) {
+      add(Kind::kProblem, "plateaus",
+          window + " fits only some plateaus: " + std::to_string(dropped_all) + " of " +
+              std::to_string(plateaus_all) + " give no window (" + plateau_text + "). Fix: " + fix + " in " +
+              config_source);
+    } else {
+      add(Kind::kOk, "plateaus", window + " fits every plateau: " + plateau_text);
+    }
+  }
+
+  // ---- the baseline's classes against the recording's speeds ----
+  if (baseline != nullptr) {
+    if (std::fabs(baseline->fs_hz - fs_hz) > 1e-9 * fs_hz ||
+        baseline->window_len != cfg.extraction.window_len) {
+      add(Kind::kProblem, "baseline",
+          baseline_source + " was trained at " + general(baseline->fs_hz, 10) + " Hz with window_len " +
+              std::to_string(baseline->window_len) + ", but the recording is at " + general(fs_hz, 10) +
+              " Hz and " + config_source + " sets window_len " + std::to_string(cfg.extraction.window_len) +
+              ". Fix: use the configuration the baseline was trained with, or retrain");
+    }
+    std::string classes;
+    std::uint32_t matched_groups = 0;
+    for (const dsp::ClassBaseline& c : baseline->classes) {
+      classes += (classes.empty() ? "" : ", ") + signed_speed(c.segment.direction, c.segment.speed_rad_s);
+    }
+    std::string unmatched;
+    for (const PlateauGroup& pg : rep.groups) {
+      bool match = false;
+      for (const dsp::ClassBaseline& c : baseline->classes) {
+        match = match || (c.segment.direction == pg.direction &&
+                          std::fabs(pg.speed_rad_s - c.segment.speed_rad_s) <= c.segment.speed_tol_rad_s);
+      }
+      if (match) {
+        ++matched_groups;
+      } else {
+        unmatched += (unmatched.empty() ? "" : ", ") + signed_speed(pg.direction, pg.speed_rad_s);
+      }
+    }
+    if (rep.groups.empty()) {
+      // Nothing to compare: the plateau finding says why.
+    } else if (matched_groups == 0) {
+      add(Kind::kProblem, "baseline",
+          "none of the recording's plateau speeds (" + unmatched + " rad/s) matches a class of " +
+              baseline_source + " (" + classes +
+              " rad/s): the baseline belongs to another job or speed scale, so nothing would be "
+              "judged. Fix: train a baseline on this job (ptda train --recording <healthy recording of this "
+              "job> "
+              "--config " +
+              config_source + " --out <baseline>)");
+    } else if (!unmatched.empty()) {
+      add(Kind::kNote, "baseline",
+          "plateau speeds " + unmatched + " rad/s have no class in " + baseline_source + " (" + classes +
+              " rad/s): their windows are not judged; retrain on recordings that include them to cover them");
+    } else {
+      add(Kind::kOk, "baseline",
+          "every plateau speed of the recording matches a class of " + baseline_source + " (" + classes +
+              " rad/s)");
+    }
+  }
+  return rep;
+}
+
+void print_diagnosis(std::ostream& out, const DoctorReport& report) {
+  for (const DoctorFinding& f : report.findings) {
+    const char* tag = f.kind == Kind::kProblem ? "PROBLEM" : f.kind == Kind::kNote ? "note" : "ok";
+    out << tag << " (" << f.topic << "): " << f.text << "\n";
+  }
+}
+
+}  // namespace ptda::cli
