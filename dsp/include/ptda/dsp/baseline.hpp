@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <complex>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -102,6 +103,9 @@ struct ClassBaseline {
   /// Runtime only (not stored): the line groups of mean_magnitude when the policy asks for PTDA line
   /// gains (find_line_groups(), filled by prepare_line_groups()), else empty = the paper's PTDA.
   std::vector<LineGroup> line_groups;
+  /// Runtime only (not stored): DFT(tda_mean), k = 0..N/2 (prepare_line_groups()), so TDA needs no
+  /// second transform per window. Empty = not prepared (the analyzer then transforms tda_mean).
+  std::vector<std::complex<float>> tda_spectrum;
 };
 
 /// Gearbox description, kept in the baseline so a report can name the mesh frequencies.
