@@ -192,7 +192,8 @@ TEST(WindowAnalyzer, FastLogMeetsItsStatedAccuracy) {
     const double err = std::abs(static_cast<double>(logs[static_cast<Eigen::Index>(i)]) - exact);
     worst = std::max(worst, err / std::max(1.0, std::abs(exact)));
   }
-  std::printf("Eigen float log: max |error| / max(1, |ln p|) %.3g over %zu values in [FLT_MIN, 1]\n", worst, p.size());
+  std::printf("Eigen float log: max |error| / max(1, |ln p|) %.3g over %zu values in [FLT_MIN, 1]\n", worst,
+              p.size());
   EXPECT_LE(worst, WindowAnalyzer::fast_log_error());
 }
 
