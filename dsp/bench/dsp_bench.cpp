@@ -85,6 +85,23 @@ BENCHMARK(BM_RealFftPair)
     ->Arg(25600)
     ->Unit(benchmark::kMicrosecond);
 
+// The KissFFT forward transform alone (RealFft::forward): the anchor of scripts/bench.sh's ratio
+// "whole per-window analysis / one forward transform" (issue 13 item 5).
+void BM_RealFftForward(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  std::mt19937 rng(2);
+  const std::vector<float> x = gear_like_window(n, rng);
+  std::vector<std::complex<float>> spectrum(n / 2 + 1);
+  ptda::dsp::RealFft fft(n);
+  for (auto _ : state) {
+    fft.forward(x, spectrum);
+    benchmark::DoNotOptimize(spectrum.data());
+    benchmark::ClobberMemory();
+  }
+}
+
+BENCHMARK(BM_RealFftForward)->ArgName("N")->Arg(4096)->Arg(12800)->Unit(benchmark::kMicrosecond);
+
 }  // namespace
 
 BENCHMARK_MAIN();

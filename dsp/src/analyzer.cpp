@@ -1,6 +1,7 @@
 // Per-window residuals: raw, TDA (eq. 5) and PTDA (eqs. 8-9 / 12-13), then features (eqs. 14-16).
 #include "ptda/dsp/analyzer.hpp"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -22,22 +23,195 @@ double referral(double gain) noexcept {
   return 1.0 / std::clamp(gain, 1.0 / kLevelAllowance, kLevelAllowance);
 }
 
+using ArrayMap = Eigen::Map<Eigen::ArrayXf>;
+using ConstArrayMap = Eigen::Map<const Eigen::ArrayXf>;
+
+// Sum of n floats in double with four independent accumulators (the adds do not wait on each other;
+// one double chain would be latency-bound).
+double sum_f64(const float* v, std::size_t n) noexcept {
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+  std::size_t i = 0;
+  for (; i + 4 <= n; i += 4) {
+    s0 += static_cast<double>(v[i]);
+    s1 += static_cast<double>(v[i + 1]);
+    s2 += static_cast<double>(v[i + 2]);
+    s3 += static_cast<double>(v[i + 3]);
+  }
+  for (; i < n; ++i) s0 += static_cast<double>(v[i]);
+  return (s0 + s1) + (s2 + s3);
+}
+
+// e[k] = |z[k]|^2 in float. A complex<float> is an array of two floats ([complex.numbers]).
+void energies(const std::complex<float>* z, float* e, std::size_t n) noexcept {
+  const auto* f = reinterpret_cast<const float*>(z);
+  for (std::size_t k = 0; k < n; ++k) e[k] = f[2 * k] * f[2 * k] + f[2 * k + 1] * f[2 * k + 1];
+}
+
+// e[k] = |a[k] - b[k]|^2 in float.
+void difference_energies(const std::complex<float>* a, const std::complex<float>* b, float* e,
+                         std::size_t n) noexcept {
+  const auto* fa = reinterpret_cast<const float*>(a);
+  const auto* fb = reinterpret_cast<const float*>(b);
+  for (std::size_t k = 0; k < n; ++k) {
+    const float re = fa[2 * k] - fb[2 * k];
+    const float im = fa[2 * k + 1] - fb[2 * k + 1];
+    e[k] = re * re + im * im;
+  }
+}
+
 }  // namespace
 
 WindowAnalyzer::WindowAnalyzer(std::size_t n)
     : n_(n),
+      inv_log_half_(n >= 4 ? 1.0 / std::log(static_cast<double>(n / 2)) : 0.0),
       fft_(n),
-      d_(n, 0.0F),
-      r_(n, 0.0F),
-      mag_(n / 2 + 1, 0.0),
+      X_(n / 2 + 1),
+      M_(n / 2 + 1),
+      mag_(n / 2 + 1, 0.0F),
+      res_(n / 2 + 1, 0.0F),
+      refer_(n / 2 + 1, 1.0F),
       ratio_(n / 2 + 1, 0.0),
       in_line_(n / 2 + 1, 0),
-      refer_(n / 2 + 1, 1.0),
-      X_(n / 2 + 1),
+      e_(n / 2 + 1, 0.0F),
+      scratch_(n / 2 + 1, 0.0F),
+      d_(n, 0.0F),
+      r_(n, 0.0F),
       D_(n / 2 + 1),
       R_(n / 2 + 1) {}
 
+bool WindowAnalyzer::transform(std::span<const float> x) noexcept {
+  if (x.size() != n_) return false;
+  fft_.forward(x, X_);
+  return true;
+}
+
+// Features of the residual whose one-sided energies |R[k]|^2, k = 0..N/2, are in e_ (N even):
+//   sum_n r[n]^2 = (1/N) (|R[0]|^2 + 2 sum_{k=1}^{N/2-1} |R[k]|^2 + |R[N/2]|^2)      (Parseval)
+//   entropy = -sum p ln p / ln(N/2), p[k] = |R[k]|^2 / sum_{k=1}^{N/2} |R[k]|^2       (spectral_entropy())
+Features WindowAnalyzer::features_from_energy() noexcept {
+  const std::size_t half = n_ / 2;
+  const float* e = e_.data();
+  const double mid = sum_f64(e + 1, half - 1);
+  const double total = mid + static_cast<double>(e[half]);
+  const double sum_sq =
+      (static_cast<double>(e[0]) + 2.0 * mid + static_cast<double>(e[half])) / static_cast<double>(n_);
+  Features f;
+  f.rms_res = std::sqrt(sum_sq / static_cast<double>(n_));
+  if (total == 0.0) {
+    f.entropy_res = 0.0;
+  } else if (!std::isfinite(total)) {
+    f.entropy_res = kNaN;
+  } else if (total > 1e-30 && total < 1e30) {
+    // p in float (1 / total is a normal float here); p ln p with Eigen's vectorised log. p below the
+    // smallest normal float is clamped inside the log only: its term is < 1.2e-38 * 88 either way.
+    const auto inv_total = static_cast<float>(1.0 / total);
+    const ConstArrayMap ev(e + 1, static_cast<Eigen::Index>(half));
+    ArrayMap plnp(scratch_.data(), static_cast<Eigen::Index>(half));
+    plnp = (ev * inv_total) * (ev * inv_total).max(std::numeric_limits<float>::min()).log();
+    f.entropy_res = -sum_f64(plnp.data(), half) * inv_log_half_;
+  } else {
+    // Extreme scales (never a real accelerometer): the reference definition in double.
+    double h = 0.0;
+    for (std::size_t k = 1; k <= half; ++k) {
+      const double p = static_cast<double>(e[k]) / total;
+      if (p > 0.0) h -= p * std::log(p);
+    }
+    f.entropy_res = h * inv_log_half_;
+  }
+  return f;
+}
+
+Features WindowAnalyzer::raw_features() noexcept {
+  energies(X_.data(), e_.data(), X_.size());
+  return features_from_energy();
+}
+
+Features WindowAnalyzer::tda_features(const std::complex<float>* tda_spectrum) noexcept {
+  // R = DFT(x - d) = X - DFT(d): the transform is linear.
+  difference_energies(X_.data(), tda_spectrum, e_.data(), X_.size());
+  return features_from_energy();
+}
+
+Features WindowAnalyzer::ptda_features(std::span<const float> mean_magnitude,
+                                       std::span<const LineGroup> line_groups, bool floor_gain) noexcept {
+  // D[k] = |D[k]| e^{j theta_x[k]} has the phase of X[k], so R[k] = X[k] - D[k] = (|X[k]| - |D[k]|)
+  // e^{j theta_x[k]}: |R[k]| = | |X[k]| - |D[k]| |. A zero bin takes phase 0: R[k] = -|D[k]|, the same
+  // magnitude. No inverse transform, no second forward transform.
+  const auto bins = static_cast<Eigen::Index>(X_.size());
+  energies(X_.data(), e_.data(), X_.size());
+  ArrayMap mag(mag_.data(), bins);
+  ArrayMap res(res_.data(), bins);
+  ArrayMap e(e_.data(), bins);
+  const ConstArrayMap a(mean_magnitude.data(), bins);
+  mag = e.sqrt();
+  res = mag - a;
+  floor_gain_ = 1.0;
+  if (floor_gain) std::fill(refer_.begin(), refer_.end(), 1.0F);
+  for (const LineGroup& g : line_groups) {
+    const std::size_t lo = std::max<std::size_t>(g.begin, 1);
+    const std::size_t hi = std::min<std::size_t>(g.end, X_.size());
+    double num = 0.0;
+    double den = 0.0;
+    for (std::size_t k = lo; k < hi; ++k) {
+      num += static_cast<double>(mean_magnitude[k]) * mag_[k];
+      den += static_cast<double>(mean_magnitude[k]) * mean_magnitude[k];
+    }
+    const double gain = den > 0.0 ? num / den : 1.0;
+    for (std::size_t k = lo; k < hi; ++k) {
+      res_[k] = static_cast<float>(static_cast<double>(mag_[k]) - gain * mean_magnitude[k]);
+    }
+    if (floor_gain) {
+      const auto r = static_cast<float>(referral(gain));
+      for (std::size_t k = lo; k < hi; ++k) refer_[k] = r;
+    }
+  }
+  if (!floor_gain) {
+    e = res.square();
+    return features_from_energy();
+  }
+  // Floor gain (docs/method.md §2): the median of |X[k]| / a[k] over the bins k >= 1 outside every
+  // group. The median, not a least-squares gain: a defect's sidebands and impact combs fill a minority
+  // of the floor bins and must not be absorbed into the floor level.
+  std::fill(in_line_.begin(), in_line_.end(), static_cast<unsigned char>(0));
+  for (const LineGroup& g : line_groups) {
+    const std::size_t hi = std::min<std::size_t>(g.end, X_.size());
+    for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1;
+  }
+  std::size_t m = 0;
+  for (std::size_t k = 1; k < X_.size(); ++k) {
+    if (in_line_[k] == 0 && mean_magnitude[k] > 0.0F)
+      ratio_[m++] = static_cast<double>(mag_[k]) / mean_magnitude[k];
+  }
+  if (m > 0) {
+    const auto mid = ratio_.begin() + static_cast<std::ptrdiff_t>(m / 2);
+    std::nth_element(ratio_.begin(), mid, ratio_.begin() + static_cast<std::ptrdiff_t>(m));
+    if (*mid > 0.0 && std::isfinite(*mid)) floor_gain_ = *mid;
+  }
+  const auto floor_refer = static_cast<float>(referral(floor_gain_));
+  for (std::size_t k = 1; k < X_.size(); ++k) {
+    if (in_line_[k] == 0) {
+      res_[k] = static_cast<float>(static_cast<double>(mag_[k]) - floor_gain_ * mean_magnitude[k]);
+      refer_[k] = floor_refer;
+    }
+  }
+  // res_ stays the physical residual (the views rebuild D from it); the features are those of the
+  // level-referred one: each part divided by its own gain, within the allowance.
+  const ConstArrayMap refer(refer_.data(), bins);
+  e = (res * refer).square();
+  return features_from_energy();
+}
+
 Features WindowAnalyzer::analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept {
+  if (method == Method::kTda && cls.tda_spectrum.size() == n_ / 2 + 1 && cls.tda_mean.size() == n_ &&
+      x.size() == n_) {
+    transform(x);
+    last_ = Last::kTda;
+    last_x_ = x;
+    last_tda_mean_ = cls.tda_mean;
+    last_tda_spectrum_ = cls.tda_spectrum.data();
+    views_ready_ = false;
+    return tda_features(cls.tda_spectrum.data());
+  }
   return analyze_with(x, cls.mean_magnitude, cls.tda_mean, method, cls.line_groups, cls.floor_gain);
 }
 
@@ -50,107 +224,103 @@ Features WindowAnalyzer::analyze_with(std::span<const float> x, std::span<const 
   const bool sizes_ok =
       x.size() == n_ && (method == Method::kRaw || (method == Method::kTda && tda_mean.size() == n_) ||
                          (method == Method::kPtda && mean_magnitude.size() == bins));
+  last_ = Last::kNone;
+  views_ready_ = true;
   if (!sizes_ok) return Features{kNaN, kNaN};
 
-  fft_.forward(x, X_);
-  floor_gain_ = 1.0;
+  transform(x);
+  last_x_ = x;
+  views_ready_ = false;
   switch (method) {
     case Method::kRaw:
-      for (std::size_t n = 0; n < n_; ++n) {
-        d_[n] = 0.0F;
-        r_[n] = x[n];
-      }
-      for (std::size_t k = 0; k < bins; ++k) {
-        D_[k] = {0.0F, 0.0F};
-        R_[k] = X_[k];
-      }
-      break;
+      last_ = Last::kRaw;
+      return raw_features();
     case Method::kTda:
-      for (std::size_t n = 0; n < n_; ++n) {
-        d_[n] = tda_mean[n];
-        r_[n] = x[n] - tda_mean[n];
-      }
-      fft_.forward(r_, R_);
-      break;
+      fft_.forward(tda_mean, M_);
+      last_ = Last::kTda;
+      last_tda_mean_ = tda_mean;
+      last_tda_spectrum_ = M_.data();
+      return tda_features(M_.data());
     case Method::kPtda:
-      // |X[k]| once per bin (double: the paper's PTDA stays bit-identical with or without groups); the
-      // deterministic magnitude goes to d_ until the inverse transform overwrites it: the healthy mean
-      // a[k], or g a[k] inside a line group.
+      last_ = Last::kPtda;
+      return ptda_features(mean_magnitude, line_groups, floor_gain);
+  }
+  return Features{kNaN, kNaN};
+}
+
+void WindowAnalyzer::analyze_all(std::span<const float> x, std::span<const float> mean_magnitude,
+                                 std::span<const std::complex<float>> tda_spectrum,
+                                 std::span<const LineGroup> line_groups,
+                                 std::array<Features, kMethodCount>& out, bool reuse_spectrum,
+                                 bool floor_gain) noexcept {
+  const std::size_t bins = n_ / 2 + 1;
+  out.fill(Features{kNaN, kNaN});
+  last_ = Last::kNone;
+  views_ready_ = true;
+  if (x.size() != n_) return;
+  if (!reuse_spectrum) transform(x);
+  last_x_ = x;
+  out[static_cast<std::size_t>(Method::kRaw)] = raw_features();
+  if (tda_spectrum.size() == bins)
+    out[static_cast<std::size_t>(Method::kTda)] = tda_features(tda_spectrum.data());
+  if (mean_magnitude.size() == bins) {
+    out[static_cast<std::size_t>(Method::kPtda)] = ptda_features(mean_magnitude, line_groups, floor_gain);
+    last_ = Last::kPtda;
+    views_ready_ = false;
+  }
+}
+
+void WindowAnalyzer::build_views() const noexcept {
+  if (views_ready_) return;
+  views_ready_ = true;
+  const std::size_t bins = X_.size();
+  switch (last_) {
+    case Last::kNone:
+      return;
+    case Last::kRaw:
+      std::fill(d_.begin(), d_.end(), 0.0F);
+      std::copy(last_x_.begin(), last_x_.end(), r_.begin());
+      std::copy(X_.begin(), X_.end(), R_.begin());
+      return;
+    case Last::kTda:
+      for (std::size_t n = 0; n < n_; ++n) {
+        d_[n] = last_tda_mean_[n];
+        r_[n] = last_x_[n] - last_tda_mean_[n];
+      }
+      for (std::size_t k = 0; k < bins; ++k) R_[k] = X_[k] - last_tda_spectrum_[k];
+      return;
+    case Last::kPtda:
       for (std::size_t k = 0; k < bins; ++k) {
-        const double re = X_[k].real();
-        const double im = X_[k].imag();
-        mag_[k] = std::sqrt(re * re + im * im);
-        d_[k] = mean_magnitude[k];
-      }
-      for (const LineGroup& g : line_groups) {
-        const std::size_t lo = std::max<std::size_t>(g.begin, 1);
-        const std::size_t hi = std::min<std::size_t>(g.end, bins);
-        double num = 0.0;
-        double den = 0.0;
-        for (std::size_t k = lo; k < hi; ++k) {
-          num += static_cast<double>(mean_magnitude[k]) * mag_[k];
-          den += static_cast<double>(mean_magnitude[k]) * mean_magnitude[k];
-        }
-        const double gain = den > 0.0 ? num / den : 1.0;
-        for (std::size_t k = lo; k < hi; ++k) {
-          d_[k] = static_cast<float>(gain * mean_magnitude[k]);
-          refer_[k] = referral(gain);
-        }
-      }
-      if (floor_gain) {
-        // The median, not a least-squares gain: sidebands and impact combs of a defect fill a minority
-        // of the floor bins and must not be absorbed into the floor level.
-        std::fill(in_line_.begin(), in_line_.end(), static_cast<unsigned char>(0));
-        refer_[0] = 1.0;  // DC: a sensor offset, neither line nor floor
-        for (const LineGroup& g : line_groups) {
-          const std::size_t hi = std::min<std::size_t>(g.end, bins);
-          for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1;
-        }
-        std::size_t m = 0;
-        for (std::size_t k = 1; k < bins; ++k) {
-          if (in_line_[k] == 0 && mean_magnitude[k] > 0.0F) ratio_[m++] = mag_[k] / mean_magnitude[k];
-        }
-        if (m > 0) {
-          const auto mid = ratio_.begin() + static_cast<std::ptrdiff_t>(m / 2);
-          std::nth_element(ratio_.begin(), mid, ratio_.begin() + static_cast<std::ptrdiff_t>(m));
-          if (*mid > 0.0 && std::isfinite(*mid)) floor_gain_ = *mid;
-        }
-        for (std::size_t k = 1; k < bins; ++k) {
-          if (in_line_[k] == 0) {
-            d_[k] = static_cast<float>(floor_gain_ * mean_magnitude[k]);
-            refer_[k] = referral(floor_gain_);
-          }
-        }
-      }
-      for (std::size_t k = 0; k < bins; ++k) {
-        // D[k] = |D[k]| e^{j theta_x[k]}; a zero bin has no phase, take 0.
+        // D[k] = |D[k]| e^{j theta_x[k]} with |D[k]| = |X[k]| - res[k]; a zero bin has phase 0.
         const double mag = mag_[k];
-        const double a = d_[k];
+        const double dmag = mag - static_cast<double>(res_[k]);
         if (mag > 0.0) {
-          D_[k] = {static_cast<float>(a * X_[k].real() / mag), static_cast<float>(a * X_[k].imag() / mag)};
+          D_[k] = {static_cast<float>(dmag * X_[k].real() / mag),
+                   static_cast<float>(dmag * X_[k].imag() / mag)};
         } else {
-          D_[k] = {static_cast<float>(a), 0.0F};
+          D_[k] = {static_cast<float>(dmag), 0.0F};
         }
+        R_[k] = X_[k] - D_[k];
       }
       fft_.inverse(D_, d_);
-      for (std::size_t n = 0; n < n_; ++n) r_[n] = x[n] - d_[n];
-      // The features are those of the time-domain residual r itself, so transform it.
-      fft_.forward(r_, R_);
-      if (floor_gain) {
-        // Level referral: each part of the residual back to the level it had in training (a line
-        // group's by its gain, the floor's by g_f), so a day with other levels leaves the features
-        // where they were. RMS by Parseval over the referred one-sided spectrum.
-        double sum_sq = 0.0;
-        for (std::size_t k = 0; k < bins; ++k) {
-          R_[k] *= static_cast<float>(refer_[k]);
-          const double p = std::norm(R_[k]);
-          sum_sq += (k == 0 || 2 * k == n_) ? p : 2.0 * p;
-        }
-        return Features{std::sqrt(sum_sq) / static_cast<double>(n_), spectral_entropy(R_)};
-      }
-      break;
+      for (std::size_t n = 0; n < n_; ++n) r_[n] = last_x_[n] - d_[n];
+      return;
   }
-  return Features{rms(r_), spectral_entropy(R_)};
+}
+
+std::span<const float> WindowAnalyzer::deterministic() const noexcept {
+  build_views();
+  return d_;
+}
+
+std::span<const float> WindowAnalyzer::residual() const noexcept {
+  build_views();
+  return r_;
+}
+
+std::span<const std::complex<float>> WindowAnalyzer::residual_spectrum() const noexcept {
+  build_views();
+  return R_;
 }
 
 std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
@@ -194,6 +364,12 @@ void prepare_line_groups(Baseline& baseline) {
       c.line_groups = find_line_groups(c.mean_magnitude);
     } else {
       c.line_groups.clear();
+    }
+    c.tda_spectrum.clear();
+    if (RealFft::supported_length(c.tda_mean.size())) {
+      RealFft fft(c.tda_mean.size());
+      c.tda_spectrum.resize(fft.bins());
+      fft.forward(c.tda_mean, c.tda_spectrum);
     }
   }
 }

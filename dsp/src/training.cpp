@@ -2,6 +2,7 @@
 // thresholds from leave-one-group-out features. Offline code: allocates and throws ptda::Error.
 #include "ptda/dsp/training.hpp"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -40,20 +41,12 @@ FeatureStats feature_stats(std::span<const double> values) {
   FeatureStats s;
   s.n = static_cast<std::uint32_t>(values.size());
   if (values.empty()) return s;
-  double sum = 0.0;
-  s.min = values[0];
-  s.max = values[0];
-  for (const double v : values) {
-    sum += v;
-    s.min = std::min(s.min, v);
-    s.max = std::max(s.max, v);
-  }
-  s.mean = sum / static_cast<double>(values.size());
-  if (values.size() > 1) {
-    double ss = 0.0;
-    for (const double v : values) ss += (v - s.mean) * (v - s.mean);
-    s.stddev = std::sqrt(ss / static_cast<double>(values.size() - 1));
-  }
+  const Eigen::Map<const Eigen::ArrayXd> v(values.data(), static_cast<Eigen::Index>(values.size()));
+  s.min = v.minCoeff();
+  s.max = v.maxCoeff();
+  s.mean = v.sum() / static_cast<double>(values.size());
+  if (values.size() > 1)
+    s.stddev = std::sqrt((v - s.mean).square().sum() / static_cast<double>(values.size() - 1));
   return s;
 }
 
@@ -226,10 +219,15 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   // Sums over all windows, in double so subtracting one group's share loses nothing.
   std::vector<double> total_mag(bins, 0.0);
   std::vector<double> total_x(n, 0.0);
+  const auto nb = static_cast<Eigen::Index>(bins);
+  const auto nn = static_cast<Eigen::Index>(n);
+  const Eigen::Map<const Eigen::ArrayXf> mag_a(mag.data(), nb);
+  Eigen::Map<Eigen::ArrayXd> total_mag_a(total_mag.data(), nb);
+  Eigen::Map<Eigen::ArrayXd> total_x_a(total_x.data(), nn);
   for (const auto& w : windows) {
     analyzer.magnitude(w, mag);
-    for (std::size_t k = 0; k < bins; ++k) total_mag[k] += mag[k];
-    for (std::size_t j = 0; j < n; ++j) total_x[j] += w[j];
+    total_mag_a += mag_a.cast<double>();
+    total_x_a += Eigen::Map<const Eigen::ArrayXf>(w.data(), nn).cast<double>();
   }
 
   ClassBaseline cls;
@@ -237,18 +235,24 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   cls.n_windows = static_cast<std::uint32_t>(m);
   cls.mean_magnitude.resize(bins);
   cls.tda_mean.resize(n);
-  for (std::size_t k = 0; k < bins; ++k)
-    cls.mean_magnitude[k] = static_cast<float>(total_mag[k] / static_cast<double>(m));
-  for (std::size_t j = 0; j < n; ++j)
-    cls.tda_mean[j] = static_cast<float>(total_x[j] / static_cast<double>(m));
+  Eigen::Map<Eigen::ArrayXf>(cls.mean_magnitude.data(), nb) =
+      (total_mag_a / static_cast<double>(m)).cast<float>();
+  Eigen::Map<Eigen::ArrayXf>(cls.tda_mean.data(), nn) = (total_x_a / static_cast<double>(m)).cast<float>();
   // The line groups come from the mean of all the class's windows and are used for every
   // leave-one-out residual too (a group's gain is fitted per window, so the grouping barely depends on
   // the one window left out).
   if (policy.ptda_line_gain) cls.line_groups = find_line_groups(cls.mean_magnitude);
   cls.floor_gain = policy.ptda_floor_gain;
 
+  RealFft fft(n);
+  cls.tda_spectrum.resize(bins);
+  fft.forward(cls.tda_mean, cls.tda_spectrum);
+
   // Leave-one-group-out: each window is scored against the means of the windows of the other groups.
-  // One group's sums are formed at a time (O(M) FFTs overall, O(N) extra memory).
+  // One group's sums are formed at a time (O(N) extra memory). Forward transforms per window: one for
+  // the totals above, one for its group's sums, one for the three methods' features (none when the
+  // group is that one window: the group pass's transform is reused); plus one per group for the
+  // leave-one-out TDA mean (was 8 per window: 2 magnitudes, raw 1, TDA 2, PTDA 2 + 1 inverse).
   std::array<std::vector<double>, kMethodCount> rms_values;
   std::array<std::vector<double>, kMethodCount> entropy_values;
   for (auto& v : rms_values) v.reserve(m);
@@ -257,24 +261,28 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   std::vector<double> group_x(n);
   std::vector<float> loo_mag(bins);
   std::vector<float> loo_x(n);
+  std::vector<std::complex<float>> loo_x_spectrum(bins);
+  std::array<Features, kMethodCount> f{};
+  Eigen::Map<Eigen::ArrayXd> group_mag_a(group_mag.data(), nb);
+  Eigen::Map<Eigen::ArrayXd> group_x_a(group_x.data(), nn);
   for (const auto& [group, idx] : members) {
-    std::fill(group_mag.begin(), group_mag.end(), 0.0);
-    std::fill(group_x.begin(), group_x.end(), 0.0);
+    group_mag_a.setZero();
+    group_x_a.setZero();
     for (const std::size_t i : idx) {
       analyzer.magnitude(windows[i], mag);
-      for (std::size_t k = 0; k < bins; ++k) group_mag[k] += mag[k];
-      for (std::size_t j = 0; j < n; ++j) group_x[j] += windows[i][j];
+      group_mag_a += mag_a.cast<double>();
+      group_x_a += Eigen::Map<const Eigen::ArrayXf>(windows[i].data(), nn).cast<double>();
     }
     const auto others = static_cast<double>(m - idx.size());
-    for (std::size_t k = 0; k < bins; ++k)
-      loo_mag[k] = static_cast<float>((total_mag[k] - group_mag[k]) / others);
-    for (std::size_t j = 0; j < n; ++j) loo_x[j] = static_cast<float>((total_x[j] - group_x[j]) / others);
+    Eigen::Map<Eigen::ArrayXf>(loo_mag.data(), nb) = ((total_mag_a - group_mag_a) / others).cast<float>();
+    Eigen::Map<Eigen::ArrayXf>(loo_x.data(), nn) = ((total_x_a - group_x_a) / others).cast<float>();
+    fft.forward(loo_x, loo_x_spectrum);
+    const bool reuse = idx.size() == 1;  // the analyzer still holds that window's transform
     for (const std::size_t i : idx) {
+      analyzer.analyze_all(windows[i], loo_mag, loo_x_spectrum, cls.line_groups, f, reuse, cls.floor_gain);
       for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
-        const Features f = analyzer.analyze_with(windows[i], loo_mag, loo_x, static_cast<Method>(mi),
-                                                 cls.line_groups, cls.floor_gain);
-        rms_values[mi].push_back(f.rms_res);
-        entropy_values[mi].push_back(f.entropy_res);
+        rms_values[mi].push_back(f[mi].rms_res);
+        entropy_values[mi].push_back(f[mi].entropy_res);
       }
     }
   }

@@ -3,8 +3,10 @@
 // deterministic, so the daemon's processing thread and `ptda monitor` give identical numbers.
 #pragma once
 
+#include <array>
 #include <complex>
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -28,21 +30,27 @@ class WindowAnalyzer {
   /// x.size() must equal size(); the cls vector the method uses must be sized for size()
   /// (tda_mean: N, mean_magnitude: N/2+1). On a size mismatch nothing is computed and both features
   /// are NaN (NaN is outside every band, so such a window counts as abnormal, never as healthy).
-  /// Features: rms(r) and spectral_entropy(R) with R = FFT(r). Thread: the owner's (one analyzer per
-  /// thread). Never allocates, throws or blocks.
+  /// Features: rms(r) and spectral_entropy(R) with R = DFT(r), computed from one forward transform X
+  /// of x (docs/method.md section 7): R[k] = X[k] - D[k] in the spectrum (for PTDA |R[k]| =
+  /// ||X[k]| - |D[k]||, same phase), rms by Parseval, the entropy from |R[k]|^2 with a vectorised float
+  /// log (fast_log_error()). They agree with the time-domain definitions within 1e-6 relative
+  /// (tests/golden/one_fft_test.cpp). TDA uses cls.tda_spectrum when it is sized N/2+1
+  /// (prepare_line_groups() fills it), else one more transform of cls.tda_mean. Thread: the owner's (one
+  /// analyzer per thread). Never allocates, throws or blocks.
   Features analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept;
 
   /// Like analyze() but with an explicit mean magnitude / TDA mean (used for leave-one-out training).
   /// line_groups (PTDA only; empty = the paper's PTDA): each group's deterministic magnitude is the
   /// mean magnitude times the window's own least-squares gain g = sum(a |X|) / sum(a^2) over the
-  /// group, so D[k] = g a[k] e^{j theta_x[k]}. Groups outside [1, N/2] are ignored.
+  /// group, so D[k] = g a[k] e^{j theta_x[k]}. Groups outside [1, N/2] are ignored. TDA transforms
+  /// tda_mean (two forward transforms).
   /// floor_gain (PTDA only): every bin k >= 1 outside the groups gets D[k] = g_f a[k] e^{j theta_x[k]}
   /// with g_f the median of |X[k]| / a[k] over those bins (a[k] > 0), and both features are those of
   /// the level-referred residual spectrum: R[k] divided by the gain of its part (its group's g, or g_f;
-  /// DC by 1) clamped to [1/2, 2] (level changes beyond 6 dB count), rms_res by Parseval. residual() stays
-  /// the physical residual; residual_spectrum() is the referred one. g_f that is not > 0 (a dead channel) is
-  /// taken as 1, so a silent sensor still shows as a low residual. Same size rule, thread and allocation
-  /// contract as analyze().
+  /// DC by 1) clamped to [1/2, 2] (level changes beyond 6 dB count), rms_res by Parseval. The views
+  /// (residual(), residual_spectrum()) stay the physical residual. g_f that is not > 0 (a dead
+  /// channel) is taken as 1, so a silent sensor still shows as a low residual.
+  /// Same size rule, thread and allocation contract as analyze().
   Features analyze_with(std::span<const float> x, std::span<const float> mean_magnitude,
                         std::span<const float> tda_mean, Method method,
                         std::span<const LineGroup> line_groups = {}, bool floor_gain = false) noexcept;
@@ -50,26 +58,68 @@ class WindowAnalyzer {
   /// The floor gain g_f of the last PTDA window analysed with floor_gain (1 otherwise).
   [[nodiscard]] double floor_gain() const noexcept { return floor_gain_; }
 
-  /// Buffers of the last analyze() call (valid until the next call), for reports and tests.
-  [[nodiscard]] std::span<const float> deterministic() const noexcept { return d_; }
-  [[nodiscard]] std::span<const float> residual() const noexcept { return r_; }
+  /// All three methods from one forward transform of x (training): out[Method] = the features
+  /// analyze_with() gives, with the TDA mean given by its spectrum tda_spectrum = DFT(tda_mean)
+  /// (N/2+1 bins). reuse_spectrum: x is the window of the last magnitude() call, whose transform is
+  /// reused (no transform at all). floor_gain: as analyze_with(). Size mismatches give NaN features for
+  /// the methods they concern. The time-domain views below then describe PTDA. Thread: the owner's.
+  /// Never allocates or blocks.
+  void analyze_all(std::span<const float> x, std::span<const float> mean_magnitude,
+                   std::span<const std::complex<float>> tda_spectrum, std::span<const LineGroup> line_groups,
+                   std::array<Features, kMethodCount>& out, bool reuse_spectrum = false,
+                   bool floor_gain = false) noexcept;
+
+  /// Views of the last analyze() call, for reports and tests. deterministic(), residual() and
+  /// residual_spectrum() are built on first access after the call (PTDA: one inverse transform), from
+  /// the spectrum and the inputs of that call, which must still be alive and unchanged. Valid until the
+  /// next call. Thread: the owner's. Never allocate or block.
+  [[nodiscard]] std::span<const float> deterministic() const noexcept;
+  [[nodiscard]] std::span<const float> residual() const noexcept;
   [[nodiscard]] std::span<const std::complex<float>> spectrum() const noexcept { return X_; }
-  [[nodiscard]] std::span<const std::complex<float>> residual_spectrum() const noexcept { return R_; }
+  [[nodiscard]] std::span<const std::complex<float>> residual_spectrum() const noexcept;
 
   /// |DFT| of x into mag (bins = N/2+1), used by training (eq. 7). On a size mismatch mag is filled
   /// with NaN. Overwrites spectrum(). Thread: the owner's. Never allocates or blocks.
   void magnitude(std::span<const float> x, std::span<float> mag) noexcept;
 
+  /// Error bound of the vectorised natural log the entropy uses (Eigen's float log, a Cephes
+  /// polynomial): |log(p) - ln p| <= fast_log_error() * max(1, |ln p|) for the normal floats p in (0, 1]
+  /// (tests/unit/dsp/analyzer_test.cpp measures it). The entropy -sum p ln p therefore carries at most
+  /// this relative error from the log. Thread: any.
+  [[nodiscard]] static constexpr double fast_log_error() noexcept { return 2.5e-7; }
+
  private:
+  enum class Last : std::uint8_t { kNone, kRaw, kTda, kPtda };
+
   std::size_t n_;
-  RealFft fft_;
-  std::vector<float> d_, r_;
-  std::vector<double> mag_;             ///< |X[k]| of the last PTDA window
-  std::vector<double> ratio_;           ///< floor-gain scratch: |X[k]| / a[k] over the floor bins
-  std::vector<unsigned char> in_line_;  ///< floor-gain scratch: bin k lies in a line group
-  std::vector<double> refer_;           ///< floor gain: 1 / the gain of bin k's part (group or floor)
+  double inv_log_half_;                 ///< 1 / ln(N/2): the entropy's normalisation
+  mutable RealFft fft_;                 ///< mutable: the lazy views run the inverse transform
+  std::vector<std::complex<float>> X_;  ///< DFT of the last window
+  std::vector<std::complex<float>> M_;  ///< DFT of tda_mean when the caller has no spectrum for it
+  std::vector<float> mag_;              ///< |X[k]|
+  std::vector<float> res_;              ///< PTDA: |R[k]| with sign, |X[k]| - |D[k]|
+  std::vector<float> refer_;            ///< floor gain: 1 / the (clamped) gain of bin k's part
+  std::vector<double> ratio_;           ///< floor gain scratch: |X[k]| / a[k] over the floor bins
+  std::vector<unsigned char> in_line_;  ///< floor gain scratch: bin k lies in a line group
   double floor_gain_ = 1.0;
-  std::vector<std::complex<float>> X_, D_, R_;
+  std::vector<float> e_;        ///< |R[k]|^2
+  std::vector<float> scratch_;  ///< p ln p of the entropy
+  // Inputs of the last call (for the lazy views) and the views themselves.
+  Last last_ = Last::kNone;
+  std::span<const float> last_x_;
+  std::span<const float> last_tda_mean_;
+  const std::complex<float>* last_tda_spectrum_ = nullptr;
+  mutable bool views_ready_ = true;
+  mutable std::vector<float> d_, r_;
+  mutable std::vector<std::complex<float>> D_, R_;
+
+  bool transform(std::span<const float> x) noexcept;
+  Features raw_features() noexcept;
+  Features tda_features(const std::complex<float>* tda_spectrum) noexcept;
+  Features ptda_features(std::span<const float> mean_magnitude, std::span<const LineGroup> line_groups,
+                         bool floor_gain) noexcept;
+  Features features_from_energy() noexcept;
+  void build_views() const noexcept;
 };
 
 /// The spectral lines of a healthy mean magnitude spectrum a[k], k = 0..N/2: bins above 4 times
@@ -79,7 +129,8 @@ class WindowAnalyzer {
 [[nodiscard]] std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude);
 
 /// Fills every class's line_groups from its mean_magnitude when baseline.policy.ptda_line_gain is
-/// set, and clears them otherwise. Called by training and by the baseline reader. Thread: any.
+/// set, and clears them otherwise; and every class's tda_spectrum = DFT(tda_mean) (left empty when
+/// the length is not a RealFft length). Called by training and by the baseline reader. Thread: any.
 /// Allocates.
 void prepare_line_groups(Baseline& baseline);
 

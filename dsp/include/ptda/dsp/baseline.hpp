@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <complex>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -56,9 +57,11 @@ struct ThresholdPolicy {
   bool ptda_line_gain = true;
   /// PTDA with a per-window gain on the floor (`[monitor] floor_gain`, docs/method.md §2): the bins
   /// outside every line group get the window's own floor gain g_f (the median of |X[k]| / a[k] over
-  /// them), and rms_res is referred to the training floor (divided by g_f), so a floor that is a few
+  /// them), and the features are those of the level-referred residual (each line group's part divided
+  /// by its gain, the floor's by g_f, within a 6 dB allowance), so a floor or a line that is a few
   /// percent higher on another day is not read as a defect. Sidebands and impacts are sparse and move
-  /// the median little. Stored in the baseline (format >= 3, option bit 1).
+  /// the median little. Stored in the baseline (format >= 3, option bit 1). On by default since
+  /// session 6 (docs/method.md §2 and §8).
   bool ptda_floor_gain = true;
 };
 
@@ -108,6 +111,9 @@ struct ClassBaseline {
   /// Runtime only (not stored): the line groups of mean_magnitude when the policy asks for PTDA line
   /// gains (find_line_groups(), filled by prepare_line_groups()), else empty = the paper's PTDA.
   std::vector<LineGroup> line_groups;
+  /// Runtime only (not stored): DFT(tda_mean), k = 0..N/2 (prepare_line_groups()), so TDA needs no
+  /// second transform per window. Empty = not prepared (the analyzer then transforms tda_mean).
+  std::vector<std::complex<float>> tda_spectrum;
   /// Runtime only (not stored): the policy's ptda_floor_gain, set by prepare_line_groups() and by
   /// training, so analyze() needs only the class.
   bool floor_gain = false;

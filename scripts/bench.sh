@@ -1,0 +1,131 @@
+#!/usr/bin/env bash
+# Per-window benchmark of issue 13 item 5, every figure a ratio measured in this one run:
+#   - WindowAnalyzer::analyze() (raw, TDA, PTDA) against the KissFFT forward transform alone (dsp_bench);
+#   - `ptda monitor` per window (decode + slicer + analysis + decision) against a NumPy one-FFT PTDA
+#     per window written below (rfft, |R| = ||X| - a|, rms by Parseval, entropy of |R|^2).
+# Both for a "before" and an "after" build (e.g. main at f134bc3 built from a `git worktree`, and HEAD).
+#
+# Usage: scripts/bench.sh BEFORE_BUILD_DIR AFTER_BUILD_DIR [OUT_DIR]
+#   *_BUILD_DIR: release build trees holding cli/ptda and dsp/bench/dsp_bench (the KissFFT anchor is
+#   taken from AFTER's dsp_bench; KissFFT is the same library in both).
+# Needs /usr/bin/python3 with numpy (python3-numpy). Cost: ~2 min on the 2-core development host.
+set -euo pipefail
+before=${1:?before build dir}
+after=${2:?after build dir}
+out=${3:-$(mktemp -d)}
+root=$(cd "$(dirname "$0")/.." && pwd)
+py=/usr/bin/python3
+mkdir -p "$out"
+ptda_after=$after/cli/ptda
+
+# 1. Recordings: 600 s at constant speed (the gfd_like simulator preset moved to 25.6 kHz, 20 plateaus
+#    of 30 s), cut into back-to-back windows of N = 12800 (config/examples/gfd.toml with window_len and
+#    hop = 12800): the monitor's per-window time then includes decoding each sample once, as in
+#    issue 13's measurement. Trained on 120 s of another seed.
+cfg=$out/bench.toml
+if [[ ! -f $out/baseline.bin ]]; then
+  scen() {  # $1 = seed, $2 = duration_s, $3 = file
+    sed -e "s/^seed *=.*/seed = $1/" -e "s/^duration_s *=.*/duration_s = $2/" \
+      -e "s/^fs_hz = 64500/fs_hz = 25600/" "$root/config/scenarios/gfd_like.toml" >"$3"
+  }
+  scen 11 120.0 "$out/train.toml"
+  scen 12 600.0 "$out/mon.toml"
+  sed -e 's/^window_len *=.*/window_len = 12800/' -e 's/^hop *=.*/hop = 12800/' \
+    "$root/config/examples/gfd.toml" >"$cfg"
+  "$ptda_after" simulate --scenario "$out/train.toml" --out "$out/train" >/dev/null
+  "$ptda_after" simulate --scenario "$out/mon.toml" --out "$out/mon" >/dev/null
+  "$ptda_after" train --recording "$out/train" --config "$cfg" --out "$out/baseline.bin" >/dev/null
+fi
+
+# All times are CPU time (user + sys), not wall time: the host's 2 cores are shared.
+# 2. ptda monitor per window, best of 3, before and after (same baseline and recording): the child's
+#    user + sys CPU time from getrusage (microsecond resolution) over the JSONL's window count.
+monitor_us() {  # $1 = ptda binary, $2 = tag; prints CPU microseconds per window
+  "$py" - "$1" "$out" "$cfg" "$2" <<'PY'
+import resource, subprocess, sys
+ptda, out, cfg, tag = sys.argv[1:5]
+best = None
+for _ in range(3):
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([ptda, "monitor", "--recording", f"{out}/mon", "--config", cfg, "--baseline",
+                    f"{out}/baseline.bin", "--method", "ptda", "--jsonl", f"{out}/{tag}.jsonl"],
+                   check=True, stdout=subprocess.DEVNULL)
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    windows = sum(1 for _ in open(f"{out}/{tag}.jsonl"))
+    us = cpu * 1e6 / windows
+    best = us if best is None else min(best, us)
+print(f"{best:.2f}")
+PY
+}
+
+# 3. NumPy one-FFT PTDA per window (the reference of issue 13), N = 12800, on float32 windows.
+numpy_us() {
+  "$py" - <<'PY'
+import time, numpy as np
+n = 12800
+rng = np.random.default_rng(1)
+t = np.arange(n) / 25600.0
+def window():
+    ph = rng.uniform(0, 2 * np.pi, 2)
+    return (1.4 * np.sin(2 * np.pi * 520 * t + ph[0]) + 0.9 * np.sin(2 * np.pi * 2600 * t + ph[1])
+            + rng.standard_normal(n)).astype(np.float32)
+a = np.mean([np.abs(np.fft.rfft(window())) for _ in range(8)], axis=0)
+xs = [window() for _ in range(64)]
+half = n // 2
+def ptda(x):
+    X = np.fft.rfft(x)
+    e = (np.abs(X) - a) ** 2
+    s = e[0] + 2.0 * e[1:half].sum() + e[half]
+    rms = np.sqrt(s / n / n)
+    p = e[1:] / e[1:].sum()
+    p = p[p > 0]
+    h = -(p * np.log(p)).sum() / np.log(half)
+    return rms, h
+best = 1e9
+for _ in range(5):
+    t0 = time.process_time()
+    for _ in range(4):
+        for x in xs:
+            ptda(x)
+    best = min(best, (time.process_time() - t0) / (4 * len(xs)))
+print(f"{best * 1e6:.2f}")
+PY
+}
+
+# 4. dsp_bench: analyze() per method and the forward transform alone, N = 12800.
+bench_json() {  # $1 = dsp_bench, $2 = filter, $3 = file
+  "$1" --benchmark_filter="$2" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true \
+    --benchmark_format=json >"$3" 2>/dev/null
+}
+bench_json "$after/dsp/bench/dsp_bench" 'BM_RealFftForward/N:12800$' "$out/fft.json"
+bench_json "$before/dsp/bench/dsp_bench" 'BM_Analyze/N:12800/' "$out/analyze_before.json"
+bench_json "$after/dsp/bench/dsp_bench" 'BM_Analyze/N:12800/' "$out/analyze_after.json"
+mon_before=$(monitor_us "$before/cli/ptda" before)
+mon_after=$(monitor_us "$ptda_after" after)
+np_us=$(numpy_us)
+
+"$py" - "$out" "$mon_before" "$mon_after" "$np_us" <<'PY'
+import json, sys
+out, mon_b, mon_a, np_us = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
+def median(path, name_part):
+    for b in json.load(open(f"{out}/{path}"))["benchmarks"]:
+        if b.get("aggregate_name") == "median" and name_part in b["name"]:
+            return b["cpu_time"]
+    raise SystemExit(f"{name_part} not in {path}")
+fft = median("fft.json", "BM_RealFftForward/N:12800")
+print("| N = 12800 | before (f134bc3) | after | before / FFT | after / FFT |")
+print("|---|---|---|---|---|")
+print(f"| KissFFT forward alone | {fft:.1f} µs | {fft:.1f} µs | 1.00 | 1.00 |")
+for m, name in ((0, "raw"), (1, "tda"), (2, "ptda")):
+    b = median("analyze_before.json", f"BM_Analyze/N:12800/method:{m}")
+    a = median("analyze_after.json", f"BM_Analyze/N:12800/method:{m}")
+    print(f"| analyze() {name} | {b:.1f} µs | {a:.1f} µs | {b / fft:.2f} | {a / fft:.2f} |")
+print()
+print("| per window, N = 12800 | before (f134bc3) | after |")
+print("|---|---|---|")
+print(f"| `ptda monitor --method ptda` (best of 3) | {mon_b:.1f} µs | {mon_a:.1f} µs |")
+print(f"| NumPy one-FFT PTDA | {np_us:.1f} µs | {np_us:.1f} µs |")
+print(f"| NumPy time / `ptda monitor` time | {np_us / mon_b:.2f}x | {np_us / mon_a:.2f}x |")
+print(f"| `ptda monitor` / KissFFT forward | {mon_b / fft:.2f} | {mon_a / fft:.2f} |")
+PY
