@@ -9,7 +9,7 @@
 # each under GNU time: %M is the peak RSS (ru_maxrss of the child) in KiB.
 #
 # Usage: scripts/bench_memory.sh HOURS [build_dir] [out_dir]
-#   HOURS      length of the long recording (fractions allowed; 1 h = 276 MB of WAV + 116 MB of log; at
+#   HOURS      length of the long recording (fractions allowed; 1 h = 278 MB of WAV + 44 MB of log; at
 #              most 12.9 h: a WAV holds at most 4 GiB)
 #   build_dir  default build/release (daemon/ptdad, cli/ptda, and the recording in bench-data/)
 #   out_dir    default out/bench-memory: the recording (deleted at the end), results.tsv, logs

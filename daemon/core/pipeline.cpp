@@ -484,13 +484,16 @@ void Pipeline::acquisition_loop() noexcept {
     // one (can_burst_offset_ns_). It is rung when the ring fills up or the stream ends.
     tick = wait_burst(tick);
     SourceStatus st = SourceStatus::kOk;
+    bool rang = false;
     for (std::size_t i = 0; i < kSampleRingBlocks && !stop_.load(std::memory_order_relaxed); ++i) {
       st = acquire(0);
       if (st != SourceStatus::kOk) break;
+      if (!rang && sample_ring_->size_approx() > kSampleRingBlocks / 2) {  // a long burst (after a stall)
+        work_signal_.ring();
+        rang = true;
+      }
     }
-    if (st == SourceStatus::kEndOfStream || sample_ring_->size_approx() > kSampleRingBlocks / 2) {
-      work_signal_.ring();
-    }
+    if (st == SourceStatus::kEndOfStream) work_signal_.ring();
   }
 }
 
@@ -579,6 +582,7 @@ void Pipeline::can_loop() noexcept {
       st = receive_batch(0, n);
       total += n;
       if (st != CanStatus::kOk || n < kCanBatch) break;
+      if (speed_ring_->size_approx() > kSpeedRingSamples / 2) work_signal_.ring();  // a long burst
     }
     if (total > 0 || st == CanStatus::kEndOfStream) work_signal_.ring();
   }
