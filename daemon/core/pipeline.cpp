@@ -314,6 +314,11 @@ void Pipeline::configure_rings_and_timing() {
       std::min<std::int64_t>(std::max<std::int64_t>(seconds_to_ns(4 * pc.speed_frame.period_s), 50'000'000),
                              std::max<std::int64_t>(speed_stale_ns_ / 2, 1'000'000));
   output_period_ns_ = seconds_to_ns(cfg_.alarm.can_period_s);
+  // The CAN burst comes after the acquisition burst by one speed frame period (+1 ms): the speed sample
+  // that follows the newest block's end (the processing thread waits for it) is then in the same tick.
+  // Slower frames (> kBurstPeriodNs / 2 - 1 ms) make the block wait one more period.
+  can_burst_offset_ns_ = std::clamp<std::int64_t>(seconds_to_ns(pc.speed_frame.period_s) + 1'000'000,
+                                                  1'000'000, kBurstPeriodNs / 2);
   st_ = PipelineStatus{};
   st_.phase = mode_ == PipelineMode::kMonitor && refused() ? Phase::kRefused : Phase::kStarting;
   published_.store(st_);
@@ -347,6 +352,7 @@ void Pipeline::activate() {
   }
   stop_.store(false, std::memory_order_relaxed);
   last_block_arrival_ns_ = clock_.now_ns();
+  burst_origin_ns_ = last_block_arrival_ns_;
   active_ = true;
   acq_thread_ = std::thread([this] { acquisition_loop(); });
   can_thread_ = std::thread([this] { can_loop(); });
@@ -411,51 +417,147 @@ drivers::CanBusState Pipeline::can_bus_state() const noexcept {
 
 // ---- acquisition thread -------------------------------------------------------------------------
 
-void Pipeline::acquisition_loop() noexcept {
+std::int64_t Pipeline::wait_burst(std::int64_t tick) noexcept {
+  std::int64_t now = clock_.now_ns();
+  if (tick > now) {
+    clock_.sleep_until_ns(tick);
+    now = clock_.now_ns();
+  }
+  // Stay on the grid; a stage that fell behind by a period or more (a stall, a long burst) skips the
+  // ticks it missed instead of waking back to back.
+  std::int64_t next = tick + kBurstPeriodNs;
+  if (next <= now) next += ((now - next) / kBurstPeriodNs + 1) * kBurstPeriodNs;
+  return next;
+}
+
+SourceStatus Pipeline::acquire(std::int64_t timeout_ns) noexcept {
   drivers::SampleBlock& block = *acq_block_;
+  const SourceStatus st = source_->read(block, timeout_ns);
+  switch (st) {
+    case SourceStatus::kOk:
+      // A full ring is an overrun for a real-time source (the block is dropped and counted; the
+      // index jump becomes a gap downstream) and back-pressure for a fast replay.
+      while (!sample_ring_->try_push(block)) {
+        if (!source_fast_) {
+          acq_ring_full_blocks_.add();
+          acq_ring_full_samples_.add(block.count);
+          break;
+        }
+        if (stop_.load(std::memory_order_relaxed)) return st;
+        acq_beat_.fetch_add(1, std::memory_order_relaxed);
+        work_signal_.ring();  // the consumer must drain what this burst pushed so far
+        sleep_ns(200'000);
+      }
+      if (probe_ != nullptr) probe_->on_block_pushed(block);  // a dropped block is reported too
+      break;
+    case SourceStatus::kTimeout:
+      break;
+    case SourceStatus::kEndOfStream:
+      acq_end_.store(true, std::memory_order_release);
+      break;
+    case SourceStatus::kError:
+    case SourceStatus::kNotActive:
+      acq_read_errors_.add();
+      break;
+  }
+  return st;
+}
+
+void Pipeline::acquisition_loop() noexcept {
+  std::int64_t tick = burst_origin_ns_;
   while (!stop_.load(std::memory_order_relaxed)) {
     acq_beat_.fetch_add(1, std::memory_order_relaxed);
     if (acq_end_.load(std::memory_order_relaxed)) {
       sleep_ns(kStageWaitNs);
       continue;
     }
-    switch (source_->read(block, kStageWaitNs)) {
-      case SourceStatus::kOk:
-        // A full ring is an overrun for a real-time source (the block is dropped and counted; the
-        // index jump becomes a gap downstream) and back-pressure for a fast replay.
-        while (!sample_ring_->try_push(block)) {
-          if (!source_fast_) {
-            acq_ring_full_blocks_.add();
-            acq_ring_full_samples_.add(block.count);
-            break;
-          }
-          if (stop_.load(std::memory_order_relaxed)) return;
-          acq_beat_.fetch_add(1, std::memory_order_relaxed);
-          sleep_ns(200'000);
-        }
-        if (probe_ != nullptr) probe_->on_block_pushed(block);  // a dropped block is reported too
-        work_signal_.ring();
-        break;
-      case SourceStatus::kTimeout:
-        break;
-      case SourceStatus::kEndOfStream:
-        acq_end_.store(true, std::memory_order_release);
-        work_signal_.ring();
-        break;
-      case SourceStatus::kError:
-      case SourceStatus::kNotActive:
-        acq_read_errors_.add();
-        sleep_ns(10'000'000);
-        break;
+    if (source_fast_) {
+      // As fast as the pipeline takes it: the read waits (if at all) and every block rings.
+      const SourceStatus st = acquire(kStageWaitNs);
+      if (st == SourceStatus::kOk || st == SourceStatus::kEndOfStream) work_signal_.ring();
+      if (st == SourceStatus::kError || st == SourceStatus::kNotActive) sleep_ns(10'000'000);
+      continue;
     }
+    // Real-time pace: the burst timer is this thread's one wait; then every block the device (or the
+    // replay's clock) has ready is taken without waiting. The processing thread is not rung for blocks:
+    // it waits for the speed sample after a block anyway, and the CAN burst that brings it follows this
+    // one (can_burst_offset_ns_). It is rung when the ring fills up or the stream ends.
+    tick = wait_burst(tick);
+    SourceStatus st = SourceStatus::kOk;
+    bool rang = false;
+    for (std::size_t i = 0; i < kSampleRingBlocks && !stop_.load(std::memory_order_relaxed); ++i) {
+      st = acquire(0);
+      if (st != SourceStatus::kOk) break;
+      if (!rang && sample_ring_->size_approx() > kSampleRingBlocks / 2) {  // a long burst (after a stall)
+        work_signal_.ring();
+        rang = true;
+      }
+    }
+    if (st == SourceStatus::kEndOfStream) work_signal_.ring();
   }
 }
 
 // ---- CAN thread ---------------------------------------------------------------------------------
 
-void Pipeline::can_loop() noexcept {
+CanStatus Pipeline::receive_batch(std::int64_t timeout_ns, std::size_t& received) noexcept {
   const config::SpeedFrameSpec& spec = cfg_.pipeline.speed_frame;
   const ClearFrameSpec& clear = cfg_.can.clear_frame;
+  std::size_t n = 0;
+  received = 0;
+  const CanStatus st = channel_->receive(std::span<CanFrame>(can_frames_), n, timeout_ns);
+  if (st == CanStatus::kEndOfStream) {
+    can_end_.store(true, std::memory_order_release);
+    return st;
+  }
+  if (st == CanStatus::kError || st == CanStatus::kNotActive) {
+    can_receive_errors_.add();
+    return st;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const CanFrame& f = can_frames_[i];
+    can_frames_n_.add();
+    config::DecodedSpeed d;
+    switch (config::decode_speed(f, spec, d)) {
+      case config::DecodeResult::kOk: {
+        can_speed_.add();
+        const dsp::SpeedSample s{f.t_ns - latency_ns_, d.speed_rad_s, d.angle_rad, d.has_angle};
+        while (!speed_ring_->try_push(s)) {
+          if (!can_fast_) {
+            can_ring_full_.add();
+            break;
+          }
+          if (stop_.load(std::memory_order_relaxed)) return st;
+          can_beat_.fetch_add(1, std::memory_order_relaxed);
+          work_signal_.ring();
+          sleep_ns(200'000);
+        }
+        break;
+      }
+      case config::DecodeResult::kOtherId:
+        if (matches_clear(f, clear)) {
+          can_clear_frames_.add();
+          alarm_->post_clear_request(ClearSource::kCan);
+        } else {
+          can_other_id_.add();
+        }
+        break;
+      case config::DecodeResult::kWrongDlc:
+        can_wrong_dlc_.add();
+        break;
+      case config::DecodeResult::kRtr:
+        can_rtr_.add();
+        break;
+      case config::DecodeResult::kErrorFrame:
+        can_error_frames_.add();
+        break;
+    }
+  }
+  received = n;
+  return st;
+}
+
+void Pipeline::can_loop() noexcept {
+  std::int64_t tick = burst_origin_ns_ + can_burst_offset_ns_;
   while (!stop_.load(std::memory_order_relaxed)) {
     can_beat_.fetch_add(1, std::memory_order_relaxed);
     if (can_end_.load(std::memory_order_relaxed)) {
@@ -463,56 +565,26 @@ void Pipeline::can_loop() noexcept {
       continue;
     }
     std::size_t n = 0;
-    const CanStatus st = channel_->receive(std::span<CanFrame>(can_frames_), n, kStageWaitNs);
-    if (st == CanStatus::kEndOfStream) {
-      can_end_.store(true, std::memory_order_release);
-      work_signal_.ring();
+    if (can_fast_) {
+      const CanStatus st = receive_batch(kStageWaitNs, n);
+      if (st == CanStatus::kEndOfStream || n > 0) work_signal_.ring();
+      if (st == CanStatus::kError || st == CanStatus::kNotActive) sleep_ns(10'000'000);
       continue;
     }
-    if (st == CanStatus::kError || st == CanStatus::kNotActive) {
-      can_receive_errors_.add();
-      sleep_ns(10'000'000);
-      continue;
+    // Real-time pace: the burst timer is this thread's one wait. Then the socket (recvmmsg, kernel
+    // receive stamps) or the replay is drained without waiting, batch after batch, and the processing
+    // thread is rung once for the burst (speed samples, a clear request or error frames to look at).
+    tick = wait_burst(tick);
+    std::size_t total = 0;
+    CanStatus st = CanStatus::kOk;
+    for (std::size_t i = 0; i < kSpeedRingSamples / kCanBatch && !stop_.load(std::memory_order_relaxed);
+         ++i) {
+      st = receive_batch(0, n);
+      total += n;
+      if (st != CanStatus::kOk || n < kCanBatch) break;
+      if (speed_ring_->size_approx() > kSpeedRingSamples / 2) work_signal_.ring();  // a long burst
     }
-    for (std::size_t i = 0; i < n; ++i) {
-      const CanFrame& f = can_frames_[i];
-      can_frames_n_.add();
-      config::DecodedSpeed d;
-      switch (config::decode_speed(f, spec, d)) {
-        case config::DecodeResult::kOk: {
-          can_speed_.add();
-          const dsp::SpeedSample s{f.t_ns - latency_ns_, d.speed_rad_s, d.angle_rad, d.has_angle};
-          while (!speed_ring_->try_push(s)) {
-            if (!can_fast_) {
-              can_ring_full_.add();
-              break;
-            }
-            if (stop_.load(std::memory_order_relaxed)) return;
-            can_beat_.fetch_add(1, std::memory_order_relaxed);
-            sleep_ns(200'000);
-          }
-          break;
-        }
-        case config::DecodeResult::kOtherId:
-          if (matches_clear(f, clear)) {
-            can_clear_frames_.add();
-            alarm_->post_clear_request(ClearSource::kCan);
-          } else {
-            can_other_id_.add();
-          }
-          break;
-        case config::DecodeResult::kWrongDlc:
-          can_wrong_dlc_.add();
-          break;
-        case config::DecodeResult::kRtr:
-          can_rtr_.add();
-          break;
-        case config::DecodeResult::kErrorFrame:
-          can_error_frames_.add();
-          break;
-      }
-    }
-    if (n > 0) work_signal_.ring();  // speed samples, a clear request or error frames to look at
+    if (total > 0 || st == CanStatus::kEndOfStream) work_signal_.ring();
   }
 }
 
@@ -768,8 +840,8 @@ void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
   last_output_ns_ = now;
 }
 
-void Pipeline::publish(std::int64_t now, bool force) noexcept {
-  if (!force && now - last_publish_ns_ < 20'000'000) return;
+bool Pipeline::publish(std::int64_t now, bool force) noexcept {
+  if (!force && now - last_publish_ns_ < kPublishPeriodNs) return false;
   if (engine_) st_.slicer = engine_->slicer().counters();
   if (train_slicer_) st_.slicer = train_slicer_->counters();
   st_.clock_ns = alarm_time_ns_;
@@ -779,6 +851,7 @@ void Pipeline::publish(std::int64_t now, bool force) noexcept {
   if (coverage_) st_.coverage = coverage_->state();
   published_.store(st_);
   last_publish_ns_ = now;
+  return true;
 }
 
 void Pipeline::processing_loop() noexcept {
@@ -786,6 +859,7 @@ void Pipeline::processing_loop() noexcept {
   update_phase(now);
   drive_outputs(now, true);
   publish(now, true);
+  bool unpublished = false;  // work done since the last publication
   while (!stop_.load(std::memory_order_relaxed)) {
     if (stall_.load(std::memory_order_relaxed)) {  // test-only fault injection: no work, no heartbeat
       sleep_ns(5'000'000);
@@ -803,8 +877,16 @@ void Pipeline::processing_loop() noexcept {
     update_phase(now);
     alarm_->tick(alarm_time(fast_ ? st_.data_time_ns : now));
     drive_outputs(now, false);
-    publish(now, false);
-    if (!work) work_signal_.wait(ticket, kProcessingIdleWaitNs);
+    if (work) unpublished = true;
+    if (publish(now, false)) unpublished = false;
+    if (!work) {
+      // Idle: sleep until rung, but publish what was done within kPublishPeriodNs (the supervisor and
+      // status.json must not see a stale phase for a whole idle period).
+      std::int64_t wait_ns = kProcessingIdleWaitNs;
+      if (unpublished)
+        wait_ns = std::clamp<std::int64_t>(last_publish_ns_ + kPublishPeriodNs - now, 100'000, wait_ns);
+      work_signal_.wait(ticket, wait_ns);
+    }
   }
   publish(clock_.now_ns(), true);
 }

@@ -62,10 +62,21 @@ inline constexpr std::size_t kSampleRingBlocks = 64;      ///< 64 x 1024 samples
 inline constexpr std::size_t kSpeedRingSamples = 4096;    ///< 16 s of 4 ms speed frames
 inline constexpr std::size_t kCanBatch = 64;              ///< frames per receive() call
 inline constexpr std::int64_t kStageWaitNs = 50'000'000;  ///< longest wait of a stage before it re-checks
+/// Real-time sources are read in bursts: the acquisition and CAN threads wake once per burst period (a
+/// timer on a grid anchored at activate()), take everything the device or the replay's clock has ready
+/// without waiting, and the CAN thread rings the processing thread once per burst. One channel at
+/// 25.6 kHz then costs about 2 x 50 wake-ups a second instead of one per block, per frame and per idle
+/// check. The latency this adds from the end of a window to its verdict is at most one period plus the
+/// CAN offset below (docs/daemon.md, "Bursts"; docs/benchmarks.md measures p50/p99).
+inline constexpr std::int64_t kBurstPeriodNs = 20'000'000;
 /// The processing thread sleeps on its doorbell (rt/wake_signal.hpp) at most this long when it has no
-/// work: new blocks and speed samples wake it at once; the timeout paces what depends on time alone
-/// (status publication every 20 ms, a block's 50 ms wait for speed, staleness, alarm hold times).
-inline constexpr std::int64_t kProcessingIdleWaitNs = 5'000'000;
+/// work: the CAN burst (real time) and every block and frame batch (fast replays) wake it at once; the
+/// timeout paces what depends on time alone when no frame arrives (a block's >= 50 ms wait for speed,
+/// staleness, alarm hold times, the CAN verdict frame's period).
+inline constexpr std::int64_t kProcessingIdleWaitNs = 50'000'000;
+/// The processing thread publishes its status (seqlock) at most this often, and at most this long
+/// after it did some work.
+inline constexpr std::int64_t kPublishPeriodNs = 10'000'000;
 /// A block stamp that moves more than this against the sample index since the previous block is a clock
 /// jump: the block's samples are declared invalid (the index stays the time base).
 inline constexpr std::int64_t kTimeJumpNs = 100'000'000;
@@ -257,6 +268,15 @@ class Pipeline {
 
   void acquisition_loop() noexcept;
   void can_loop() noexcept;
+  /// Reads one block with the given timeout and pushes it (back-pressure for fast sources). Thread:
+  /// acquisition.
+  drivers::SourceStatus acquire(std::int64_t timeout_ns) noexcept;
+  /// Receives one batch of frames with the given timeout and handles them; `received` = frames taken.
+  /// Thread: CAN.
+  drivers::CanStatus receive_batch(std::int64_t timeout_ns, std::size_t& received) noexcept;
+  /// Sleeps until `tick` (the burst timer: the stage's one wait) and returns the next tick on the grid
+  /// (the one after now when the stage fell behind). Thread: acquisition or CAN, real-time pace.
+  std::int64_t wait_burst(std::int64_t tick) noexcept;
   void processing_loop() noexcept;
 
   // Processing helpers (processing thread only).
@@ -266,7 +286,7 @@ class Pipeline {
   void drain_windows(std::int64_t now) noexcept;
   void update_phase(std::int64_t now) noexcept;
   void drive_outputs(std::int64_t now, bool force) noexcept;
-  void publish(std::int64_t now, bool force) noexcept;
+  bool publish(std::int64_t now, bool force) noexcept;  ///< true when it published
   void finish_streams() noexcept;
   [[nodiscard]] std::int64_t alarm_time(std::int64_t candidate) noexcept;
   [[nodiscard]] std::int64_t sample_time(std::uint64_t index) const noexcept;  ///< stream time of index
@@ -284,6 +304,8 @@ class Pipeline {
   drivers::WavReplaySource* wav_replay_ = nullptr;           ///< source_, when it is a WAV replay
   drivers::CandumpReplayChannel* candump_replay_ = nullptr;  ///< channel_, when it is a candump replay
   std::optional<std::int64_t> replay_origin_mono_ns_;
+  std::int64_t burst_origin_ns_ = 0;      ///< the burst grid's origin (activate())
+  std::int64_t can_burst_offset_ns_ = 0;  ///< the CAN burst follows the acquisition burst by this much
   std::vector<std::unique_ptr<drivers::AlarmOutput>> outputs_;
   bool source_fast_ = false, can_fast_ = false, fast_ = false;
   double fs_hz_ = 0.0;

@@ -138,8 +138,8 @@ SourceStatus SimSampleSource::read(drivers::SampleBlock& out, std::int64_t timeo
     const std::int64_t due = t0_mono_ns_ + loop_base + rec_->sample_offset_ns(i + count - 1);
     std::int64_t now = clock_.now_ns();
     if (now < due) {
-      const std::int64_t limit = now + std::max<std::int64_t>(timeout_ns, 0);
-      clock_.sleep_until_ns(std::min(due, limit));
+      if (timeout_ns <= 0) return SourceStatus::kTimeout;  // a poll (burst read): no wait, not counted
+      clock_.sleep_until_ns(std::min(due, now + timeout_ns));
       now = clock_.now_ns();
       if (now < due) {
         stats_.timeouts.add();
@@ -194,7 +194,8 @@ CanStatus SimCanChannel::receive(std::span<CanFrame> out, std::size_t& received,
     const std::int64_t due = frame_time(next_frame_);
     std::int64_t now = clock_.now_ns();
     if (now < due) {
-      clock_.sleep_until_ns(std::min(due, now + std::max<std::int64_t>(timeout_ns, 0)));
+      if (timeout_ns <= 0) return CanStatus::kTimeout;  // a poll (burst read): no wait
+      clock_.sleep_until_ns(std::min(due, now + timeout_ns));
       now = clock_.now_ns();
       if (now < due) return CanStatus::kTimeout;
     }

@@ -189,7 +189,7 @@ SourceStatus IioSampleSource::read(SampleBlock& out, std::int64_t timeout_ns) no
     const timespec ts = to_timespec(timeout_ns);
     const int r = ::ppoll(&p, 1, &ts, nullptr);
     if (r == 0 || (r < 0 && errno == EINTR)) {
-      stats_.timeouts.add();
+      if (timeout_ns > 0) stats_.timeouts.add();  // a poll (burst read, timeout 0) is not a timeout
       return SourceStatus::kTimeout;
     }
     if (r < 0 || (p.revents & (POLLERR | POLLNVAL)) != 0) {
@@ -219,7 +219,7 @@ SourceStatus IioSampleSource::read(SampleBlock& out, std::int64_t timeout_ns) no
       }
     }
     if (have_ < scan) {
-      stats_.timeouts.add();
+      if (timeout_ns > 0) stats_.timeouts.add();
       return SourceStatus::kTimeout;
     }
   }

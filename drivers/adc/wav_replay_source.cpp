@@ -80,8 +80,8 @@ SourceStatus WavReplaySource::read(SampleBlock& out, std::int64_t timeout_ns) no
     const std::int64_t due = sample_time_ns(next_index_ + staged_count_ - 1);
     std::int64_t now = clock_.now_ns();
     if (due > now) {
-      const std::int64_t deadline = now + std::max<std::int64_t>(timeout_ns, 0);
-      clock_.sleep_until_ns(std::min(due, deadline));
+      if (timeout_ns <= 0) return SourceStatus::kTimeout;  // a poll (burst read): no wait, not counted
+      clock_.sleep_until_ns(std::min(due, now + timeout_ns));
       now = clock_.now_ns();
       if (due > now) {
         stats_.timeouts.add();

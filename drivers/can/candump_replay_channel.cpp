@@ -1,5 +1,6 @@
 #include "can/candump_replay_channel.hpp"
 
+#include <exception>
 #include <string>
 #include <utility>
 
@@ -11,20 +12,21 @@ namespace ptda::drivers {
 CandumpReplayChannel::CandumpReplayChannel(CandumpReplayConfig config, Clock& clock)
     : config_(std::move(config)), clock_(clock) {}
 
+CandumpReplayChannel::~CandumpReplayChannel() = default;
+
 void CandumpReplayChannel::configure() {
-  frames_.clear();
-  formats::CandumpReader reader(config_.path);  // throws ptda::Error naming the file
-  formats::CandumpRecord rec;
-  while (reader.next(rec)) {
-    if (!config_.interface.empty() && rec.iface != config_.interface) continue;
-    if (config_.skip_transmitted && rec.direction == 'T') continue;
-    if (frames_.size() >= config_.max_frames) {
-      throw Error(config_.path.string(), reader.line_no(), 0,
-                  "more than max_frames = " + std::to_string(config_.max_frames) + " frames");
-    }
-    frames_.push_back(rec.frame);
+  reader_ = std::make_unique<formats::CandumpReader>(config_.path);  // throws ptda::Error naming the file
+  record_ = std::make_unique<formats::CandumpRecord>();
+  record_->iface.reserve(32);
+  frame_count_ = 0;
+  // One validating pass: a malformed line fails here, with its line number, not in the run state.
+  while (reader_->next(*record_)) {
+    if (!config_.interface.empty() && record_->iface != config_.interface) continue;
+    if (config_.skip_transmitted && record_->direction == 'T') continue;
+    if (frame_count_ == 0) first_t_ns_ = record_->frame.t_ns;
+    ++frame_count_;
   }
-  frames_.shrink_to_fit();
+  reader_->rewind();
   tx_.assign(config_.tx_capacity, CanFrame{});
   tx_count_ = 0;
   pos_ = 0;
@@ -33,40 +35,59 @@ void CandumpReplayChannel::configure() {
 
 void CandumpReplayChannel::activate() {
   if (!configured_) throw Error(config_.path.string(), 0, 0, "candump replay: activate() before configure()");
-  origin_unix_ns_ = config_.timeline.origin_unix_ns.value_or(frames_.empty() ? 0 : frames_.front().t_ns);
+  origin_unix_ns_ = config_.timeline.origin_unix_ns.value_or(frame_count_ == 0 ? 0 : first_t_ns_);
   origin_mono_ns_ = config_.timeline.origin_mono_ns.value_or(clock_.now_ns());
+  reader_->rewind();
   pos_ = 0;
+  have_next_ = false;
+  at_end_ = false;
   active_ = true;
+}
+
+bool CandumpReplayChannel::pull() noexcept {
+  try {
+    while (reader_->next(*record_)) {
+      if (!config_.interface.empty() && record_->iface != config_.interface) continue;
+      if (config_.skip_transmitted && record_->direction == 'T') continue;
+      next_ = record_->frame;
+      return true;
+    }
+  } catch (const std::exception&) {  // the file changed since configure(): counted, never thrown
+    stats_.rx_errors.add();
+  }
+  at_end_ = true;
+  return false;
 }
 
 CanStatus CandumpReplayChannel::receive(std::span<CanFrame> out, std::size_t& received,
                                         std::int64_t timeout_ns) noexcept {
   received = 0;
   if (!active_) return CanStatus::kNotActive;
-  if (pos_ >= frames_.size()) return CanStatus::kEndOfStream;
+  if (!have_next_ && (at_end_ || !(have_next_ = pull()))) return CanStatus::kEndOfStream;
   if (out.empty()) return CanStatus::kOk;
   const bool paced = config_.pace == ReplayPace::kRealTime;
   std::int64_t now = clock_.now_ns();
   if (paced) {
-    const std::int64_t due = map_time(frames_[pos_].t_ns);
+    const std::int64_t due = map_time(next_.t_ns);
     if (due > now) {
-      const std::int64_t deadline = now + (timeout_ns > 0 ? timeout_ns : 0);
+      if (timeout_ns <= 0) return CanStatus::kTimeout;  // a poll (burst read): no wait
+      const std::int64_t deadline = now + timeout_ns;
       clock_.sleep_until_ns(due < deadline ? due : deadline);
       now = clock_.now_ns();
       if (due > now) return CanStatus::kTimeout;
     }
   }
-  while (received < out.size() && pos_ < frames_.size()) {
-    const CanFrame& src = frames_[pos_];
-    const std::int64_t t = map_time(src.t_ns);
+  while (received < out.size() && have_next_) {
+    const std::int64_t t = map_time(next_.t_ns);
     if (paced && t > now) break;
     CanFrame& f = out[received];
-    f = src;
+    f = next_;
     f.t_ns = t;
     if (f.error()) apply_error_frame(f, stats_);
     stats_.rx_frames.add();
     ++received;
     ++pos_;
+    have_next_ = pull();
   }
   return CanStatus::kOk;
 }

@@ -1,17 +1,24 @@
-// Replay backend of CanChannel: the frames of a candump log (formats::CandumpReader), loaded at
-// configure() into one buffer and released in order, paced at real time on the daemon clock or as
-// fast as the caller reads. Sent frames are kept in a fixed buffer for inspection (tests, dry runs).
+// Replay backend of CanChannel: the frames of a candump log (formats::CandumpReader), validated at
+// configure() and streamed from the file in order (one frame read ahead: memory does not depend on the
+// log's length), paced at real time on the daemon clock or as fast as the caller reads. Sent frames are
+// kept in a fixed buffer for inspection (tests, dry runs).
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "ptda/drivers/can_channel.hpp"
 #include "ptda/drivers/clock.hpp"
+
+namespace ptda::formats {
+class CandumpReader;
+struct CandumpRecord;
+}  // namespace ptda::formats
 
 namespace ptda::drivers {
 
@@ -20,36 +27,41 @@ struct CandumpReplayConfig {
   std::string interface;         ///< only frames logged on this interface; "" = all
   bool skip_transmitted = true;  ///< drop records marked 'T' (the logger's own transmissions)
   ReplayPace pace = ReplayPace::kRealTime;
-  ReplayTimeline timeline;             ///< log time -> daemon clock
-  std::size_t max_frames = 4'000'000;  ///< configure() refuses longer logs (memory is fixed up front)
-  std::size_t tx_capacity = 4096;      ///< sent frames kept; further sends return kTxFull
+  ReplayTimeline timeline;         ///< log time -> daemon clock
+  std::size_t tx_capacity = 4096;  ///< sent frames kept; further sends return kTxFull
 };
 
 class CandumpReplayChannel final : public CanChannel {
  public:
   /// `clock` must outlive the channel.
   CandumpReplayChannel(CandumpReplayConfig config, Clock& clock);
+  ~CandumpReplayChannel() override;
 
-  /// Reads and validates the whole log. Throws ptda::Error "<file>:<line>: <what>" for a malformed line,
-  /// "<file>: more than N frames" beyond max_frames. Thread: main, start-up. Blocks and allocates.
+  /// Reads and validates the whole log (one pass, nothing kept but the count and the first frame's
+  /// time). Throws ptda::Error "<file>:<line>: <what>" for a malformed line. Thread: main, start-up.
+  /// Blocks and allocates.
   void configure() override;
   /// Anchors the timeline and rewinds to the first frame. Throws ptda::Error before configure().
+  /// Never allocates.
   void activate() override;
   /// Sets the timeline's daemon-clock origin (ReplayTimeline::origin_mono_ns) for the next activate().
   /// Thread: main, while not active.
   void set_origin_mono_ns(std::int64_t origin_mono_ns) noexcept {
     config_.timeline.origin_mono_ns = origin_mono_ns;
   }
-  /// Releases the next frames. Real-time pace: only frames whose mapped time has come, sleeping on the
-  /// clock up to timeout_ns for the first; kEndOfStream once every frame was released.
+  /// Releases the next frames, read from the file as they go. Real-time pace: only frames whose mapped
+  /// time has come, sleeping on the clock up to timeout_ns for the first (none for timeout_ns <= 0);
+  /// kEndOfStream once every frame was released. A log that changed since configure() and no longer
+  /// parses ends the stream there (counted in rx_errors). Thread: the receiving thread. Reads the file
+  /// (as the WAV replay does); never allocates (the reader's line buffer grew at configure) or throws.
   CanStatus receive(std::span<CanFrame> out, std::size_t& received,
                     std::int64_t timeout_ns) noexcept override;
   /// Records the frame (stamped with the clock) in the transmit buffer. Never blocks or allocates.
   CanStatus send(const CanFrame& frame) noexcept override;
   void deactivate() noexcept override { active_ = false; }
 
-  /// Frames loaded by configure(). Thread: any after configure().
-  [[nodiscard]] std::size_t frame_count() const noexcept { return frames_.size(); }
+  /// Frames in the log (as configure() counted them). Thread: any after configure().
+  [[nodiscard]] std::size_t frame_count() const noexcept { return frame_count_; }
   /// Frames released so far. Thread: the receiving thread.
   [[nodiscard]] std::size_t position() const noexcept { return pos_; }
   /// Frames passed to send() and kept. Thread: the sending thread, or any once sending stopped.
@@ -60,9 +72,18 @@ class CandumpReplayChannel final : public CanChannel {
   }
 
  private:
+  /// Reads the next kept frame (interface, direction) into next_. False at the end or on a read error.
+  bool pull() noexcept;
+
   CandumpReplayConfig config_;
   Clock& clock_;
-  std::vector<CanFrame> frames_;  ///< t_ns = log (UNIX) time
+  std::unique_ptr<formats::CandumpReader> reader_;
+  std::unique_ptr<formats::CandumpRecord> record_;  ///< scratch (its iface string keeps its capacity)
+  CanFrame next_{};                                 ///< the next frame to release; t_ns = log (UNIX) time
+  bool have_next_ = false;
+  bool at_end_ = false;
+  std::size_t frame_count_ = 0;
+  std::int64_t first_t_ns_ = 0;  ///< log time of the first frame
   std::vector<CanFrame> tx_;
   std::size_t tx_count_ = 0;
   std::size_t pos_ = 0;

@@ -258,7 +258,7 @@ CanStatus SocketCanChannel::receive(std::span<CanFrame> out, std::size_t& receiv
       stats_.rx_errors.add();
       return CanStatus::kError;
     }
-    if (attempt == 1) return CanStatus::kTimeout;  // woken without data (or EINTR)
+    if (attempt == 1 || timeout_ns <= 0) return CanStatus::kTimeout;  // woken without data (or EINTR); a poll
     pollfd p{fd_, POLLIN, 0};
     const timespec ts = to_timespec(timeout_ns);
     const int r = ::ppoll(&p, 1, &ts, nullptr);

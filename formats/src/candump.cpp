@@ -280,6 +280,13 @@ CandumpReader::~CandumpReader() {
   if (f_ != nullptr) std::fclose(f_);
 }
 
+void CandumpReader::rewind() noexcept {
+  std::rewind(f_);
+  line_no_ = 0;
+  comment_lines_ = 0;
+  first_comment_line_ = 0;
+}
+
 bool CandumpReader::next(CandumpRecord& out) {
   for (;;) {
     line_.clear();

@@ -393,8 +393,8 @@ TEST_F(Training, BaselineWriteFailureShowsInTheStatusAndIsRetried) {
   })) << text;
   EXPECT_NE(entry.find("\"last_errno\":20,"), std::string::npos) << entry;
   EXPECT_NE(entry.find("ENOTDIR (Not a directory)"), std::string::npos) << entry;
-  EXPECT_NE(text.find("\"state\":\"training\""), std::string::npos);
-  EXPECT_GT(json_u64(text, "windows"), 0U);  // still pooled
+  EXPECT_NE(text.find("\"state\":\"training\""), std::string::npos) << text;
+  EXPECT_GT(json_u64(text, "windows"), 0U) << text;  // still pooled
 
   // The cause removed: the next retry writes the baseline and monitoring starts on it.
   fs::remove(out_dir);

@@ -95,6 +95,30 @@ TEST_F(WavReplay, RealTimeReleasesABlockWhenItsLastSampleIsDue) {
   EXPECT_EQ(src.counters().timeouts, 1u);
 }
 
+// ptdad reads real-time sources in bursts after its own burst timer: a zero timeout polls, never
+// sleeps and is not a timeout.
+TEST_F(WavReplay, ZeroTimeoutPollsWithoutSleepingOrCounting) {
+  ManualClock clock(50'000'000'000);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  src.activate();
+  auto b = std::make_unique<SampleBlock>();
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kTimeout);  // block 0 is due at 50.255 s
+  EXPECT_EQ(clock.sleeps(), 0u);
+  EXPECT_EQ(clock.now_ns(), 50'000'000'000);
+  EXPECT_EQ(src.counters().timeouts, 0u);
+  // A burst timer 0.6 s later: the two blocks due by then come out back to back, then a poll.
+  clock.advance_ns(600'000'000);
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->first_index, 0u);
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->first_index, 256u);
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kTimeout);
+  EXPECT_EQ(clock.sleeps(), 0u);
+  EXPECT_EQ(src.counters().timeouts, 0u);
+  EXPECT_EQ(src.counters().blocks, 2u);
+}
+
 TEST_F(WavReplay, TimelineAlignsSampleZeroWithTheRecordingStart) {
   cfg_.pace = ReplayPace::kAsFastAsPossible;
   cfg_.start_unix_ns = 1'700'000'010'000'000'000;            // WAV starts 10 s after ...

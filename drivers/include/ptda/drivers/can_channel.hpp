@@ -81,7 +81,8 @@ class CanChannel {
   /// Starts receiving (anchors replay time). Throws ptda::Error. Thread: the main thread. Never allocates.
   virtual void activate() = 0;
   /// Receives up to out.size() frames into out[0..received), waiting at most timeout_ns for the first
-  /// (the receiving thread's one wait). Timestamps are on the daemon's clock. Thread: the one receiving
+  /// (the receiving thread's one wait; timeout_ns <= 0 polls without waiting, as ptdad drains a burst).
+  /// Timestamps are on the daemon's clock. Thread: the one receiving
   /// thread. Never allocates, throws or logs.
   virtual CanStatus receive(std::span<CanFrame> out, std::size_t& received,
                             std::int64_t timeout_ns) noexcept = 0;

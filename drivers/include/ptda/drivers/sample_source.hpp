@@ -47,7 +47,7 @@ enum class SourceStatus : std::uint8_t {
 struct SampleSourceCounters {
   std::uint64_t blocks = 0;
   std::uint64_t samples = 0;
-  std::uint64_t timeouts = 0;
+  std::uint64_t timeouts = 0;      ///< reads with a timeout > 0 that found no block in time
   std::uint64_t short_reads = 0;   ///< reads that ended inside a scan
   std::uint64_t gaps = 0;          ///< discontinuities detected from timestamps
   std::uint64_t lost_samples = 0;  ///< sum of the gaps' estimated sizes
@@ -78,7 +78,9 @@ class SampleSource {
   /// Thread: the main thread. May block briefly; never allocates.
   virtual void activate() = 0;
   /// Fills `out` with the next block. Waits at most timeout_ns for data (this is the reading thread's
-  /// one wait). Thread: the one reading thread. Never allocates, throws or logs.
+  /// one wait); timeout_ns <= 0 polls: no wait, and its kTimeout is not counted in `timeouts` (ptdad
+  /// reads real-time sources in bursts this way after its burst timer). Thread: the one reading thread.
+  /// Never allocates, throws or logs.
   virtual SourceStatus read(SampleBlock& out, std::int64_t timeout_ns) noexcept = 0;
   /// Stops the stream. Safe to call in any state and twice. Thread: the main thread, after the reading
   /// thread stopped calling read(). Never throws.

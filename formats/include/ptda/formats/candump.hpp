@@ -45,6 +45,9 @@ class CandumpReader {
   CandumpReader(const CandumpReader&) = delete;
   CandumpReader& operator=(const CandumpReader&) = delete;
   bool next(CandumpRecord& out);
+  /// Back to the first line (line numbers and comment counts start again). Thread: the owner's. Never
+  /// allocates or throws.
+  void rewind() noexcept;
   [[nodiscard]] long line_no() const noexcept { return line_no_; }
   /// Non-blank lines skipped as comments (not starting with '(') so far, and the number of the first
   /// (0 when none): a file of only such lines is not a candump log (cli/pipeline_runner says so).

@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# Peak RSS against recording length (issue 13 item 4; docs/benchmarks.md, "Memory at any length"):
+# a long recording is made by repeating the arc-welding job's faulty recording (63.4 s; daemon_bench's
+# cached one, see scripts/bench_daemon.sh) back to back, WAV samples and CAN frames shifted by the
+# recording's duration, then
+#   replay   ptdad --exit-at-end on it (WAV + candump replay, pace "fast"),
+#   monitor  ptda monitor on it,
+#   train    ptda train on it,
+# each under GNU time: %M is the peak RSS (ru_maxrss of the child) in KiB.
+#
+# Usage: scripts/bench_memory.sh HOURS [build_dir] [out_dir]
+#   HOURS      length of the long recording (fractions allowed; 1 h = 278 MB of WAV + 44 MB of log; at
+#              most 12.9 h: a WAV holds at most 4 GiB)
+#   build_dir  default build/release (daemon/ptdad, cli/ptda, and the recording in bench-data/)
+#   out_dir    default out/bench-memory: the recording (deleted at the end), results.tsv, logs
+# Environment: PTDAD, PTDA (other binaries, e.g. copies of an older build), KEEP=1 keeps the recording,
+#   SKIP="train" skips commands (space separated).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+hours=${1:?usage: bench_memory.sh HOURS [build_dir] [out_dir]}
+build=$(realpath "${2:-$root/build/release}")
+out=$(realpath -m "${3:-$root/out/bench-memory}")
+ptdad=${PTDAD:-$build/daemon/ptdad}
+ptda=${PTDA:-$build/cli/ptda}
+data=$(realpath -m "${PTDA_BENCH_DIR:-$build/bench-data}")
+src=$data/arc_welding/faulty
+[[ -f $src/recording.toml ]] || { echo "bench_memory.sh: run scripts/bench_daemon.sh first ($src)" >&2; exit 2; }
+rec=$out/long-${hours}h
+mkdir -p "$out"
+if [[ ! -f $rec/recording.toml ]]; then
+  mkdir -p "$rec"
+  /usr/bin/python3 - "$src" "$rec" "$hours" <<'EOF'
+import pathlib, re, shutil, struct, sys
+src, dst, hours = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]), float(sys.argv[3])
+data = (src / "vibration.wav").read_bytes()
+pos, fmt, body = 12, None, None
+while pos + 8 <= len(data):
+    cid, size = data[pos:pos + 4], struct.unpack("<I", data[pos + 4:pos + 8])[0]
+    if cid == b"fmt ":
+        fmt = data[pos:pos + 8 + size + (size & 1)]
+    elif cid == b"data":
+        body = data[pos + 8:pos + 8 + size]
+    pos += 8 + size + (size & 1)
+ch, fs, _, block = struct.unpack("<HIIH", fmt[10:22])
+frames = len(body) // block
+period_us = frames * 1_000_000 // fs  # whole microseconds (the log's resolution)
+reps = max(1, round(hours * 3600 * fs / frames))
+with open(dst / "vibration.wav", "wb") as f:
+    f.write(b"RIFF" + struct.pack("<I", 4 + len(fmt) + 8 + len(body) * reps) + b"WAVE" + fmt)
+    f.write(b"data" + struct.pack("<I", len(body) * reps))
+    for _ in range(reps):
+        f.write(body)
+lines = (src / "can.log").read_text().splitlines()
+stamp = re.compile(r"^\((\d+)\.(\d{6})\)(.*)$")
+parsed = []
+for l in lines:
+    m = stamp.match(l)
+    if m:
+        parsed.append((int(m.group(1)) * 1_000_000 + int(m.group(2)), m.group(3)))
+with open(dst / "can.log", "w") as f:
+    for r in range(reps):
+        off = r * period_us
+        f.write("".join(f"({(t + off) // 1_000_000}.{(t + off) % 1_000_000:06d}){rest}\n" for t, rest in parsed))
+shutil.copy(src / "recording.toml", dst / "recording.toml")
+print(f"{reps} x {frames / fs:.3f} s = {reps * frames / fs / 3600:.3f} h", file=sys.stderr)
+EOF
+fi
+signal_h=$(/usr/bin/python3 - "$rec/vibration.wav" <<'PY'
+import struct, sys
+with open(sys.argv[1], "rb") as f:
+    head = f.read(4096)
+pos = 12
+while pos + 8 <= len(head):
+    cid, size = head[pos:pos + 4], struct.unpack("<I", head[pos + 4:pos + 8])[0]
+    if cid == b"fmt ":
+        _, fs, _, block = struct.unpack("<HIIH", head[pos + 10:pos + 22])
+    elif cid == b"data":
+        print(f"{size / block / fs / 3600:.3f}")
+        break
+    pos += 8 + size + (size & 1)
+PY
+)
+cfg=$root/config/examples/arc_welding.toml
+base=$data/arc_welding/baseline.bin
+mkdir -p "$out/ptdad"
+{
+  printf '[daemon]\nbaseline = "%s"\nstatus_dir = "%s"\nlog_level = "warn"\nstatus_period_s = 0.05\n\n' "$base" "$out/ptdad/status"
+  printf '[adc]\nbackend = "wav"\nrecording = "%s"\npace = "fast"\nblock_len = 256\n\n' "$rec"
+  printf '[can]\nbackend = "candump"\npace = "fast"\nspeed_latency_s = 0.0\n\n'
+  awk '/^\[/{skip = ($0 == "[can]")} !skip' "$cfg"
+} >"$out/ptdad/ptdad.toml"
+
+measure() {  # name, command...
+  local name=$1
+  shift
+  if [[ " ${SKIP:-} " == *" $name "* ]]; then return; fi
+  /usr/bin/time -f '%M %e %U %S' -o "$out/$name.time" "$@" >"$out/$name.log" 2>&1 || echo "$name exited $?" >&2
+  read -r rss wall user sys <"$out/$name.time"
+  printf '%s\t%s\t%.1f\t%.1f\t%.1f\n' "$name" "$signal_h" "$(echo "$rss / 1024" | bc -l)" "$wall" "$(echo "$user + $sys" | bc -l)" >>"$out/results.tsv"
+}
+printf 'command\thours\tpeak_rss_mib\twall_s\tcpu_s\n' >"$out/results.tsv"
+measure replay "$ptdad" --config "$out/ptdad/ptdad.toml" --config-dir '' --exit-at-end --foreground
+measure monitor "$ptda" monitor --recording "$rec" --config "$cfg" --baseline "$base" --quiet
+measure train "$ptda" train --recording "$rec" --config "$cfg" --out "$out/train.bin"
+[[ ${KEEP:-0} == 1 ]] || rm -rf "$rec"
+column -t "$out/results.tsv"
