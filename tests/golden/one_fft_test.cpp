@@ -164,6 +164,9 @@ void compare(const std::vector<float>& healthy, const std::vector<float>& faulty
   for (const bool line_gain : {false, true}) {
     dsp::ThresholdPolicy policy;
     policy.ptda_line_gain = line_gain;
+    // The reference is the f134bc3 residual, which had no floor gain (session 6's default); the floor
+    // gain is checked against closed forms in tests/unit/dsp/line_gain_test.cpp.
+    policy.ptda_floor_gain = false;
     const dsp::ClassBaseline cls = dsp::build_class_baseline(dsp::SegmentClass{}, train, {}, policy);
     const auto old_loo = old_loo_features(train, cls.line_groups);
     for (std::size_t mi = 0; mi < dsp::kMethodCount; ++mi) {
