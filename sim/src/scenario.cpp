@@ -597,12 +597,10 @@ Scenario parse_scenario(std::string_view toml_text, const std::string& source) {
 }
 
 Scenario load_scenario(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path.string() + ": cannot open scenario file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw Error(path.string() + ": read error");
-  return parse_scenario(ss.str(), path.string());
+  // As configuration files (issue 14): a regular file of at most 16 MiB (a FIFO cannot hang it, a
+  // device cannot flood it), and, when running as root, not writable by others, nor its directories.
+  return parse_scenario(read_regular_file(path, kMaxConfigFileBytes, "scenario file", ::geteuid()),
+                        path.string());
 }
 
 }  // namespace ptda::sim

@@ -1,5 +1,7 @@
 // Scenario parsing (errors with line:column) and the presets reproducing the paper's numbers.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -261,6 +263,27 @@ TEST(ScenarioLoad, MissingFileNamesPath) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/dir/x.toml"), std::string::npos);
   }
+}
+
+// Issue 14: a scenario is read like a configuration file: a FIFO or a device is refused by kind
+// (never opened for a blocking read), as is a directory.
+TEST(ScenarioLoad, SpecialFilesAreRefusedByKind) {
+  const auto message = [](const std::string& p) {
+    try {
+      (void)load_scenario(p);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message("/dev/zero"), "/dev/zero: is a character device, not a scenario file");
+  EXPECT_EQ(message("/"), "/: is a directory, not a scenario file");
+  const std::string fifo =
+      (std::filesystem::temp_directory_path() / ("ptda_scenario_fifo_" + std::to_string(::getpid())))
+          .string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_EQ(message(fifo), fifo + ": is a FIFO, not a scenario file");
+  std::filesystem::remove(fifo);
 }
 
 struct PresetCase {
