@@ -143,9 +143,9 @@ Replay replay(const Scene& s, const std::string& config_text, FakeDevices& dev, 
     Live live(s, config_text, dev, false, true, starts);
     live.runner->join();
     r.view = live.d.view();
+    r.can = dev.last_channel->counters();  // the daemon owns the channel: read before it goes
   }
   r.status = read_text(s.status());
-  r.can = dev.last_channel->counters();
   if (starts != nullptr) {
     r.windows = starts->n;
     r.starts.assign(starts->t.begin(), starts->t.begin() + static_cast<std::ptrdiff_t>(starts->n));
