@@ -55,19 +55,6 @@ struct Sink final : WindowSink {
   std::size_t n = 0;
 };
 
-/// A daemon configuration whose devices come from the DeviceFactory (the [adc]/[can] backends named
-/// here are never opened), fast pace.
-std::string fake_config(const fs::path& dir, const std::string& extra = "",
-                        const std::string& pipeline_edit = "") {
-  std::string pipe = arc_pipeline();
-  if (!pipeline_edit.empty()) pipe.replace(pipe.find("clip_abs = 0.0"), 14, pipeline_edit);
-  return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
-         (dir / "status").string() +
-         "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
-         (dir / "not-opened").string() +
-         "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n" + extra + "\n" + pipe;
-}
-
 using ptda::test::read_text;
 
 struct RunResult {

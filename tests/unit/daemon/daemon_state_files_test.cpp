@@ -27,15 +27,6 @@ std::string read_text(const fs::path& p) {
   return ss.str();
 }
 
-/// The object text of `file` inside status.json's "state_files" ("" when absent).
-std::string state_file_json(const std::string& status, const std::string& file) {
-  const auto obj = status.find("\"state_files\":{");
-  if (obj == std::string::npos) return "";
-  const auto at = status.find("\"" + file + "\":{", obj);
-  if (at == std::string::npos) return "";
-  return status.substr(at, status.find('}', at) - at + 1);
-}
-
 void touch(const fs::path& p) {
   std::ofstream out(p);
 }

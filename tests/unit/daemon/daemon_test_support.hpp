@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -59,6 +60,56 @@ inline std::string arc_pipeline() {
     if (!skip) out += line + "\n";
   }
   return out;
+}
+
+/// A daemon configuration whose devices come from the DeviceFactory (daemon_fakes.hpp; the [adc]/[can]
+/// backends named here are never opened), fast pace, status period 50 ms. `extra` goes after [can]
+/// (tables such as [training]), `extra_daemon` into [daemon]; `pipeline_edit` replaces the pipeline's
+/// "clip_abs = 0.0" line.
+inline std::string fake_config(const fs::path& dir, const std::string& extra = "",
+                               const std::string& pipeline_edit = "", const std::string& extra_daemon = "") {
+  std::string pipe = arc_pipeline();
+  if (!pipeline_edit.empty()) pipe.replace(pipe.find("clip_abs = 0.0"), 14, pipeline_edit);
+  return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
+         (dir / "status").string() + "\"\nstatus_period_s = 0.05\n" + extra_daemon +
+         "\n[adc]\nbackend = \"wav\"\nrecording = \"" + (dir / "not-opened").string() +
+         "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n" + extra + "\n" + pipe;
+}
+
+/// The unsigned value after "key": inside status.json's "training" object (0 when absent).
+inline std::uint64_t training_u64(const std::string& text, const std::string& key) {
+  const auto obj = text.find("\"training\":{");
+  if (obj == std::string::npos) return 0;
+  const auto at = text.find("\"" + key + "\":", obj);
+  if (at == std::string::npos) return 0;
+  return std::strtoull(text.c_str() + at + key.size() + 3, nullptr, 10);
+}
+
+/// The string value of status.json's "reason".
+inline std::string json_reason(const std::string& text) {
+  const auto at = text.find("\"reason\":\"");
+  if (at == std::string::npos) return "";
+  const auto from = at + 10;
+  return text.substr(from, text.find('"', from) - from);
+}
+
+/// The object text of `file` ("status", "metrics", "baseline") inside status.json's "state_files" (""
+/// when absent).
+inline std::string state_file_json(const std::string& status, const std::string& file) {
+  const auto obj = status.find("\"state_files\":{");
+  if (obj == std::string::npos) return "";
+  const auto at = status.find("\"" + file + "\":{", obj);
+  if (at == std::string::npos) return "";
+  return status.substr(at, status.find('}', at) - at + 1);
+}
+
+/// How many "*.tmp*" entries `dir` holds.
+inline std::size_t temp_files(const fs::path& dir) {
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().filename().string().find(".tmp") != std::string::npos) ++n;
+  }
+  return n;
 }
 
 /// A daemon configuration for the simulator backends (arc-welding healthy scenario).

@@ -27,15 +27,6 @@ class Training : public ::testing::Test {
 
 using ptda::test::read_text;
 
-/// The unsigned value after "key": inside status.json's "training" object (0 when absent).
-std::uint64_t json_u64(const std::string& text, const std::string& key) {
-  const auto obj = text.find("\"training\":{");
-  if (obj == std::string::npos) return 0;
-  const auto at = text.find("\"" + key + "\":", obj);
-  if (at == std::string::npos) return 0;
-  return std::strtoull(text.c_str() + at + key.size() + 3, nullptr, 10);
-}
-
 std::string train_config(const fs::path& dir, std::uint32_t target_cycles) {
   // k = n = 5: only a run of abnormal windows alarms.
   const std::string pipe = with_decision(arc_pipeline(), 5, 5);
@@ -64,15 +55,6 @@ std::shared_ptr<const ChannelPlan> frames_of(const SimRecording& rec) {
   auto p = std::make_shared<ChannelPlan>();
   p->frames = rec.frames;
   return p;
-}
-
-/// No "*.tmp*" file next to the baseline.
-std::size_t temp_files(const fs::path& dir) {
-  std::size_t n = 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    if (e.path().filename().string().find(".tmp") != std::string::npos) ++n;
-  }
-  return n;
 }
 
 /// The output either does not exist or is a complete, valid baseline.
@@ -110,16 +92,16 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   std::string text;
   ASSERT_TRUE(wait_for([&] {
     text = read_text(status);
-    return text.find("\"state\":\"training\"") != std::string::npos && json_u64(text, "regions") > 0 &&
+    return text.find("\"state\":\"training\"") != std::string::npos && training_u64(text, "regions") > 0 &&
            d.view().pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000;
   }));
   ASSERT_TRUE(wait_for([&] {
     text = read_text(status);
-    return json_u64(text, "windows") == d.view().pipeline.windows && json_u64(text, "windows") > 0;
+    return training_u64(text, "windows") == d.view().pipeline.windows && training_u64(text, "windows") > 0;
   }));
-  EXPECT_EQ(json_u64(text, "target_cycles"), kTarget);
-  EXPECT_GT(json_u64(text, "classes"), 0U);
-  EXPECT_EQ(json_u64(text, "classes_complete"), 0U);  // 1/5 of a 20-cycle job: nothing complete yet
+  EXPECT_EQ(training_u64(text, "target_cycles"), kTarget);
+  EXPECT_GT(training_u64(text, "classes"), 0U);
+  EXPECT_EQ(training_u64(text, "classes_complete"), 0U);  // 1/5 of a 20-cycle job: nothing complete yet
   EXPECT_EQ(d.view().state, DaemonState::kTraining);
   EXPECT_EQ(d.view().pipeline.report.level, drivers::AlarmLevel::kFault);  // nothing judged while training
   EXPECT_FALSE(fs::exists(dir / "trained.bin"));
@@ -275,14 +257,6 @@ TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
   }
 }
 
-/// The string value of status.json's "reason".
-std::string json_reason(const std::string& text) {
-  const auto at = text.find("\"reason\":\"");
-  if (at == std::string::npos) return "";
-  const auto from = at + 10;
-  return text.substr(from, text.find('"', from) - from);
-}
-
 // Issue 14 item 5: a SIGHUP during field training keeps the collected windows (before: the reload
 // built a new pipeline with an empty pool, so a technician who changed the log level lost the cycles
 // collected so far); a reload that changes the window length says that the training restarted.
@@ -312,12 +286,12 @@ TEST_F(Training, ReloadKeepsTheCollectedWindowsUnlessTheWindowLengthChanges) {
       const DaemonView v = d.view();
       return text.find("\"state\":\"training\"") != std::string::npos && v.pipeline.windows > 0 &&
              v.pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000 &&
-             json_u64(text, "windows") == carried + v.pipeline.windows;
+             training_u64(text, "windows") == carried + v.pipeline.windows;
     });
   };
   ASSERT_TRUE(settled(0)) << text;
-  const std::uint64_t windows = json_u64(text, "windows");
-  const std::uint64_t regions = json_u64(text, "regions");
+  const std::uint64_t windows = training_u64(text, "windows");
+  const std::uint64_t regions = training_u64(text, "regions");
   ASSERT_GT(regions, 0U);
 
   // 1. A reload that changes no window: the pool is kept; the new pipeline adds its own windows (the
@@ -328,9 +302,9 @@ TEST_F(Training, ReloadKeepsTheCollectedWindowsUnlessTheWindowLengthChanges) {
   ASSERT_TRUE(wait_for([&] { return d.view().reloads == 1 && dev.pipelines == 2; }));
   ASSERT_TRUE(settled(windows)) << text;
   EXPECT_EQ(d.view().pipeline.windows, windows);
-  EXPECT_EQ(json_u64(text, "windows"), 2 * windows);
-  EXPECT_EQ(json_u64(text, "regions"), 2 * regions);
-  EXPECT_EQ(json_u64(text, "target_cycles"), 13U);
+  EXPECT_EQ(training_u64(text, "windows"), 2 * windows);
+  EXPECT_EQ(training_u64(text, "regions"), 2 * regions);
+  EXPECT_EQ(training_u64(text, "target_cycles"), 13U);
   EXPECT_EQ(json_reason(text), "reload kept " + std::to_string(windows) + " collected windows and " +
                                    std::to_string(regions) + " cycles");
   EXPECT_FALSE(fs::exists(dir / "trained.bin"));
@@ -394,7 +368,7 @@ TEST_F(Training, BaselineWriteFailureShowsInTheStatusAndIsRetried) {
   EXPECT_NE(entry.find("\"last_errno\":20,"), std::string::npos) << entry;
   EXPECT_NE(entry.find("ENOTDIR (Not a directory)"), std::string::npos) << entry;
   EXPECT_NE(text.find("\"state\":\"training\""), std::string::npos) << text;
-  EXPECT_GT(json_u64(text, "windows"), 0U) << text;  // still pooled
+  EXPECT_GT(training_u64(text, "windows"), 0U) << text;  // still pooled
 
   // The cause removed: the next retry writes the baseline and monitoring starts on it.
   fs::remove(out_dir);
