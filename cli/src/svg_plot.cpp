@@ -284,7 +284,11 @@ Spectrum envelope_spectrum(std::span<const float> x, double fs_hz, double f_lo_h
   double mean = 0.0;
   std::vector<double> env(x.size());
   for (std::size_t i = 0; i < x.size(); ++i) {
-    env[i] = std::hypot(static_cast<double>(b[i]), static_cast<double>(h[i]));
+    // sqrt, not std::hypot: floats squared in double cannot overflow, and hypot is versioned GLIBC_2.35,
+    // above the packages' libc6 (>= 2.34) (scripts/package_test.sh checks the symbol versions).
+    const double re = b[i];
+    const double im = h[i];
+    env[i] = std::sqrt(re * re + im * im);
     mean += env[i];
   }
   mean /= static_cast<double>(x.size());
