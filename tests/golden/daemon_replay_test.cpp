@@ -177,15 +177,7 @@ INSTANTIATE_TEST_SUITE_P(PaperJobs, DaemonReplay, ::testing::ValuesIn(kJobs),
 RunResult run_ptdad(const std::vector<std::string>& args, const fs::path& dir, const std::string& tag) {
   std::string cmd = shell_quote(PTDAD_BINARY);
   for (const auto& a : args) cmd += " " + shell_quote(a);
-  const fs::path out = dir / (tag + ".out");
-  const fs::path err = dir / (tag + ".err");
-  cmd += " >" + shell_quote(out.string()) + " 2>" + shell_quote(err.string()) + " </dev/null";
-  const int status = std::system(cmd.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = read_file(out);
-  r.err = read_file(err);
-  return r;
+  return run_captured(std::move(cmd), dir, tag);
 }
 
 TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ptda/cli/jsonl.hpp"
@@ -57,10 +58,9 @@ struct RunResult {
   std::string err;
 };
 
-/// Runs `ptda args...` with stdout/stderr captured into dir/<tag>.out/.err.
-inline RunResult run_ptda(const std::vector<std::string>& args, const fs::path& dir, const std::string& tag) {
-  std::string cmd = shell_quote(PTDA_CLI_BINARY);
-  for (const auto& a : args) cmd += " " + shell_quote(a);
+/// Runs the shell command `cmd` (already quoted) with stdout/stderr captured into dir/<tag>.out/.err
+/// and stdin from /dev/null.
+inline RunResult run_captured(std::string cmd, const fs::path& dir, const std::string& tag) {
   const fs::path out = dir / (tag + ".out");
   const fs::path err = dir / (tag + ".err");
   cmd += " >" + shell_quote(out.string()) + " 2>" + shell_quote(err.string()) + " </dev/null";
@@ -70,6 +70,13 @@ inline RunResult run_ptda(const std::vector<std::string>& args, const fs::path& 
   r.out = read_file(out);
   r.err = read_file(err);
   return r;
+}
+
+/// Runs `ptda args...` with stdout/stderr captured into dir/<tag>.out/.err.
+inline RunResult run_ptda(const std::vector<std::string>& args, const fs::path& dir, const std::string& tag) {
+  std::string cmd = shell_quote(PTDA_CLI_BINARY);
+  for (const auto& a : args) cmd += " " + shell_quote(a);
+  return run_captured(std::move(cmd), dir, tag);
 }
 
 /// One parsed JSONL object per line; fails the test on a malformed line.

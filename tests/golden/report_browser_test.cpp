@@ -43,15 +43,7 @@ RunResult run_chromium(const std::string& chromium, const std::vector<std::strin
       shell_quote((dir / "chromium-profile").string());
   for (const auto& m : mode) cmd += " " + shell_quote(m);
   cmd += " " + shell_quote("file://" + fs::absolute(file).string());
-  const fs::path out = dir / (tag + ".out");
-  const fs::path err = dir / (tag + ".err");
-  cmd += " >" + shell_quote(out.string()) + " 2>" + shell_quote(err.string()) + " </dev/null";
-  const int status = std::system(cmd.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = read_file(out);
-  r.err = read_file(err);
-  return r;
+  return run_captured(std::move(cmd), dir, tag);
 }
 
 /// The text between `start` (the first match at or after `from`, and after `anchor` when given) and the
