@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "ptda/common/error.hpp"
+#include "ptda/sim/noise_tilt.hpp"
 
 namespace ptda::gap {
 namespace {
@@ -140,7 +141,8 @@ class Evaluator {
     ProbeSet mp, rp;
     GapBreakdown g = gap(s, part, &mp, &rp);
     for (int it = 0; it < passes; ++it) {
-      double worst = std::fabs(g.noise_offset_db);
+      // The floor's slope counts like a level offset over one decade.
+      double worst = std::max(std::fabs(g.noise_offset_db), std::fabs(g.noise_tilt_db_per_decade));
       for (std::size_t k = 0; k < s.vibration.gmf_amplitudes.size(); ++k) {
         if (s.vibration.gmf_amplitudes[k] > 0.0 && k + 1 < g.harmonic_offset_db.size()) {
           worst = std::max(worst, std::fabs(g.harmonic_offset_db[k + 1]));
@@ -155,6 +157,9 @@ class Evaluator {
       }
       if (s.vibration.noise_rms > 0.0) {
         s.vibration.noise_rms *= std::pow(10.0, std::clamp(g.noise_offset_db, -20.0, 20.0) / 20.0);
+        s.vibration.noise_tilt_db_per_decade =
+            std::clamp(s.vibration.noise_tilt_db_per_decade + g.noise_tilt_db_per_decade,
+                       -sim::TiltedNoise::kMaxTiltDbPerDecade, sim::TiltedNoise::kMaxTiltDbPerDecade);
       }
       if (std::fabs(de) >= kRecalibrateExponent)
         s.vibration.amplitude_speed_exponent =
@@ -719,6 +724,18 @@ std::vector<CalibratedParam> calibration_report(const sim::Scenario& nominal, co
     c.sd_db = it != noise.end() ? std::sqrt(it->second) : 0.0;
     finish(c, "the noise level");
     out.push_back(c);
+    // The floor's slope (dB per decade, real - nominal): its own row, in dB per decade.
+    CalibratedParam t;
+    t.name = "noise_tilt_db_per_decade";
+    t.nominal = nominal.vibration.noise_tilt_db_per_decade;
+    t.calibrated = calibrated.vibration.noise_tilt_db_per_decade;
+    t.offset_db = t.calibrated - t.nominal;
+    const auto jt = noise.find("calib/noise_tilt");
+    t.sd_db = jt != noise.end() ? std::sqrt(jt->second) : 0.0;
+    t.significant = std::fabs(t.offset_db) > std::max(1.0, 2.0 * t.sd_db);
+    t.sentence = "the noise floor's slope is " + fmt("%+.1f", t.calibrated) + " dB/decade (nominal " +
+                 fmt("%+.1f", t.nominal) + ", +- " + fmt("%.1f", t.sd_db) + " dB/decade)";
+    out.push_back(t);
   }
   if (speed_spread_db2 > 0.0) {
     // Speed law of the harmonic levels: reported as the level change it makes between the slowest and
@@ -876,6 +893,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   (void)ev.calibrate(model, fit, 3);
   d.calibrated_gmf_amplitudes = model.vibration.gmf_amplitudes;
   d.calibrated_noise_rms = model.vibration.noise_rms;
+  d.calibrated_noise_tilt_db_per_decade = model.vibration.noise_tilt_db_per_decade;
   d.calibration = calibration_report(nominal_in, model, ev.noise_fit(), plan, ev.speed_spread_db2());
   for (const CalibratedParam& c : d.calibration) {
     d.recalibrated = d.recalibrated || c.significant;

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
+#include "ptda/sim/noise_tilt.hpp"
 #include "ptda/sim/random.hpp"
 #include "ptda/sim/simulator.hpp"
 #include "sim_internal.hpp"
@@ -143,6 +145,10 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
   const DriftModel drift(s.drift, m.pause_start_s);
   const bool drifting = s.drift.load_on() || s.drift.warmup_on();
   Rng rng(seed, kStreamNoise);
+  // Tilted background (docs/simulator.md); white noise draws exactly as before when the tilt is 0.
+  std::optional<TiltedNoise> tilted;
+  if (vs.noise_tilt_db_per_decade != 0.0 && vs.noise_rms > 0.0)
+    tilted.emplace(vs.noise_tilt_db_per_decade, fs);
   for (std::size_t i = 0; i < n; ++i) {
     const double theta_out = m.angle_rad[i];
     const double theta_in = ratio * theta_out;
@@ -180,7 +186,10 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
       }
       if (drifting) mesh *= d.mesh_gain;  // mesh stiffness (load, temperature) and cold oil
     }
-    double noise = vs.noise_rms > 0.0 ? vs.noise_rms * noise_gain[c] * rng.normal() : 0.0;
+    double noise = 0.0;
+    if (vs.noise_rms > 0.0) {
+      noise = vs.noise_rms * noise_gain[c] * (tilted ? tilted->next(rng) : rng.normal());
+    }
     if (drifting) noise *= d.noise_gain;
     out.accel_ms2[i] = sf * mesh + noise;
   }

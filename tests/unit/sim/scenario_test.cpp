@@ -99,6 +99,8 @@ TEST(ScenarioParse, WrongTypesAndValuesNameTheKey) {
                    "[gearbox]\nkind = \"parallel\"\nz_pinion = 20\nz_gear = 40\n"
                    "[vibration]\ndmf_amplitudes = [0.1]\n",
                "t.toml:9:18: vibration.dmf_amplitudes: only a cycloidal gearbox");
+  expect_error(std::string(kMinimal) + "[vibration]\nnoise_tilt_db_per_decade = 25.0\n",
+               "t.toml:5:28: vibration.noise_tilt_db_per_decade: must be in [-18, 18]");
 }
 
 // Issue 14 item 8: a 200 KB interface name once made an 836 MB can.log; names are limited (IFNAMSIZ)

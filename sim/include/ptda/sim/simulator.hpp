@@ -84,7 +84,10 @@ struct VibrationSpec {
   double reference_speed_rad_s = 1.0;     ///< output speed where the amplitudes apply
   double amplitude_speed_exponent = 1.0;  ///< A_k(w) = A_k * (|w| / w_ref)^exponent
   std::vector<double> dmf_amplitudes;     ///< cycloid mesh harmonics (small), same speed law
-  double noise_rms = 0.05;                ///< white Gaussian background
+  double noise_rms = 0.05;                ///< Gaussian background (white, or its level at the tilt's pivot)
+  /// Spectral tilt of the background: its PSD changes by this many dB per decade, with noise_rms kept
+  /// as the white level at noise_tilt_pivot_hz(fs) (ptda/sim/noise_tilt.hpp). 0: white. |tilt| <= 18.
+  double noise_tilt_db_per_decade = 0.0;
   /// Cycle-to-cycle variation of the mesh (payload, temperature, lubrication, load sharing): in job
   /// cycle c, GMF entry k is multiplied by exp(rel * z_ck), z_ck ~ N(0, 1) independent per cycle and
   /// entry (log-normal: median 1, relative spread ~rel). 0: off, every cycle has the same amplitudes.
