@@ -54,6 +54,12 @@ class Evaluator {
     ctx_.nominal_orders.clear();
     for (std::size_t k = 0; k < nominal.vibration.gmf_amplitudes.size(); ++k) {
       if (nominal.vibration.gmf_amplitudes[k] > 0.0) ctx_.nominal_orders.push_back(static_cast<int>(k + 1));
+      ctx_.nominal_shaft_orders.clear();
+      for (std::size_t i = 0; i < nominal.vibration.shaft_orders.size(); ++i) {
+        if (i < nominal.vibration.shaft_order_amplitudes.size() &&
+            nominal.vibration.shaft_order_amplitudes[i] > 0.0)
+          ctx_.nominal_shaft_orders.push_back(nominal.vibration.shaft_orders[i]);
+      }
     }
   }
 
@@ -148,12 +154,19 @@ class Evaluator {
           worst = std::max(worst, std::fabs(g.harmonic_offset_db[k + 1]));
         }
       }
+      for (const auto& [j, o] : g.shaft_order_offset_db) worst = std::max(worst, std::fabs(o));
       const double de = exponent_step(rp, mp);
       if (worst < kRecalibrateDb && std::fabs(de) < kRecalibrateExponent) break;
       for (std::size_t k = 0; k < s.vibration.gmf_amplitudes.size(); ++k) {
         if (s.vibration.gmf_amplitudes[k] <= 0.0 || k + 1 >= g.harmonic_offset_db.size()) continue;
         s.vibration.gmf_amplitudes[k] *=
             std::pow(10.0, std::clamp(g.harmonic_offset_db[k + 1], -20.0, 20.0) / 20.0);
+      }
+      for (std::size_t i = 0;
+           i < s.vibration.shaft_orders.size() && i < s.vibration.shaft_order_amplitudes.size(); ++i) {
+        const auto so = g.shaft_order_offset_db.find(s.vibration.shaft_orders[i]);
+        if (so != g.shaft_order_offset_db.end() && s.vibration.shaft_order_amplitudes[i] > 0.0)
+          s.vibration.shaft_order_amplitudes[i] *= std::pow(10.0, std::clamp(so->second, -20.0, 20.0) / 20.0);
       }
       if (s.vibration.noise_rms > 0.0) {
         s.vibration.noise_rms *= std::pow(10.0, std::clamp(g.noise_offset_db, -20.0, 20.0) / 20.0);
@@ -713,6 +726,21 @@ std::vector<CalibratedParam> calibration_report(const sim::Scenario& nominal, co
     const auto it = noise.find("calib/order.k" + std::to_string(k + 1));
     c.sd_db = it != noise.end() ? std::sqrt(it->second) : 0.0;
     finish(c, "order " + std::to_string(k + 1));
+    out.push_back(c);
+  }
+  for (std::size_t i = 0; i < nominal.vibration.shaft_orders.size(); ++i) {
+    if (i >= nominal.vibration.shaft_order_amplitudes.size() ||
+        nominal.vibration.shaft_order_amplitudes[i] <= 0.0 ||
+        i >= calibrated.vibration.shaft_order_amplitudes.size())
+      continue;
+    const int j = nominal.vibration.shaft_orders[i];
+    CalibratedParam c;
+    c.name = "shaft_order_" + std::to_string(j);
+    c.nominal = nominal.vibration.shaft_order_amplitudes[i];
+    c.calibrated = calibrated.vibration.shaft_order_amplitudes[i];
+    const auto it = noise.find("calib/shaft.s" + std::to_string(j));
+    c.sd_db = it != noise.end() ? std::sqrt(it->second) : 0.0;
+    finish(c, "shaft order " + std::to_string(j));
     out.push_back(c);
   }
   if (nominal.vibration.noise_rms > 0.0) {

@@ -102,6 +102,12 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
   vb.insert("noise_rms", s.vibration.noise_rms);
   if (s.vibration.noise_tilt_db_per_decade != 0.0)
     vb.insert("noise_tilt_db_per_decade", s.vibration.noise_tilt_db_per_decade);
+  if (!s.vibration.shaft_orders.empty()) {
+    toml::array orders;
+    for (int j : s.vibration.shaft_orders) orders.push_back(static_cast<std::int64_t>(j));
+    vb.insert("shaft_orders", std::move(orders));
+    vb.insert("shaft_order_amplitudes", to_array(s.vibration.shaft_order_amplitudes));
+  }
   vb.insert("harmonics_above_nyquist", static_cast<std::int64_t>(vib.harmonics_above_nyquist));
   // The cycle variation only when on: without it truth.toml stays as it was before the feature.
   const CycleVariation& cv = vib.cycle_variation;

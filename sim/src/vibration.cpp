@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <optional>
 
 #include "ptda/sim/noise_tilt.hpp"
@@ -145,6 +146,21 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
   const DriftModel drift(s.drift, m.pause_start_s);
   const bool drifting = s.drift.load_on() || s.drift.warmup_on();
   Rng rng(seed, kStreamNoise);
+  // Shaft-order lines: whole multiples m of a base order g0 (the orders' gcd), by rotation like the mesh.
+  int g0 = 0, m_max = 0;
+  for (int j : vs.shaft_orders) g0 = std::gcd(g0, j);
+  std::vector<double> shaft_amp;  // [m - 1]: amplitude of order m * g0
+  for (std::size_t i = 0; i < vs.shaft_orders.size() && i < vs.shaft_order_amplitudes.size(); ++i) {
+    if (vs.shaft_order_amplitudes[i] <= 0.0) continue;
+    const int mult = vs.shaft_orders[i] / g0;
+    if (static_cast<double>(vs.shaft_orders[i]) * gmf_hz(g, w_max) / std::max(g.z_in, 1U) >= nyquist)
+      continue;
+    if (mult > m_max) {
+      shaft_amp.resize(static_cast<std::size_t>(mult), 0.0);
+      m_max = mult;
+    }
+    shaft_amp[static_cast<std::size_t>(mult - 1)] = vs.shaft_order_amplitudes[i];
+  }
   // Tilted background (docs/simulator.md); white noise draws exactly as before when the tilt is 0.
   std::optional<TiltedNoise> tilted;
   if (vs.noise_tilt_db_per_decade != 0.0 && vs.noise_rms > 0.0)
@@ -185,6 +201,17 @@ Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::u
         mesh += h.amplitude * std::sin(h.order * static_cast<double>(g.z_pin) * theta_out);
       }
       if (drifting) mesh *= d.mesh_gain;  // mesh stiffness (load, temperature) and cold oil
+      if (m_max > 0) {
+        const double b0 = static_cast<double>(g0) * theta_mesh;
+        const double sc1 = std::cos(b0), ss1 = std::sin(b0);
+        double sck = 1.0, ssk = 0.0;
+        for (int q = 1; q <= m_max; ++q) {
+          const double cn = sck * sc1 - ssk * ss1;
+          ssk = ssk * sc1 + sck * ss1;
+          sck = cn;
+          mesh += shaft_amp[static_cast<std::size_t>(q - 1)] * ssk;  // sin(q g0 theta_in)
+        }
+      }
     }
     double noise = 0.0;
     if (vs.noise_rms > 0.0) {

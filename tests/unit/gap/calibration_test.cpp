@@ -121,3 +121,32 @@ TEST(Calibration, WhiteFloorKeepsItsSlopeAtZero) {
 
 }  // namespace
 }  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+TEST(Calibration, ShaftOrderLineLevelsAreCalibration) {
+  // The machine has shaft-order lines 3 and 7 at 0.5 and 0.3 m/s^2; the nominal lists them 6 dB too low
+  // and 4 dB too high.
+  sim::Scenario truth = test::joint_rotation_job(6);
+  truth.vibration.shaft_orders = {3, 7};
+  truth.vibration.shaft_order_amplitudes = {0.5, 0.3};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 77), truth);
+  sim::Scenario nominal = truth;
+  nominal.vibration.shaft_order_amplitudes = {0.25, 0.3 * std::pow(10.0, 4.0 / 20.0)};
+  const Diagnosis d = diagnose(nominal, real, DiagnoseOptions{});
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
+  const CalibratedParam* s3 = find(d, "shaft_order_3");
+  const CalibratedParam* s7 = find(d, "shaft_order_7");
+  ASSERT_NE(s3, nullptr);
+  ASSERT_NE(s7, nullptr);
+  EXPECT_GT(s3->sd_db, 0.0);
+  EXPECT_NEAR(s3->offset_db, 6.02, 3.0 * s3->sd_db + 0.5) << s3->sentence;
+  EXPECT_NEAR(s7->offset_db, -4.0, 3.0 * s7->sd_db + 0.5) << s7->sentence;
+  EXPECT_TRUE(s3->significant);
+  EXPECT_TRUE(s7->significant);
+  EXPECT_NE(d.verdict.find("shaft order 3 is"), std::string::npos) << d.verdict;
+}
+
+}  // namespace
+}  // namespace ptda::gap

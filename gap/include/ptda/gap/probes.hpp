@@ -54,7 +54,8 @@ struct ProbeSet {
 
 struct ProbeContext {
   sim::GearboxSpec gearbox;
-  std::vector<int> nominal_orders;  ///< GMF orders with a non-zero nominal amplitude
+  std::vector<int> nominal_orders;        ///< GMF orders with a non-zero nominal amplitude
+  std::vector<int> nominal_shaft_orders;  ///< input-shaft orders with a non-zero nominal line amplitude
   AnalysisPlan plan;
 };
 
@@ -89,8 +90,10 @@ struct GapBreakdown {
   std::vector<double> harmonic_offset_db;  ///< profiled-out per-order level offsets (real - sim), by order
   double noise_offset_db = 0.0;            ///< profiled-out noise-floor offset at the tilt pivot
   double noise_tilt_db_per_decade = 0.0;   ///< profiled-out noise-floor slope (real - sim)
-  double expected = 0.0;                   ///< gap expected from sampling alone (0 without a noise model)
-  double expected_sd = 0.0;                ///< its standard deviation
+  std::map<int, double>
+      shaft_order_offset_db;  ///< profiled-out level offsets of the nominal shaft-order lines
+  double expected = 0.0;      ///< gap expected from sampling alone (0 without a noise model)
+  double expected_sd = 0.0;   ///< its standard deviation
 };
 
 /// Sampling variance per element ("probe/key" -> variance in the element's units) to add to its fixed
@@ -98,7 +101,8 @@ struct GapBreakdown {
 using ElementVariance = std::map<std::string, double>;
 
 /// gap = sum over probes of mean z^2 over the probe's elements, after profiling out the nominal model's
-/// free parameters: per-order harmonic level offsets (mean over classes) and the noise floor's level and
+/// free parameters: per-order harmonic and shaft-order line level offsets (mean over classes) and the
+/// noise floor's level and
 /// slope (a robust line in dB against log10 frequency over the constant-speed bands: Theil-Sen slope,
 /// median intercept at sim::noise_tilt_pivot_hz). Elements present on one side only are skipped. With
 /// `noise`, each element's scale is widened by its sampling variance, and the breakdown carries the gap
@@ -108,7 +112,8 @@ using ElementVariance = std::map<std::string, double>;
 
 /// The per-element differences real - sim after profiling out the free parameters (as compare_probes
 /// uses them), keyed "probe/key", plus the profiled-out offsets themselves ("calib/order.kK" per GMF
-/// order, "calib/noise_offset"; dB; "calib/noise_tilt", dB/decade), whose jackknife variance is the
+/// order, "calib/shaft.sJ" per nominal shaft order, "calib/noise_offset"; dB; "calib/noise_tilt",
+/// dB/decade), whose jackknife variance is the
 /// calibration's uncertainty.
 [[nodiscard]] std::map<std::string, double> profiled_differences(const ProbeSet& real, const ProbeSet& sim);
 
