@@ -350,6 +350,9 @@ struct Guesses {
   double lag_s = 0.0;
   double max_abs_ms2 = 1.0;
   double direction_gain = 0.0;  ///< from the harmonic level difference between +/- speed classes
+  /// The motion has acceleration pieces (torque reversals for the `impacts` effect's knocks). Without,
+  /// e.g. a constant-speed test rig, knocks can only come at a Poisson rate, so the fit tries rates.
+  bool has_reversals = true;
 };
 
 double mean_alarm_rate(const ProbeSet& p) {
@@ -406,6 +409,7 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
                      const sim::Scenario& nominal, const AnalysisPlan& plan,
                      const std::vector<int>& nominal_orders) {
   Guesses q;
+  q.has_reversals = plan.accel_len > 0;
   q.floor_peak_const_hz = excess_peak_hz(r, m, SegmentType::kConstant, g.noise_offset_db);
   q.floor_peak_accel_hz = plan.accel_len > 0 ? excess_peak_hz(r, m, SegmentType::kAccel, g.noise_offset_db)
                                              : q.floor_peak_const_hz;
@@ -546,6 +550,18 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       // log grid of resonances.
       std::vector<double> res{std::clamp(q.energy_peak_accel_hz, 20.0, top)};
       for (double f = 600.0; f < top; f *= 1.6) res.push_back(f);
+      if (!q.has_reversals) {
+        // No torque reversal to knock at: only Poisson knocks (rate_hz) can reproduce transients.
+        // The screen runs the first two stages from rate 4/s: resonance, then amplitude.
+        return {{"resonance_hz", res},
+                {"amplitude_ms2", {1, 2, 4, 8, 16, 32, 64}},
+                {"rate_hz", {1, 2, 4, 8, 16}},
+                {"resonance_hz", {0.84, 0.92, 1.0, 1.09, 1.19}, true},
+                {"damping_ratio", {0.02, 0.05, 0.1, 0.2}},
+                {"rate_hz", {0.7, 1.0, 1.4}, true},
+                {"amplitude_ms2", {0.8, 1.0, 1.25}, true},
+                {"resonance_hz", {0.96, 1.0, 1.04}, true}};
+      }
       return {{"resonance_hz", res},
               {"amplitude_ms2", {1, 2, 4, 8, 16, 32}},
               {"resonance_hz", {0.84, 0.92, 1.0, 1.09, 1.19}, true},
@@ -616,6 +632,7 @@ EffectSpec initial_effect(EffectKind k, const Guesses& q) {
       break;
     case EffectKind::kImpacts:
       e.set("resonance_hz", q.energy_peak_accel_hz);
+      if (!q.has_reversals) e.set("rate_hz", 4.0);
       break;
     case EffectKind::kElectricalInterference:
       e.set("frequency_hz", std::max(1.0, q.line_still_hz));
@@ -666,7 +683,11 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
       return "sidebands every " + fmt("%.2f", e.get("rate_order")) + " x input-shaft rate (AM " +
              fmt("%.2f", e.get("am_depth")) + ", PM " + fmt("%.2f", e.get("pm_rad")) + " rad)";
     case EffectKind::kImpacts:
-      return "knocks at torque reversals ringing at " + fmt("%.0f", e.get("resonance_hz")) + " Hz";
+      return std::string(e.get("rate_hz") > 0.0
+                             ? "knocks at torque reversals and " + fmt("%.1f", e.get("rate_hz")) +
+                                   " per second at random, "
+                             : "knocks at torque reversals, ") +
+             "ringing at " + fmt("%.0f", e.get("resonance_hz")) + " Hz";
     case EffectKind::kElectricalInterference:
       return "lines at " + fmt("%.2f", e.get("frequency_hz")) + " Hz and harmonics";
     case EffectKind::kAdcClipping:
