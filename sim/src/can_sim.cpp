@@ -127,7 +127,14 @@ struct CanStream::Impl {
   std::int64_t win_ns = 0;
   std::int64_t win_lo_ns = 0;
   std::int64_t end_ns = 0;  // beyond every unrelated frame
-  std::vector<SimCanFrame> window;
+  // An unrelated frame as the window keeps it (24 bytes instead of a SimCanFrame's 96).
+  struct Other {
+    std::int64_t t_ns;
+    std::uint32_t id;
+    std::uint8_t len;
+    std::array<std::uint8_t, 8> data;
+  };
+  std::vector<Other> window;
   std::size_t win_pos = 0;
 
   Impl(const Scenario& sc, const MotionProfile& mp, std::uint64_t sd, std::size_t window_frames)
@@ -138,6 +145,7 @@ struct CanStream::Impl {
       const double w_s = static_cast<double>(std::max<std::size_t>(window_frames, 1)) /
                          static_cast<double>(s.can.other_frames_per_s);
       win_ns = std::max<std::int64_t>(seconds_to_ns(w_s), 1000);
+      window.reserve(std::min<std::uint64_t>(count, window_frames + window_frames / 8 + 64));
       win_lo_ns = speed.start_ns - 1000;  // rounding to microseconds moves a frame by at most 500 ns
       end_ns = speed.start_ns + seconds_to_ns(m.duration_s) + 1000;
     }
@@ -165,11 +173,15 @@ struct CanStream::Impl {
       OtherFrames others{speed.spec, m.duration_s, speed.start_ns, Rng(seed, kStreamOtherFrames)};
       SimCanFrame f;
       for (std::uint64_t i = 0; i < count; ++i) {
-        if (others.next(i, f) && f.frame.t_ns >= lo && f.frame.t_ns < hi) window.push_back(f);
+        if (others.next(i, f) && f.frame.t_ns >= lo && f.frame.t_ns < hi) {
+          Other o{f.frame.t_ns, f.frame.id, f.frame.len, {}};
+          std::copy_n(f.frame.data.begin(), std::min<std::size_t>(f.frame.len, o.data.size()),
+                      o.data.begin());
+          window.push_back(o);
+        }
       }
-      std::stable_sort(window.begin(), window.end(), [](const SimCanFrame& a, const SimCanFrame& b) {
-        return a.frame.t_ns < b.frame.t_ns;
-      });
+      std::stable_sort(window.begin(), window.end(),
+                       [](const Other& a, const Other& b) { return a.t_ns < b.t_ns; });
     }
     return true;
   }
@@ -184,12 +196,19 @@ bool CanStream::next(SimCanFrame& out) {
   Impl& im = *impl_;
   const bool other = im.with_others && im.refill();
   if (!im.speed_pending && !other) return false;
-  if (im.speed_pending && (!other || im.speed_frame.frame.t_ns <= im.window[im.win_pos].frame.t_ns)) {
+  if (im.speed_pending && (!other || im.speed_frame.frame.t_ns <= im.window[im.win_pos].t_ns)) {
     out = im.speed_frame;
     im.advance_speed();
     return true;
   }
-  out = im.window[im.win_pos++];
+  const Impl::Other& o = im.window[im.win_pos++];
+  out = SimCanFrame{};
+  out.frame.t_ns = o.t_ns;
+  out.frame.id = o.id;
+  out.frame.len = o.len;
+  std::copy_n(o.data.begin(), std::min<std::size_t>(o.len, o.data.size()), out.frame.data.begin());
+  out.true_time_s = std::numeric_limits<double>::quiet_NaN();
+  out.is_speed = false;
   return true;
 }
 
