@@ -290,6 +290,11 @@ MotionProfile build_motion_plan(const Scenario& s, std::uint64_t seed) {
     } catch (const Error& e) {
       throw Error(where + ": [motion] " + e.what());
     }
+    // The plan is what a streamed simulation keeps for its whole length: reserved exactly (at most a
+    // pause, a jitter wait and a dwell besides the cycle's pieces), not grown by doubling.
+    prof.pieces.reserve(static_cast<std::size_t>(m.cycles) * (plan.pieces.size() + 3) + 1);
+    prof.plateaus.reserve(static_cast<std::size_t>(m.cycles) * plan.plateaus.size());
+    prof.cycle_start_s.reserve(m.cycles);
     Rng rng(seed, kStreamJitter);
     double t = 0.0;
     double angle = m.via_points_rad.front();

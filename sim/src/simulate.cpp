@@ -374,6 +374,7 @@ void fill_summary(const Scenario& s, const MotionProfile& m, SimulationSummary& 
   }
   sum.gmf_hz_at_first_plateau = m.plateaus.empty() ? 0.0 : gmf_hz(s.gearbox, m.plateaus.front().speed_rad_s);
   sum.ratio = reduction_ratio(s.gearbox);
+  sum.severity_per_cycle.reserve(m.cycles);
   for (std::uint32_t c = 0; c < m.cycles; ++c) {
     double sev = 0.0;
     for (const FaultSpec& f : s.faults) sev = std::max(sev, fault_severity(f, c));
