@@ -6,6 +6,8 @@
 #   replay   ptdad --exit-at-end on it (WAV + candump replay, pace "fast"),
 #   monitor  ptda monitor on it,
 #   train    ptda train on it,
+#   simulate ptda simulate of the same job (config/scenarios/arc_welding_faulty.toml, seed 3003) with
+#            its cycle count scaled to HOURS (written to out_dir, deleted at the end),
 # each under GNU time: %M is the peak RSS (ru_maxrss of the child) in KiB.
 #
 # Usage: scripts/bench_memory.sh HOURS [build_dir] [out_dir]
@@ -14,7 +16,9 @@
 #   build_dir  default build/release (daemon/ptdad, cli/ptda, and the recording in bench-data/)
 #   out_dir    default out/bench-memory: the recording (deleted at the end), results.tsv, logs
 # Environment: PTDAD, PTDA (other binaries, e.g. copies of an older build), KEEP=1 keeps the recording,
-#   SKIP="train" skips commands (space separated).
+#   SKIP="train" skips commands (space separated). Without the cached recording (scripts/bench_daemon.sh)
+#   it is prepared here as daemon_bench does: ptda simulate of the healthy (seed 1001) and faulty (seed
+#   3003) scenarios, ptda train on the healthy one.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 hours=${1:?usage: bench_memory.sh HOURS [build_dir] [out_dir]}
@@ -24,10 +28,20 @@ ptdad=${PTDAD:-$build/daemon/ptdad}
 ptda=${PTDA:-$build/cli/ptda}
 data=$(realpath -m "${PTDA_BENCH_DIR:-$build/bench-data}")
 src=$data/arc_welding/faulty
-[[ -f $src/recording.toml ]] || { echo "bench_memory.sh: run scripts/bench_daemon.sh first ($src)" >&2; exit 2; }
+if [[ ! -f $src/recording.toml || ! -f $data/arc_welding/baseline.bin ]]; then
+  echo "bench_memory.sh: preparing $data/arc_welding (as daemon_bench does)" >&2
+  mkdir -p "$data/arc_welding"
+  "$ptda" simulate --scenario "$root/config/scenarios/arc_welding_healthy.toml" --out "$data/arc_welding/train" \
+    --seed 1001 >/dev/null
+  "$ptda" simulate --scenario "$root/config/scenarios/arc_welding_faulty.toml" --out "$src" --seed 3003 >/dev/null
+  "$ptda" train --recording "$data/arc_welding/train" --config "$root/config/examples/arc_welding.toml" \
+    --out "$data/arc_welding/baseline.bin" >/dev/null
+fi
 rec=$out/long-${hours}h
 mkdir -p "$out"
-if [[ ! -f $rec/recording.toml ]]; then
+need_rec=0
+for c in replay monitor train; do [[ " ${SKIP:-} " == *" $c "* ]] || need_rec=1; done
+if [[ $need_rec == 1 && ! -f $rec/recording.toml ]]; then
   mkdir -p "$rec"
   /usr/bin/python3 - "$src" "$rec" "$hours" <<'EOF'
 import pathlib, re, shutil, struct, sys
@@ -65,7 +79,8 @@ shutil.copy(src / "recording.toml", dst / "recording.toml")
 print(f"{reps} x {frames / fs:.3f} s = {reps * frames / fs / 3600:.3f} h", file=sys.stderr)
 EOF
 fi
-signal_h=$(/usr/bin/python3 - "$rec/vibration.wav" <<'PY'
+signal_h=-
+[[ $need_rec == 0 ]] || signal_h=$(/usr/bin/python3 - "$rec/vibration.wav" <<'PY'
 import struct, sys
 with open(sys.argv[1], "rb") as f:
     head = f.read(4096)
@@ -103,4 +118,37 @@ measure replay "$ptdad" --config "$out/ptdad/ptdad.toml" --config-dir '' --exit-
 measure monitor "$ptda" monitor --recording "$rec" --config "$cfg" --baseline "$base" --quiet
 measure train "$ptda" train --recording "$rec" --config "$cfg" --out "$out/train.bin"
 [[ ${KEEP:-0} == 1 ]] || rm -rf "$rec"
+
+# simulate: the faulty scenario with as many job cycles as make HOURS (its 20 cycles = the 63.4 s
+# recording). A WAV holds at most 4 GiB: 12.9 h of 24-bit samples at 25.6 kHz.
+if [[ " ${SKIP:-} " != *" simulate "* ]]; then
+  scen=$out/sim-${hours}h.toml
+  /usr/bin/python3 - "$root/config/scenarios/arc_welding_faulty.toml" "$src" "$hours" "$scen" <<'PY'
+import pathlib, re, struct, sys
+text = pathlib.Path(sys.argv[1]).read_text()
+data = (pathlib.Path(sys.argv[2]) / "vibration.wav").read_bytes()[:4096]
+pos = 12
+while pos + 8 <= len(data):
+    cid, size = data[pos:pos + 4], struct.unpack("<I", data[pos + 4:pos + 8])[0]
+    if cid == b"fmt ":
+        _, fs, _, block = struct.unpack("<HIIH", data[pos + 10:pos + 22])
+    elif cid == b"data":
+        seconds = size / block / fs
+        break
+    pos += 8 + size + (size & 1)
+base = int(re.search(r"^cycles = (\d+)", text, re.M).group(1))
+cycles = max(1, round(float(sys.argv[3]) * 3600 / (seconds / base)))
+pathlib.Path(sys.argv[4]).write_text(re.sub(r"^cycles = \d+", f"cycles = {cycles}", text, count=1, flags=re.M))
+print(f"simulate: {cycles} cycles", file=sys.stderr)
+PY
+  sim_out=$out/sim-${hours}h
+  rm -rf "$sim_out"
+  /usr/bin/time -f '%M %e %U %S' -o "$out/simulate.time" "$ptda" simulate --scenario "$scen" --out "$sim_out" \
+    --seed 3003 >"$out/simulate.log" 2>&1 || echo "simulate exited $?" >&2
+  read -r rss wall user sys <"$out/simulate.time"
+  sim_h=$(awk '$1 == "duration" {printf "%.3f", $2 / 3600}' "$out/simulate.log")
+  printf '%s\t%s\t%.1f\t%.1f\t%.1f\n' simulate "$sim_h" "$(echo "$rss / 1024" | bc -l)" "$wall" \
+    "$(echo "$user + $sys" | bc -l)" >>"$out/results.tsv"
+  [[ ${KEEP:-0} == 1 ]] || rm -rf "$sim_out"
+fi
 column -t "$out/results.tsv"

@@ -115,29 +115,31 @@ std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std
   return s + "\n";
 }
 
+void summarize_add(MonitorSummary& s, const dsp::WindowResult& w) {
+  ++s.windows;
+  if (w.status != dsp::WindowStatus::kScored) {
+    ++s.no_class;
+    return;
+  }
+  ++s.scored;
+  s.rms_sum += w.features.rms_res;
+  s.entropy_sum += w.features.entropy_res;
+  if (w.verdict.rms_low) ++s.rms_low;
+  if (w.verdict.abnormal()) {
+    ++s.abnormal;
+    if (w.verdict.rms_out) ++s.rms_out;
+    if (w.verdict.entropy_out) ++s.entropy_out;
+    if (!s.first_abnormal) s.first_abnormal = w;
+  }
+  if (w.alarm) {
+    ++s.alarm_windows;
+    if (!s.first_alarm) s.first_alarm = w;
+  }
+}
+
 MonitorSummary summarize(const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns) {
   MonitorSummary s;
-  s.windows = windows.size();
-  for (const auto& w : windows) {
-    if (w.status != dsp::WindowStatus::kScored) {
-      ++s.no_class;
-      continue;
-    }
-    ++s.scored;
-    s.rms_sum += w.features.rms_res;
-    s.entropy_sum += w.features.entropy_res;
-    if (w.verdict.rms_low) ++s.rms_low;
-    if (w.verdict.abnormal()) {
-      ++s.abnormal;
-      if (w.verdict.rms_out) ++s.rms_out;
-      if (w.verdict.entropy_out) ++s.entropy_out;
-      if (!s.first_abnormal) s.first_abnormal = w;
-    }
-    if (w.alarm) {
-      ++s.alarm_windows;
-      if (!s.first_alarm) s.first_alarm = w;
-    }
-  }
+  for (const auto& w : windows) summarize_add(s, w);
   s.t0_ns = t0_ns;
   return s;
 }
@@ -240,20 +242,33 @@ std::size_t print_coverage_warnings(std::ostream& out, const dsp::CoverageState&
   return n;
 }
 
+void WindowSpan::add(const dsp::WindowResult& w) noexcept {
+  if (!any) {
+    any = true;
+    from_ns = w.ref.t_start_ns;
+    to_ns = w.ref.t_end_ns;
+  }
+  from_ns = std::min(from_ns, w.ref.t_start_ns);
+  to_ns = std::max(to_ns, w.ref.t_end_ns);
+}
+
 bool print_training_overlap(std::ostream& out, const dsp::Baseline& baseline, const std::string& recording_id,
                             const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns) {
+  WindowSpan span;
+  for (const auto& w : windows) span.add(w);
+  return print_training_overlap(out, baseline, recording_id, span, t0_ns);
+}
+
+bool print_training_overlap(std::ostream& out, const dsp::Baseline& baseline, const std::string& recording_id,
+                            const WindowSpan& judged, std::int64_t t0_ns) {
   if (baseline.training.empty()) {
     out << "note: the baseline does not list its training recordings (format version 1 or field "
            "training): in-sample use not checked\n";
     return false;
   }
-  if (windows.empty()) return false;
-  std::int64_t from_ns = windows.front().ref.t_start_ns;
-  std::int64_t to_ns = windows.front().ref.t_end_ns;
-  for (const auto& w : windows) {
-    from_ns = std::min(from_ns, w.ref.t_start_ns);
-    to_ns = std::max(to_ns, w.ref.t_end_ns);
-  }
+  if (!judged.any) return false;
+  const std::int64_t from_ns = judged.from_ns;
+  const std::int64_t to_ns = judged.to_ns;
   const double t0_s = ns_to_seconds(t0_ns);
   const auto span = [&](double a_s, double b_s) {
     return fixed(a_s - t0_s, 1) + "-" + fixed(b_s - t0_s, 1) + " s";
@@ -364,30 +379,50 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
 
   opts.progress_label = "monitor " + in.rec.dir.filename().string();
   opts.config_source = in.config_path;
-  MonitorResult r = monitor_recording(in.rec, in.cfg, in.baseline, method, in.fs_hz, {}, opts);
-  if (!range.whole()) {
-    const auto first = static_cast<std::ptrdiff_t>(range.first(r.windows.size()));
-    const auto last = static_cast<std::ptrdiff_t>(range.last(r.windows.size()));
-    r.windows = std::vector<dsp::WindowResult>(r.windows.begin() + first, r.windows.begin() + last);
-    redebounce(r.windows, in.cfg.decision);
-  }
-
-  if (table) {
+  const auto print_table_head = [&](std::size_t selected) {
     out << "monitor " << in.rec.dir.string() << " with " << dsp::method_name(method) << " against "
         << in.baseline_path << " (" << in.baseline.classes.size()
         << " classes, N = " << in.baseline.window_len << ", alarm " << in.cfg.decision.k << " of "
         << in.cfg.decision.n << ")\n";
-    if (!range.whole()) out << "windows " << a.value("windows") << ": " << r.windows.size() << " windows\n";
+    if (!range.whole()) out << "windows " << a.value("windows") << ": " << selected << " windows\n";
     out << window_table_header();
-    for (const auto& w : r.windows) out << window_table_row(w, in.rec.t0_ns, in.cfg.decision.n);
+  };
+  // Each window goes to the table, the JSONL and the running summary as it is judged; the whole run keeps
+  // none of them (memory does not grow with the recording). --windows needs the count first: it keeps
+  // them, selects and recomputes the alarm over the selection.
+  MonitorSummary summary;
+  WindowSpan judged_span;
+  std::size_t judged = 0;
+  const auto emit = [&](const dsp::WindowResult& w) {
+    if (table) out << window_table_row(w, in.rec.t0_ns, in.cfg.decision.n);
+    if (jsonl != nullptr) *jsonl << window_json(w, method) << "\n";
+    summarize_add(summary, w);
+    judged_span.add(w);
+    judged += w.status == dsp::WindowStatus::kScored ? 1 : 0;
+  };
+  MonitorResult r;
+  if (range.whole()) {
+    if (table) print_table_head(0);
+    const WindowObserver observer = [&](const dsp::WindowResult& w, const dsp::MonitorEngine&) { emit(w); };
+    r = monitor_recording(in.rec, in.cfg, in.baseline, method, in.fs_hz, observer, opts, false);
+  } else {
+    r = monitor_recording(in.rec, in.cfg, in.baseline, method, in.fs_hz, {}, opts);
+    const auto first = static_cast<std::ptrdiff_t>(range.first(r.windows.size()));
+    const auto last = static_cast<std::ptrdiff_t>(range.last(r.windows.size()));
+    r.windows = std::vector<dsp::WindowResult>(r.windows.begin() + first, r.windows.begin() + last);
+    redebounce(r.windows, in.cfg.decision);
+    if (table) print_table_head(r.windows.size());
+    for (const auto& w : r.windows) emit(w);
+    r.windows.clear();
+    r.windows.shrink_to_fit();
   }
+  summary.t0_ns = in.rec.t0_ns;
   if (jsonl != nullptr) {
-    for (const auto& w : r.windows) *jsonl << window_json(w, method) << "\n";
     jsonl->flush();
     if (!*jsonl) throw Error(jsonl_path + ": write failed");
   }
   if (jsonl_path != "-") {
-    print_summary(out, summarize(r.windows, in.rec.t0_ns), r.slicer, r.can, method);
+    print_summary(out, summary, r.slicer, r.can, method);
     print_coverage(out, r.coverage, in.baseline, opts.coverage_timeout_s, in.rec.t0_ns);
   }
   // With the JSONL on stdout the warnings go to stderr, so the JSONL stays clean.
@@ -401,9 +436,7 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
       if (f.kind == DoctorFinding::Kind::kProblem) warn << "diagnosis: " << f.text << "\n";
     }
   }
-  print_training_overlap(warn, in.baseline, recording_id(in.rec), r.windows, in.rec.t0_ns);
-  std::size_t judged = 0;
-  for (const auto& w : r.windows) judged += w.status == dsp::WindowStatus::kScored ? 1 : 0;
+  print_training_overlap(warn, in.baseline, recording_id(in.rec), judged_span, in.rec.t0_ns);
   if (judged == 0 || r.coverage.level == dsp::CoverageLevel::kNotJudging) return kExitNotJudged;
   return kExitOk;
 }

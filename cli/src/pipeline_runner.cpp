@@ -276,7 +276,7 @@ class CollectSink final : public PipelineSink {
 
 class MonitorSink final : public PipelineSink {
  public:
-  MonitorSink(dsp::MonitorEngine& engine, dsp::CoverageTracker& coverage, std::vector<dsp::WindowResult>& out,
+  MonitorSink(dsp::MonitorEngine& engine, dsp::CoverageTracker& coverage, std::vector<dsp::WindowResult>* out,
               const WindowObserver& observer)
       : engine_(engine), coverage_(coverage), out_(out), observer_(observer) {}
 
@@ -299,7 +299,7 @@ class MonitorSink final : public PipelineSink {
     while (engine_.poll(r)) {
       if (observer_) observer_(r, engine_);
       coverage_.on_window(r);
-      out_.push_back(r);
+      if (out_ != nullptr) out_->push_back(r);
     }
     const dsp::SlicerCounters& sc = engine_.slicer().counters();
     coverage_.on_discarded_total(sc.windows_invalid + sc.windows_lost + sc.windows_overflow);
@@ -307,7 +307,7 @@ class MonitorSink final : public PipelineSink {
 
   dsp::MonitorEngine& engine_;
   dsp::CoverageTracker& coverage_;
-  std::vector<dsp::WindowResult>& out_;
+  std::vector<dsp::WindowResult>* out_;  // nullptr: not kept
   const WindowObserver& observer_;
 };
 
@@ -378,7 +378,8 @@ void check_baseline_matches(const dsp::Baseline& baseline, const std::string& ba
 
 MonitorResult monitor_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg,
                                 const dsp::Baseline& baseline, dsp::Method method, double fs_hz,
-                                const WindowObserver& observer, const RunOptions& options) {
+                                const WindowObserver& observer, const RunOptions& options,
+                                bool keep_windows) {
   dsp::MonitorEngine engine(baseline, cfg.extraction, cfg.decision, method, fs_hz, rec.t0_ns);
   dsp::CoverageConfig cc;
   cc.timeout_s = options.coverage_timeout_s;
@@ -386,7 +387,7 @@ MonitorResult monitor_recording(const RecordingInfo& rec, const config::Pipeline
   cc.max_speed_gap_s = cfg.extraction.max_speed_gap_s;
   dsp::CoverageTracker coverage(baseline, cc);
   MonitorResult result;
-  MonitorSink sink(engine, coverage, result.windows, observer);
+  MonitorSink sink(engine, coverage, keep_windows ? &result.windows : nullptr, observer);
   result.can = run_recording(rec, cfg, sink, options);
   result.coverage = coverage.state();
   result.slicer = engine.slicer().counters();

@@ -377,21 +377,39 @@ std::string format_candump_line(const CandumpRecord& rec) {
 }
 
 void write_candump(const std::filesystem::path& path, const std::vector<CandumpRecord>& records) {
-  const std::string name = path.string();
-  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(name.c_str(), "wb"));
-  if (!f) throw Error(name + ": cannot create candump log: " + std::strerror(errno));
-  for (std::size_t k = 0; k < records.size(); ++k) {
-    std::string line;
-    try {
-      line = format_candump_line(records[k]);
-    } catch (const Error& e) {
-      throw Error(name + ": record " + std::to_string(k) + ": " + e.what());
-    }
-    line += '\n';
-    if (std::fwrite(line.data(), 1, line.size(), f.get()) != line.size())
-      throw Error(name + ": write failed: " + std::strerror(errno));
+  CandumpWriter w(path);
+  for (const CandumpRecord& r : records) w.write(r);
+  w.close();
+}
+
+CandumpWriter::CandumpWriter(const std::filesystem::path& path) : name_(path.string()) {
+  f_ = std::fopen(name_.c_str(), "wb");
+  if (f_ == nullptr) throw Error(name_ + ": cannot create candump log: " + std::strerror(errno));
+}
+
+CandumpWriter::~CandumpWriter() {
+  if (f_ != nullptr) std::fclose(f_);
+}
+
+void CandumpWriter::write(const CandumpRecord& rec) {
+  if (f_ == nullptr) throw Error(name_ + ": write after close");
+  std::string line;
+  try {
+    line = format_candump_line(rec);
+  } catch (const Error& e) {
+    throw Error(name_ + ": record " + std::to_string(written_) + ": " + e.what());
   }
-  if (std::fclose(f.release()) != 0) throw Error(name + ": close failed: " + std::strerror(errno));
+  line += '\n';
+  if (std::fwrite(line.data(), 1, line.size(), f_) != line.size())
+    throw Error(name_ + ": write failed: " + std::strerror(errno));
+  ++written_;
+}
+
+void CandumpWriter::close() {
+  if (f_ == nullptr) return;
+  std::FILE* f = f_;
+  f_ = nullptr;
+  if (std::fclose(f) != 0) throw Error(name_ + ": close failed: " + std::strerror(errno));
 }
 
 }  // namespace ptda::formats

@@ -315,8 +315,7 @@ void write_wav(const std::filesystem::path& path, std::uint32_t sample_rate_hz, 
       throw Error(name + ": channel " + std::to_string(c) + " has " + std::to_string(channels[c].size()) +
                   " samples, channel 0 has " + std::to_string(frames));
   }
-  const bool is_float = format == WavSampleFormat::kFloat32;
-  if (!is_float) {
+  if (format != WavSampleFormat::kFloat32) {  // before creating the file
     for (std::size_t c = 0; c < channels.size(); ++c) {
       for (std::size_t i = 0; i < frames; ++i) {
         if (std::isnan(channels[c][i]))
@@ -326,14 +325,34 @@ void write_wav(const std::filesystem::path& path, std::uint32_t sample_rate_hz, 
     }
   }
   const auto n_ch = static_cast<std::uint16_t>(channels.size());
-  const std::uint16_t bps = wav_bytes_per_sample(format);
-  const auto block_align = static_cast<std::uint16_t>(n_ch * bps);
-  const std::uint64_t data_bytes = static_cast<std::uint64_t>(frames) * block_align;
+  WavWriter w(path, sample_rate_hz, format, n_ch, frames);
+  std::vector<float> inter(kBlockFrames * n_ch);
+  for (std::size_t start = 0; start < frames; start += kBlockFrames) {
+    const std::size_t n = std::min(kBlockFrames, frames - start);
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t c = 0; c < n_ch; ++c) inter[i * n_ch + c] = channels[c][start + i];
+    }
+    w.write(std::span<const float>(inter.data(), n * n_ch));
+  }
+  w.close();
+}
+
+WavWriter::WavWriter(const std::filesystem::path& path, std::uint32_t sample_rate_hz, WavSampleFormat format,
+                     std::uint16_t channels, std::uint64_t frames)
+    : name_(path.string()), format_(format), channels_(channels), frames_(frames) {
+  if (channels < 1 || channels > kMaxChannels)
+    throw Error(name_ + ": cannot write " + std::to_string(channels) + " channels (1..8)");
+  if (sample_rate_hz < 1 || sample_rate_hz > kMaxRateHz)
+    throw Error(name_ + ": cannot write sample rate " + std::to_string(sample_rate_hz) + " Hz (1..200000)");
+  const bool is_float = format == WavSampleFormat::kFloat32;
+  bps_ = wav_bytes_per_sample(format);
+  const auto block_align = static_cast<std::uint16_t>(channels * bps_);
+  const std::uint64_t data_bytes = frames * block_align;
   // Float files carry the 18-byte fmt (cbSize = 0) and a fact chunk, as the WAVE spec asks for non-PCM.
   const std::uint32_t fmt_size = is_float ? 18 : 16;
   const std::uint32_t fact_bytes = is_float ? 12 : 0;
   const std::uint64_t riff_size = 4 + (8 + fmt_size) + fact_bytes + 8 + data_bytes + (data_bytes & 1U);
-  if (riff_size > 0xFFFFFFFFULL) throw Error(name + ": too much data for a RIFF file (4 GiB limit)");
+  if (riff_size > 0xFFFFFFFFULL) throw Error(name_ + ": too much data for a RIFF file (4 GiB limit)");
 
   std::vector<std::uint8_t> hdr;
   hdr.reserve(64);
@@ -354,11 +373,11 @@ void write_wav(const std::filesystem::path& path, std::uint32_t sample_rate_hz, 
   add4("fmt ");
   add32(fmt_size);
   add16(is_float ? kTagFloat : kTagPcm);
-  add16(n_ch);
+  add16(channels);
   add32(sample_rate_hz);
   add32(sample_rate_hz * block_align);
   add16(block_align);
-  add16(static_cast<std::uint16_t>(bps * 8));
+  add16(static_cast<std::uint16_t>(bps_ * 8));
   if (is_float) {
     add16(0);
     add4("fact");
@@ -368,23 +387,59 @@ void write_wav(const std::filesystem::path& path, std::uint32_t sample_rate_hz, 
   add4("data");
   add32(static_cast<std::uint32_t>(data_bytes));
 
-  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(name.c_str(), "wb"));
-  if (!f) throw Error(name + ": cannot create WAV file: " + errno_text());
-  if (std::fwrite(hdr.data(), 1, hdr.size(), f.get()) != hdr.size())
-    throw Error(name + ": write failed: " + errno_text());
-  std::vector<std::uint8_t> block(kBlockFrames * block_align);
+  f_ = std::fopen(name_.c_str(), "wb");
+  if (f_ == nullptr) throw Error(name_ + ": cannot create WAV file: " + errno_text());
+  if (std::fwrite(hdr.data(), 1, hdr.size(), f_) != hdr.size()) {
+    const std::string why = errno_text();
+    std::fclose(f_);
+    f_ = nullptr;
+    throw Error(name_ + ": write failed: " + why);
+  }
+  block_.resize(kBlockFrames * block_align);
+}
+
+WavWriter::~WavWriter() {
+  if (f_ != nullptr) std::fclose(f_);
+}
+
+void WavWriter::write(std::span<const float> interleaved) {
+  if (f_ == nullptr) throw Error(name_ + ": write after close");
+  if (interleaved.size() % channels_ != 0)
+    throw Error(name_ + ": " + std::to_string(interleaved.size()) + " values are not whole frames of " +
+                std::to_string(channels_) + " channels");
+  const std::size_t frames = interleaved.size() / channels_;
+  if (frames > frames_ - written_)
+    throw Error(name_ + ": more than the announced " + std::to_string(frames_) + " frames");
+  const std::size_t block_align = static_cast<std::size_t>(channels_) * bps_;
+  const bool is_float = format_ == WavSampleFormat::kFloat32;
   for (std::size_t start = 0; start < frames; start += kBlockFrames) {
     const std::size_t n = std::min(kBlockFrames, frames - start);
     for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t c = 0; c < n_ch; ++c)
-        encode_sample(block.data() + i * block_align + c * bps, channels[c][start + i], format);
+      for (std::size_t c = 0; c < channels_; ++c) {
+        const float v = interleaved[(start + i) * channels_ + c];
+        if (!is_float && std::isnan(v))
+          throw Error(name_ + ": NaN sample at channel " + std::to_string(c) + " frame " +
+                      std::to_string(written_ + start + i) + " cannot be stored as PCM");
+        encode_sample(block_.data() + i * block_align + c * bps_, v, format_);
+      }
     }
-    if (std::fwrite(block.data(), 1, n * block_align, f.get()) != n * block_align)
-      throw Error(name + ": write failed: " + errno_text());
+    if (std::fwrite(block_.data(), 1, n * block_align, f_) != n * block_align)
+      throw Error(name_ + ": write failed: " + errno_text());
   }
-  if ((data_bytes & 1U) != 0 && std::fputc(0, f.get()) == EOF)
-    throw Error(name + ": write failed: " + errno_text());
-  if (std::fclose(f.release()) != 0) throw Error(name + ": close failed: " + errno_text());
+  written_ += frames;
+}
+
+void WavWriter::close() {
+  if (f_ == nullptr) return;
+  if (written_ != frames_)
+    throw Error(name_ + ": " + std::to_string(written_) + " frames written, " + std::to_string(frames_) +
+                " announced");
+  const std::uint64_t data_bytes = frames_ * channels_ * bps_;
+  if ((data_bytes & 1U) != 0 && std::fputc(0, f_) == EOF)
+    throw Error(name_ + ": write failed: " + errno_text());
+  std::FILE* f = f_;
+  f_ = nullptr;
+  if (std::fclose(f) != 0) throw Error(name_ + ": close failed: " + errno_text());
 }
 
 }  // namespace ptda::formats

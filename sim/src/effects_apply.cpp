@@ -1,11 +1,14 @@
 // The effects acting on the simulated signals (catalog: effects.cpp; documentation: docs/gap.md).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <optional>
 
 #include "ptda/sim/effects.hpp"
 #include "ptda/sim/random.hpp"
 #include "ptda/sim/simulator.hpp"
+#include "ptda/sim/stream.hpp"
 #include "sim_internal.hpp"
 
 namespace ptda::sim {
@@ -17,116 +20,25 @@ double sign_of(double v) {
   return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
 }
 
-/// Unit-variance Gaussian noise low-passed by a one-pole filter with corner `corner_hz`
-/// (y[n] = a y[n-1] + sqrt(1 - a^2) w[n], stationary from the first sample).
-std::vector<double> lowpass_noise(std::size_t n, double fs_hz, double corner_hz, Rng& rng) {
-  std::vector<double> y(n);
-  const double a = std::exp(-kTwoPi * corner_hz / fs_hz);
-  const double b = std::sqrt(1.0 - a * a);
-  double state = rng.normal();
-  for (std::size_t i = 0; i < n; ++i) {
+/// One-pole low-passed unit-variance Gaussian noise with corner `corner_hz`
+/// (y[n] = a y[n-1] + sqrt(1 - a^2) w[n], stationary from the first sample), sample by sample.
+struct LowpassNoise {
+  double a = 0.0;
+  double b = 0.0;
+  double state = 0.0;
+  LowpassNoise() = default;
+  LowpassNoise(double fs_hz, double corner_hz, Rng& rng)
+      : a(std::exp(-kTwoPi * corner_hz / fs_hz)), b(std::sqrt(1.0 - a * a)), state(rng.normal()) {}
+  double next(Rng& rng) noexcept {
     state = a * state + b * rng.normal();
-    y[i] = state;
+    return state;
   }
-  return y;
-}
-
-void add_impacts(const EffectSpec& e, const MotionProfile& m, Rng& rng, Vibration& v) {
-  const double amp = e.get("amplitude_ms2");
-  const double f_res = e.get("resonance_hz");
-  const double zeta = e.get("damping_ratio");
-  if (amp <= 0.0) return;
-  // Torque reversals: every start of an acceleration piece whose sign differs from the last non-zero one
-  // (start from rest, start of braking, reversal). Backlash closes there.
-  double last_sign = 0.0;
-  for (const MotionPiece& p : m.pieces) {
-    const double sg = sign_of(p.accel_rad_s2);
-    if (sg == 0.0) continue;
-    if (sg != last_sign) {
-      add_ringing(v.accel_ms2, m.fs_hz, p.t0_s, amp, f_res, zeta);
-      ++v.effect_impacts;
-    }
-    last_sign = sg;
-  }
-  const double rate = e.get("rate_hz");
-  if (rate > 0.0) {
-    double t = 0.0;
-    for (;;) {
-      t += -std::log(1.0 - rng.uniform()) / rate;
-      if (t >= m.duration_s) break;
-      add_ringing(v.accel_ms2, m.fs_hz, t, amp, f_res, zeta);
-      ++v.effect_impacts;
-    }
-  }
-}
-
-void add_other_axis(const EffectSpec& e, const Scenario& s, const MotionProfile& m, std::vector<double>& x) {
-  const double amp = e.get("amplitude_ms2");
-  if (amp <= 0.0) return;
-  const double ratio = reduction_ratio(s.gearbox);
-  const double freq_ratio = e.get("frequency_ratio");
-  const auto lag = static_cast<std::ptrdiff_t>(std::llround(e.get("lag_s") * m.fs_hz));
-  const double order = freq_ratio * static_cast<double>(s.gearbox.z_in) * ratio;  // mesh cycles per joint rad
-  const VibrationSpec& vs = s.vibration;
-  const double nyquist = m.fs_hz / 2.0;
-  const auto n = static_cast<std::ptrdiff_t>(x.size());
-  for (std::ptrdiff_t i = 0; i < n; ++i) {
-    const std::ptrdiff_t j = i - lag;
-    const double angle = j < 0 ? m.angle_rad.front() : m.angle_rad[static_cast<std::size_t>(j)];
-    const double speed = j < 0 ? 0.0 : m.speed_rad_s[static_cast<std::size_t>(j)];
-    if (speed == 0.0) continue;
-    if (order * std::fabs(speed) / kTwoPi >= nyquist) continue;
-    const double sf =
-        vs.amplitude_speed_exponent == 0.0
-            ? 1.0
-            : std::pow(std::fabs(speed) / vs.reference_speed_rad_s, vs.amplitude_speed_exponent);
-    x[static_cast<std::size_t>(i)] += amp * sf * std::sin(order * angle + 0.7);
-  }
-}
-
-/// RBJ peaking biquad, gain 10^(gain_db/20) at frequency_hz.
-void apply_transfer_path(const EffectSpec& e, double fs_hz, std::vector<double>& x) {
-  const double f0 = std::min(e.get("frequency_hz"), 0.49 * fs_hz);
-  const double a_lin = std::pow(10.0, e.get("gain_db") / 40.0);
-  const double w0 = kTwoPi * f0 / fs_hz;
-  const double alpha = std::sin(w0) / (2.0 * e.get("q"));
-  const double a0 = 1.0 + alpha / a_lin;
-  const double b0 = (1.0 + alpha * a_lin) / a0;
-  const double b1 = -2.0 * std::cos(w0) / a0;
-  const double b2 = (1.0 - alpha * a_lin) / a0;
-  const double a1 = -2.0 * std::cos(w0) / a0;
-  const double a2 = (1.0 - alpha / a_lin) / a0;
-  double x1 = 0.0, x2 = 0.0, y1 = 0.0, y2 = 0.0;
-  for (double& v : x) {
-    const double y = b0 * v + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
-    x2 = x1;
-    x1 = v;
-    y2 = y1;
-    y1 = y;
-    v = y;
-  }
-}
-
-void add_electrical(const EffectSpec& e, double fs_hz, Rng& rng, std::vector<double>& x) {
-  const double f0 = e.get("frequency_hz");
-  const auto harmonics = static_cast<int>(std::lround(e.get("harmonics")));
-  double amp = e.get("amplitude_ms2");
-  const double decay = e.get("harmonic_decay");
-  for (int h = 1; h <= harmonics; ++h, amp *= decay) {
-    const double f = f0 * h;
-    const double phase = kTwoPi * rng.uniform();
-    if (f >= fs_hz / 2.0 || amp <= 0.0) continue;
-    const double w = kTwoPi * f / fs_hz;
-    for (std::size_t i = 0; i < x.size(); ++i) x[i] += amp * std::sin(w * static_cast<double>(i) + phase);
-  }
-}
+};
 
 }  // namespace
 
-MeshPerturbation mesh_perturbation(const Scenario& s, const MotionProfile& m, std::uint64_t seed) {
-  MeshPerturbation p;
-  const std::size_t n = m.angle_rad.size();
-  const double ratio = reduction_ratio(s.gearbox);
+MeshPerturber::MeshPerturber(const Scenario& s, double fs_hz, std::uint64_t seed)
+    : ratio_(reduction_ratio(s.gearbox)) {
   const double z_in = s.gearbox.z_in;
   for (std::size_t k = 0; k < s.effects.size(); ++k) {
     const EffectSpec& e = s.effects[k];
@@ -134,75 +46,247 @@ MeshPerturbation mesh_perturbation(const Scenario& s, const MotionProfile& m, st
         e.kind != EffectKind::kLoadDependence) {
       continue;
     }
-    if (p.gain.empty()) {
-      p.gain.assign(n, 1.0);
-      p.theta_in_offset_rad.assign(n, 0.0);
-    }
+    Part p{e.kind, Rng(seed, kStreamEffectBase + k)};
     if (e.kind == EffectKind::kSpeedRipple) {
-      Rng rng(seed, kStreamEffectBase + k);
-      const std::vector<double> j = lowpass_noise(n, m.fs_hz, e.get("bandwidth_hz"), rng);
+      const LowpassNoise lp(fs_hz, e.get("bandwidth_hz"), p.rng);
+      p.a = lp.a;
+      p.b = lp.b;
+      p.state = lp.state;
       // jitter_rad is mesh phase of order 1 = z_in * input angle.
-      const double scale = e.get("jitter_rad") / z_in;
-      for (std::size_t i = 0; i < n; ++i) p.theta_in_offset_rad[i] += scale * j[i];
+      p.scale = e.get("jitter_rad") / z_in;
     } else if (e.kind == EffectKind::kMeshModulation) {
-      const double rate = e.get("rate_order");
-      const double am = e.get("am_depth");
-      const double pm = e.get("pm_rad") / z_in;
-      for (std::size_t i = 0; i < n; ++i) {
-        const double theta_in = ratio * m.angle_rad[i];
-        p.gain[i] *= 1.0 + am * std::cos(rate * theta_in);
-        p.theta_in_offset_rad[i] += pm * std::sin(rate * theta_in);
-      }
+      p.rate = e.get("rate_order");
+      p.am = e.get("am_depth");
+      p.pm = e.get("pm_rad") / z_in;
     } else {
-      const double g_dir = e.get("direction_gain");
-      const double g_acc = e.get("accel_gain");
-      for (std::size_t i = 0; i < n; ++i) {
-        const double sv = sign_of(m.speed_rad_s[i]);
-        p.gain[i] *= (1.0 + g_dir * sv) * (1.0 + g_acc * sv * sign_of(m.accel_rad_s2[i]));
-      }
+      p.g_dir = e.get("direction_gain");
+      p.g_acc = e.get("accel_gain");
     }
+    parts_.push_back(p);
   }
-  return p;
 }
 
-void apply_signal_effects(const Scenario& s, const MotionProfile& m, std::uint64_t seed, Vibration& v) {
-  std::vector<double>& x = v.accel_ms2;
-  // 1. Mechanical additions (they travel the transfer path).
+void MeshPerturber::next(const MotionState& st, double& theta_in_offset_rad, double& gain) noexcept {
+  double offset = 0.0;
+  double g = 1.0;
+  for (Part& p : parts_) {
+    if (p.kind == EffectKind::kSpeedRipple) {
+      p.state = p.a * p.state + p.b * p.rng.normal();
+      offset += p.scale * p.state;
+    } else if (p.kind == EffectKind::kMeshModulation) {
+      const double theta_in = ratio_ * st.angle_rad;
+      g *= 1.0 + p.am * std::cos(p.rate * theta_in);
+      offset += p.pm * std::sin(p.rate * theta_in);
+    } else {
+      const double sv = sign_of(st.speed_rad_s);
+      g *= (1.0 + p.g_dir * sv) * (1.0 + p.g_acc * sv * sign_of(st.accel_rad_s2));
+    }
+  }
+  theta_in_offset_rad = offset;
+  gain = g;
+}
+
+/// One [[effects]] entry's state, in scenario order.
+struct SignalEffects::Step {
+  Step(EffectKind k, const Rng& r) : kind(k), rng(r) {}
+  EffectKind kind;
+  Rng rng;
+  bool active = false;
+  // impacts: knocks at torque reversals (pieces in order), then random (Poisson) knocks
+  double amp = 0.0, f_res = 0.0, zeta = 0.0, rate = 0.0;
+  std::size_t piece = 0;
+  double last_sign = 0.0;
+  bool random_pending = false;
+  double t_random = 0.0;
+  RingingSet reversals;
+  RingingSet random;
+  // other_axis: this joint's motion delayed by lag samples
+  std::ptrdiff_t lag = 0;
+  double order = 0.0;
+  std::optional<MotionSampler> lagged;
+  // noise_color
+  LowpassNoise lp;
+  // transfer_path: RBJ peaking biquad and its state
+  double b0 = 0.0, b1 = 0.0, b2 = 0.0, a1 = 0.0, a2 = 0.0;
+  double x1 = 0.0, x2 = 0.0, y1 = 0.0, y2 = 0.0;
+  // electrical_interference: the harmonics that are synthesised
+  struct Tone {
+    double amp, w, phase;
+  };
+  std::vector<Tone> tones;
+  // adc_clipping
+  double level = 0.0;
+};
+
+SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uint64_t seed)
+    : s_(&s), m_(&m), n_total_(motion_samples(m)) {
+  const double fs = m.fs_hz;
   for (std::size_t k = 0; k < s.effects.size(); ++k) {
     const EffectSpec& e = s.effects[k];
-    Rng rng(seed, kStreamEffectBase + k);
-    if (e.kind == EffectKind::kImpacts) {
-      add_impacts(e, m, rng, v);
-    } else if (e.kind == EffectKind::kOtherAxis) {
-      add_other_axis(e, s, m, x);
-    } else if (e.kind == EffectKind::kNoiseColor) {
-      const double rms = e.get("rms_ms2");
-      if (rms <= 0.0) continue;
-      const std::vector<double> c = lowpass_noise(x.size(), m.fs_hz, e.get("corner_hz"), rng);
-      for (std::size_t i = 0; i < x.size(); ++i) x[i] += rms * c[i];
+    Step st{e.kind, Rng(seed, kStreamEffectBase + k)};
+    switch (e.kind) {
+      case EffectKind::kImpacts:
+        st.amp = e.get("amplitude_ms2");
+        st.f_res = e.get("resonance_hz");
+        st.zeta = e.get("damping_ratio");
+        st.rate = e.get("rate_hz");
+        st.active = st.amp > 0.0;
+        if (st.active && st.rate > 0.0) {
+          st.t_random = 0.0;
+          st.t_random += -std::log(1.0 - st.rng.uniform()) / st.rate;
+          st.random_pending = st.t_random < m.duration_s;
+        }
+        break;
+      case EffectKind::kOtherAxis: {
+        const double amp = e.get("amplitude_ms2");
+        st.active = amp > 0.0;
+        st.amp = amp;
+        const double ratio = reduction_ratio(s.gearbox);
+        st.lag = static_cast<std::ptrdiff_t>(std::llround(e.get("lag_s") * fs));
+        st.order = e.get("frequency_ratio") * static_cast<double>(s.gearbox.z_in) * ratio;  // per joint rad
+        st.lagged.emplace(m);
+        break;
+      }
+      case EffectKind::kNoiseColor:
+        st.amp = e.get("rms_ms2");
+        st.active = st.amp > 0.0;
+        if (st.active) st.lp = LowpassNoise(fs, e.get("corner_hz"), st.rng);
+        break;
+      case EffectKind::kTransferPath: {
+        st.active = true;
+        const double f0 = std::min(e.get("frequency_hz"), 0.49 * fs);
+        const double a_lin = std::pow(10.0, e.get("gain_db") / 40.0);
+        const double w0 = kTwoPi * f0 / fs;
+        const double alpha = std::sin(w0) / (2.0 * e.get("q"));
+        const double a0 = 1.0 + alpha / a_lin;
+        st.b0 = (1.0 + alpha * a_lin) / a0;
+        st.b1 = -2.0 * std::cos(w0) / a0;
+        st.b2 = (1.0 - alpha * a_lin) / a0;
+        st.a1 = -2.0 * std::cos(w0) / a0;
+        st.a2 = (1.0 - alpha / a_lin) / a0;
+        break;
+      }
+      case EffectKind::kElectricalInterference: {
+        st.active = true;
+        const double f0 = e.get("frequency_hz");
+        const auto harmonics = static_cast<int>(std::lround(e.get("harmonics")));
+        double amp = e.get("amplitude_ms2");
+        const double decay = e.get("harmonic_decay");
+        for (int h = 1; h <= harmonics; ++h, amp *= decay) {
+          const double f = f0 * h;
+          const double phase = kTwoPi * st.rng.uniform();
+          if (f >= fs / 2.0 || amp <= 0.0) continue;
+          st.tones.push_back({amp, kTwoPi * f / fs, phase});
+        }
+        break;
+      }
+      case EffectKind::kAdcClipping:
+        st.active = true;
+        st.level = e.get("level_ms2");
+        break;
+      default:
+        break;  // timing and mesh effects act elsewhere
+    }
+    steps_.push_back(std::move(st));
+  }
+}
+
+SignalEffects::~SignalEffects() = default;
+
+void SignalEffects::schedule(std::size_t i_end) {
+  const double fs = m_->fs_hz;
+  const auto start_of = [fs](double t) { return static_cast<std::size_t>(std::ceil(t * fs)); };
+  for (Step& st : steps_) {
+    if (st.kind != EffectKind::kImpacts || !st.active) continue;
+    // Torque reversals: every start of an acceleration piece whose sign differs from the last non-zero
+    // one (start from rest, start of braking, reversal). Backlash closes there.
+    const std::vector<MotionPiece>& pieces = m_->pieces;
+    for (; st.piece < pieces.size(); ++st.piece) {
+      const MotionPiece& p = pieces[st.piece];
+      const double sg = sign_of(p.accel_rad_s2);
+      if (sg == 0.0) continue;
+      if (sg != st.last_sign) {
+        if (start_of(p.t0_s) >= i_end) break;
+        st.reversals.add(make_ringing(fs, p.t0_s, st.amp, st.f_res, st.zeta));
+        ++impacts_;
+      }
+      st.last_sign = sg;
+    }
+    while (st.random_pending && start_of(st.t_random) < i_end) {
+      st.random.add(make_ringing(fs, st.t_random, st.amp, st.f_res, st.zeta));
+      ++impacts_;
+      st.t_random += -std::log(1.0 - st.rng.uniform()) / st.rate;
+      st.random_pending = st.t_random < m_->duration_s;
+    }
+  }
+}
+
+void SignalEffects::apply(std::size_t i0, std::span<double> x) {
+  const double fs = m_->fs_hz;
+  const std::size_t n = x.size();
+  schedule(i0 + n);
+  const VibrationSpec& vs = s_->vibration;
+  const double nyquist = fs / 2.0;
+  // 1. Mechanical additions (they travel the transfer path).
+  for (Step& st : steps_) {
+    if (!st.active) continue;
+    if (st.kind == EffectKind::kImpacts) {
+      st.reversals.apply(i0, x, fs, n_total_);
+      st.random.apply(i0, x, fs, n_total_);
+    } else if (st.kind == EffectKind::kOtherAxis) {
+      for (std::size_t q = 0; q < n; ++q) {
+        const std::ptrdiff_t j = static_cast<std::ptrdiff_t>(i0 + q) - st.lag;
+        if (j < 0) continue;  // standing still before the lagged motion starts: speed 0, nothing added
+        const MotionState ms = st.lagged->at(static_cast<std::size_t>(j));
+        const double angle = ms.angle_rad;
+        const double speed = ms.speed_rad_s;
+        if (speed == 0.0) continue;
+        if (st.order * std::fabs(speed) / kTwoPi >= nyquist) continue;
+        const double sf =
+            vs.amplitude_speed_exponent == 0.0
+                ? 1.0
+                : std::pow(std::fabs(speed) / vs.reference_speed_rad_s, vs.amplitude_speed_exponent);
+        x[q] += st.amp * sf * std::sin(st.order * angle + 0.7);
+      }
+    } else if (st.kind == EffectKind::kNoiseColor) {
+      for (std::size_t q = 0; q < n; ++q) x[q] += st.amp * st.lp.next(st.rng);
     }
   }
   // 2. Structural path to the sensor.
-  for (const EffectSpec& e : s.effects) {
-    if (e.kind == EffectKind::kTransferPath) apply_transfer_path(e, m.fs_hz, x);
+  for (Step& st : steps_) {
+    if (st.kind != EffectKind::kTransferPath) continue;
+    for (double& v : x) {
+      const double y = st.b0 * v + st.b1 * st.x1 + st.b2 * st.x2 - st.a1 * st.y1 - st.a2 * st.y2;
+      st.x2 = st.x1;
+      st.x1 = v;
+      st.y2 = st.y1;
+      st.y1 = y;
+      v = y;
+    }
   }
   // 3. Electrical pickup at the sensor/cable.
-  for (std::size_t k = 0; k < s.effects.size(); ++k) {
-    if (s.effects[k].kind != EffectKind::kElectricalInterference) continue;
-    Rng rng(seed, kStreamEffectBase + k);
-    add_electrical(s.effects[k], m.fs_hz, rng, x);
+  for (const Step& st : steps_) {
+    if (st.kind != EffectKind::kElectricalInterference) continue;
+    for (const Step::Tone& tone : st.tones) {
+      for (std::size_t q = 0; q < n; ++q)
+        x[q] += tone.amp * std::sin(tone.w * static_cast<double>(i0 + q) + tone.phase);
+    }
   }
   // 4. Acquisition saturates.
-  for (const EffectSpec& e : s.effects) {
-    if (e.kind != EffectKind::kAdcClipping) continue;
-    const double level = e.get("level_ms2");
+  for (const Step& st : steps_) {
+    if (st.kind != EffectKind::kAdcClipping) continue;
+    const double level = st.level;
     for (double& val : x) {
       if (val > level || val < -level) {
         val = std::clamp(val, -level, level);
-        ++v.effect_clipped_samples;
+        ++clipped_;
       }
     }
   }
+}
+
+void SignalEffects::finish() {
+  schedule(std::numeric_limits<std::size_t>::max());
 }
 
 void timing_scenarios(const Scenario& s, Scenario& for_motion, Scenario& for_can) {

@@ -260,7 +260,7 @@ CyclePlan plan_cycle(const MotionSpec& m) {
   return plan;
 }
 
-MotionProfile build_motion(const Scenario& s, std::uint64_t seed) {
+MotionProfile build_motion_plan(const Scenario& s, std::uint64_t seed) {
   const MotionSpec& m = s.motion;
   const std::string where = s.source.empty() ? std::string("scenario") : s.source;
   MotionProfile prof;
@@ -290,6 +290,11 @@ MotionProfile build_motion(const Scenario& s, std::uint64_t seed) {
     } catch (const Error& e) {
       throw Error(where + ": [motion] " + e.what());
     }
+    // The plan is what a streamed simulation keeps for its whole length: reserved exactly (at most a
+    // pause, a jitter wait and a dwell besides the cycle's pieces), not grown by doubling.
+    prof.pieces.reserve(static_cast<std::size_t>(m.cycles) * (plan.pieces.size() + 3) + 1);
+    prof.plateaus.reserve(static_cast<std::size_t>(m.cycles) * plan.plateaus.size());
+    prof.cycle_start_s.reserve(m.cycles);
     Rng rng(seed, kStreamJitter);
     double t = 0.0;
     double angle = m.via_points_rad.front();
@@ -330,21 +335,48 @@ MotionProfile build_motion(const Scenario& s, std::uint64_t seed) {
   const double samples = std::round(prof.duration_s * prof.fs_hz);
   if (samples > 2.0e9) throw Error(where + ": the recording would exceed 2e9 samples");
 
-  const auto n = static_cast<std::size_t>(samples);
+  return prof;
+}
+
+std::size_t motion_samples(const MotionProfile& m) noexcept {
+  return static_cast<std::size_t>(std::round(m.duration_s * m.fs_hz));
+}
+
+MotionState MotionSampler::at(std::size_t i) noexcept {
+  const double t = static_cast<double>(i) / m_->fs_hz;
+  while (k_ + 1 < m_->pieces.size() && t >= m_->pieces[k_].t1_s) ++k_;
+  const MotionPiece& p = m_->pieces[k_];
+  const double tau = t - p.t0_s;
+  return MotionState{p.angle0_rad + p.speed0_rad_s * tau + 0.5 * p.accel_rad_s2 * tau * tau,
+                     p.speed0_rad_s + p.accel_rad_s2 * tau, p.accel_rad_s2, p.cycle};
+}
+
+double max_abs_speed_rad_s(const MotionProfile& m) {
+  double w_max = 0.0;
+  if (!m.speed_rad_s.empty()) {
+    for (double w : m.speed_rad_s) w_max = std::max(w_max, std::fabs(w));
+    return w_max;
+  }
+  MotionSampler sampler(m);
+  const std::size_t n = motion_samples(m);
+  for (std::size_t i = 0; i < n; ++i) w_max = std::max(w_max, std::fabs(sampler.at(i).speed_rad_s));
+  return w_max;
+}
+
+MotionProfile build_motion(const Scenario& s, std::uint64_t seed) {
+  MotionProfile prof = build_motion_plan(s, seed);
+  const std::size_t n = motion_samples(prof);
   prof.angle_rad.resize(n);
   prof.speed_rad_s.resize(n);
   prof.accel_rad_s2.resize(n);
   prof.cycle.resize(n);
-  std::size_t k = 0;
+  MotionSampler sampler(prof);
   for (std::size_t i = 0; i < n; ++i) {
-    const double t = static_cast<double>(i) / prof.fs_hz;
-    while (k + 1 < prof.pieces.size() && t >= prof.pieces[k].t1_s) ++k;
-    const MotionPiece& p = prof.pieces[k];
-    const double tau = t - p.t0_s;
-    prof.angle_rad[i] = p.angle0_rad + p.speed0_rad_s * tau + 0.5 * p.accel_rad_s2 * tau * tau;
-    prof.speed_rad_s[i] = p.speed0_rad_s + p.accel_rad_s2 * tau;
-    prof.accel_rad_s2[i] = p.accel_rad_s2;
-    prof.cycle[i] = p.cycle;
+    const MotionState st = sampler.at(i);
+    prof.angle_rad[i] = st.angle_rad;
+    prof.speed_rad_s[i] = st.speed_rad_s;
+    prof.accel_rad_s2[i] = st.accel_rad_s2;
+    prof.cycle[i] = st.cycle;
   }
   return prof;
 }

@@ -2,8 +2,10 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
+#include "ptda/sim/random.hpp"
 #include "ptda/sim/simulator.hpp"
 
 namespace ptda::sim {
@@ -29,27 +31,85 @@ inline constexpr std::uint64_t kStreamCycleNoise = 6;
 /// Effect i of the scenario draws from stream kStreamEffectBase + i.
 inline constexpr std::uint64_t kStreamEffectBase = 100;
 
+// ---- ringing (sim/src/vibration.cpp) -------------------------------------------------------
+
+/// A damped ringing A e^{-zeta wn tau} sin(wd tau) starting at t_imp_s, cut where its envelope has decayed
+/// to 1e-6: the terms the whole-signal add_ringing() adds, kept so that they can be added block by block.
+struct Ringing {
+  std::size_t n0 = 0;  ///< first sample, ceil(t_imp_s * fs)
+  double t_imp_s = 0.0;
+  double amplitude = 0.0;
+  double sigma = 0.0;  ///< zeta wn
+  double wd = 0.0;     ///< damped angular frequency
+  double t_end_s = 0.0;
+};
+[[nodiscard]] Ringing make_ringing(double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
+                                   double damping_ratio) noexcept;
+
+/// The ringings of one source (a tooth fault, the reversal knocks, the random knocks), added to each
+/// sample in the order they were scheduled, as the whole-signal code adds them one after the other.
+class RingingSet {
+ public:
+  void add(const Ringing& r) { active_.push_back(r); }
+  /// Adds the terms falling on samples [i0, i0 + x.size()) (x[0] is sample i0) of a recording of n_total
+  /// samples; blocks must come in order. Drops the ringings that have ended.
+  void apply(std::size_t i0, std::span<double> x, double fs_hz, std::size_t n_total);
+
+ private:
+  std::vector<Ringing> active_;
+};
+
 // ---- effects (sim/src/effects_apply.cpp) ------------------------------------------------------
 
-/// Per-sample changes of the GMF mesh by speed_ripple, mesh_modulation and load_dependence. Empty
-/// vectors when no such effect is on (the mesh is then computed exactly as without effects).
-struct MeshPerturbation {
-  std::vector<double> theta_in_offset_rad;  ///< added to the input angle the GMF harmonics follow
-  std::vector<double> gain;                 ///< multiplies the GMF part of the mesh
+/// Per-sample changes of the GMF mesh by speed_ripple, mesh_modulation and load_dependence, sample by
+/// sample from 0. off() when no such effect is on (the mesh is then computed exactly as without effects).
+class MeshPerturber {
+ public:
+  MeshPerturber(const Scenario& s, double fs_hz, std::uint64_t seed);
+  [[nodiscard]] bool on() const noexcept { return !parts_.empty(); }
+  /// Offset added to the input angle the GMF harmonics follow and the gain on the GMF part of the mesh,
+  /// for the next sample (samples in order).
+  void next(const MotionState& st, double& theta_in_offset_rad, double& gain) noexcept;
+
+ private:
+  struct Part {
+    Part(EffectKind k, const Rng& r) : kind(k), rng(r) {}
+    EffectKind kind;
+    Rng rng;
+    double a = 0.0, b = 0.0, state = 0.0, scale = 0.0;  // speed_ripple: low-passed noise
+    double rate = 0.0, am = 0.0, pm = 0.0;              // mesh_modulation
+    double g_dir = 0.0, g_acc = 0.0;                    // load_dependence
+  };
+  std::vector<Part> parts_;
+  double ratio_ = 0.0;
 };
-[[nodiscard]] MeshPerturbation mesh_perturbation(const Scenario& s, const MotionProfile& m,
-                                                 std::uint64_t seed);
 
-/// Adds impacts, other_axis and noise_color, then applies transfer_path, then adds
-/// electrical_interference, then clamps for adc_clipping (in scenario order within each step).
-void apply_signal_effects(const Scenario& s, const MotionProfile& m, std::uint64_t seed, Vibration& v);
+/// The signal effects, block by block: adds impacts, other_axis and noise_color, then applies
+/// transfer_path, then adds electrical_interference, then clamps for adc_clipping (in scenario order
+/// within each step), giving to every sample what the whole-signal code gives it.
+class SignalEffects {
+ public:
+  /// `m` (a plan is enough: pieces, duration) must outlive this object.
+  SignalEffects(const Scenario& s, const MotionProfile& m, std::uint64_t seed);
+  ~SignalEffects();
+  SignalEffects(const SignalEffects&) = delete;
+  SignalEffects& operator=(const SignalEffects&) = delete;
+  /// x = samples [i0, i0 + x.size()) of the vibration (mesh, noise, fault ringings); blocks in order.
+  void apply(std::size_t i0, std::span<double> x);
+  /// Counts the knocks scheduled after the last sample (the whole-signal code counts every one).
+  void finish();
+  [[nodiscard]] std::uint64_t impacts() const noexcept { return impacts_; }
+  [[nodiscard]] std::uint64_t clipped_samples() const noexcept { return clipped_; }
 
-/// Sample-clock and CAN-latency effects act on the scenario: `for_motion` has the ADC's true rate (motion
-/// and vibration are generated on the true sample grid), `for_can` the extra CAN delay/jitter.
-void timing_scenarios(const Scenario& s, Scenario& for_motion, Scenario& for_can);
-
-/// Adds a damped ringing A e^{-zeta wn tau} sin(wd tau) starting at t_imp_s (vibration.cpp).
-void add_ringing(std::vector<double>& x, double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
-                 double damping_ratio);
+ private:
+  struct Step;
+  void schedule(std::size_t i_end);
+  const Scenario* s_;
+  const MotionProfile* m_;
+  std::size_t n_total_ = 0;
+  std::vector<Step> steps_;
+  std::uint64_t impacts_ = 0;
+  std::uint64_t clipped_ = 0;
+};
 
 }  // namespace ptda::sim

@@ -2,9 +2,12 @@
 // truth.toml (what was simulated; analysis commands never read it).
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <system_error>
 
@@ -13,6 +16,7 @@
 #include "ptda/formats/recording.hpp"
 #include "ptda/formats/wav.hpp"
 #include "ptda/sim/simulator.hpp"
+#include "ptda/sim/stream.hpp"
 #include "sim_internal.hpp"
 
 namespace ptda::sim {
@@ -38,8 +42,72 @@ toml::array to_array(const std::vector<double>& v) {
   return a;
 }
 
-toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibration& vib,
-                        const std::vector<SimCanFrame>& can, const SimulationSummary& sum) {
+/// What truth.toml says about the synthesis besides the scenario and the motion.
+struct TruthCounts {
+  std::uint32_t harmonics_above_nyquist = 0;
+  std::uint64_t impulses = 0;
+  std::uint64_t effect_impacts = 0;
+  std::uint64_t effect_clipped_samples = 0;
+  std::uint64_t other_frames = 0;
+  const CycleVariation* cycle_variation = nullptr;
+};
+
+/// An array of truth.toml written element by element (see write_truth): `path` leads to it (a table key,
+/// "[]" for the first table of an array of tables, then the array's own key), elem(i) gives element i.
+struct DeferredArray {
+  std::vector<std::string> path;
+  std::size_t size = 0;
+  std::function<void(toml::array&, std::size_t)> push;
+};
+
+/// Arrays longer than this are left out of the in-memory table and streamed (per-cycle arrays).
+constexpr std::size_t kDeferFrom = 128;
+constexpr std::size_t kDeferChunk = 64;
+
+std::string marker(std::size_t k) {
+  return "ptda-deferred-array-" + std::to_string(k);
+}
+
+/// Puts array `key` into `t`: the whole array, or (`deferred` set and the array long) a marker string
+/// standing for it, registered in `deferred`.
+void insert_array(toml::table& t, const std::string& key, std::size_t size,
+                  std::function<void(toml::array&, std::size_t)> push, std::vector<std::string> path,
+                  std::vector<DeferredArray>* deferred) {
+  if (deferred == nullptr || size < kDeferFrom) {
+    toml::array a;
+    for (std::size_t i = 0; i < size; ++i) push(a, i);
+    t.insert(key, std::move(a));
+    return;
+  }
+  path.push_back(key);
+  t.insert(key, marker(deferred->size()));
+  deferred->push_back(DeferredArray{std::move(path), size, std::move(push)});
+}
+
+std::function<void(toml::array&, std::size_t)> doubles(const std::vector<double>& v) {
+  return [&v](toml::array& a, std::size_t i) { a.push_back(v[i]); };
+}
+
+toml::table plateau_table(const GearboxSpec& g, double start_time_s, const Plateau& p) {
+  const double ratio = reduction_ratio(g);
+  toml::table t;
+  t.insert("cycle", static_cast<std::int64_t>(p.cycle));
+  t.insert("t_start_s", p.t_start_s);
+  t.insert("t_end_s", p.t_end_s);
+  t.insert("duration_s", p.t_end_s - p.t_start_s);
+  t.insert("unix_start_s", start_time_s + p.t_start_s);
+  t.insert("speed_rad_s", p.speed_rad_s);
+  t.insert("input_shaft_hz", ratio * std::fabs(p.speed_rad_s) / (2.0 * std::numbers::pi));
+  t.insert("gmf_hz", gmf_hz(g, p.speed_rad_s));
+  t.insert("dmf_hz", dmf_hz(g, p.speed_rad_s));
+  t.insert("spur_hz", gmf_hz(g, p.speed_rad_s) / static_cast<double>(g.z_spur));
+  return t;
+}
+
+/// truth.toml as a table. With `deferred`, the plateaus and the long per-cycle arrays are left out
+/// (markers stand for the arrays) for write_truth to stream.
+toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCounts& vib,
+                        const SimulationSummary& sum, std::vector<DeferredArray>* deferred) {
   const GearboxSpec& g = s.gearbox;
   toml::table root;
   root.insert("format", "ptda-sim-truth");
@@ -63,7 +131,7 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
                                                              : "measured");
   mo.insert("duration_s", m.duration_s);
   mo.insert("cycles", static_cast<std::int64_t>(m.cycles));
-  mo.insert("cycle_start_s", to_array(m.cycle_start_s));
+  insert_array(mo, "cycle_start_s", m.cycle_start_s.size(), doubles(m.cycle_start_s), {"motion"}, deferred);
   if (s.motion.kind == MotionKind::kLspb) {
     mo.insert("via_points_rad", to_array(s.motion.via_points_rad));
     mo.insert("accel_rad_s2", s.motion.accel_rad_s2);
@@ -75,23 +143,11 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
   }
   root.insert("motion", std::move(mo));
 
-  toml::array plateaus;
-  const double ratio = reduction_ratio(g);
-  for (const Plateau& p : m.plateaus) {
-    toml::table t;
-    t.insert("cycle", static_cast<std::int64_t>(p.cycle));
-    t.insert("t_start_s", p.t_start_s);
-    t.insert("t_end_s", p.t_end_s);
-    t.insert("duration_s", p.t_end_s - p.t_start_s);
-    t.insert("unix_start_s", s.start_time_s + p.t_start_s);
-    t.insert("speed_rad_s", p.speed_rad_s);
-    t.insert("input_shaft_hz", ratio * std::fabs(p.speed_rad_s) / (2.0 * std::numbers::pi));
-    t.insert("gmf_hz", gmf_hz(g, p.speed_rad_s));
-    t.insert("dmf_hz", dmf_hz(g, p.speed_rad_s));
-    t.insert("spur_hz", gmf_hz(g, p.speed_rad_s) / static_cast<double>(g.z_spur));
-    plateaus.push_back(std::move(t));
+  if (deferred == nullptr || m.plateaus.empty()) {  // streamed by write_truth (the file's last section)
+    toml::array plateaus;
+    for (const Plateau& p : m.plateaus) plateaus.push_back(plateau_table(g, s.start_time_s, p));
+    root.insert("plateau", std::move(plateaus));
   }
-  root.insert("plateau", std::move(plateaus));
 
   toml::table vb;
   vb.insert("gmf_amplitudes", to_array(s.vibration.gmf_amplitudes));
@@ -110,16 +166,19 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
   }
   vb.insert("harmonics_above_nyquist", static_cast<std::int64_t>(vib.harmonics_above_nyquist));
   // The cycle variation only when on: without it truth.toml stays as it was before the feature.
-  const CycleVariation& cv = vib.cycle_variation;
+  const CycleVariation& cv = *vib.cycle_variation;
   if (s.vibration.cycle_amplitude_jitter_rel > 0.0) {
     vb.insert("cycle_amplitude_jitter_rel", s.vibration.cycle_amplitude_jitter_rel);
-    toml::array rows;  // [cycle][k]: factor on gmf_amplitudes[k] in that cycle
-    for (const std::vector<double>& row : cv.amplitude_factors) rows.push_back(to_array(row));
-    vb.insert("cycle_amplitude_factors", std::move(rows));
+    // [cycle][k]: factor on gmf_amplitudes[k] in that cycle
+    insert_array(
+        vb, "cycle_amplitude_factors", cv.amplitude_factors.size(),
+        [&cv](toml::array& a, std::size_t i) { a.push_back(to_array(cv.amplitude_factors[i])); },
+        {"vibration"}, deferred);
   }
   if (s.vibration.cycle_noise_jitter_rel > 0.0) {
     vb.insert("cycle_noise_jitter_rel", s.vibration.cycle_noise_jitter_rel);
-    vb.insert("cycle_noise_factors", to_array(cv.noise_factors));
+    insert_array(vb, "cycle_noise_factors", cv.noise_factors.size(), doubles(cv.noise_factors), {"vibration"},
+                 deferred);
   }
   root.insert("vibration", std::move(vb));
 
@@ -130,9 +189,13 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
     t.insert("severity", f.severity);
     t.insert("onset_cycle", static_cast<std::int64_t>(f.onset_cycle));
     t.insert("ramp_cycles", static_cast<std::int64_t>(f.ramp_cycles));
-    std::vector<double> sev;
-    for (std::uint32_t c = 0; c < m.cycles; ++c) sev.push_back(fault_severity(f, c));
-    t.insert("severity_per_cycle", to_array(sev));
+    // Only the first fault's array can be streamed (its table is the first of [[fault]]).
+    insert_array(
+        t, "severity_per_cycle", m.cycles,
+        [&f](toml::array& a, std::size_t c) {
+          a.push_back(fault_severity(f, static_cast<std::uint32_t>(c)));
+        },
+        {"fault", "[]"}, faults.empty() ? deferred : nullptr);
     if (f.kind == FaultKind::kSpurTooth) {
       t.insert("impulse_amplitude_ms2", f.impulse_amplitude_ms2);
       t.insert("resonance_hz", f.resonance_hz);
@@ -161,7 +224,7 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
     root.insert("effect_impacts", static_cast<std::int64_t>(vib.effect_impacts));
     root.insert("effect_clipped_samples", static_cast<std::int64_t>(vib.effect_clipped_samples));
   }
-  root.insert("impulses", static_cast<std::int64_t>(vib.impulse_times_s.size()));
+  root.insert("impulses", static_cast<std::int64_t>(vib.impulses));
   if (s.drift.on()) {  // without [drift] truth.toml stays as it was before the drift model
     const DriftSpec& d = s.drift;
     const DriftModel model(d, m.pause_start_s);
@@ -178,18 +241,18 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
     dt.insert("cooldown_tau_s", d.cooldown_tau_s);
     dt.insert("pause_every_cycles", static_cast<std::int64_t>(d.pause_every_cycles));
     dt.insert("pause_s", d.pause_s);
-    dt.insert("pause_start_s", to_array(m.pause_start_s));
+    insert_array(dt, "pause_start_s", m.pause_start_s.size(), doubles(m.pause_start_s), {"drift"}, deferred);
     // Factors at each cycle start, and the state at the end: a following recording continues the drift
     // with time_offset_s = time_end_s and initial_coldness = coldness_at_end (scripts/drift_soak.sh).
-    std::vector<double> gain;
-    std::vector<double> cold;
-    for (double t : m.cycle_start_s) {
-      const DriftFactors f = model.at(t);
-      gain.push_back(f.mesh_gain);
-      cold.push_back(f.coldness);
-    }
-    dt.insert("mesh_gain_at_cycle_start", to_array(gain));
-    dt.insert("coldness_at_cycle_start", to_array(cold));
+    // (The model is copied into the functions: the deferred arrays are written after this returns.)
+    insert_array(
+        dt, "mesh_gain_at_cycle_start", m.cycle_start_s.size(),
+        [&m, model](toml::array& a, std::size_t i) { a.push_back(model.at(m.cycle_start_s[i]).mesh_gain); },
+        {"drift"}, deferred);
+    insert_array(
+        dt, "coldness_at_cycle_start", m.cycle_start_s.size(),
+        [&m, model](toml::array& a, std::size_t i) { a.push_back(model.at(m.cycle_start_s[i]).coldness); },
+        {"drift"}, deferred);
     const DriftFactors end = model.at(m.duration_s);
     dt.insert("time_end_s", d.time_offset_s + m.duration_s);
     dt.insert("coldness_at_end", end.coldness);
@@ -216,12 +279,146 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const Vibrati
   cb.insert("delay_s", s.can.delay_s);
   cb.insert("jitter_s", s.can.jitter_s);
   cb.insert("speed_frames", static_cast<std::int64_t>(sum.speed_frames));
-  cb.insert("other_frames", static_cast<std::int64_t>(can.size() - sum.speed_frames));
+  cb.insert("other_frames", static_cast<std::int64_t>(vib.other_frames));
   root.insert("can", std::move(cb));
   return root;
 }
 
+/// Text of `key = [...]` printed by toml++ in the context of `path` for elements [i0, i1) (at least 24,
+/// so that toml++ prints it one element per line): returns the text after " = ".
+std::string array_text(const DeferredArray& d, std::size_t i0, std::size_t i1) {
+  toml::array chunk;
+  for (std::size_t i = i0; i < i1; ++i) d.push(chunk, i);
+  toml::table inner;
+  inner.insert(d.path.back(), std::move(chunk));
+  // Wrap from the inside out: a table key holds a table, "[]" an array of one table.
+  for (std::size_t k = d.path.size() - 1; k-- > 0;) {
+    if (d.path[k] == "[]") continue;
+    toml::table outer;
+    if (k + 1 < d.path.size() - 1 && d.path[k + 1] == "[]") {
+      toml::array aot;
+      aot.push_back(std::move(inner));
+      outer.insert(d.path[k], std::move(aot));
+    } else {
+      outer.insert(d.path[k], std::move(inner));
+    }
+    inner = std::move(outer);
+  }
+  std::ostringstream ss;
+  ss << inner;
+  const std::string text = ss.str();
+  const std::string head = d.path.back() + " = ";
+  const std::size_t at = text.find(head);
+  if (at == std::string::npos) throw Error("truth.toml: cannot format " + d.path.back());
+  return text.substr(at + head.size());
+}
+
+/// Writes a long array as toml++ prints it whole: "[", the elements one per line (chunk by chunk, each
+/// printed by toml++ in the same context), "]".
+void write_deferred(std::ostream& out, const DeferredArray& d) {
+  std::string closing;
+  for (std::size_t i0 = 0; i0 < d.size;) {
+    std::size_t i1 = std::min(d.size, i0 + kDeferChunk);
+    if (d.size - i1 < kDeferChunk) i1 = d.size;  // the last chunk takes the rest (each chunk >= 64 elements)
+    const std::string text = array_text(d, i0, i1);  // "[\n    e,\n    e\n]"
+    const std::size_t last_nl = text.rfind('\n');
+    if (text.empty() || text.front() != '[' || last_nl == std::string::npos)
+      throw Error("truth.toml: unexpected format of " + d.path.back());
+    if (i0 > 0)
+      out << ',';
+    else
+      out << '[';
+    out << std::string_view(text).substr(1, last_nl - 1);
+    closing = text.substr(last_nl);
+    i0 = i1;
+  }
+  out << closing;
+}
+
+/// truth.toml: the table without the plateaus and the long per-cycle arrays, printed by toml++, with the
+/// arrays streamed in place of their markers and the plateaus (the last section) one table at a time:
+/// the same bytes as printing the whole table, without holding it (it grows with the recording).
+void write_truth(std::ostream& out, const Scenario& s, const MotionProfile& m, const TruthCounts& counts,
+                 const SimulationSummary& sum) {
+  std::vector<DeferredArray> deferred;
+  const toml::table root = truth_table(s, m, counts, sum, &deferred);
+  std::ostringstream ss;
+  ss << root;
+  const std::string text = ss.str();
+  std::vector<std::pair<std::size_t, std::size_t>> at;  // position in text, deferred index
+  for (std::size_t k = 0; k < deferred.size(); ++k) {
+    const std::size_t pos = text.find("'" + marker(k) + "'");
+    if (pos == std::string::npos) throw Error("truth.toml: lost " + deferred[k].path.back());
+    at.emplace_back(pos, k);
+  }
+  std::sort(at.begin(), at.end());
+  std::size_t from = 0;
+  for (const auto& [pos, k] : at) {
+    out << std::string_view(text).substr(from, pos - from);
+    write_deferred(out, deferred[k]);
+    from = pos + marker(k).size() + 2;
+  }
+  out << std::string_view(text).substr(from);
+  if (!m.plateaus.empty()) {
+    for (const Plateau& p : m.plateaus) {
+      toml::table one;
+      toml::array aot;
+      aot.push_back(plateau_table(s.gearbox, s.start_time_s, p));
+      one.insert("plateau", std::move(aot));
+      out << "\n\n" << one;
+    }
+  }
+}
+
+void fill_summary(const Scenario& s, const MotionProfile& m, SimulationSummary& sum) {
+  sum.cycles = m.cycles;
+  sum.duration_s = m.duration_s;
+  sum.samples = motion_samples(m);
+  sum.fs_hz = s.sensor.fs_hz;
+  for (const Plateau& p : m.plateaus) {
+    if (p.cycle != 0) break;
+    sum.plateau_speeds_rad_s.push_back(p.speed_rad_s);
+    sum.plateau_durations_s.push_back(p.t_end_s - p.t_start_s);
+  }
+  sum.gmf_hz_at_first_plateau = m.plateaus.empty() ? 0.0 : gmf_hz(s.gearbox, m.plateaus.front().speed_rad_s);
+  sum.ratio = reduction_ratio(s.gearbox);
+  sum.severity_per_cycle.reserve(m.cycles);
+  for (std::uint32_t c = 0; c < m.cycles; ++c) {
+    double sev = 0.0;
+    for (const FaultSpec& f : s.faults) sev = std::max(sev, fault_severity(f, c));
+    sum.severity_per_cycle.push_back(sev);
+  }
+}
+
 }  // namespace
+
+std::string truth_toml_whole(const Scenario& s, const MotionProfile& m, const Vibration& vib,
+                             std::uint64_t other_frames, const SimulationSummary& sum) {
+  TruthCounts counts;
+  counts.harmonics_above_nyquist = vib.harmonics_above_nyquist;
+  counts.impulses = vib.impulse_times_s.size();
+  counts.effect_impacts = vib.effect_impacts;
+  counts.effect_clipped_samples = vib.effect_clipped_samples;
+  counts.other_frames = other_frames;
+  counts.cycle_variation = &vib.cycle_variation;
+  std::ostringstream ss;
+  ss << truth_table(s, m, counts, sum, nullptr);
+  return ss.str();
+}
+
+std::string truth_toml_streamed(const Scenario& s, const MotionProfile& m, const Vibration& vib,
+                                std::uint64_t other_frames, const SimulationSummary& sum) {
+  TruthCounts counts;
+  counts.harmonics_above_nyquist = vib.harmonics_above_nyquist;
+  counts.impulses = vib.impulse_times_s.size();
+  counts.effect_impacts = vib.effect_impacts;
+  counts.effect_clipped_samples = vib.effect_clipped_samples;
+  counts.other_frames = other_frames;
+  counts.cycle_variation = &vib.cycle_variation;
+  std::ostringstream ss;
+  write_truth(ss, s, m, counts, sum);
+  return ss.str();
+}
 
 SimulatedSignals simulate_signals(const Scenario& s, std::uint64_t seed) {
   SimulatedSignals out;
@@ -245,36 +442,21 @@ SimulatedSignals simulate_signals(const Scenario& s, std::uint64_t seed) {
 
 SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
                                         std::optional<std::uint64_t> seed) {
+  return simulate_to_directory(s, out_dir, seed, SimulateOptions{});
+}
+
+SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
+                                        std::optional<std::uint64_t> seed, const SimulateOptions& options) {
   SimulationSummary sum;
   sum.seed = seed.value_or(s.seed);
-  SimulatedSignals sig = simulate_signals(s, sum.seed);
-  const MotionProfile& m = sig.motion;
-  const Vibration& vib = sig.vibration;
-  const std::uint64_t clipped = sig.clipped_samples + vib.effect_clipped_samples;
-  std::vector<std::vector<float>> channels(1);
-  channels[0] = std::move(sig.codes);
-  const std::vector<SimCanFrame>& can = sig.can;
-
-  sum.cycles = m.cycles;
-  sum.duration_s = m.duration_s;
-  sum.samples = m.angle_rad.size();
-  sum.can_frames = can.size();
-  for (const SimCanFrame& f : can) sum.speed_frames += f.is_speed ? 1U : 0U;
-  sum.fs_hz = sig.fs_nominal_hz;
-  for (const Plateau& p : m.plateaus) {
-    if (p.cycle != 0) break;
-    sum.plateau_speeds_rad_s.push_back(p.speed_rad_s);
-    sum.plateau_durations_s.push_back(p.t_end_s - p.t_start_s);
-  }
-  sum.gmf_hz_at_first_plateau = m.plateaus.empty() ? 0.0 : gmf_hz(s.gearbox, m.plateaus.front().speed_rad_s);
-  sum.ratio = reduction_ratio(s.gearbox);
-  sum.harmonics_above_nyquist = vib.harmonics_above_nyquist;
-  sum.clipped_samples = clipped;
-  for (std::uint32_t c = 0; c < m.cycles; ++c) {
-    double sev = 0.0;
-    for (const FaultSpec& f : s.faults) sev = std::max(sev, fault_severity(f, c));
-    sum.severity_per_cycle.push_back(sev);
-  }
+  // Sample-clock and CAN-latency effects act on copies of the scenario (timing_scenarios).
+  Scenario for_motion;
+  Scenario for_can;
+  if (!s.effects.empty()) timing_scenarios(s, for_motion, for_can);
+  const Scenario& sm = s.effects.empty() ? s : for_motion;
+  const Scenario& sc = s.effects.empty() ? s : for_can;
+  const MotionProfile m = build_motion_plan(sm, sum.seed);
+  fill_summary(s, m, sum);
 
   std::error_code ec;
   std::filesystem::create_directories(out_dir, ec);
@@ -284,21 +466,56 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
   meta.start_time_s = s.start_time_s;
   meta.scale = sensor_scale(s.sensor);
   meta.unit = "m/s^2";
-  formats::write_wav(out_dir / meta.vibration_file, static_cast<std::uint32_t>(sig.fs_nominal_hz),
-                     s.sensor.format, channels);
 
-  std::vector<formats::CandumpRecord> records;
-  records.reserve(can.size());
-  for (const SimCanFrame& f : can) records.push_back(formats::CandumpRecord{f.frame, s.can.iface, 0});
-  formats::write_candump(out_dir / meta.can_file, records);
+  // Vibration: synthesised, quantised and written block by block.
+  VibrationStream vib(sm, m, sum.seed);
+  {
+    const std::size_t block = std::max<std::size_t>(options.block_samples, 1);
+    std::vector<double> accel(block);
+    std::vector<float> codes(block);
+    formats::WavWriter wav(out_dir / meta.vibration_file, static_cast<std::uint32_t>(s.sensor.fs_hz),
+                           s.sensor.format, 1, vib.samples());
+    std::uint64_t clipped = 0;
+    for (;;) {
+      const std::size_t n = vib.next(accel);
+      if (n == 0) break;
+      quantize_block(s.sensor, std::span<const double>(accel.data(), n), std::span<float>(codes.data(), n),
+                     &clipped);
+      wav.write(std::span<const float>(codes.data(), n));
+    }
+    wav.close();
+    sum.clipped_samples = clipped + vib.effect_clipped_samples();
+  }
+  sum.harmonics_above_nyquist = vib.harmonics_above_nyquist();
+
+  // CAN log: frame by frame.
+  {
+    CanStream can(sc, m, sum.seed, options.can_window_frames);
+    formats::CandumpWriter log(out_dir / meta.can_file);
+    SimCanFrame f;
+    while (can.next(f)) {
+      log.write(formats::CandumpRecord{f.frame, s.can.iface, 0});
+      ++sum.can_frames;
+      sum.speed_frames += f.is_speed ? 1U : 0U;
+    }
+    log.close();
+  }
   formats::write_recording_meta(out_dir, meta);
 
+  TruthCounts counts;
+  counts.harmonics_above_nyquist = vib.harmonics_above_nyquist();
+  counts.impulses = vib.impulses();
+  counts.effect_impacts = vib.effect_impacts();
+  counts.effect_clipped_samples = vib.effect_clipped_samples();
+  counts.other_frames = sum.can_frames - sum.speed_frames;
+  counts.cycle_variation = &vib.cycle_variation();
   const std::filesystem::path truth_path = out_dir / "truth.toml";
   std::ofstream out(truth_path, std::ios::binary | std::ios::trunc);
   if (!out) throw Error(truth_path.string() + ": cannot open for writing");
   out << "# Ground truth written by the ptda simulator: what was simulated (faults, severities per cycle,\n"
          "# plateaus, seeds, parameters). No analysis command reads this file; tests and reports may.\n";
-  out << truth_table(s, m, vib, can, sum) << "\n";
+  write_truth(out, s, m, counts, sum);
+  out << "\n";
   out.flush();
   if (!out) throw Error(truth_path.string() + ": write failed");
   return sum;

@@ -2,6 +2,8 @@
 // and the faults (spur tooth impacts ringing a structural resonance + mesh AM; distributed wear).
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <optional>
@@ -9,6 +11,7 @@
 #include "ptda/sim/noise_tilt.hpp"
 #include "ptda/sim/random.hpp"
 #include "ptda/sim/simulator.hpp"
+#include "ptda/sim/stream.hpp"
 #include "sim_internal.hpp"
 
 namespace ptda::sim {
@@ -57,212 +60,380 @@ CycleVariation draw_cycle_variation(const VibrationSpec& v, std::uint32_t cycles
   return out;
 }
 
-void add_ringing(std::vector<double>& x, double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
-                 double damping_ratio) {
+Ringing make_ringing(double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
+                     double damping_ratio) noexcept {
+  Ringing r;
   const double wn = kTwoPi * resonance_hz;
-  const double sigma = damping_ratio * wn;
-  const double wd = wn * std::sqrt(1.0 - damping_ratio * damping_ratio);
-  const double t_end = t_imp_s + kRingDecay / sigma;
-  auto n = static_cast<std::size_t>(std::ceil(t_imp_s * fs_hz));
-  for (; n < x.size(); ++n) {
-    const double t = static_cast<double>(n) / fs_hz;
-    if (t > t_end) break;
-    const double tau = t - t_imp_s;
-    x[n] += amplitude * std::exp(-sigma * tau) * std::sin(wd * tau);
+  r.sigma = damping_ratio * wn;
+  r.wd = wn * std::sqrt(1.0 - damping_ratio * damping_ratio);
+  r.t_end_s = t_imp_s + kRingDecay / r.sigma;
+  r.n0 = static_cast<std::size_t>(std::ceil(t_imp_s * fs_hz));
+  r.t_imp_s = t_imp_s;
+  r.amplitude = amplitude;
+  return r;
+}
+
+void RingingSet::apply(std::size_t i0, std::span<double> x, double fs_hz, std::size_t n_total) {
+  const std::size_t i1 = std::min(i0 + x.size(), n_total);
+  bool any_done = false;
+  for (Ringing& r : active_) {
+    std::size_t n = std::max(r.n0, i0);
+    for (; n < i1; ++n) {
+      const double t = static_cast<double>(n) / fs_hz;
+      if (t > r.t_end_s) break;
+      const double tau = t - r.t_imp_s;
+      x[n - i0] += r.amplitude * std::exp(-r.sigma * tau) * std::sin(r.wd * tau);
+    }
+    if (n < i1 || n >= n_total) {  // ended (or beyond the recording)
+      r.amplitude = 0.0;
+      r.n0 = std::numeric_limits<std::size_t>::max();
+      any_done = true;
+    }
+  }
+  if (any_done) {
+    std::erase_if(active_, [](const Ringing& r) { return r.n0 == std::numeric_limits<std::size_t>::max(); });
+  }
+}
+
+struct VibrationStream::Impl {
+  const Scenario& s;
+  const MotionProfile& m;
+  const bool keep_impulses;
+  std::size_t n = 0;
+  std::size_t pos = 0;
+  MotionSampler motion;  // the samples being synthesised
+  std::vector<Harmonic> gmf;
+  std::vector<Harmonic> dmf;
+  std::uint32_t harmonics_above_nyquist = 0;
+  std::uint32_t cycles = 1;
+  std::vector<double> harmonic_gain;  // per cycle (distributed wear)
+  std::vector<double> noise_gain;     // per cycle (distributed wear, cycle variation)
+  CycleVariation cycle_variation;
+  std::uint32_t amp_cycle = std::numeric_limits<std::uint32_t>::max();
+  std::vector<double> amp;  // GMF amplitudes of cycle amp_cycle
+  std::vector<const FaultSpec*> tooth;
+  MeshPerturber pert;
+  DriftModel drift;
+  bool drifting = false;
+  Rng rng;
+  // Tooth impacts, detected one sample ahead of the synthesis (an impact found at sample i rings from
+  // about sample i - 1): one ringing set per spur_tooth fault, in fault order.
+  MotionSampler scan;
+  std::size_t scan_pos = 0;
+  std::vector<double> u_prev;
+  std::vector<RingingSet> tooth_rings;
+  std::vector<std::vector<double>> impulse_t;  // per tooth fault (keep_impulses)
+  std::vector<std::vector<double>> impulse_a;
+  std::uint64_t impulses = 0;
+  std::unique_ptr<SignalEffects> effects;
+  bool finished = false;
+  // Shaft-order lines: whole multiples q of a base order g0 (the orders' gcd), by rotation like the mesh.
+  int g0 = 0;
+  int m_max = 0;
+  std::vector<double> shaft_amp;  // [q - 1]: amplitude of order q * g0
+  // Tilted background (docs/simulator.md); white noise draws exactly as before when the tilt is 0.
+  std::optional<TiltedNoise> tilted;
+
+  Impl(const Scenario& sc, const MotionProfile& mp, std::uint64_t seed, bool keep)
+      : s(sc),
+        m(mp),
+        keep_impulses(keep),
+        n(motion_samples(mp)),
+        motion(mp),
+        pert(sc, mp.fs_hz, seed),
+        drift(sc.drift, mp.pause_start_s),
+        drifting(sc.drift.load_on() || sc.drift.warmup_on()),
+        rng(seed, kStreamNoise),
+        scan(mp) {
+    const VibrationSpec& vs = s.vibration;
+    const GearboxSpec& g = s.gearbox;
+    const double nyquist = m.fs_hz / 2.0;
+    const double w_max = max_abs_speed_rad_s(m);
+    // Orders whose frequency at the top speed reaches Nyquist would alias: leave them out and count them.
+    for (std::size_t k = 0; k < vs.gmf_amplitudes.size(); ++k) {
+      if (vs.gmf_amplitudes[k] == 0.0) continue;
+      const double order = static_cast<double>(k + 1);
+      if (order * gmf_hz(g, w_max) >= nyquist) {
+        ++harmonics_above_nyquist;
+        continue;
+      }
+      const double phi = vs.gmf_phases_rad.empty() ? 0.0 : vs.gmf_phases_rad[k];
+      gmf.push_back(
+          {order, vs.gmf_amplitudes[k], phi, k, static_cast<int>(k + 1), std::cos(phi), std::sin(phi)});
+    }
+    for (std::size_t k = 0; k < vs.dmf_amplitudes.size(); ++k) {
+      if (vs.dmf_amplitudes[k] == 0.0) continue;
+      const double order = static_cast<double>(k + 1);
+      if (order * dmf_hz(g, w_max) >= nyquist) {
+        ++harmonics_above_nyquist;
+        continue;
+      }
+      dmf.push_back({order, vs.dmf_amplitudes[k], 0.0, k, static_cast<int>(k + 1), 1.0, 0.0});
+    }
+
+    // Per-cycle gains of the faults (severity is constant within a cycle).
+    cycles = std::max<std::uint32_t>(m.cycles, 1);
+    harmonic_gain.assign(cycles, 1.0);
+    noise_gain.assign(cycles, 1.0);
+    for (const FaultSpec& f : s.faults) {
+      if (f.kind != FaultKind::kDistributedWear) continue;
+      for (std::uint32_t c = 0; c < cycles; ++c) {
+        const double sev = fault_severity(f, c);
+        harmonic_gain[c] *= 1.0 + f.harmonic_gain * sev;
+        noise_gain[c] *= 1.0 + f.noise_gain * sev;
+      }
+    }
+    // Cycle-to-cycle variation: the GMF amplitudes of each cycle (the nominal ones when off, so the
+    // product below is the same as without the feature) and the noise level.
+    cycle_variation = draw_cycle_variation(vs, cycles, seed);
+    if (!cycle_variation.noise_factors.empty()) {
+      for (std::uint32_t c = 0; c < cycles; ++c) noise_gain[c] *= cycle_variation.noise_factors[c];
+    }
+    amp.resize(gmf.size());
+    for (const FaultSpec& f : s.faults) {
+      if (f.kind == FaultKind::kSpurTooth) tooth.push_back(&f);
+    }
+    u_prev.assign(tooth.size(), 0.0);
+    tooth_rings.resize(tooth.size());
+    impulse_t.resize(tooth.size());
+    impulse_a.resize(tooth.size());
+    if (!s.effects.empty()) effects = std::make_unique<SignalEffects>(s, m, seed);
+    for (int j : vs.shaft_orders) g0 = std::gcd(g0, j);
+    for (std::size_t i = 0; i < vs.shaft_orders.size() && i < vs.shaft_order_amplitudes.size(); ++i) {
+      if (vs.shaft_order_amplitudes[i] <= 0.0) continue;
+      if (static_cast<double>(vs.shaft_orders[i]) * gmf_hz(g, w_max) / std::max(g.z_in, 1U) >= nyquist)
+        continue;
+      const int mult = vs.shaft_orders[i] / g0;
+      if (mult > m_max) {
+        shaft_amp.resize(static_cast<std::size_t>(mult), 0.0);
+        m_max = mult;
+      }
+      shaft_amp[static_cast<std::size_t>(mult - 1)] = vs.shaft_order_amplitudes[i];
+    }
+    if (vs.noise_tilt_db_per_decade != 0.0 && vs.noise_rms > 0.0)
+      tilted.emplace(vs.noise_tilt_db_per_decade, m.fs_hz);
+  }
+
+  /// GMF amplitudes of cycle c: the nominal ones times the cycle's variation factors.
+  const std::vector<double>& gmf_amplitude(std::uint32_t c) {
+    if (c != amp_cycle) {
+      const CycleVariation& cv = cycle_variation;
+      for (std::size_t j = 0; j < gmf.size(); ++j) {
+        amp[j] = cv.amplitude_factors.empty() ? gmf[j].amplitude
+                                              : gmf[j].amplitude * cv.amplitude_factors[c][gmf[j].entry];
+      }
+      amp_cycle = c;
+    }
+    return amp;
+  }
+
+  /// Tooth impacts: once per spur revolution, when the defect angle passes a multiple of 2 pi (either
+  /// direction), located between samples by linear interpolation of the angle. Scans samples up to
+  /// i_end (exclusive).
+  void detect_impacts(std::size_t i_end) {
+    const VibrationSpec& vs = s.vibration;
+    const double fs = m.fs_hz;
+    const double ratio = reduction_ratio(s.gearbox);
+    const double spur_per_in = static_cast<double>(s.gearbox.z_in) / static_cast<double>(s.gearbox.z_spur);
+    i_end = std::min(i_end, n);
+    for (; scan_pos < i_end; ++scan_pos) {
+      const std::size_t i = scan_pos;
+      const MotionState ms = scan.at(i);
+      for (std::size_t q = 0; q < tooth.size(); ++q) {
+        const FaultSpec* f = tooth[q];
+        if (f->impulse_amplitude_ms2 <= 0.0) continue;
+        const double u = (spur_per_in * ratio * ms.angle_rad + f->spur_phase_rad) / kTwoPi;
+        const double u_last = u_prev[q];
+        if (i > 0 && std::floor(u) != std::floor(u_last)) {
+          const double lo = std::min(u, u_last);
+          const double hi = std::max(u, u_last);
+          for (double k = std::floor(lo) + 1.0; k <= hi; k += 1.0) {
+            const double frac = (k - u_last) / (u - u_last);
+            const double t_imp = (static_cast<double>(i - 1) + frac) / fs;
+            const double sev = fault_severity(*f, std::min(ms.cycle, cycles - 1));
+            const double a = f->impulse_amplitude_ms2 * sev * speed_factor(vs, ms.speed_rad_s);
+            if (a <= 0.0) continue;
+            // [drift]: the structural resonance moves with the stiffness (load/temperature cycle).
+            const double res_hz =
+                drifting ? f->resonance_hz * drift.at(t_imp).resonance_factor : f->resonance_hz;
+            tooth_rings[q].add(make_ringing(fs, t_imp, a, res_hz, f->damping_ratio));
+            ++impulses;
+            if (keep_impulses) {
+              impulse_t[q].push_back(t_imp);
+              impulse_a[q].push_back(a);
+            }
+          }
+        }
+        u_prev[q] = u;
+      }
+    }
+  }
+
+  /// The mesh, noise and drift of samples [i0, i0 + x.size()).
+  void synthesize(std::size_t i0, std::span<double> x) {
+    const VibrationSpec& vs = s.vibration;
+    const GearboxSpec& g = s.gearbox;
+    const double fs = m.fs_hz;
+    const double ratio = reduction_ratio(g);
+    const double z_in = g.z_in;
+    const double spur_per_in = z_in / static_cast<double>(g.z_spur);  // spur turns per input turn
+    const bool perturbed = pert.on();
+    for (std::size_t q = 0; q < x.size(); ++q) {
+      const std::size_t i = i0 + q;
+      const MotionState ms = motion.at(i);
+      double pert_offset = 0.0;
+      double pert_gain = 1.0;
+      if (perturbed) pert.next(ms, pert_offset, pert_gain);
+      const double theta_out = ms.angle_rad;
+      const double theta_in = ratio * theta_out;
+      const double theta_mesh = perturbed ? theta_in + pert_offset : theta_in;
+      const std::uint32_t c = std::min(ms.cycle, cycles - 1);
+      const double sf = speed_factor(vs, ms.speed_rad_s);
+      const DriftFactors d = drifting ? drift.at(static_cast<double>(i) / fs) : DriftFactors{};
+      double mesh = 0.0;
+      if (sf != 0.0) {
+        // phase_k = k * Z_in * theta_in + phi_k: follows the integrated input angle, so speed changes
+        // and cycle-to-cycle start differences move the phase exactly as a real mesh does.
+        // The orders are whole numbers: e^{i k b} by repeated rotation from e^{i b}, one sin/cos pair per
+        // sample instead of one sin per harmonic (the simulator's hot loop in `ptda gap`'s fits).
+        const std::vector<double>& amp_c = gmf_amplitude(c);
+        const double b = z_in * theta_mesh;
+        const double c1 = std::cos(b), s1 = std::sin(b);
+        double ck = 1.0, sk = 0.0;
+        int k = 0;
+        for (std::size_t j = 0; j < gmf.size(); ++j) {
+          for (; k < gmf[j].whole_order; ++k) {
+            const double cn = ck * c1 - sk * s1;
+            sk = sk * c1 + ck * s1;
+            ck = cn;
+          }
+          mesh += amp_c[j] * (sk * gmf[j].cos_phase + ck * gmf[j].sin_phase);  // sin(k b + phi)
+        }
+        mesh *= harmonic_gain[c];
+        if (perturbed) mesh *= pert_gain;
+        for (const FaultSpec* f : tooth) {
+          const double depth = f->am_depth * fault_severity(*f, c);
+          if (depth > 0.0) mesh *= 1.0 + depth * std::cos(spur_per_in * theta_in + f->spur_phase_rad);
+        }
+        for (const Harmonic& h : dmf) {
+          mesh += h.amplitude * std::sin(h.order * static_cast<double>(g.z_pin) * theta_out);
+        }
+        if (drifting) mesh *= d.mesh_gain;  // mesh stiffness (load, temperature) and cold oil
+        if (m_max > 0) {
+          const double b0 = static_cast<double>(g0) * theta_mesh;
+          const double sc1 = std::cos(b0), ss1 = std::sin(b0);
+          double sck = 1.0, ssk = 0.0;
+          for (int r = 1; r <= m_max; ++r) {
+            const double cn = sck * sc1 - ssk * ss1;
+            ssk = ssk * sc1 + sck * ss1;
+            sck = cn;
+            mesh += shaft_amp[static_cast<std::size_t>(r - 1)] * ssk;  // sin(r g0 theta_in)
+          }
+        }
+      }
+      double noise = 0.0;
+      if (vs.noise_rms > 0.0)
+        noise = vs.noise_rms * noise_gain[c] * (tilted ? tilted->next(rng) : rng.normal());
+      if (drifting) noise *= d.noise_gain;
+      x[q] = sf * mesh + noise;
+    }
+  }
+};
+
+VibrationStream::VibrationStream(const Scenario& s, const MotionProfile& m, std::uint64_t seed,
+                                 bool keep_impulses)
+    : impl_(std::make_unique<Impl>(s, m, seed, keep_impulses)) {}
+
+VibrationStream::~VibrationStream() = default;
+
+std::size_t VibrationStream::samples() const noexcept {
+  return impl_->n;
+}
+
+std::size_t VibrationStream::position() const noexcept {
+  return impl_->pos;
+}
+
+std::size_t VibrationStream::next(std::span<double> x) {
+  Impl& im = *impl_;
+  const std::size_t count = std::min(x.size(), im.n - im.pos);
+  if (count == 0) {
+    if (!im.finished && im.effects) im.effects->finish();
+    im.finished = true;
+    return 0;
+  }
+  const std::span<double> block = x.first(count);
+  const std::size_t i0 = im.pos;
+  // An impact found at sample i starts ringing at ceil(t_imp fs) >= i - 1 (up to rounding): scan two
+  // samples past the block so that every ringing reaching into it is known.
+  im.detect_impacts(i0 + count + 2);
+  im.synthesize(i0, block);
+  for (RingingSet& rings : im.tooth_rings) rings.apply(i0, block, im.m.fs_hz, im.n);
+  if (im.effects) im.effects->apply(i0, block);
+  im.pos += count;
+  if (im.pos == im.n && !im.finished) {
+    if (im.effects) im.effects->finish();
+    im.finished = true;
+  }
+  return count;
+}
+
+std::uint32_t VibrationStream::harmonics_above_nyquist() const noexcept {
+  return impl_->harmonics_above_nyquist;
+}
+
+std::uint64_t VibrationStream::impulses() const noexcept {
+  return impl_->impulses;
+}
+
+std::uint64_t VibrationStream::effect_impacts() const noexcept {
+  return impl_->effects ? impl_->effects->impacts() : 0;
+}
+
+std::uint64_t VibrationStream::effect_clipped_samples() const noexcept {
+  return impl_->effects ? impl_->effects->clipped_samples() : 0;
+}
+
+const CycleVariation& VibrationStream::cycle_variation() const noexcept {
+  return impl_->cycle_variation;
+}
+
+void VibrationStream::take_truth(Vibration& v) {
+  Impl& im = *impl_;
+  v.harmonics_above_nyquist = im.harmonics_above_nyquist;
+  v.effect_impacts = effect_impacts();
+  v.effect_clipped_samples = effect_clipped_samples();
+  v.cycle_variation = std::move(im.cycle_variation);
+  v.impulse_times_s.clear();
+  v.impulse_amplitudes_ms2.clear();
+  for (std::size_t q = 0; q < im.impulse_t.size(); ++q) {
+    v.impulse_times_s.insert(v.impulse_times_s.end(), im.impulse_t[q].begin(), im.impulse_t[q].end());
+    v.impulse_amplitudes_ms2.insert(v.impulse_amplitudes_ms2.end(), im.impulse_a[q].begin(),
+                                    im.impulse_a[q].end());
+  }
+  if (im.tooth.size() > 1) {
+    std::vector<std::size_t> idx(v.impulse_times_s.size());
+    for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+    std::sort(idx.begin(), idx.end(),
+              [&](std::size_t a, std::size_t b) { return v.impulse_times_s[a] < v.impulse_times_s[b]; });
+    std::vector<double> t(idx.size());
+    std::vector<double> a(idx.size());
+    for (std::size_t i = 0; i < idx.size(); ++i) {
+      t[i] = v.impulse_times_s[idx[i]];
+      a[i] = v.impulse_amplitudes_ms2[idx[i]];
+    }
+    v.impulse_times_s = std::move(t);
+    v.impulse_amplitudes_ms2 = std::move(a);
   }
 }
 
 Vibration synthesize_vibration(const Scenario& s, const MotionProfile& m, std::uint64_t seed) {
-  const VibrationSpec& vs = s.vibration;
-  const GearboxSpec& g = s.gearbox;
-  const double fs = m.fs_hz;
-  const double nyquist = fs / 2.0;
-  const double ratio = reduction_ratio(g);
-  const std::size_t n = m.angle_rad.size();
   Vibration out;
-  out.accel_ms2.assign(n, 0.0);
-
-  double w_max = 0.0;
-  for (double w : m.speed_rad_s) w_max = std::max(w_max, std::fabs(w));
-  // Orders whose frequency at the top speed reaches Nyquist would alias: leave them out and count them.
-  std::vector<Harmonic> gmf;
-  for (std::size_t k = 0; k < vs.gmf_amplitudes.size(); ++k) {
-    if (vs.gmf_amplitudes[k] == 0.0) continue;
-    const double order = static_cast<double>(k + 1);
-    if (order * gmf_hz(g, w_max) >= nyquist) {
-      ++out.harmonics_above_nyquist;
-      continue;
-    }
-    const double phi = vs.gmf_phases_rad.empty() ? 0.0 : vs.gmf_phases_rad[k];
-    gmf.push_back(
-        {order, vs.gmf_amplitudes[k], phi, k, static_cast<int>(k + 1), std::cos(phi), std::sin(phi)});
+  VibrationStream stream(s, m, seed, true);
+  out.accel_ms2.assign(stream.samples(), 0.0);
+  while (stream.next(std::span<double>(out.accel_ms2).subspan(stream.position())) > 0) {
   }
-  std::vector<Harmonic> dmf;
-  for (std::size_t k = 0; k < vs.dmf_amplitudes.size(); ++k) {
-    if (vs.dmf_amplitudes[k] == 0.0) continue;
-    const double order = static_cast<double>(k + 1);
-    if (order * dmf_hz(g, w_max) >= nyquist) {
-      ++out.harmonics_above_nyquist;
-      continue;
-    }
-    dmf.push_back({order, vs.dmf_amplitudes[k], 0.0, k, static_cast<int>(k + 1), 1.0, 0.0});
-  }
-
-  // Per-cycle gains of the faults (severity is constant within a cycle).
-  const std::uint32_t cycles = std::max<std::uint32_t>(m.cycles, 1);
-  std::vector<double> harmonic_gain(cycles, 1.0);
-  std::vector<double> noise_gain(cycles, 1.0);
-  for (const FaultSpec& f : s.faults) {
-    if (f.kind != FaultKind::kDistributedWear) continue;
-    for (std::uint32_t c = 0; c < cycles; ++c) {
-      const double sev = fault_severity(f, c);
-      harmonic_gain[c] *= 1.0 + f.harmonic_gain * sev;
-      noise_gain[c] *= 1.0 + f.noise_gain * sev;
-    }
-  }
-  // Cycle-to-cycle variation: the GMF amplitudes of each cycle (a copy of the nominal ones per cycle
-  // when off, so the product below is the same as without the feature) and the noise level.
-  out.cycle_variation = draw_cycle_variation(vs, cycles, seed);
-  const CycleVariation& cv = out.cycle_variation;
-  std::vector<std::vector<double>> gmf_amplitude(cycles, std::vector<double>(gmf.size()));
-  for (std::uint32_t c = 0; c < cycles; ++c) {
-    for (std::size_t j = 0; j < gmf.size(); ++j) {
-      gmf_amplitude[c][j] = cv.amplitude_factors.empty()
-                                ? gmf[j].amplitude
-                                : gmf[j].amplitude * cv.amplitude_factors[c][gmf[j].entry];
-    }
-    if (!cv.noise_factors.empty()) noise_gain[c] *= cv.noise_factors[c];
-  }
-  std::vector<const FaultSpec*> tooth;
-  for (const FaultSpec& f : s.faults) {
-    if (f.kind == FaultKind::kSpurTooth) tooth.push_back(&f);
-  }
-
-  const double z_in = g.z_in;
-  const double spur_per_in = z_in / static_cast<double>(g.z_spur);  // spur turns per input turn
-  const MeshPerturbation pert = mesh_perturbation(s, m, seed);
-  const bool perturbed = !pert.gain.empty();
-  // [drift]: slow load/temperature and warm-up factors (off: the loop below is unchanged).
-  const DriftModel drift(s.drift, m.pause_start_s);
-  const bool drifting = s.drift.load_on() || s.drift.warmup_on();
-  Rng rng(seed, kStreamNoise);
-  // Shaft-order lines: whole multiples m of a base order g0 (the orders' gcd), by rotation like the mesh.
-  int g0 = 0, m_max = 0;
-  for (int j : vs.shaft_orders) g0 = std::gcd(g0, j);
-  std::vector<double> shaft_amp;  // [m - 1]: amplitude of order m * g0
-  for (std::size_t i = 0; i < vs.shaft_orders.size() && i < vs.shaft_order_amplitudes.size(); ++i) {
-    if (vs.shaft_order_amplitudes[i] <= 0.0) continue;
-    const int mult = vs.shaft_orders[i] / g0;
-    if (static_cast<double>(vs.shaft_orders[i]) * gmf_hz(g, w_max) / std::max(g.z_in, 1U) >= nyquist)
-      continue;
-    if (mult > m_max) {
-      shaft_amp.resize(static_cast<std::size_t>(mult), 0.0);
-      m_max = mult;
-    }
-    shaft_amp[static_cast<std::size_t>(mult - 1)] = vs.shaft_order_amplitudes[i];
-  }
-  // Tilted background (docs/simulator.md); white noise draws exactly as before when the tilt is 0.
-  std::optional<TiltedNoise> tilted;
-  if (vs.noise_tilt_db_per_decade != 0.0 && vs.noise_rms > 0.0)
-    tilted.emplace(vs.noise_tilt_db_per_decade, fs);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double theta_out = m.angle_rad[i];
-    const double theta_in = ratio * theta_out;
-    const double theta_mesh = perturbed ? theta_in + pert.theta_in_offset_rad[i] : theta_in;
-    const std::uint32_t c = std::min(m.cycle[i], cycles - 1);
-    const double sf = speed_factor(vs, m.speed_rad_s[i]);
-    const DriftFactors d = drifting ? drift.at(static_cast<double>(i) / fs) : DriftFactors{};
-    double mesh = 0.0;
-    if (sf != 0.0) {
-      // phase_k = k * Z_in * theta_in + phi_k: follows the integrated input angle, so speed changes
-      // and cycle-to-cycle start differences move the phase exactly as a real mesh does.
-      // The orders are whole numbers: e^{i k b} by repeated rotation from e^{i b}, one sin/cos pair per
-      // sample instead of one sin per harmonic (the simulator's hot loop in `ptda gap`'s fits).
-      const std::vector<double>& amp = gmf_amplitude[c];
-      const double b = z_in * theta_mesh;
-      const double c1 = std::cos(b), s1 = std::sin(b);
-      double ck = 1.0, sk = 0.0;
-      int k = 0;
-      for (std::size_t j = 0; j < gmf.size(); ++j) {
-        for (; k < gmf[j].whole_order; ++k) {
-          const double cn = ck * c1 - sk * s1;
-          sk = sk * c1 + ck * s1;
-          ck = cn;
-        }
-        mesh += amp[j] * (sk * gmf[j].cos_phase + ck * gmf[j].sin_phase);  // sin(k b + phi)
-      }
-      mesh *= harmonic_gain[c];
-      if (perturbed) mesh *= pert.gain[i];
-      for (const FaultSpec* f : tooth) {
-        const double depth = f->am_depth * fault_severity(*f, c);
-        if (depth > 0.0) mesh *= 1.0 + depth * std::cos(spur_per_in * theta_in + f->spur_phase_rad);
-      }
-      for (const Harmonic& h : dmf) {
-        mesh += h.amplitude * std::sin(h.order * static_cast<double>(g.z_pin) * theta_out);
-      }
-      if (drifting) mesh *= d.mesh_gain;  // mesh stiffness (load, temperature) and cold oil
-      if (m_max > 0) {
-        const double b0 = static_cast<double>(g0) * theta_mesh;
-        const double sc1 = std::cos(b0), ss1 = std::sin(b0);
-        double sck = 1.0, ssk = 0.0;
-        for (int q = 1; q <= m_max; ++q) {
-          const double cn = sck * sc1 - ssk * ss1;
-          ssk = ssk * sc1 + sck * ss1;
-          sck = cn;
-          mesh += shaft_amp[static_cast<std::size_t>(q - 1)] * ssk;  // sin(q g0 theta_in)
-        }
-      }
-    }
-    double noise = 0.0;
-    if (vs.noise_rms > 0.0) {
-      noise = vs.noise_rms * noise_gain[c] * (tilted ? tilted->next(rng) : rng.normal());
-    }
-    if (drifting) noise *= d.noise_gain;
-    out.accel_ms2[i] = sf * mesh + noise;
-  }
-
-  // Tooth impacts: once per spur revolution, when the defect angle passes a multiple of 2 pi (either
-  // direction), located between samples by linear interpolation of the angle.
-  for (const FaultSpec* f : tooth) {
-    if (f->impulse_amplitude_ms2 <= 0.0) continue;
-    double u_prev = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double u = (spur_per_in * ratio * m.angle_rad[i] + f->spur_phase_rad) / kTwoPi;
-      if (i > 0 && std::floor(u) != std::floor(u_prev)) {
-        const double lo = std::min(u, u_prev);
-        const double hi = std::max(u, u_prev);
-        for (double k = std::floor(lo) + 1.0; k <= hi; k += 1.0) {
-          const double frac = (k - u_prev) / (u - u_prev);
-          const double t_imp = (static_cast<double>(i - 1) + frac) / fs;
-          const double sev = fault_severity(*f, std::min(m.cycle[i], cycles - 1));
-          const double amp = f->impulse_amplitude_ms2 * sev * speed_factor(vs, m.speed_rad_s[i]);
-          if (amp <= 0.0) continue;
-          // [drift]: the structural resonance moves with the stiffness (load/temperature cycle).
-          const double res_hz =
-              drifting ? f->resonance_hz * drift.at(t_imp).resonance_factor : f->resonance_hz;
-          add_ringing(out.accel_ms2, fs, t_imp, amp, res_hz, f->damping_ratio);
-          out.impulse_times_s.push_back(t_imp);
-          out.impulse_amplitudes_ms2.push_back(amp);
-        }
-      }
-      u_prev = u;
-    }
-  }
-  if (tooth.size() > 1) {
-    std::vector<std::size_t> idx(out.impulse_times_s.size());
-    for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
-    std::sort(idx.begin(), idx.end(),
-              [&](std::size_t a, std::size_t b) { return out.impulse_times_s[a] < out.impulse_times_s[b]; });
-    std::vector<double> t(idx.size());
-    std::vector<double> a(idx.size());
-    for (std::size_t i = 0; i < idx.size(); ++i) {
-      t[i] = out.impulse_times_s[idx[i]];
-      a[i] = out.impulse_amplitudes_ms2[idx[i]];
-    }
-    out.impulse_times_s = std::move(t);
-    out.impulse_amplitudes_ms2 = std::move(a);
-  }
-  if (!s.effects.empty()) apply_signal_effects(s, m, seed, out);
+  stream.take_truth(out);
   return out;
 }
 
@@ -280,9 +451,8 @@ double sensor_scale(const SensorSpec& sensor) noexcept {
   return 1.0;
 }
 
-std::vector<float> quantize(const SensorSpec& sensor, const std::vector<double>& accel_ms2,
-                            std::uint64_t* clipped) {
-  std::vector<float> out(accel_ms2.size());
+void quantize_block(const SensorSpec& sensor, std::span<const double> accel_ms2, std::span<float> out,
+                    std::uint64_t* clipped) noexcept {
   std::uint64_t n_clipped = 0;
   const double range = sensor.range_ms2;
   const bool is_float = sensor.format == formats::WavSampleFormat::kFloat32;
@@ -315,6 +485,14 @@ std::vector<float> quantize(const SensorSpec& sensor, const std::vector<double>&
       out[i] = static_cast<float>(code);
     }
   }
+  if (clipped != nullptr) *clipped += n_clipped;
+}
+
+std::vector<float> quantize(const SensorSpec& sensor, const std::vector<double>& accel_ms2,
+                            std::uint64_t* clipped) {
+  std::vector<float> out(accel_ms2.size());
+  std::uint64_t n_clipped = 0;
+  quantize_block(sensor, accel_ms2, out, &n_clipped);
   if (clipped != nullptr) *clipped = n_clipped;
   return out;
 }

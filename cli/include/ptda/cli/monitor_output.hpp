@@ -34,6 +34,8 @@ struct MonitorSummary {
   std::int64_t t0_ns = 0;
 };
 [[nodiscard]] MonitorSummary summarize(const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns);
+/// Adds one window to a running summary (summarize() is this over the windows, with s.t0_ns set).
+void summarize_add(MonitorSummary& s, const dsp::WindowResult& w);
 void print_summary(std::ostream& out, const MonitorSummary& s, const dsp::SlicerCounters& slicer,
                    const CanCounters& can, dsp::Method method);
 
@@ -54,6 +56,17 @@ std::size_t print_coverage_warnings(std::ostream& out, const dsp::CoverageState&
 /// warned. Thread: any. Allocates.
 bool print_training_overlap(std::ostream& out, const dsp::Baseline& baseline, const std::string& recording_id,
                             const std::vector<dsp::WindowResult>& windows, std::int64_t t0_ns);
+
+/// The time span of the judged windows, gathered window by window (for print_training_overlap without
+/// keeping the windows).
+struct WindowSpan {
+  bool any = false;
+  std::int64_t from_ns = 0;  ///< earliest t_start_ns
+  std::int64_t to_ns = 0;    ///< latest t_end_ns
+  void add(const dsp::WindowResult& w) noexcept;
+};
+bool print_training_overlap(std::ostream& out, const dsp::Baseline& baseline, const std::string& recording_id,
+                            const WindowSpan& span, std::int64_t t0_ns);
 
 /// Configuration, baseline and recording of a monitor/report run, checked against each other.
 struct MonitorInputs {

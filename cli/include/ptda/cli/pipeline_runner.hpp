@@ -145,10 +145,12 @@ void check_baseline_matches(const dsp::Baseline& baseline, const std::string& ba
                             const config::PipelineConfig& cfg, const std::string& config_source, double fs_hz,
                             const std::string& recording_source);
 
+/// Monitors the recording; every window goes to `observer` as it is judged and, with keep_windows, into
+/// MonitorResult::windows (which then grows with the recording: ~300 bytes per window).
 [[nodiscard]] MonitorResult monitor_recording(const RecordingInfo& rec, const config::PipelineConfig& cfg,
                                               const dsp::Baseline& baseline, dsp::Method method, double fs_hz,
                                               const WindowObserver& observer = {},
-                                              const RunOptions& options = {});
+                                              const RunOptions& options = {}, bool keep_windows = true);
 
 /// Recomputes the k-of-n alarm over a subset of the windows (after --windows selection) with a fresh
 /// debouncer, as if monitoring had started at the subset's first window.

@@ -74,4 +74,24 @@ class CandumpReader {
 /// Writes one line per record. Throws ptda::Error naming the file. Thread: any; blocks, allocates.
 void write_candump(const std::filesystem::path& path, const std::vector<CandumpRecord>& records);
 
+/// Streaming candump writer: one line per write() (the same bytes as write_candump), close() flushes.
+/// Throws ptda::Error naming the file (and the record's index for a record candump could not have
+/// written). Thread: the owner's; blocks on file I/O; allocates.
+class CandumpWriter {
+ public:
+  explicit CandumpWriter(const std::filesystem::path& path);
+  ~CandumpWriter();
+  CandumpWriter(const CandumpWriter&) = delete;
+  CandumpWriter& operator=(const CandumpWriter&) = delete;
+
+  void write(const CandumpRecord& rec);
+  void close();
+  [[nodiscard]] std::uint64_t records_written() const noexcept { return written_; }
+
+ private:
+  std::string name_;
+  std::FILE* f_ = nullptr;
+  std::uint64_t written_ = 0;
+};
+
 }  // namespace ptda::formats

@@ -66,4 +66,34 @@ class WavReader {
 void write_wav(const std::filesystem::path& path, std::uint32_t sample_rate_hz, WavSampleFormat format,
                const std::vector<std::vector<float>>& channels);
 
+/// Streaming writer with the frame count known up front: the header is written at construction, the
+/// samples block by block (the same bytes as write_wav for the same samples), close() checks the count.
+/// Values are encoded as write_wav does. Thread: the owner's; blocks on file I/O; allocates at
+/// construction only. Throws ptda::Error naming the file.
+class WavWriter {
+ public:
+  WavWriter(const std::filesystem::path& path, std::uint32_t sample_rate_hz, WavSampleFormat format,
+            std::uint16_t channels, std::uint64_t frames);
+  ~WavWriter();
+  WavWriter(const WavWriter&) = delete;
+  WavWriter& operator=(const WavWriter&) = delete;
+
+  /// Appends interleaved frames (size a multiple of the channel count). A NaN in a PCM file or more
+  /// frames than announced throws (naming the frame).
+  void write(std::span<const float> interleaved);
+  /// Pads, flushes and closes; throws when fewer frames than announced were written.
+  void close();
+  [[nodiscard]] std::uint64_t frames_written() const noexcept { return written_; }
+
+ private:
+  std::string name_;
+  std::FILE* f_ = nullptr;
+  WavSampleFormat format_;
+  std::uint16_t channels_ = 0;
+  std::uint16_t bps_ = 0;
+  std::uint64_t frames_ = 0;
+  std::uint64_t written_ = 0;
+  std::vector<std::uint8_t> block_;
+};
+
 }  // namespace ptda::formats

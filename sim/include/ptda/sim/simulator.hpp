@@ -232,6 +232,29 @@ struct MotionProfile {
 /// motion's speed then differs from the trace by at most half the dead band times the interval.
 /// Throws ptda::Error when the motion is infeasible or the trace is malformed. Any thread; allocates.
 [[nodiscard]] MotionProfile build_motion(const Scenario& s, std::uint64_t seed);
+/// build_motion without the per-sample arrays (angle_rad, speed_rad_s, accel_rad_s2 and cycle stay
+/// empty): the pieces, plateaus, cycle starts, pauses and duration, for the streaming synthesis
+/// (sim/include/ptda/sim/stream.hpp). Same throws. Any thread; allocates (O(cycles), not O(samples)).
+[[nodiscard]] MotionProfile build_motion_plan(const Scenario& s, std::uint64_t seed);
+/// Samples of a motion: round(duration_s * fs_hz) (the size of build_motion's arrays). Any thread.
+[[nodiscard]] std::size_t motion_samples(const MotionProfile& m) noexcept;
+/// Largest |speed| over the sample grid: from speed_rad_s when filled, else sampled from the pieces
+/// (the same values). Any thread; no allocation.
+[[nodiscard]] double max_abs_speed_rad_s(const MotionProfile& m);
+
+/// The motion of a plan on the sample grid, sample by sample (exactly the values build_motion stores).
+/// Keeps a cursor into m.pieces: the indices passed to at() must not decrease. `m` must outlive it.
+/// Thread: the owner's; no allocation.
+class MotionSampler {
+ public:
+  explicit MotionSampler(const MotionProfile& m) noexcept : m_(&m) {}
+  /// Motion at sample i (time i / fs_hz). Needs at least one piece.
+  [[nodiscard]] MotionState at(std::size_t i) noexcept;
+
+ private:
+  const MotionProfile* m_;
+  std::size_t k_ = 0;
+};
 
 /// Severity of fault f in job cycle `cycle`: 0 before onset_cycle, then
 /// severity * min(1, (cycle - onset + 1) / ramp_cycles) (a step when ramp_cycles = 0). Any thread; no
