@@ -617,6 +617,7 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
     case EffectKind::kNoiseColor:
       return {{"corner_hz", {20, 50, 100, 200, 500, 1000, 2000}},
               {"rms_ms2", {0.05, 0.1, 0.2, 0.4, 0.8, 1.6}},
+              {"poles", {1, 2}},
               {"corner_hz", {0.7, 1.0, 1.4}, true},
               {"rms_ms2", {0.8, 1.0, 1.25}, true}};
   }
@@ -703,7 +704,8 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
       return "mesh level differs by direction (" + fmt("%+.2f", e.get("direction_gain")) + ") and accel (" +
              fmt("%+.2f", e.get("accel_gain")) + ")";
     case EffectKind::kNoiseColor:
-      return "extra noise below " + fmt("%.0f", e.get("corner_hz")) + " Hz";
+      return "extra noise below " + fmt("%.0f", e.get("corner_hz")) + " Hz (" +
+             (std::lround(e.get("poles")) >= 2 ? "-40" : "-20") + " dB/decade above)";
   }
   (void)nominal;
   return "";
