@@ -205,12 +205,12 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
       out << "        between days (" << d.recordings << " recording" << (d.recordings == 1 ? "" : "s")
           << "): ln(rms_res) sd within " << general(d.log_rms_within_sd, 3) << ", between "
           << general(d.log_rms_between_sd, 3)
-          << (d.recordings > 1 ? " (estimate " + general(d.log_rms_between_est, 3) + ")"
-                               : std::string(" (floor)"))
+          << (d.recordings > 1 ? " (estimate " + general(d.log_rms_between_est, 3) + " pooled with the prior)"
+                               : std::string(" (prior: day_sd_floor x within)"))
           << "; entropy sd within " << general(d.entropy_within_sd, 3) << ", between "
           << general(d.entropy_between_sd, 3)
-          << (d.recordings > 1 ? " (estimate " + general(d.entropy_between_est, 3) + ")"
-                               : std::string(" (floor)"))
+          << (d.recordings > 1 ? " (estimate " + general(d.entropy_between_est, 3) + " pooled with the prior)"
+                               : std::string(" (prior: day_sd_floor x within)"))
           << "\n";
       const dsp::SeqScale zs = dsp::sequential_scale(c, method, baseline.policy, seq.day_allowance);
       const dsp::HoldoutStats& h = c.holdout[m];

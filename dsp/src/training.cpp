@@ -187,7 +187,7 @@ SeqScale sequential_scale(const ClassBaseline& c, Method method, const Threshold
 }
 
 Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale,
-              double within_sd, double between_sd) {
+              double day_ratio, double within_ratio) {
   if (values.size() < 2) {
     throw Error("fit_band: needs at least 2 feature values, got " + std::to_string(values.size()));
   }
@@ -203,15 +203,14 @@ Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, Fea
   if (!(policy.margin >= 0.0 && std::isfinite(policy.margin))) {
     throw Error("fit_band: margin " + std::to_string(policy.margin) + " must be finite and >= 0");
   }
-  if (!(std::isfinite(between_sd) && between_sd >= 0.0) || !std::isfinite(within_sd)) {
-    throw Error("fit_band: between-day sd " + std::to_string(between_sd) + " / within sd " +
-                std::to_string(within_sd) + " must be finite (between >= 0)");
+  if (!(std::isfinite(day_ratio) && day_ratio >= 0.0 && std::isfinite(within_ratio) && within_ratio > 0.0)) {
+    throw Error("fit_band: between-day ratio " + std::to_string(day_ratio) +
+                " must be finite and >= 0, within ratio " + std::to_string(within_ratio) + " finite and > 0");
   }
-  // The sd of a new day's value: within (given, or the sample sd) and between combined.
-  const auto total_sd = [&](double sample_sd) {
-    const double w = within_sd >= 0.0 ? within_sd : sample_sd;
-    return between_sd > 0.0 ? std::sqrt(w * w + between_sd * between_sd) : sample_sd;
-  };
+  // The sd of a new day's value: the within-day sd (within_ratio x the sample sd) with the between-day
+  // part added, sqrt(w^2 + b^2) = w sqrt(1 + day_ratio^2).
+  const double widen_sd = day_ratio > 0.0 ? within_ratio * std::sqrt(1.0 + day_ratio * day_ratio) : 1.0;
+  const auto total_sd = [&](double sample_sd) { return widen_sd * sample_sd; };
   Band b;
   switch (policy.kind) {
     case ThresholdPolicy::Kind::kGaussian: {
@@ -225,17 +224,9 @@ Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, Fea
       std::vector<double> sorted(values.begin(), values.end());
       std::sort(sorted.begin(), sorted.end());
       b = Band{sorted_quantile(sorted, 0.5 * alpha), sorted_quantile(sorted, 1.0 - 0.5 * alpha)};
-      if (between_sd > 0.0) {
-        // The sds are in the model's units (ln for kLog): widen about the median by their ratio.
-        std::vector<double> model(values.begin(), values.end());
-        if (scale == FeatureScale::kLog)
-          for (double& v : model) v = v > 0.0 ? std::log(v) : 0.0;
-        const double w = within_sd >= 0.0 ? within_sd : feature_stats(model).stddev;
-        if (w > 0.0) {
-          const double f = total_sd(w) / w;
-          const double med = sorted_quantile(sorted, 0.5);
-          b = Band{med - f * (med - b.lo), med + f * (b.hi - med)};
-        }
+      if (day_ratio > 0.0) {  // both quantiles move away from the median by the same factor
+        const double med = sorted_quantile(sorted, 0.5);
+        b = Band{med - widen_sd * (med - b.lo), med + widen_sd * (b.hi - med)};
       }
       break;
     }
@@ -426,10 +417,16 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     day.log_rms_between_sd = pooled(day.log_rms_between_est, day.log_rms_within_sd);
     day.entropy_between_sd = pooled(day.entropy_between_est, day.entropy_within_sd);
     try {
-      cls.thresholds[mi].rms =
-          fit_band(rms_values[mi], policy, FeatureScale::kLog, day.log_rms_within_sd, day.log_rms_between_sd);
-      cls.thresholds[mi].entropy = fit_band(entropy_values[mi], policy, FeatureScale::kLinear,
-                                            day.entropy_within_sd, day.entropy_between_sd);
+      // Ratios, so the widening holds in whatever units the policy fits (ln or linear rms_res).
+      const auto ratio = [](double num, double den) { return den > 0.0 && num > 0.0 ? num / den : 0.0; };
+      const auto within = [](double w, double sample) { return w > 0.0 && sample > 0.0 ? w / sample : 1.0; };
+      cls.thresholds[mi].rms = fit_band(rms_values[mi], policy, FeatureScale::kLog,
+                                        ratio(day.log_rms_between_sd, day.log_rms_within_sd),
+                                        within(day.log_rms_within_sd, feature_stats(logs).stddev));
+      cls.thresholds[mi].entropy =
+          fit_band(entropy_values[mi], policy, FeatureScale::kLinear,
+                   ratio(day.entropy_between_sd, day.entropy_within_sd),
+                   within(day.entropy_within_sd, feature_stats(entropy_values[mi]).stddev));
     } catch (const Error& e) {
       throw Error(what + ": " + e.what());
     }

@@ -76,15 +76,16 @@ enum class FeatureScale : std::uint8_t {
 ///  - kTolerance: kLinear: mean +- k2(n, 1 - alpha, confidence) sd; kLog: exp(m +- k1(n, 1 - alpha,
 ///    confidence) s) with m, s the mean and sd of ln(values) (needs values > 0 and n >= 3);
 /// then both ends move out by policy.margin * (hi - lo).
-/// Between-day spread (docs/method.md §5): when between_sd > 0, kGaussian and kTolerance use the sd
-/// sqrt(w^2 + between_sd^2) instead of the sample sd, with w = within_sd (or the sample sd when
-/// within_sd < 0), in the model's units (ln for kLog); kQuantile moves both quantiles away from the
-/// median by the factor sqrt(w^2 + between_sd^2) / w. The tolerance factor keeps n = values.size().
+/// Between-day spread (docs/method.md §5): day_ratio = sd_between / sd_within and within_ratio =
+/// sd_within / sample sd of the feature (unitless, so they hold on the ln or the linear scale); when
+/// day_ratio > 0, kGaussian and kTolerance use sample sd x within_ratio x sqrt(1 + day_ratio^2) =
+/// sqrt(sd_within^2 + sd_between^2), and kQuantile moves both quantiles away from the median by the
+/// factor within_ratio x sqrt(1 + day_ratio^2). The tolerance factor keeps n = values.size().
 /// Throws ptda::Error when there are too few values, a value is not finite, alpha is not in (0, 1)
 /// or the margin is negative. Thread: any. Allocates (kQuantile sorts a copy).
 [[nodiscard]] Band fit_band(std::span<const double> values, const ThresholdPolicy& policy,
-                            FeatureScale scale = FeatureScale::kLinear, double within_sd = -1.0,
-                            double between_sd = 0.0);
+                            FeatureScale scale = FeatureScale::kLinear, double day_ratio = 0.0,
+                            double within_ratio = 1.0);
 
 /// Problems with the amount of training data for the policy's false-alarm rate, one sentence each,
 /// saying how many windows would be needed: kQuantile needs n >= 2 / alpha leave-one-out values per
@@ -106,8 +107,8 @@ enum class FeatureScale : std::uint8_t {
 ///    part of its own |D_avg|. Empty groups: every window is its own group.
 ///  - day_spread per method: variance_components() of the leave-one-out ln(rms_res) and entropy_res with
 ///    `recordings` (the training recording, i.e. day, of each window; empty = one recording) as groups;
-///    the between-day sd used is the estimate, or policy.day_sd_floor * within sd for one recording, and the
-///    bands are fitted with within and between sd (fit_band()).
+///    the between-day sd used pools the estimate with the prior policy.day_sd_floor * within sd
+///    (((R - 1) estimate^2 + prior^2) / R), and the bands are widened by it (fit_band()).
 /// Band lower ends are clamped at 0 (both features are non-negative).
 /// Throws ptda::Error when there are no windows, fewer than 3 groups, groups.size() is neither 0 nor M,
 /// recordings.size() is neither 0 nor M, a window has the wrong length or a non-finite sample (naming the
