@@ -311,7 +311,8 @@ struct SimulatedSignals {
   std::uint64_t seed = 0;
 };
 
-/// Motion, vibration (with effects), quantisation and CAN for scenario `s` with `seed`. Deterministic.
+/// Motion, vibration (with effects), quantisation and CAN for scenario `s` with `seed`, whole in memory
+/// (O(samples): for the gap fits and tests; simulate_to_directory streams). Deterministic.
 /// Throws ptda::Error like build_motion. Any thread; allocates.
 [[nodiscard]] SimulatedSignals simulate_signals(const Scenario& s, std::uint64_t seed);
 
@@ -335,7 +336,9 @@ struct SimulationSummary {
 };
 
 /// Writes a recording directory (recording.toml, vibration.wav, can.log, truth.toml), creating it.
-/// `seed` overrides the scenario seed when set. Throws ptda::Error. Any thread; allocates; file I/O.
+/// `seed` overrides the scenario seed when set. Streams (sim/include/ptda/sim/stream.hpp): memory grows
+/// with the job cycles (the motion plan, ~1 KB per cycle), not with the samples; the files are the ones
+/// simulate_signals() would give. Throws ptda::Error. Any thread; allocates; file I/O.
 SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
                                         std::optional<std::uint64_t> seed = std::nullopt);
 
