@@ -88,6 +88,47 @@ std::function<void(toml::array&, std::size_t)> doubles(const std::vector<double>
   return [&v](toml::array& a, std::size_t i) { a.push_back(v[i]); };
 }
 
+/// f(start of cycle i) for i = 0, 1, 2, ... in order (a lazy plan is walked once, forwards).
+std::function<void(toml::array&, std::size_t)> per_cycle_start(const MotionProfile& m,
+                                                               std::function<double(double)> f) {
+  if (!m.lazy) return [&m, f](toml::array& a, std::size_t i) { a.push_back(f(m.cycle_start_s[i])); };
+  struct Walk {
+    explicit Walk(std::shared_ptr<const LazyMotionPlan> p) : plan(std::move(p)), walker(*plan) {}
+    std::shared_ptr<const LazyMotionPlan> plan;
+    CycleWalker walker;
+    PlanCycle cycle;
+    std::size_t next = 0;
+  };
+  auto w = std::make_shared<Walk>(m.lazy);
+  return [w, f](toml::array& a, std::size_t i) {
+    while (w->next <= i) {
+      if (!w->walker.next(w->cycle)) throw Error("truth.toml: fewer cycles than announced");
+      ++w->next;
+    }
+    a.push_back(f(w->cycle.start_s));
+  };
+}
+
+std::size_t cycle_count(const MotionProfile& m) {
+  return m.lazy ? m.cycles : m.cycle_start_s.size();
+}
+
+bool has_plateaus(const MotionProfile& m) {
+  return m.lazy ? !m.lazy->plan.plateaus.empty() : !m.plateaus.empty();
+}
+
+/// fn(plateau) for every plateau in order (stored or regenerated).
+void for_each_plateau(const MotionProfile& m, const std::function<void(const Plateau&)>& fn) {
+  if (!m.lazy) {
+    for (const Plateau& p : m.plateaus) fn(p);
+    return;
+  }
+  for_each_cycle(m, [&fn](const PlanCycle& c) {
+    for (const Plateau& p : c.plateaus) fn(p);
+    return true;
+  });
+}
+
 toml::table plateau_table(const GearboxSpec& g, double start_time_s, const Plateau& p) {
   const double ratio = reduction_ratio(g);
   toml::table t;
@@ -131,7 +172,8 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
                                                              : "measured");
   mo.insert("duration_s", m.duration_s);
   mo.insert("cycles", static_cast<std::int64_t>(m.cycles));
-  insert_array(mo, "cycle_start_s", m.cycle_start_s.size(), doubles(m.cycle_start_s), {"motion"}, deferred);
+  insert_array(mo, "cycle_start_s", cycle_count(m), per_cycle_start(m, [](double t) { return t; }),
+               {"motion"}, deferred);
   if (s.motion.kind == MotionKind::kLspb) {
     mo.insert("via_points_rad", to_array(s.motion.via_points_rad));
     mo.insert("accel_rad_s2", s.motion.accel_rad_s2);
@@ -143,9 +185,9 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
   }
   root.insert("motion", std::move(mo));
 
-  if (deferred == nullptr || m.plateaus.empty()) {  // streamed by write_truth (the file's last section)
+  if (deferred == nullptr || !has_plateaus(m)) {  // streamed by write_truth (the file's last section)
     toml::array plateaus;
-    for (const Plateau& p : m.plateaus) plateaus.push_back(plateau_table(g, s.start_time_s, p));
+    for_each_plateau(m, [&](const Plateau& p) { plateaus.push_back(plateau_table(g, s.start_time_s, p)); });
     root.insert("plateau", std::move(plateaus));
   }
 
@@ -237,14 +279,11 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
     // Factors at each cycle start, and the state at the end: a following recording continues the drift
     // with time_offset_s = time_end_s and initial_coldness = coldness_at_end (scripts/drift_soak.sh).
     // (The model is copied into the functions: the deferred arrays are written after this returns.)
-    insert_array(
-        dt, "mesh_gain_at_cycle_start", m.cycle_start_s.size(),
-        [&m, model](toml::array& a, std::size_t i) { a.push_back(model.at(m.cycle_start_s[i]).mesh_gain); },
-        {"drift"}, deferred);
-    insert_array(
-        dt, "coldness_at_cycle_start", m.cycle_start_s.size(),
-        [&m, model](toml::array& a, std::size_t i) { a.push_back(model.at(m.cycle_start_s[i]).coldness); },
-        {"drift"}, deferred);
+    insert_array(dt, "mesh_gain_at_cycle_start", cycle_count(m),
+                 per_cycle_start(m, [model](double t) { return model.at(t).mesh_gain; }), {"drift"},
+                 deferred);
+    insert_array(dt, "coldness_at_cycle_start", cycle_count(m),
+                 per_cycle_start(m, [model](double t) { return model.at(t).coldness; }), {"drift"}, deferred);
     const DriftFactors end = model.at(m.duration_s);
     dt.insert("time_end_s", d.time_offset_s + m.duration_s);
     dt.insert("coldness_at_end", end.coldness);
@@ -351,14 +390,14 @@ void write_truth(std::ostream& out, const Scenario& s, const MotionProfile& m, c
     from = pos + marker(k).size() + 2;
   }
   out << std::string_view(text).substr(from);
-  if (!m.plateaus.empty()) {
-    for (const Plateau& p : m.plateaus) {
+  if (has_plateaus(m)) {
+    for_each_plateau(m, [&](const Plateau& p) {
       toml::table one;
       toml::array aot;
       aot.push_back(plateau_table(s.gearbox, s.start_time_s, p));
       one.insert("plateau", std::move(aot));
       out << "\n\n" << one;
-    }
+    });
   }
 }
 
@@ -367,12 +406,16 @@ void fill_summary(const Scenario& s, const MotionProfile& m, SimulationSummary& 
   sum.duration_s = m.duration_s;
   sum.samples = motion_samples(m);
   sum.fs_hz = s.sensor.fs_hz;
-  for (const Plateau& p : m.plateaus) {
+  std::vector<Plateau> first;  // the first plateau and those of cycle 0
+  for_each_plateau(m, [&first](const Plateau& p) {
+    if (first.empty() || p.cycle == 0) first.push_back(p);
+  });
+  for (const Plateau& p : first) {
     if (p.cycle != 0) break;
     sum.plateau_speeds_rad_s.push_back(p.speed_rad_s);
     sum.plateau_durations_s.push_back(p.t_end_s - p.t_start_s);
   }
-  sum.gmf_hz_at_first_plateau = m.plateaus.empty() ? 0.0 : gmf_hz(s.gearbox, m.plateaus.front().speed_rad_s);
+  sum.gmf_hz_at_first_plateau = first.empty() ? 0.0 : gmf_hz(s.gearbox, first.front().speed_rad_s);
   sum.ratio = reduction_ratio(s.gearbox);
   sum.severity_per_cycle.reserve(m.cycles);
   for (std::uint32_t c = 0; c < m.cycles; ++c) {
@@ -447,7 +490,7 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
   if (!s.effects.empty()) timing_scenarios(s, for_motion, for_can);
   const Scenario& sm = s.effects.empty() ? s : for_motion;
   const Scenario& sc = s.effects.empty() ? s : for_can;
-  const MotionProfile m = build_motion_plan(sm, sum.seed);
+  const MotionProfile m = build_motion_lazy(sm, sum.seed);
   fill_summary(s, m, sum);
 
   std::error_code ec;
