@@ -49,6 +49,8 @@ struct TruthCounts {
   std::uint64_t effect_impacts = 0;
   std::uint64_t effect_clipped_samples = 0;
   std::uint64_t other_frames = 0;
+  /// The cycle variation's factors; nullptr: drawn again while printing (draw_cycle_variation's
+  /// streams, from the summary's seed), one cycle at a time.
   const CycleVariation* cycle_variation = nullptr;
 };
 
@@ -200,19 +202,37 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
   vb.insert("noise_rms", s.vibration.noise_rms);
   vb.insert("harmonics_above_nyquist", static_cast<std::int64_t>(vib.harmonics_above_nyquist));
   // The cycle variation only when on: without it truth.toml stays as it was before the feature.
-  const CycleVariation& cv = *vib.cycle_variation;
-  if (s.vibration.cycle_amplitude_jitter_rel > 0.0) {
-    vb.insert("cycle_amplitude_jitter_rel", s.vibration.cycle_amplitude_jitter_rel);
+  const VibrationSpec& vs = s.vibration;
+  const std::size_t cv_cycles = std::max<std::uint32_t>(m.cycles, 1);
+  if (vs.cycle_amplitude_jitter_rel > 0.0) {
+    vb.insert("cycle_amplitude_jitter_rel", vs.cycle_amplitude_jitter_rel);
     // [cycle][k]: factor on gmf_amplitudes[k] in that cycle
-    insert_array(
-        vb, "cycle_amplitude_factors", cv.amplitude_factors.size(),
-        [&cv](toml::array& a, std::size_t i) { a.push_back(to_array(cv.amplitude_factors[i])); },
-        {"vibration"}, deferred);
+    std::function<void(toml::array&, std::size_t)> rows;
+    if (vib.cycle_variation != nullptr) {
+      const CycleVariation& cv = *vib.cycle_variation;
+      rows = [&cv](toml::array& a, std::size_t i) { a.push_back(to_array(cv.amplitude_factors[i])); };
+    } else {  // the rows in order, as draw_cycle_variation draws them
+      auto rng = std::make_shared<Rng>(sum.seed, kStreamCycleAmplitude);
+      rows = [rng, &vs](toml::array& a, std::size_t) {
+        std::vector<double> row(vs.gmf_amplitudes.size());
+        for (double& f : row) f = std::exp(vs.cycle_amplitude_jitter_rel * rng->normal());
+        a.push_back(to_array(row));
+      };
+    }
+    insert_array(vb, "cycle_amplitude_factors", cv_cycles, std::move(rows), {"vibration"}, deferred);
   }
-  if (s.vibration.cycle_noise_jitter_rel > 0.0) {
-    vb.insert("cycle_noise_jitter_rel", s.vibration.cycle_noise_jitter_rel);
-    insert_array(vb, "cycle_noise_factors", cv.noise_factors.size(), doubles(cv.noise_factors), {"vibration"},
-                 deferred);
+  if (vs.cycle_noise_jitter_rel > 0.0) {
+    vb.insert("cycle_noise_jitter_rel", vs.cycle_noise_jitter_rel);
+    std::function<void(toml::array&, std::size_t)> factors;
+    if (vib.cycle_variation != nullptr) {
+      factors = doubles(vib.cycle_variation->noise_factors);
+    } else {
+      auto rng = std::make_shared<Rng>(sum.seed, kStreamCycleNoise);
+      factors = [rng, &vs](toml::array& a, std::size_t) {
+        a.push_back(std::exp(vs.cycle_noise_jitter_rel * rng->normal()));
+      };
+    }
+    insert_array(vb, "cycle_noise_factors", cv_cycles, std::move(factors), {"vibration"}, deferred);
   }
   root.insert("vibration", std::move(vb));
 
@@ -449,7 +469,9 @@ std::string truth_toml_streamed(const Scenario& s, const MotionProfile& m, const
   counts.effect_impacts = vib.effect_impacts;
   counts.effect_clipped_samples = vib.effect_clipped_samples;
   counts.other_frames = other_frames;
-  counts.cycle_variation = &vib.cycle_variation;
+  const CycleVariation& cv = vib.cycle_variation;
+  // Empty factors: drawn again while printing, as simulate_to_directory does.
+  counts.cycle_variation = cv.amplitude_factors.empty() && cv.noise_factors.empty() ? nullptr : &cv;
   std::ostringstream ss;
   write_truth(ss, s, m, counts, sum);
   return ss.str();
@@ -543,7 +565,7 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
   counts.effect_impacts = vib.effect_impacts();
   counts.effect_clipped_samples = vib.effect_clipped_samples();
   counts.other_frames = sum.can_frames - sum.speed_frames;
-  counts.cycle_variation = &vib.cycle_variation();
+  counts.cycle_variation = nullptr;  // drawn again while printing
   const std::filesystem::path truth_path = out_dir / "truth.toml";
   std::ofstream out(truth_path, std::ios::binary | std::ios::trunc);
   if (!out) throw Error(truth_path.string() + ": cannot open for writing");

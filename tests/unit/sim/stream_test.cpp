@@ -233,6 +233,10 @@ TEST(TruthToml, StreamedLongArraysAndPlateausEqualTheWholeTable) {
   ASSERT_NE(lazy.lazy, nullptr);
   EXPECT_EQ(truth_toml_streamed(s, lazy, v, 56, sum), whole);
   EXPECT_EQ(truth_toml_whole(s, lazy, v, 56, sum), whole);
+  // The cycle variation drawn again while printing (what simulate_to_directory does).
+  Vibration drawn = v;
+  drawn.cycle_variation = CycleVariation{};
+  EXPECT_EQ(truth_toml_streamed(s, lazy, drawn, 56, sum), whole);
   EXPECT_NE(whole.find("cycle_amplitude_factors = [\n    [ "), std::string::npos);  // multi-line rows
   EXPECT_GT(whole.size(), 100000U);
 }

@@ -38,8 +38,8 @@ class VibrationStream {
   [[nodiscard]] std::uint64_t impulses() const noexcept;        ///< spur-tooth impacts
   [[nodiscard]] std::uint64_t effect_impacts() const noexcept;  ///< knocks of impacts effects
   [[nodiscard]] std::uint64_t effect_clipped_samples() const noexcept;
-  [[nodiscard]] const CycleVariation& cycle_variation() const noexcept;
-  /// Moves the truth into v (impulse times sorted as synthesize_vibration sorts them when kept).
+  /// Moves the truth into v (impulse times sorted as synthesize_vibration sorts them when kept; the cycle
+  /// variation drawn again: the stream keeps only the current cycle's factors).
   void take_truth(Vibration& v);
 
  private:
@@ -89,7 +89,9 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
 
 /// truth.toml's text (without the leading comment and the final newline) for a simulation held in memory:
 /// printed whole by toml++ (`whole`) or as simulate_to_directory streams it (the plateaus and the long
-/// per-cycle arrays element by element). The two are equal; tests compare them. Any thread; allocates.
+/// per-cycle arrays element by element; vib.cycle_variation empty: its factors drawn again from sum.seed
+/// while printing, as simulate_to_directory does). The two are equal; tests compare them. Any thread;
+/// allocates.
 [[nodiscard]] std::string truth_toml_whole(const Scenario& s, const MotionProfile& m, const Vibration& vib,
                                            std::uint64_t other_frames, const SimulationSummary& sum);
 [[nodiscard]] std::string truth_toml_streamed(const Scenario& s, const MotionProfile& m, const Vibration& vib,
