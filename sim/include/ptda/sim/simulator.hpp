@@ -387,9 +387,10 @@ struct SimulationSummary {
 };
 
 /// Writes a recording directory (recording.toml, vibration.wav, can.log, truth.toml), creating it.
-/// `seed` overrides the scenario seed when set. Streams (sim/include/ptda/sim/stream.hpp): memory grows
-/// with the job cycles (the motion plan, ~1 KB per cycle), not with the samples; the files are the ones
-/// simulate_signals() would give. Throws ptda::Error. Any thread; allocates; file I/O.
+/// `seed` overrides the scenario seed when set. Streams (sim/include/ptda/sim/stream.hpp, docs/simulator.md
+/// "Streaming"): memory does not grow with the samples, nor with an lspb motion's cycles beyond 8 bytes
+/// per cycle (severity_per_cycle); the files are the ones simulate_signals() would give. Throws
+/// ptda::Error. Any thread; allocates; file I/O.
 SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
                                         std::optional<std::uint64_t> seed = std::nullopt);
 

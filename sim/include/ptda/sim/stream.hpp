@@ -1,5 +1,5 @@
 // Streaming synthesis: the vibration and the CAN log of a scenario block by block, with memory that does
-// not grow with the recording's length (beyond the motion plan: a few pieces per job cycle). The
+// not grow with the recording's length (with a lazy motion plan, build_motion_lazy()). The
 // whole-signal functions of simulator.hpp (synthesize_vibration, generate_can) give the same values,
 // sample for sample and frame for frame; simulate_to_directory writes through these streams.
 #pragma once
@@ -16,8 +16,9 @@ namespace ptda::sim {
 
 /// The sensor signal of synthesize_vibration() (m/s^2, effects included, before quantisation), block by
 /// block: block boundaries do not change a single bit. `s` and `m` (a motion plan from
-/// build_motion_plan() is enough) must outlive the stream. Thread: the owner's. The constructor
-/// allocates (O(cycles)); next() allocates only while knocks ring (a few ringings at a time).
+/// build_motion_plan() or build_motion_lazy() is enough) must outlive the stream. Thread: the owner's.
+/// Allocates at construction, and in next() while knocks ring (a few ringings at a time) and when a
+/// lazy plan's next cycle is generated.
 class VibrationStream {
  public:
   /// `keep_impulses`: record the spur-tooth impact times and amplitudes (impulse_times_s(); they grow
@@ -82,8 +83,7 @@ struct SimulateOptions {
   std::size_t can_window_frames = 65536;  ///< CanStream window
 };
 
-/// simulate_to_directory with options. Peak memory does not depend on the recording's length beyond the
-/// motion plan (O(cycles)). Throws ptda::Error. Any thread; allocates; file I/O.
+/// simulate_to_directory with options. Throws ptda::Error. Any thread; allocates; file I/O.
 SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
                                         std::optional<std::uint64_t> seed, const SimulateOptions& options);
 
