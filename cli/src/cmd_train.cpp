@@ -21,6 +21,10 @@ namespace ptda::cli {
 
 namespace {
 
+dsp::Method method_of(const config::PipelineConfig& cfg) {
+  return cfg.method;
+}
+
 std::string band_text(const dsp::Band& b) {
   return "[" + general(b.lo, 5) + ", " + general(b.hi, 5) + "]";
 }
@@ -197,6 +201,18 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
           << pad_right(band_text(c.thresholds[m].rms), 22) << " " << stats_text(c.rms_stats[m])
           << "\n        entropy " << pad_right(band_text(c.thresholds[m].entropy), 22) << " "
           << stats_text(c.entropy_stats[m]) << "\n";
+      const dsp::DaySpread& d = c.day_spread[m];
+      out << "        between days (" << d.recordings << " recording" << (d.recordings == 1 ? "" : "s")
+          << "): ln(rms_res) sd within " << general(d.log_rms_within_sd, 3) << ", between "
+          << general(d.log_rms_between_sd, 3)
+          << (d.recordings > 1 ? " (estimate " + general(d.log_rms_between_est, 3) + " pooled with the prior)"
+                               : std::string(" (prior: day_sd_floor x within)"))
+          << "; entropy sd within " << general(d.entropy_within_sd, 3) << ", between "
+          << general(d.entropy_between_sd, 3)
+          << (d.recordings > 1 ? " (estimate " + general(d.entropy_between_est, 3) + " pooled with the prior)"
+                               : std::string(" (prior: day_sd_floor x within)"))
+          << "\n";
+      const dsp::SeqScale zs = dsp::sequential_scale(c, method, baseline.policy, seq.day_allowance);
       const dsp::HoldoutStats& h = c.holdout[m];
       if (h.windows > 0) {
         const double frac = static_cast<double>(h.abnormal) / h.windows;
@@ -208,9 +224,10 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
         out << "\n";
         if (seq.enabled && h.windows >= 3 && h.z_rms_sd > 0.0 && h.z_entropy_sd > 0.0) {
           const double warn = dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean, h.z_entropy_sd,
-                                                   seq.k, seq.h_warn);
-          const double alarm = dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean,
-                                                    h.z_entropy_sd, seq.k, seq.h_alarm);
+                                                   seq.k, seq.h_warn, zs.rms_allowance, zs.entropy_allowance);
+          const double alarm =
+              dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean, h.z_entropy_sd, seq.k,
+                                   seq.h_alarm, zs.rms_allowance, zs.entropy_allowance);
           const double per_day = 24.0 * c.windows_per_hour;
           out << "        CUSUM on the hold-out (z_rms mean " << general(h.z_rms_mean, 3) << " sd "
               << general(h.z_rms_sd, 3) << ", z_entropy mean " << general(h.z_entropy_mean, 3) << " sd "
@@ -221,10 +238,17 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
       }
     }
     if (seq.enabled) {
-      // Nominal: standardised healthy features ~ N(0, 1).
+      // Nominal: standardised healthy features ~ N(0, 1), no day offset.
+      const dsp::SeqScale zs = dsp::sequential_scale(c, method_of(cfg), baseline.policy, seq.day_allowance);
       const double per_day = 24.0 * c.windows_per_hour;
-      const double warn = dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_warn);
-      const double alarm = dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_alarm);
+      const double warn =
+          dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_warn, zs.rms_allowance, zs.entropy_allowance);
+      const double alarm = dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_alarm, zs.rms_allowance,
+                                                zs.entropy_allowance);
+      out << "  CUSUM (" << dsp::method_name(method_of(cfg)) << "): allowance k " << general(seq.k)
+          << " + between days " << general(zs.rms_allowance, 3) << " (z_rms) / "
+          << general(zs.entropy_allowance, 3) << " (z_entropy) = " << general(seq.day_allowance)
+          << " between-day sd x sqrt(1 + 1/days) over the within-day sd\n";
       out << "  CUSUM nominal (z ~ N(0, 1)): ARL " << general(warn, 3) << " / " << general(alarm, 3)
           << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
           << general(per_day / alarm, 3) << " at " << general(per_day, 4) << " windows/day\n";

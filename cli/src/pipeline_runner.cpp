@@ -325,6 +325,12 @@ CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineCo
 }
 
 void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
+  // Recording (day) index of the appended windows: one past the last one's (docs/method.md §5).
+  std::uint32_t recording = 0;
+  if (!all.refs.empty()) {
+    if (all.recording.size() != all.refs.size()) all.recording.assign(all.refs.size(), 0U);
+    for (const std::uint32_t r : all.recording) recording = std::max(recording, r + 1U);
+  }
   std::uint64_t region_offset = 0;
   std::uint64_t window_offset = 0;
   for (const auto& r : all.regions) region_offset = std::max(region_offset, r.seq + 1);
@@ -342,6 +348,7 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
     ref.region_seq += region_offset;
     all.refs.push_back(ref);
     all.windows.push_back(std::move(more.windows[i]));
+    all.recording.push_back(recording);
   }
 }
 
@@ -354,6 +361,7 @@ dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const Fra
   for (std::uint64_t i = first; i < last; ++i) {
     out.refs.push_back(all.refs[i]);
     out.windows.push_back(all.windows[i]);
+    if (all.recording.size() == all.refs.size()) out.recording.push_back(all.recording[i]);
     regions_used.insert(all.refs[i].region_seq);
   }
   for (const auto& r : all.regions) {

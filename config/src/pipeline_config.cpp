@@ -255,6 +255,8 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
       note(r, "confidence");
     }
     get(r, "holdout_fraction", cfg_.thresholds.holdout_fraction, 0.0, 0.9);
+    // Floor on the between-day sd of the features, relative to the within-day sd (docs/method.md §5).
+    get(r, "day_sd_floor", cfg_.thresholds.day_sd_floor, 0.0, 10.0);
     r.finish();
   }
 
@@ -273,6 +275,8 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "cusum_k", cfg_.decision.sequential.k, 10.0)) note(r, "cusum_k");
     if (read_positive(r, "cusum_warn", cfg_.decision.sequential.h_warn, 1000.0)) note(r, "cusum_warn");
     if (read_positive(r, "cusum_alarm", cfg_.decision.sequential.h_alarm, 1000.0)) note(r, "cusum_alarm");
+    // The CUSUM's allowance for the between-day spread, in between-day sds (docs/method.md §6).
+    get(r, "cusum_day_allowance", cfg_.decision.sequential.day_allowance, 0.0, 10.0);
     r.finish();
   }
 
@@ -476,11 +480,13 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "margin = " << shortest(cfg.thresholds.margin) << "\n"
      << "confidence = " << shortest(cfg.thresholds.confidence) << "\n"
      << "holdout_fraction = " << shortest(cfg.thresholds.holdout_fraction) << "\n"
+     << "day_sd_floor = " << shortest(cfg.thresholds.day_sd_floor) << "\n"
      << "\n[decision]\nk = " << cfg.decision.k << "\nn = " << cfg.decision.n << "\n"
      << "sequential = \"" << (cfg.decision.sequential.enabled ? "cusum" : "off") << "\"\n"
      << "cusum_k = " << shortest(cfg.decision.sequential.k) << "\n"
      << "cusum_warn = " << shortest(cfg.decision.sequential.h_warn) << "\n"
      << "cusum_alarm = " << shortest(cfg.decision.sequential.h_alarm) << "\n"
+     << "cusum_day_allowance = " << shortest(cfg.decision.sequential.day_allowance) << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
      << "line_gain = " << (cfg.thresholds.ptda_line_gain ? "true" : "false") << "\n"
      << "floor_gain = " << (cfg.thresholds.ptda_floor_gain ? "true" : "false") << "\n"

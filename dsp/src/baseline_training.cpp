@@ -99,6 +99,10 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
   if (!(policy.holdout_fraction >= 0.0 && policy.holdout_fraction <= 0.9)) {
     throw Error("thresholds.holdout_fraction: must be in [0, 0.9], got " + num(policy.holdout_fraction));
   }
+  if (!data.recording.empty() && data.recording.size() != data.windows.size()) {
+    throw Error("train_baseline: " + std::to_string(data.recording.size()) + " recording ids but " +
+                std::to_string(data.windows.size()) + " windows");
+  }
   if (data.windows.empty()) {
     throw Error("train_baseline: no constant-speed windows in the training data (" +
                 std::to_string(data.regions.size()) + " regions found)");
@@ -217,6 +221,7 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
     const std::uint64_t first_held = n_hold == 0 ? ~std::uint64_t{0} : distinct[distinct.size() - n_hold];
     std::vector<std::vector<float>> windows;
     std::vector<std::uint64_t> fit_groups;
+    std::vector<std::uint32_t> fit_recordings;
     std::vector<std::size_t> held;
     windows.reserve(members[k].windows.size());
     for (std::size_t j = 0; j < members[k].windows.size(); ++j) {
@@ -227,10 +232,11 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
       }
       windows.push_back(data.windows[i]);
       fit_groups.push_back(members[k].groups[j]);
+      if (!data.recording.empty()) fit_recordings.push_back(data.recording[i]);
     }
     SegmentClass renumbered = seg;
     renumbered.id = static_cast<std::uint32_t>(out.classes.size());
-    ClassBaseline cb = build_class_baseline(renumbered, windows, fit_groups, policy);
+    ClassBaseline cb = build_class_baseline(renumbered, windows, fit_groups, policy, fit_recordings);
     cb.windows_per_hour = hours > 0.0 ? static_cast<double>(members[k].windows.size()) / hours : 0.0;
     if (!held.empty()) {
       WindowAnalyzer analyzer(n);
@@ -246,8 +252,7 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
           h.rms_high += v.rms_out ? 1U : 0U;
           h.rms_low += v.rms_low ? 1U : 0U;
           h.entropy_out += v.entropy_out ? 1U : 0U;
-          const StandardScores z = standardize(f, cb.log_rms_stats[mi], cb.entropy_stats[mi],
-                                               small_sample_scale(cb.log_rms_stats[mi].n, policy));
+          const StandardScores z = standardize(f, sequential_scale(cb, static_cast<Method>(mi), policy, 0.0));
           if (std::isfinite(z.rms)) zr.push_back(z.rms);
           if (std::isfinite(z.entropy)) ze.push_back(z.entropy);
         }

@@ -62,20 +62,26 @@ void check_sequential(const SequentialConfig& cfg) {
   if (!(cfg.h_alarm > 0.0 && cfg.h_alarm <= 1000.0)) {
     throw Error("decision.cusum_alarm: must be > 0 and <= 1000, got " + std::to_string(cfg.h_alarm));
   }
+  if (!(cfg.day_allowance >= 0.0 && cfg.day_allowance <= 10.0)) {
+    throw Error("decision.cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
+                std::to_string(cfg.day_allowance));
+  }
   if (cfg.h_warn > cfg.h_alarm) {
     throw Error("decision.cusum_warn: " + std::to_string(cfg.h_warn) + " must not exceed cusum_alarm " +
                 std::to_string(cfg.h_alarm));
   }
 }
 
-void Cusum::update(double z_rms, double z_entropy, double k, double cap) noexcept {
-  const double bad = k + 1.0;
+void Cusum::update(double z_rms, double z_entropy, double k, double cap, double extra_rms,
+                   double extra_entropy) noexcept {
   const bool rms_ok = std::isfinite(z_rms);
   const bool ent_ok = std::isfinite(z_entropy);
-  const auto step = [&](double s, double x) { return std::min(cap, std::max(0.0, s + x - k)); };
-  s_rms_ = step(s_rms_, rms_ok ? z_rms : bad);
-  s_ent_hi_ = step(s_ent_hi_, ent_ok ? z_entropy : bad);
-  s_ent_lo_ = step(s_ent_lo_, ent_ok ? -z_entropy : bad);
+  const auto step = [&](double s, double x, double kk) { return std::min(cap, std::max(0.0, s + x - kk)); };
+  const double k_rms = k + extra_rms;
+  const double k_ent = k + extra_entropy;
+  s_rms_ = step(s_rms_, rms_ok ? z_rms : k_rms + 1.0, k_rms);
+  s_ent_hi_ = step(s_ent_hi_, ent_ok ? z_entropy : k_ent + 1.0, k_ent);
+  s_ent_lo_ = step(s_ent_lo_, ent_ok ? -z_entropy : k_ent + 1.0, k_ent);
 }
 
 double Cusum::statistic() const noexcept {
@@ -103,10 +109,10 @@ double cusum_arl(double mean, double sd, double k, double h) {
 }
 
 double class_cusum_arl(double z_rms_mean, double z_rms_sd, double z_entropy_mean, double z_entropy_sd,
-                       double k, double h) {
-  const double inv = 1.0 / cusum_arl(z_rms_mean, z_rms_sd, k, h) +
-                     1.0 / cusum_arl(z_entropy_mean, z_entropy_sd, k, h) +
-                     1.0 / cusum_arl(-z_entropy_mean, z_entropy_sd, k, h);
+                       double k, double h, double extra_rms, double extra_entropy) {
+  const double inv = 1.0 / cusum_arl(z_rms_mean, z_rms_sd, k + extra_rms, h) +
+                     1.0 / cusum_arl(z_entropy_mean, z_entropy_sd, k + extra_entropy, h) +
+                     1.0 / cusum_arl(-z_entropy_mean, z_entropy_sd, k + extra_entropy, h);
   return inv > 0.0 ? 1.0 / inv : std::numeric_limits<double>::infinity();
 }
 

@@ -56,8 +56,7 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
   // trained on.
   prepare_line_groups(baseline_);
   for (const ClassBaseline& c : baseline_.classes) {
-    z_scale_.push_back(
-        small_sample_scale(c.log_rms_stats[static_cast<std::size_t>(method)].n, baseline_.policy));
+    z_scale_.push_back(sequential_scale(c, method, baseline_.policy, decision.sequential.day_allowance));
   }
 }
 
@@ -71,7 +70,7 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
   debouncer_.push(w.verdict.abnormal());
   if (seq_.enabled && cls < cusum_.size()) {
     Cusum& c = cusum_[cls];
-    c.update(w.z_rms, w.z_entropy, seq_.k, cap_);
+    c.update(w.z_rms, w.z_entropy, seq_.k, cap_, w.seq_allowance_rms, w.seq_allowance_entropy);
     w.seq_statistic = c.statistic();
     w.seq_feature = c.feature();
   }
@@ -129,12 +128,12 @@ bool MonitorEngine::poll(WindowResult& out) noexcept {
   out.features = analyzer_.analyze(window_, *cls, method_);
   out.thresholds = cls->thresholds[static_cast<std::size_t>(method_)];
   out.verdict = judge(out.features, out.thresholds);
-  const auto mi = static_cast<std::size_t>(method_);
   const auto ci = static_cast<std::size_t>(cls - baseline_.classes.data());
-  const StandardScores z =
-      standardize(out.features, cls->log_rms_stats[mi], cls->entropy_stats[mi], z_scale_[ci]);
+  const StandardScores z = standardize(out.features, z_scale_[ci]);
   out.z_rms = z.rms;
   out.z_entropy = z.entropy;
+  out.seq_allowance_rms = z_scale_[ci].rms_allowance;
+  out.seq_allowance_entropy = z_scale_[ci].entropy_allowance;
   decision_.scored(out, ci);
   return true;
 }

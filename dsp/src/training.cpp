@@ -117,7 +117,77 @@ double small_sample_scale(std::uint32_t n, const ThresholdPolicy& policy) noexce
   }
 }
 
-Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale) {
+VarianceComponents variance_components(std::span<const double> values,
+                                       std::span<const std::uint32_t> groups) {
+  if (values.empty()) throw Error("variance_components: no values");
+  if (!groups.empty() && groups.size() != values.size()) {
+    throw Error("variance_components: " + std::to_string(groups.size()) + " group ids for " +
+                std::to_string(values.size()) + " values");
+  }
+  VarianceComponents vc;
+  vc.n = static_cast<std::uint32_t>(values.size());
+  std::map<std::uint32_t, std::pair<double, std::size_t>> sums;  // group -> (sum, count)
+  double total = 0.0;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    auto& g = sums[groups.empty() ? 0U : groups[i]];
+    g.first += values[i];
+    ++g.second;
+    total += values[i];
+  }
+  const auto n = static_cast<double>(values.size());
+  const auto r = static_cast<double>(sums.size());
+  vc.groups = static_cast<std::uint32_t>(sums.size());
+  vc.mean = total / n;
+  double ss_total = 0.0;
+  for (const double v : values) ss_total += (v - vc.mean) * (v - vc.mean);
+  if (sums.size() < 2 || values.size() == sums.size()) {
+    vc.within_var = values.size() > 1 ? ss_total / (n - 1.0) : 0.0;
+    return vc;
+  }
+  double ssw = 0.0;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const auto& g = sums.at(groups[i]);
+    const double d = values[i] - g.first / static_cast<double>(g.second);
+    ssw += d * d;
+  }
+  double ssb = 0.0;
+  double sum_n2 = 0.0;
+  for (const auto& [id, g] : sums) {
+    const auto ng = static_cast<double>(g.second);
+    const double d = g.first / ng - vc.mean;
+    ssb += ng * d * d;
+    sum_n2 += ng * ng;
+  }
+  vc.within_var = ssw / (n - r);
+  vc.msb = ssb / (r - 1.0);
+  vc.n0 = (n - sum_n2 / n) / (r - 1.0);
+  vc.between_var = std::max(0.0, (vc.msb - vc.within_var) / vc.n0);
+  return vc;
+}
+
+SeqScale sequential_scale(const ClassBaseline& c, Method method, const ThresholdPolicy& policy,
+                          double day_allowance) noexcept {
+  const auto mi = static_cast<std::size_t>(method);
+  SeqScale s;
+  s.log_rms = c.log_rms_stats[mi];
+  s.entropy = c.entropy_stats[mi];
+  s.scale = small_sample_scale(c.log_rms_stats[mi].n, policy);
+  const DaySpread& d = c.day_spread[mi];
+  if (d.recordings == 0) return s;  // format <= 3: the session-6 standardisation
+  s.log_rms.stddev = d.log_rms_within_sd;
+  s.entropy.stddev = d.entropy_within_sd;
+  const double days = std::sqrt(1.0 + 1.0 / static_cast<double>(d.recordings));
+  const auto allowance = [&](double between, const FeatureStats& st) {
+    const double sd = s.scale * std::max(st.stddev, 1e-9 * std::max(1.0, std::abs(st.mean)));
+    return day_allowance * between * days / sd;
+  };
+  s.rms_allowance = allowance(d.log_rms_between_sd, s.log_rms);
+  s.entropy_allowance = allowance(d.entropy_between_sd, s.entropy);
+  return s;
+}
+
+Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale,
+              double day_ratio, double within_ratio) {
   if (values.size() < 2) {
     throw Error("fit_band: needs at least 2 feature values, got " + std::to_string(values.size()));
   }
@@ -133,18 +203,31 @@ Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, Fea
   if (!(policy.margin >= 0.0 && std::isfinite(policy.margin))) {
     throw Error("fit_band: margin " + std::to_string(policy.margin) + " must be finite and >= 0");
   }
+  if (!(std::isfinite(day_ratio) && day_ratio >= 0.0 && std::isfinite(within_ratio) && within_ratio > 0.0)) {
+    throw Error("fit_band: between-day ratio " + std::to_string(day_ratio) +
+                " must be finite and >= 0, within ratio " + std::to_string(within_ratio) + " finite and > 0");
+  }
+  // The sd of a new day's value: the within-day sd (within_ratio x the sample sd) with the between-day
+  // part added, sqrt(w^2 + b^2) = w sqrt(1 + day_ratio^2).
+  const double widen_sd = day_ratio > 0.0 ? within_ratio * std::sqrt(1.0 + day_ratio * day_ratio) : 1.0;
+  const auto total_sd = [&](double sample_sd) { return widen_sd * sample_sd; };
   Band b;
   switch (policy.kind) {
     case ThresholdPolicy::Kind::kGaussian: {
       const FeatureStats s = feature_stats(values);
       const double z = -inverse_normal_cdf(0.5 * alpha);  // two-sided: alpha/2 in each tail
-      b = Band{s.mean - z * s.stddev, s.mean + z * s.stddev};
+      const double sd = total_sd(s.stddev);
+      b = Band{s.mean - z * sd, s.mean + z * sd};
       break;
     }
     case ThresholdPolicy::Kind::kQuantile: {
       std::vector<double> sorted(values.begin(), values.end());
       std::sort(sorted.begin(), sorted.end());
       b = Band{sorted_quantile(sorted, 0.5 * alpha), sorted_quantile(sorted, 1.0 - 0.5 * alpha)};
+      if (day_ratio > 0.0) {  // both quantiles move away from the median by the same factor
+        const double med = sorted_quantile(sorted, 0.5);
+        b = Band{med - widen_sd * (med - b.lo), med + widen_sd * (b.hi - med)};
+      }
       break;
     }
     case ThresholdPolicy::Kind::kTolerance: {
@@ -160,11 +243,13 @@ Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, Fea
         }
         const FeatureStats s = feature_stats(logs);
         const double k1 = tolerance_factor_one_sided(n, 1.0 - alpha, policy.confidence);
-        b = Band{std::exp(s.mean - k1 * s.stddev), std::exp(s.mean + k1 * s.stddev)};
+        const double sd = total_sd(s.stddev);
+        b = Band{std::exp(s.mean - k1 * sd), std::exp(s.mean + k1 * sd)};
       } else {
         const FeatureStats s = feature_stats(values);
         const double k2 = tolerance_factor_two_sided(n, 1.0 - alpha, policy.confidence);
-        b = Band{s.mean - k2 * s.stddev, s.mean + k2 * s.stddev};
+        const double sd = total_sd(s.stddev);
+        b = Band{s.mean - k2 * sd, s.mean + k2 * sd};
       }
       break;
     }
@@ -179,7 +264,8 @@ Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, Fea
 
 ClassBaseline build_class_baseline(const SegmentClass& segment,
                                    const std::vector<std::vector<float>>& windows,
-                                   std::span<const std::uint64_t> groups, const ThresholdPolicy& policy) {
+                                   std::span<const std::uint64_t> groups, const ThresholdPolicy& policy,
+                                   std::span<const std::uint32_t> recordings) {
   const std::string where = "class " + std::to_string(segment.id);
   if (windows.empty()) throw Error(where + ": no training windows");
   const std::size_t m = windows.size();
@@ -203,6 +289,13 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   if (!groups.empty() && groups.size() != m) {
     throw Error(where + ": " + std::to_string(groups.size()) + " group ids for " + std::to_string(m) +
                 " windows");
+  }
+  if (!recordings.empty() && recordings.size() != m) {
+    throw Error(where + ": " + std::to_string(recordings.size()) + " recording ids for " + std::to_string(m) +
+                " windows");
+  }
+  if (!(std::isfinite(policy.day_sd_floor) && policy.day_sd_floor >= 0.0)) {
+    throw Error(where + ": thresholds.day_sd_floor must be finite and >= 0");
   }
   // Window indices per group (ordered map: deterministic processing order).
   std::map<std::uint64_t, std::vector<std::size_t>> members;
@@ -255,6 +348,8 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   // leave-one-out TDA mean (was 8 per window: 2 magnitudes, raw 1, TDA 2, PTDA 2 + 1 inverse).
   std::array<std::vector<double>, kMethodCount> rms_values;
   std::array<std::vector<double>, kMethodCount> entropy_values;
+  std::vector<std::uint32_t> value_recording;  // the recording of each value, in the values' order
+  value_recording.reserve(m);
   for (auto& v : rms_values) v.reserve(m);
   for (auto& v : entropy_values) v.reserve(m);
   std::vector<double> group_mag(bins);
@@ -280,6 +375,7 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     const bool reuse = idx.size() == 1;  // the analyzer still holds that window's transform
     for (const std::size_t i : idx) {
       analyzer.analyze_all(windows[i], loo_mag, loo_x_spectrum, cls.line_groups, f, reuse, cls.floor_gain);
+      value_recording.push_back(recordings.empty() ? 0U : recordings[i]);
       for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
         rms_values[mi].push_back(f[mi].rms_res);
         entropy_values[mi].push_back(f[mi].entropy_res);
@@ -289,9 +385,48 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
 
   for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
     const std::string what = where + ", method " + std::string(method_name(static_cast<Method>(mi)));
+    // Within- and between-day spread of the leave-one-out features, recordings as groups (docs/method.md
+    // §5). A zero residual is left out of the log values, as below.
+    std::vector<double> logs;
+    std::vector<std::uint32_t> log_recording;
+    logs.reserve(rms_values[mi].size());
+    for (std::size_t j = 0; j < rms_values[mi].size(); ++j) {
+      if (rms_values[mi][j] > 0.0) {
+        logs.push_back(std::log(rms_values[mi][j]));
+        log_recording.push_back(value_recording[j]);
+      }
+    }
+    DaySpread& day = cls.day_spread[mi];
+    if (!logs.empty()) {
+      const VarianceComponents vl = variance_components(logs, log_recording);
+      day.log_rms_within_sd = std::sqrt(vl.within_var);
+      day.log_rms_between_est = std::sqrt(vl.between_var);
+    }
+    const VarianceComponents ve = variance_components(entropy_values[mi], value_recording);
+    day.recordings = ve.groups;
+    day.entropy_within_sd = std::sqrt(ve.within_var);
+    day.entropy_between_est = std::sqrt(ve.between_var);
+    // One recording shows no between-day spread: the prior (day_sd_floor x within sd) stands in for it.
+    // With R recordings the estimate has R - 1 degrees of freedom; the prior counts as one more:
+    // between_var = ((R - 1) estimate^2 + prior^2) / R.
+    const auto pooled = [&](double est, double within) {
+      const double prior = policy.day_sd_floor * within;
+      const double r = static_cast<double>(std::max<std::uint32_t>(1, ve.groups));
+      return std::sqrt(((r - 1.0) * est * est + prior * prior) / r);
+    };
+    day.log_rms_between_sd = pooled(day.log_rms_between_est, day.log_rms_within_sd);
+    day.entropy_between_sd = pooled(day.entropy_between_est, day.entropy_within_sd);
     try {
-      cls.thresholds[mi].rms = fit_band(rms_values[mi], policy, FeatureScale::kLog);
-      cls.thresholds[mi].entropy = fit_band(entropy_values[mi], policy);
+      // Ratios, so the widening holds in whatever units the policy fits (ln or linear rms_res).
+      const auto ratio = [](double num, double den) { return den > 0.0 && num > 0.0 ? num / den : 0.0; };
+      const auto within = [](double w, double sample) { return w > 0.0 && sample > 0.0 ? w / sample : 1.0; };
+      cls.thresholds[mi].rms = fit_band(rms_values[mi], policy, FeatureScale::kLog,
+                                        ratio(day.log_rms_between_sd, day.log_rms_within_sd),
+                                        within(day.log_rms_within_sd, feature_stats(logs).stddev));
+      cls.thresholds[mi].entropy =
+          fit_band(entropy_values[mi], policy, FeatureScale::kLinear,
+                   ratio(day.entropy_between_sd, day.entropy_within_sd),
+                   within(day.entropy_within_sd, feature_stats(entropy_values[mi]).stddev));
     } catch (const Error& e) {
       throw Error(what + ": " + e.what());
     }
@@ -300,11 +435,7 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     cls.thresholds[mi].entropy.lo = std::max(0.0, cls.thresholds[mi].entropy.lo);
     cls.rms_stats[mi] = feature_stats(rms_values[mi]);
     cls.entropy_stats[mi] = feature_stats(entropy_values[mi]);
-    std::vector<double> logs;
-    logs.reserve(rms_values[mi].size());
     // A zero residual (possible only for a window identical to the mean) is left out of the log stats.
-    for (const double v : rms_values[mi])
-      if (v > 0.0) logs.push_back(std::log(v));
     cls.log_rms_stats[mi] = feature_stats(logs);
   }
   return cls;

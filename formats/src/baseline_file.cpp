@@ -224,6 +224,18 @@ void check_class_values(const dsp::ClassBaseline& c, const std::string& cls) {
     non_negative(h.z_rms_sd, ho + "z_rms_sd");
     finite(h.z_entropy_mean, ho + "z_entropy_mean");
     non_negative(h.z_entropy_sd, ho + "z_entropy_sd");
+    const dsp::DaySpread& d = c.day_spread[m];
+    const std::string ds = method + "day spread ";
+    for (const auto& [v, name] : {std::pair{d.log_rms_within_sd, "ln(rms_res) within sd"},
+                                  std::pair{d.log_rms_between_est, "ln(rms_res) between estimate"},
+                                  std::pair{d.log_rms_between_sd, "ln(rms_res) between sd"},
+                                  std::pair{d.entropy_within_sd, "entropy within sd"},
+                                  std::pair{d.entropy_between_est, "entropy between estimate"},
+                                  std::pair{d.entropy_between_sd, "entropy between sd"}})
+      non_negative(v, ds + name);
+    if (d.recordings > c.n_windows)
+      bad(ds + "recordings is " + std::to_string(d.recordings) + ", more than the class's " +
+          std::to_string(c.n_windows) + " windows");
   }
 }
 
@@ -306,6 +318,8 @@ void validate_baseline(const dsp::Baseline& b, const std::string& where) {
     throw Error(w + "policy confidence is " + num(p.confidence) + ", must be in (0, 1)");
   if (!(p.holdout_fraction >= 0.0 && p.holdout_fraction < 1.0))
     throw Error(w + "policy holdout_fraction is " + num(p.holdout_fraction) + ", must be in [0, 1)");
+  if (!(std::isfinite(p.day_sd_floor) && p.day_sd_floor >= 0.0))
+    throw Error(w + "policy day_sd_floor is " + num(p.day_sd_floor) + ", must be finite and >= 0");
   for (std::size_t i = 0; i < b.classes.size(); ++i) {
     const dsp::ClassBaseline& c = b.classes[i];
     check_class_values(c, w + "class " + std::to_string(i) + " (id " + std::to_string(c.segment.id) + ")");
@@ -388,6 +402,19 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   // stays put.
   w.u32((b.policy.ptda_line_gain ? kOptionLineGain : 0U) |
         (b.policy.ptda_floor_gain ? kOptionFloorGain : 0U));
+  // Version 4: the between-day floors and, per class and method, the day spread.
+  w.f64(b.policy.day_sd_floor);
+  for (const auto& c : b.classes) {
+    for (const dsp::DaySpread& d : c.day_spread) {
+      w.u32(d.recordings);
+      w.f64(d.log_rms_within_sd);
+      w.f64(d.log_rms_between_est);
+      w.f64(d.log_rms_between_sd);
+      w.f64(d.entropy_within_sd);
+      w.f64(d.entropy_between_est);
+      w.f64(d.entropy_between_sd);
+    }
+  }
   w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
   w.u32(crc32(w.buf().data(), w.buf().size()));
   return std::move(w.buf());
@@ -534,6 +561,27 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
                 " (this build knows bit 0, line_gain, and bit 1, floor_gain)");
     b.policy.ptda_line_gain = (options & kOptionLineGain) != 0U;
     b.policy.ptda_floor_gain = (options & kOptionFloorGain) != 0U;
+  }
+  // Versions 1 to 3 know no between-day spread: floor 0 and every DaySpread zero, which the sequential
+  // detector reads as the session-6 standardisation (dsp::sequential_scale).
+  b.policy.day_sd_floor = 0.0;
+  if (version >= 4) {
+    b.policy.day_sd_floor = body.f64();
+    // 3 methods x (u32 + 6 f64) per class.
+    if (std::uint64_t{n_classes} * dsp::kMethodCount * 52U > body.left())
+      body.fail("the day spread of " + std::to_string(n_classes) + " classes cannot fit in the remaining " +
+                std::to_string(body.left()) + " bytes");
+    for (auto& c : b.classes) {
+      for (dsp::DaySpread& d : c.day_spread) {
+        d.recordings = body.u32();
+        d.log_rms_within_sd = body.f64();
+        d.log_rms_between_est = body.f64();
+        d.log_rms_between_sd = body.f64();
+        d.entropy_within_sd = body.f64();
+        d.entropy_between_est = body.f64();
+        d.entropy_between_sd = body.f64();
+      }
+    }
   }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
   // A CRC only proves the bytes are what some writer produced: a forged or buggy file with NaN,

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "ptda/common/error.hpp"
+#include "ptda/sim/noise_tilt.hpp"
 
 namespace ptda::gap {
 namespace {
@@ -53,6 +54,12 @@ class Evaluator {
     ctx_.nominal_orders.clear();
     for (std::size_t k = 0; k < nominal.vibration.gmf_amplitudes.size(); ++k) {
       if (nominal.vibration.gmf_amplitudes[k] > 0.0) ctx_.nominal_orders.push_back(static_cast<int>(k + 1));
+      ctx_.nominal_shaft_orders.clear();
+      for (std::size_t i = 0; i < nominal.vibration.shaft_orders.size(); ++i) {
+        if (i < nominal.vibration.shaft_order_amplitudes.size() &&
+            nominal.vibration.shaft_order_amplitudes[i] > 0.0)
+          ctx_.nominal_shaft_orders.push_back(nominal.vibration.shaft_orders[i]);
+      }
     }
   }
 
@@ -140,12 +147,14 @@ class Evaluator {
     ProbeSet mp, rp;
     GapBreakdown g = gap(s, part, &mp, &rp);
     for (int it = 0; it < passes; ++it) {
-      double worst = std::fabs(g.noise_offset_db);
+      // The floor's slope counts like a level offset over one decade.
+      double worst = std::max(std::fabs(g.noise_offset_db), std::fabs(g.noise_tilt_db_per_decade));
       for (std::size_t k = 0; k < s.vibration.gmf_amplitudes.size(); ++k) {
         if (s.vibration.gmf_amplitudes[k] > 0.0 && k + 1 < g.harmonic_offset_db.size()) {
           worst = std::max(worst, std::fabs(g.harmonic_offset_db[k + 1]));
         }
       }
+      for (const auto& [j, o] : g.shaft_order_offset_db) worst = std::max(worst, std::fabs(o));
       const double de = exponent_step(rp, mp);
       if (worst < kRecalibrateDb && std::fabs(de) < kRecalibrateExponent) break;
       for (std::size_t k = 0; k < s.vibration.gmf_amplitudes.size(); ++k) {
@@ -153,8 +162,17 @@ class Evaluator {
         s.vibration.gmf_amplitudes[k] *=
             std::pow(10.0, std::clamp(g.harmonic_offset_db[k + 1], -20.0, 20.0) / 20.0);
       }
+      for (std::size_t i = 0;
+           i < s.vibration.shaft_orders.size() && i < s.vibration.shaft_order_amplitudes.size(); ++i) {
+        const auto so = g.shaft_order_offset_db.find(s.vibration.shaft_orders[i]);
+        if (so != g.shaft_order_offset_db.end() && s.vibration.shaft_order_amplitudes[i] > 0.0)
+          s.vibration.shaft_order_amplitudes[i] *= std::pow(10.0, std::clamp(so->second, -20.0, 20.0) / 20.0);
+      }
       if (s.vibration.noise_rms > 0.0) {
         s.vibration.noise_rms *= std::pow(10.0, std::clamp(g.noise_offset_db, -20.0, 20.0) / 20.0);
+        s.vibration.noise_tilt_db_per_decade =
+            std::clamp(s.vibration.noise_tilt_db_per_decade + g.noise_tilt_db_per_decade,
+                       -sim::TiltedNoise::kMaxTiltDbPerDecade, sim::TiltedNoise::kMaxTiltDbPerDecade);
       }
       if (std::fabs(de) >= kRecalibrateExponent)
         s.vibration.amplitude_speed_exponent =
@@ -332,6 +350,9 @@ struct Guesses {
   double lag_s = 0.0;
   double max_abs_ms2 = 1.0;
   double direction_gain = 0.0;  ///< from the harmonic level difference between +/- speed classes
+  /// The motion has acceleration pieces (torque reversals for the `impacts` effect's knocks). Without,
+  /// e.g. a constant-speed test rig, knocks can only come at a Poisson rate, so the fit tries rates.
+  bool has_reversals = true;
 };
 
 double mean_alarm_rate(const ProbeSet& p) {
@@ -388,6 +409,7 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
                      const sim::Scenario& nominal, const AnalysisPlan& plan,
                      const std::vector<int>& nominal_orders) {
   Guesses q;
+  q.has_reversals = plan.accel_len > 0;
   q.floor_peak_const_hz = excess_peak_hz(r, m, SegmentType::kConstant, g.noise_offset_db);
   q.floor_peak_accel_hz = plan.accel_len > 0 ? excess_peak_hz(r, m, SegmentType::kAccel, g.noise_offset_db)
                                              : q.floor_peak_const_hz;
@@ -528,6 +550,18 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       // log grid of resonances.
       std::vector<double> res{std::clamp(q.energy_peak_accel_hz, 20.0, top)};
       for (double f = 600.0; f < top; f *= 1.6) res.push_back(f);
+      if (!q.has_reversals) {
+        // No torque reversal to knock at: only Poisson knocks (rate_hz) can reproduce transients.
+        // The screen runs the first two stages from rate 4/s: resonance, then amplitude.
+        return {{"resonance_hz", res},
+                {"amplitude_ms2", {1, 2, 4, 8, 16, 32, 64}},
+                {"rate_hz", {1, 2, 4, 8, 16}},
+                {"resonance_hz", {0.84, 0.92, 1.0, 1.09, 1.19}, true},
+                {"damping_ratio", {0.02, 0.05, 0.1, 0.2}},
+                {"rate_hz", {0.7, 1.0, 1.4}, true},
+                {"amplitude_ms2", {0.8, 1.0, 1.25}, true},
+                {"resonance_hz", {0.96, 1.0, 1.04}, true}};
+      }
       return {{"resonance_hz", res},
               {"amplitude_ms2", {1, 2, 4, 8, 16, 32}},
               {"resonance_hz", {0.84, 0.92, 1.0, 1.09, 1.19}, true},
@@ -583,6 +617,7 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
     case EffectKind::kNoiseColor:
       return {{"corner_hz", {20, 50, 100, 200, 500, 1000, 2000}},
               {"rms_ms2", {0.05, 0.1, 0.2, 0.4, 0.8, 1.6}},
+              {"poles", {1, 2}},
               {"corner_hz", {0.7, 1.0, 1.4}, true},
               {"rms_ms2", {0.8, 1.0, 1.25}, true}};
   }
@@ -598,6 +633,7 @@ EffectSpec initial_effect(EffectKind k, const Guesses& q) {
       break;
     case EffectKind::kImpacts:
       e.set("resonance_hz", q.energy_peak_accel_hz);
+      if (!q.has_reversals) e.set("rate_hz", 4.0);
       break;
     case EffectKind::kElectricalInterference:
       e.set("frequency_hz", std::max(1.0, q.line_still_hz));
@@ -648,7 +684,11 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
       return "sidebands every " + fmt("%.2f", e.get("rate_order")) + " x input-shaft rate (AM " +
              fmt("%.2f", e.get("am_depth")) + ", PM " + fmt("%.2f", e.get("pm_rad")) + " rad)";
     case EffectKind::kImpacts:
-      return "knocks at torque reversals ringing at " + fmt("%.0f", e.get("resonance_hz")) + " Hz";
+      return std::string(e.get("rate_hz") > 0.0
+                             ? "knocks at torque reversals and " + fmt("%.1f", e.get("rate_hz")) +
+                                   " per second at random, "
+                             : "knocks at torque reversals, ") +
+             "ringing at " + fmt("%.0f", e.get("resonance_hz")) + " Hz";
     case EffectKind::kElectricalInterference:
       return "lines at " + fmt("%.2f", e.get("frequency_hz")) + " Hz and harmonics";
     case EffectKind::kAdcClipping:
@@ -664,7 +704,8 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
       return "mesh level differs by direction (" + fmt("%+.2f", e.get("direction_gain")) + ") and accel (" +
              fmt("%+.2f", e.get("accel_gain")) + ")";
     case EffectKind::kNoiseColor:
-      return "extra noise below " + fmt("%.0f", e.get("corner_hz")) + " Hz";
+      return "extra noise below " + fmt("%.0f", e.get("corner_hz")) + " Hz (" +
+             (std::lround(e.get("poles")) >= 2 ? "-40" : "-20") + " dB/decade above)";
   }
   (void)nominal;
   return "";
@@ -710,6 +751,21 @@ std::vector<CalibratedParam> calibration_report(const sim::Scenario& nominal, co
     finish(c, "order " + std::to_string(k + 1));
     out.push_back(c);
   }
+  for (std::size_t i = 0; i < nominal.vibration.shaft_orders.size(); ++i) {
+    if (i >= nominal.vibration.shaft_order_amplitudes.size() ||
+        nominal.vibration.shaft_order_amplitudes[i] <= 0.0 ||
+        i >= calibrated.vibration.shaft_order_amplitudes.size())
+      continue;
+    const int j = nominal.vibration.shaft_orders[i];
+    CalibratedParam c;
+    c.name = "shaft_order_" + std::to_string(j);
+    c.nominal = nominal.vibration.shaft_order_amplitudes[i];
+    c.calibrated = calibrated.vibration.shaft_order_amplitudes[i];
+    const auto it = noise.find("calib/shaft.s" + std::to_string(j));
+    c.sd_db = it != noise.end() ? std::sqrt(it->second) : 0.0;
+    finish(c, "shaft order " + std::to_string(j));
+    out.push_back(c);
+  }
   if (nominal.vibration.noise_rms > 0.0) {
     CalibratedParam c;
     c.name = "noise_rms";
@@ -719,6 +775,18 @@ std::vector<CalibratedParam> calibration_report(const sim::Scenario& nominal, co
     c.sd_db = it != noise.end() ? std::sqrt(it->second) : 0.0;
     finish(c, "the noise level");
     out.push_back(c);
+    // The floor's slope (dB per decade, real - nominal): its own row, in dB per decade.
+    CalibratedParam t;
+    t.name = "noise_tilt_db_per_decade";
+    t.nominal = nominal.vibration.noise_tilt_db_per_decade;
+    t.calibrated = calibrated.vibration.noise_tilt_db_per_decade;
+    t.offset_db = t.calibrated - t.nominal;
+    const auto jt = noise.find("calib/noise_tilt");
+    t.sd_db = jt != noise.end() ? std::sqrt(jt->second) : 0.0;
+    t.significant = std::fabs(t.offset_db) > std::max(1.0, 2.0 * t.sd_db);
+    t.sentence = "the noise floor's slope is " + fmt("%+.1f", t.calibrated) + " dB/decade (nominal " +
+                 fmt("%+.1f", t.nominal) + ", +- " + fmt("%.1f", t.sd_db) + " dB/decade)";
+    out.push_back(t);
   }
   if (speed_spread_db2 > 0.0) {
     // Speed law of the harmonic levels: reported as the level change it makes between the slowest and
@@ -876,6 +944,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   (void)ev.calibrate(model, fit, 3);
   d.calibrated_gmf_amplitudes = model.vibration.gmf_amplitudes;
   d.calibrated_noise_rms = model.vibration.noise_rms;
+  d.calibrated_noise_tilt_db_per_decade = model.vibration.noise_tilt_db_per_decade;
   d.calibration = calibration_report(nominal_in, model, ev.noise_fit(), plan, ev.speed_spread_db2());
   for (const CalibratedParam& c : d.calibration) {
     d.recalibrated = d.recalibrated || c.significant;

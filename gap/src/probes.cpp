@@ -12,6 +12,7 @@
 #include "ptda/dsp/analyzer.hpp"
 #include "ptda/dsp/features.hpp"
 #include "ptda/dsp/real_fft.hpp"
+#include "ptda/sim/noise_tilt.hpp"
 
 namespace ptda::gap {
 namespace {
@@ -224,6 +225,7 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
                         const ProbeContext& ctx, const ProbeSet* reference) {
   ProbeSet ps;
   const double fs = rec.fs_hz;
+  ps.fs_hz = fs;
   const AnalysisPlan& plan = ctx.plan;
   SpectrumCache cache;
   auto selected = [&](const Window& w) {
@@ -326,6 +328,23 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
           std::find(ctx.nominal_orders.begin(), ctx.nominal_orders.end(), k) != ctx.nominal_orders.end();
       if (nominal) nominal_bins[k] = kb;
       if (nominal && peak_db > floor_db + 15.0) strong.push_back({k, kb, floor_db, peak_db});
+    }
+    // Nominal shaft-order lines (sim::VibrationSpec::shaft_orders): their level per class, calibrated
+    // like the harmonics; their bins are left out of the `lines` probe, which looks for lines the model
+    // does not have.
+    for (int j : ctx.nominal_shaft_orders) {
+      const double f = j * f_in;
+      if (f >= 0.45 * fs) continue;
+      class_exclusions[c].push_back({f - 3 * df, f + 3 * df});
+      const std::size_t b = bin_of(f, df);
+      double peak = 0.0;
+      for (std::size_t q = b > 2 ? b - 2 : 0; q <= b + 2 && q < p.size(); ++q) peak = std::max(peak, p[q]);
+      std::vector<double> around;
+      for (std::size_t q = b > 30 ? b - 30 : 1; q <= b + 30 && q < p.size(); ++q) {
+        if (q + 3 < b || q > b + 3) around.push_back(p[q]);
+      }
+      add(ps, "shaft_orders", cls + ".s" + std::to_string(j), std::max(db(peak), db(median_of(around)) + 6.0),
+          kScaleHarmonicDb, f, f, SegmentType::kConstant, Stage::kRaw, j);
     }
     // Cross-cycle phase coherence per nominal order: in each window the phase of order k relative to
     // k / k0 times that of the lowest nominal order k0 (k a multiple of k0), psi = arg X_k -
@@ -637,6 +656,7 @@ ProbeSet average_probes(const ProbeSet& a, const ProbeSet& b) {
   }
   out.classes = a.classes;
   out.windows = a.windows + b.windows;
+  out.fs_hz = a.fs_hz;
   auto mean_vec = [](const std::vector<double>& x, const std::vector<double>& y) {
     if (x.size() != y.size()) return x.empty() ? y : x;
     std::vector<double> v(x.size());
@@ -666,6 +686,20 @@ struct Pair {
   double diff;
 };
 
+/// Robust slope of y against x (Theil-Sen: the median of the pairwise slopes over pairs at least 0.05
+/// apart in x), so that a few bands raised by lines or a resonance do not tilt the floor. 0 with fewer
+/// than 4 points.
+double floor_slope(const std::vector<std::pair<double, double>>& xy) {
+  if (xy.size() < 4) return 0.0;
+  std::vector<double> slopes;
+  for (std::size_t i = 0; i < xy.size(); ++i)
+    for (std::size_t j = i + 1; j < xy.size(); ++j) {
+      const double dx = xy[j].first - xy[i].first;
+      if (std::fabs(dx) >= 0.05) slopes.push_back((xy[j].second - xy[i].second) / dx);
+    }
+  return slopes.empty() ? 0.0 : median_of(slopes);
+}
+
 /// Matched elements with the free parameters profiled out; fills the offsets of `g`.
 std::vector<Pair> profiled_pairs(const ProbeSet& real, const ProbeSet& sim, GapBreakdown& g) {
   std::map<std::string, const ProbeElement*> sim_by_key;
@@ -678,26 +712,38 @@ std::vector<Pair> profiled_pairs(const ProbeSet& real, const ProbeSet& sim, GapB
   }
   // Profile out the free parameters of the nominal model.
   std::map<int, std::pair<double, int>> per_order;
-  std::vector<double> floor_diffs;
+  std::map<int, std::pair<double, int>> per_shaft_order;
+  const double pivot_hz = ::ptda::sim::noise_tilt_pivot_hz(real.fs_hz > 0.0 ? real.fs_hz : sim.fs_hz);
+  auto decades = [&](const ProbeElement& e) {  // band centre in decades from the tilt pivot
+    return std::log10(std::sqrt(std::max(e.f_lo_hz, 1.0) * e.f_hi_hz) / pivot_hz);
+  };
+  std::vector<std::pair<double, double>> floor_xy;
   for (const Pair& p : pairs) {
-    if (p.r->probe == "harmonics") {
-      auto& a = per_order[p.r->order];
+    if (p.r->probe == "harmonics" || p.r->probe == "shaft_orders") {
+      auto& a = (p.r->probe == "harmonics" ? per_order : per_shaft_order)[p.r->order];
       a.first += p.diff;
       a.second += 1;
-    } else if (p.r->probe == "noise_floor" && p.r->segment == SegmentType::kConstant) {
-      floor_diffs.push_back(p.diff);
+    } else if (p.r->probe == "noise_floor" && p.r->segment == SegmentType::kConstant && p.r->f_hi_hz > 0.0) {
+      floor_xy.push_back({decades(*p.r), p.diff});
     }
   }
-  g.noise_offset_db = median_of(floor_diffs);
+  g.noise_tilt_db_per_decade = floor_slope(floor_xy);
+  std::vector<double> level;
+  for (const auto& [x, d] : floor_xy) level.push_back(d - g.noise_tilt_db_per_decade * x);
+  g.noise_offset_db = median_of(level);
   for (auto& [k, a] : per_order) {
     if (k >= static_cast<int>(g.harmonic_offset_db.size()))
       g.harmonic_offset_db.resize(static_cast<std::size_t>(k) + 1, 0.0);
     g.harmonic_offset_db[static_cast<std::size_t>(k)] = a.first / a.second;
   }
+  for (const auto& [j, a] : per_shaft_order) g.shaft_order_offset_db[j] = a.first / a.second;
   for (Pair& p : pairs) {
     if (p.r->probe == "harmonics") p.diff -= g.harmonic_offset_db[static_cast<std::size_t>(p.r->order)];
-    if (p.r->probe == "noise_floor" || (p.r->probe == "transients" && p.r->key.rfind("oct", 0) == 0))
+    if (p.r->probe == "shaft_orders") p.diff -= g.shaft_order_offset_db[p.r->order];
+    if (p.r->probe == "noise_floor" || (p.r->probe == "transients" && p.r->key.rfind("oct", 0) == 0)) {
       p.diff -= g.noise_offset_db;
+      if (p.r->f_hi_hz > 0.0) p.diff -= g.noise_tilt_db_per_decade * decades(*p.r);
+    }
   }
   return pairs;
 }
@@ -712,7 +758,9 @@ std::map<std::string, double> profiled_differences(const ProbeSet& real, const P
   // variance can be estimated like any element's (not gap elements).
   for (std::size_t k = 1; k < g.harmonic_offset_db.size(); ++k)
     out["calib/order.k" + std::to_string(k)] = g.harmonic_offset_db[k];
+  for (const auto& [j, o] : g.shaft_order_offset_db) out["calib/shaft.s" + std::to_string(j)] = o;
   out["calib/noise_offset"] = g.noise_offset_db;
+  out["calib/noise_tilt"] = g.noise_tilt_db_per_decade;
   return out;
 }
 

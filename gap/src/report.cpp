@@ -210,6 +210,7 @@ std::string diagnosis_json(const Diagnosis& d) {
     << "},\n";
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
     << ", \"noise_rms\": " << num(d.calibrated_noise_rms)
+    << ", \"noise_tilt_db_per_decade\": " << num(d.calibrated_noise_tilt_db_per_decade)
     << ", \"recalibrated\": " << (d.recalibrated ? "true" : "false") << ", \"params\": [";
   for (std::size_t i = 0; i < d.calibration.size(); ++i) {
     const CalibratedParam& c = d.calibration[i];

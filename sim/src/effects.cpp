@@ -54,9 +54,11 @@ constexpr std::array<EffectParamInfo, 2> kLoadDependence{{
     {"direction_gain", 0.3, -0.95, 0.95, "mesh amplitude * (1 + g sign(speed))"},
     {"accel_gain", 0.0, -0.95, 0.95, "mesh amplitude * (1 + a sign(speed accel)) while accelerating/braking"},
 }};
-constexpr std::array<EffectParamInfo, 2> kNoiseColor{{
+constexpr std::array<EffectParamInfo, 3> kNoiseColor{{
     {"rms_ms2", 0.3, 0.0, 100.0, "rms of the extra noise"},
-    {"corner_hz", 200.0, 1.0, 100000.0, "corner of its one-pole low-pass (red above the corner)"},
+    {"corner_hz", 200.0, 1.0, 100000.0, "corner of its low-pass (red above the corner)"},
+    {"poles", 1.0, 1.0, 2.0,
+     "1: one pole (-20 dB/decade above the corner); 2: a double pole (-40) (rounded)"},
 }};
 
 constexpr std::array<EffectInfo, kEffectKinds> kCatalog{{

@@ -35,6 +35,24 @@ struct LowpassNoise {
   }
 };
 
+/// The same noise through a second pole at the same corner: (1 - a z^-1)^-2 on white noise, scaled to
+/// unit variance (the double pole's power gain is (1 + a^2) / (1 - a^2)^3; the first stage gives
+/// (1 - a^2) of it, the second stage's gain c = (1 - a^2) / sqrt(1 + a^2) the rest).
+struct DoublePoleNoise {
+  LowpassNoise first;
+  double c = 0.0;
+  double state = 0.0;
+  DoublePoleNoise() = default;
+  DoublePoleNoise(double fs_hz, double corner_hz, Rng& rng) : first(fs_hz, corner_hz, rng) {
+    c = (1.0 - first.a * first.a) / std::sqrt(1.0 + first.a * first.a);
+    state = rng.normal();  // stationary variance; the correlation settles within a few 1 / corner
+  }
+  double next(Rng& rng) noexcept {
+    state = first.a * state + c * first.next(rng);
+    return state;
+  }
+};
+
 }  // namespace
 
 MeshPerturber::MeshPerturber(const Scenario& s, double fs_hz, std::uint64_t seed)
@@ -107,6 +125,8 @@ struct SignalEffects::Step {
   std::optional<MotionSampler> lagged;
   // noise_color
   LowpassNoise lp;
+  DoublePoleNoise lp2;
+  bool two_poles = false;
   // transfer_path: RBJ peaking biquad and its state
   double b0 = 0.0, b1 = 0.0, b2 = 0.0, a1 = 0.0, a2 = 0.0;
   double x1 = 0.0, x2 = 0.0, y1 = 0.0, y2 = 0.0;
@@ -152,7 +172,9 @@ SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uin
       case EffectKind::kNoiseColor:
         st.amp = e.get("rms_ms2");
         st.active = st.amp > 0.0;
-        if (st.active) st.lp = LowpassNoise(fs, e.get("corner_hz"), st.rng);
+        st.two_poles = std::lround(e.get("poles")) >= 2;
+        if (st.active && st.two_poles) st.lp2 = DoublePoleNoise(fs, e.get("corner_hz"), st.rng);
+        if (st.active && !st.two_poles) st.lp = LowpassNoise(fs, e.get("corner_hz"), st.rng);
         break;
       case EffectKind::kTransferPath: {
         st.active = true;
@@ -254,7 +276,11 @@ void SignalEffects::apply(std::size_t i0, std::span<double> x) {
         x[q] += st.amp * sf * std::sin(st.order * angle + 0.7);
       }
     } else if (st.kind == EffectKind::kNoiseColor) {
-      for (std::size_t q = 0; q < n; ++q) x[q] += st.amp * st.lp.next(st.rng);
+      if (st.two_poles) {
+        for (std::size_t q = 0; q < n; ++q) x[q] += st.amp * st.lp2.next(st.rng);
+      } else {
+        for (std::size_t q = 0; q < n; ++q) x[q] += st.amp * st.lp.next(st.rng);
+      }
     }
   }
   // 2. Structural path to the sensor.

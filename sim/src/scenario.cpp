@@ -2,6 +2,7 @@
 // errors naming file:line:column, so a typo never silently falls back to a default.
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <initializer_list>
@@ -14,6 +15,7 @@
 #include "ptda/common/error.hpp"
 #include "ptda/common/file_check.hpp"
 #include "ptda/config/pipeline_config.hpp"
+#include "ptda/sim/noise_tilt.hpp"
 #include "ptda/sim/simulator.hpp"
 #include "sim_internal.hpp"
 
@@ -236,7 +238,8 @@ void parse_gearbox(Reader& r, GearboxSpec& g) {
 
 void parse_vibration(Reader& r, VibrationSpec& v, const GearboxSpec& g) {
   r.known_keys({"gmf_amplitudes", "gmf_phases_rad", "reference_speed_rad_s", "amplitude_speed_exponent",
-                "dmf_amplitudes", "noise_rms", "cycle_amplitude_jitter_rel", "cycle_noise_jitter_rel"});
+                "dmf_amplitudes", "noise_rms", "noise_tilt_db_per_decade", "cycle_amplitude_jitter_rel",
+                "cycle_noise_jitter_rel", "shaft_orders", "shaft_order_amplitudes"});
   v.gmf_amplitudes = r.numbers("gmf_amplitudes");
   for (double a : v.gmf_amplitudes) require(a >= 0.0, r, "gmf_amplitudes", "amplitudes must be >= 0");
   v.gmf_phases_rad = r.numbers("gmf_phases_rad");
@@ -253,6 +256,31 @@ void parse_vibration(Reader& r, VibrationSpec& v, const GearboxSpec& g) {
           "only a cycloidal gearbox has a disk mesh");
   v.noise_rms = r.number("noise_rms", v.noise_rms);
   require(v.noise_rms >= 0.0, r, "noise_rms", "must be >= 0");
+  v.noise_tilt_db_per_decade = r.number("noise_tilt_db_per_decade", v.noise_tilt_db_per_decade);
+  require(std::fabs(v.noise_tilt_db_per_decade) <= TiltedNoise::kMaxTiltDbPerDecade, r,
+          "noise_tilt_db_per_decade", "must be in [-18, 18] dB per decade");
+  {
+    const std::vector<double> orders = r.numbers("shaft_orders");
+    v.shaft_order_amplitudes = r.numbers("shaft_order_amplitudes");
+    require(orders.size() == v.shaft_order_amplitudes.size(), r,
+            orders.empty() ? "shaft_order_amplitudes" : "shaft_orders",
+            "needs one amplitude in shaft_order_amplitudes per entry of shaft_orders");
+    v.shaft_orders.clear();
+    for (double o : orders) {
+      require(o >= 1.0 && o <= 10000.0 && o == std::floor(o), r, "shaft_orders",
+              "orders must be whole numbers in [1, 10000]");
+      const int j = static_cast<int>(o);
+      require(g.z_in == 0 || j % static_cast<int>(g.z_in) != 0, r, "shaft_orders",
+              "order " + std::to_string(j) + " is GMF order " +
+                  std::to_string(g.z_in == 0 ? 0 : j / static_cast<int>(g.z_in)) +
+                  " (a multiple of z_in): list it in gmf_amplitudes");
+      require(std::find(v.shaft_orders.begin(), v.shaft_orders.end(), j) == v.shaft_orders.end(), r,
+              "shaft_orders", "order " + std::to_string(j) + " is listed twice");
+      v.shaft_orders.push_back(j);
+    }
+    for (double a : v.shaft_order_amplitudes)
+      require(a >= 0.0, r, "shaft_order_amplitudes", "amplitudes must be >= 0");
+  }
   v.cycle_amplitude_jitter_rel = r.number("cycle_amplitude_jitter_rel", v.cycle_amplitude_jitter_rel);
   require(v.cycle_amplitude_jitter_rel >= 0.0 && v.cycle_amplitude_jitter_rel <= 1.0, r,
           "cycle_amplitude_jitter_rel", "must be in [0, 1] (a relative spread; 0.03 is 3 %)");

@@ -200,6 +200,14 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
   vb.insert("reference_speed_rad_s", s.vibration.reference_speed_rad_s);
   vb.insert("amplitude_speed_exponent", s.vibration.amplitude_speed_exponent);
   vb.insert("noise_rms", s.vibration.noise_rms);
+  if (s.vibration.noise_tilt_db_per_decade != 0.0)
+    vb.insert("noise_tilt_db_per_decade", s.vibration.noise_tilt_db_per_decade);
+  if (!s.vibration.shaft_orders.empty()) {
+    toml::array orders;
+    for (int j : s.vibration.shaft_orders) orders.push_back(static_cast<std::int64_t>(j));
+    vb.insert("shaft_orders", std::move(orders));
+    vb.insert("shaft_order_amplitudes", to_array(s.vibration.shaft_order_amplitudes));
+  }
   vb.insert("harmonics_above_nyquist", static_cast<std::int64_t>(vib.harmonics_above_nyquist));
   // The cycle variation only when on: without it truth.toml stays as it was before the feature.
   const VibrationSpec& vs = s.vibration;

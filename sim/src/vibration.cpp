@@ -5,7 +5,10 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <numeric>
+#include <optional>
 
+#include "ptda/sim/noise_tilt.hpp"
 #include "ptda/sim/random.hpp"
 #include "ptda/sim/simulator.hpp"
 #include "ptda/sim/stream.hpp"
@@ -133,6 +136,12 @@ struct VibrationStream::Impl {
   std::uint64_t impulses = 0;
   std::unique_ptr<SignalEffects> effects;
   bool finished = false;
+  // Shaft-order lines: whole multiples q of a base order g0 (the orders' gcd), by rotation like the mesh.
+  int g0 = 0;
+  int m_max = 0;
+  std::vector<double> shaft_amp;  // [q - 1]: amplitude of order q * g0
+  // Tilted background (docs/simulator.md); white noise draws exactly as before when the tilt is 0.
+  std::optional<TiltedNoise> tilted;
 
   Impl(const Scenario& sc, const MotionProfile& mp, std::uint64_t seed, bool keep)
       : s(sc),
@@ -185,6 +194,20 @@ struct VibrationStream::Impl {
     impulse_t.resize(tooth.size());
     impulse_a.resize(tooth.size());
     if (!s.effects.empty()) effects = std::make_unique<SignalEffects>(s, m, seed);
+    for (int j : vs.shaft_orders) g0 = std::gcd(g0, j);
+    for (std::size_t i = 0; i < vs.shaft_orders.size() && i < vs.shaft_order_amplitudes.size(); ++i) {
+      if (vs.shaft_order_amplitudes[i] <= 0.0) continue;
+      if (static_cast<double>(vs.shaft_orders[i]) * gmf_hz(g, w_max) / std::max(g.z_in, 1U) >= nyquist)
+        continue;
+      const int mult = vs.shaft_orders[i] / g0;
+      if (mult > m_max) {
+        shaft_amp.resize(static_cast<std::size_t>(mult), 0.0);
+        m_max = mult;
+      }
+      shaft_amp[static_cast<std::size_t>(mult - 1)] = vs.shaft_order_amplitudes[i];
+    }
+    if (vs.noise_tilt_db_per_decade != 0.0 && vs.noise_rms > 0.0)
+      tilted.emplace(vs.noise_tilt_db_per_decade, m.fs_hz);
   }
 
   /// Enters cycle c (>= the current one): the per-cycle gains of the faults (severity is constant within
@@ -308,8 +331,20 @@ struct VibrationStream::Impl {
           mesh += h.amplitude * std::sin(h.order * static_cast<double>(g.z_pin) * theta_out);
         }
         if (drifting) mesh *= d.mesh_gain;  // mesh stiffness (load, temperature) and cold oil
+        if (m_max > 0) {
+          const double b0 = static_cast<double>(g0) * theta_mesh;
+          const double sc1 = std::cos(b0), ss1 = std::sin(b0);
+          double sck = 1.0, ssk = 0.0;
+          for (int r = 1; r <= m_max; ++r) {
+            const double cn = sck * sc1 - ssk * ss1;
+            ssk = ssk * sc1 + sck * ss1;
+            sck = cn;
+            mesh += shaft_amp[static_cast<std::size_t>(r - 1)] * ssk;  // sin(r g0 theta_in)
+          }
+        }
       }
-      double noise = vs.noise_rms > 0.0 ? vs.noise_rms * noise_gain * rng.normal() : 0.0;
+      double noise = 0.0;
+      if (vs.noise_rms > 0.0) noise = vs.noise_rms * noise_gain * (tilted ? tilted->next(rng) : rng.normal());
       if (drifting) noise *= d.noise_gain;
       x[q] = sf * mesh + noise;
     }

@@ -7,6 +7,8 @@ CAN layout) this writes three recordings of the same robot program:
   healthy/  healthy, another day: new noise, new move-to-move jitter, harmonic levels and noise level
             moved by a day-to-day factor exp(day_var * N(0, 1)) each
   faulty/   the same kind of other day, with a local tooth defect (g2robot.tooth_defect) at `severity`
+  trainD/   (D = 2, 3, ..., only when asked for) further healthy training days, `train_cycles` cycles
+            each, with their own day-to-day factors like healthy/ (several days of commissioning)
 
 and `config.toml`, the pipeline configuration a commissioning engineer would write from what they know:
 sample rate, CAN id, tooth counts and the shortest constant-speed stretch of the program (window length).
@@ -97,7 +99,8 @@ def make_machine(seed, outdir, severity, train_cycles=24, test_cycles=24, day_va
                  line_gain=False):
     """Writes outdir/{train,healthy,faulty}/ and outdir/config.toml; returns a dict describing the
     machine (for the study's table). sets: which recordings to write (default all three; () writes
-    the configuration only). line_gain: the configuration's [monitor] line_gain."""
+    the configuration only; "train2", "train3", ... are further healthy training days with their own
+    day-to-day factors). line_gain: the configuration's [monitor] line_gain."""
     sets = ("train", "healthy", "faulty") if sets is None else sets
     base = R.Machine(seed)
     fault = R.draw_tooth_defect(base, C.rng_for(seed, 201), severity)
@@ -112,6 +115,9 @@ def make_machine(seed, outdir, severity, train_cycles=24, test_cycles=24, day_va
     plan = {"train": (1, train_cycles, False), "healthy": (2, test_cycles, False),
             "faulty": (3, test_cycles, True)}
     for name in sets:
+        if name.startswith("train") and name != "train":
+            # Further training days: realisation index 10 + D (never one of the test days).
+            plan[name] = (10 + int(name[5:]), train_cycles, False)
         k, cycles, faulty = plan[name]
         m = R.Machine(seed)
         m.cycles = cycles

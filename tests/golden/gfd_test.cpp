@@ -41,6 +41,10 @@ struct Pinned {
 // the same way; raw and TDA rows unchanged)
 // (alarms re-measured for issue 12's tolerance bands and CUSUM with scripts/gfd_study.sh; the ratios
 // and AUCs do not depend on the bands)
+// (alarms re-measured in session 7 for the between-day spread, docs/method.md §5-6: one training half,
+// so bands 1.044 times wider and the CUSUM allowance k + 3 x 0.3 x sqrt(2) / c_n: 0 % a1 TDA no longer
+// alarms on its healthy half; PTDA loses the broken tooth at 20 % a4, 40 % a4, 60 % a3, 80 % a3, TDA at
+// 80 % a3; a1 and a2 still alarm at every load)
 // (RelWithDebInfo, x86-64), from `ptda evaluate --json`: ratios printed to 9 significant digits, AUCs
 // as the integer 2U = AUC * 2 n_h n_f (every AUC here is such a fraction exactly).
 // Tolerances: the AUC is a rank statistic, exact given the features; it could only move if a build's
@@ -51,7 +55,7 @@ constexpr Pinned kPinned[] = {
     // load, channel, method, scored healthy/faulty, RMS ratio, RMS 2U, entropy ratio, entropy 2U,
     // alarm healthy, alarm faulty
     {0, "a1", "raw", 11, 21, 0.590304578, 0, 0.938043402, 0, false, true},
-    {0, "a1", "tda", 11, 21, 0.632146592, 0, 0.97734476, 46, true, true},
+    {0, "a1", "tda", 11, 21, 0.632146592, 0, 0.97734476, 46, false, true},
     {0, "a1", "ptda", 11, 21, 2.04511757, 462, 0.956525076, 6, false, true},
     {0, "a2", "raw", 11, 21, 0.937983914, 56, 0.859703612, 0, false, true},
     {0, "a2", "tda", 11, 21, 0.941555669, 66, 0.897791504, 0, false, true},
@@ -73,7 +77,7 @@ constexpr Pinned kPinned[] = {
     {20, "a3", "ptda", 13, 27, 1.40015437, 702, 0.975698474, 2, false, true},
     {20, "a4", "raw", 13, 27, 1.00448364, 386, 0.969880888, 80, false, false},
     {20, "a4", "tda", 13, 27, 1.00558261, 400, 0.972220653, 106, false, false},
-    {20, "a4", "ptda", 13, 27, 1.12752415, 676, 0.960100345, 6, false, true},
+    {20, "a4", "ptda", 13, 27, 1.12752415, 676, 0.960100345, 6, false, false},
     {40, "a1", "raw", 12, 23, 0.597059432, 0, 0.948319188, 0, false, true},
     {40, "a1", "tda", 12, 23, 0.629345313, 0, 0.984088119, 76, false, false},
     {40, "a1", "ptda", 12, 23, 2.17203561, 552, 0.972542112, 84, false, true},
@@ -85,7 +89,7 @@ constexpr Pinned kPinned[] = {
     {40, "a3", "ptda", 12, 23, 1.2995212, 552, 0.984012045, 52, false, true},
     {40, "a4", "raw", 12, 23, 0.961286238, 122, 0.990006817, 198, false, false},
     {40, "a4", "tda", 12, 23, 0.959564558, 114, 0.995331417, 260, false, false},
-    {40, "a4", "ptda", 12, 23, 1.07653947, 404, 0.979817092, 126, false, true},
+    {40, "a4", "ptda", 12, 23, 1.07653947, 404, 0.979817092, 126, false, false},
     {60, "a1", "raw", 12, 23, 0.623057248, 0, 0.917009367, 0, false, true},
     {60, "a1", "tda", 12, 23, 0.667353206, 0, 0.958969837, 4, false, true},
     {60, "a1", "ptda", 12, 23, 2.1696797, 552, 0.938054086, 22, false, true},
@@ -94,7 +98,7 @@ constexpr Pinned kPinned[] = {
     {60, "a2", "ptda", 12, 23, 1.79446452, 552, 1.04181163, 552, false, true},
     {60, "a3", "raw", 12, 23, 0.913757581, 0, 0.955588528, 0, false, true},
     {60, "a3", "tda", 12, 23, 0.927758651, 10, 0.956065116, 0, false, true},
-    {60, "a3", "ptda", 12, 23, 1.24368933, 552, 0.982366018, 72, false, true},
+    {60, "a3", "ptda", 12, 23, 1.24368933, 552, 0.982366018, 72, false, false},
     {60, "a4", "raw", 12, 23, 0.952311096, 66, 0.994528908, 222, false, false},
     {60, "a4", "tda", 12, 23, 0.969494709, 130, 0.983133177, 122, false, false},
     {60, "a4", "ptda", 12, 23, 1.05929618, 398, 0.992747386, 248, false, false},
@@ -105,8 +109,8 @@ constexpr Pinned kPinned[] = {
     {80, "a2", "tda", 12, 26, 1.05176399, 596, 0.966796306, 0, false, true},
     {80, "a2", "ptda", 12, 26, 1.74274993, 624, 1.01679832, 566, false, true},
     {80, "a3", "raw", 12, 26, 0.922632386, 24, 0.946550715, 0, false, true},
-    {80, "a3", "tda", 12, 26, 0.924970444, 40, 0.95839854, 38, false, true},
-    {80, "a3", "ptda", 12, 26, 1.31686459, 624, 0.975899909, 64, false, true},
+    {80, "a3", "tda", 12, 26, 0.924970444, 40, 0.95839854, 38, false, false},
+    {80, "a3", "ptda", 12, 26, 1.31686459, 624, 0.975899909, 64, false, false},
     {80, "a4", "raw", 12, 26, 0.976255059, 178, 0.996396334, 262, false, false},
     {80, "a4", "tda", 12, 26, 0.964971483, 176, 1.01321256, 376, false, false},
     {80, "a4", "ptda", 12, 26, 1.15110054, 518, 0.963508707, 120, false, false},
@@ -308,7 +312,8 @@ TEST_F(GfdStudy, SummaryClaims) {
   // Line gain: 14 (the paper's PTDA 15). It no longer alarms on the healthy half of 40 % a1 and on the
   // broken tooth of 0 % a4 (AUCs 0.42/0.40: no separation) and 60 % a3; it gains 40 % a1.
   // Floor gain, level-referred (session 6): 17; it gains a3 at 60 and 80 % and a4 at 40 %.
-  EXPECT_EQ(clean_alarm["ptda"], 17);
+  // Between-day allowance (session 7): 13; it loses a4 at 20 and 40 %, a3 at 60 and 80 %.
+  EXPECT_EQ(clean_alarm["ptda"], 13);
 }
 
 // a4 is the hard channel: no method reaches an RMS separability of 0.9 at any load, except PTDA with

@@ -74,7 +74,8 @@ struct Pinned {
 
 struct Job {
   const char* name;
-  /// Raw flags fewer faulty windows than PTDA (verdict from both features). Not on spot welding: its
+  /// Raw flags fewer faulty windows than PTDA (verdict from both features). Until session 7 not on spot
+  /// welding (since the between-day widening raw flags 19 of its 20): its
   /// single class holds a strong defect (impulse 8 m/s^2 at the slow plateau) whose broadband ringing
   /// raises the raw spectral entropy (0.389 -> 0.423, band sd 0.008) in every faulty window, so raw
   /// flags all 20 windows like PTDA; raw's RMS alone still misses one and its RMS ratio is 1.04 vs 1.78.
@@ -102,6 +103,11 @@ struct Job {
 // residual), faulty +0.2 / +1.8 / -2.4 %; arc welding's faulty windows with RMS out 37 -> 40; abnormal
 // counts and first alarms unchanged. The line gain alone gave the session-5 numbers 0.255019669 /
 // 0.439087525, 0.252584565 / 0.285625844, 0.259009661 / 0.461998417.
+// Re-pinned in session 7 for the between-day spread (docs/method.md §5, §6: one training recording,
+// bands sqrt(1 + 0.3^2) = 1.044 times wider, CUSUM allowance k + 3 x 0.3 x sqrt(2) / c_n): features and
+// every PTDA count and first alarm unchanged; raw and TDA flag and alarm later. Before: abnormal faulty
+// tda/raw 1/29, 0/22, 5/20; raw RMS out 15, 5, 17; first alarm tda/raw 14/3, -1/10, 4/1. Spot welding's
+// raw now flags 19 of 20 faulty windows (PTDA 20), so raw_fewer_abnormal holds there too.
 // Before the cycle-to-cycle variation (identical cycles) raw flagged 40/40, 49/101, 20/20 faulty
 // windows (PTDA 40, 48, 20), raw RMS ratios 1.033, 1.011, 1.048.
 constexpr Job kJobs[] = {
@@ -109,15 +115,15 @@ constexpr Job kJobs[] = {
     // first alarm window ptda/tda/raw, mean rms_res ptda fresh/faulty, tda fresh/faulty, raw fresh/faulty
     {"joint_rotation",
      true,
-     {40, 40, 40, 1, 29, 40, 0, 15, 0, 14, 3, 0.262290756, 0.44012434, 2.00395427, 2.05173636, 1.94357524,
+     {40, 40, 40, 1, 26, 40, 0, 13, 0, -1, 4, 0.262290756, 0.44012434, 2.00395427, 2.05173636, 1.94357524,
       2.000598}},
     {"arc_welding",
      true,
-     {100, 101, 40, 0, 22, 40, 0, 5, 0, -1, 10, 0.25922925, 0.290818003, 1.04698794, 1.05729261, 1.03934736,
+     {100, 101, 40, 0, 19, 40, 0, 4, 0, -1, 15, 0.25922925, 0.290818003, 1.04698794, 1.05729261, 1.03934736,
       1.04217004}},
     {"spot_welding",
-     false,
-     {20, 20, 20, 5, 20, 20, 0, 17, 0, 4, 1, 0.267151395, 0.450945793, 1.9517956, 2.05480079, 1.94241323,
+     true,
+     {20, 20, 20, 4, 19, 20, 0, 17, 0, 13, 2, 0.267151395, 0.450945793, 1.9517956, 2.05480079, 1.94241323,
       2.02733877}},
 };
 

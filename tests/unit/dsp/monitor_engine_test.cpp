@@ -147,9 +147,11 @@ class MonitorEngineTest : public ::testing::Test {
     delete baseline_;
     baseline_ = nullptr;
   }
-  static std::vector<WindowResult> monitor(const Stream& s, std::size_t block = 700,
-                                           Method m = Method::kPtda) {
-    MonitorEngine e(*baseline_, extraction(), DecisionConfig{3, 5, {}}, m, kFs, kT0);
+  static std::vector<WindowResult> monitor(const Stream& s, std::size_t block = 700, Method m = Method::kPtda,
+                                           double day_allowance = 3.0) {
+    DecisionConfig d{3, 5, {}};
+    d.sequential.day_allowance = day_allowance;
+    MonitorEngine e(*baseline_, extraction(), d, m, kFs, kT0);
     std::vector<WindowResult> out;
     WindowResult r;
     feed(e, s, block, [&] {
@@ -256,51 +258,64 @@ TEST(DecisionStateTest, CusumCapBoundsTheRecoveryToKOfNs) {
 }
 
 TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeatures) {
-  const auto res = monitor(make_stream(6, 6, 0.65));
-  const SequentialConfig seq;  // defaults: k 1, warn 4, alarm 7
-  std::vector<double> s_rms(2, 0.0), s_hi(2, 0.0), s_lo(2, 0.0);
-  bool seq_alarm_seen = false;
-  bool kofn_seen = false;
-  for (const WindowResult& r : res) {
-    ASSERT_EQ(r.status, WindowStatus::kScored);
-    const auto c = static_cast<std::size_t>(r.class_id);
-    const ClassBaseline& cls = baseline_->classes[c];
-    const auto m = static_cast<std::size_t>(Method::kPtda);
-    // Small-sample scale: n = 48 (class 0) and 36 (class 1) training windows.
-    const double c_n = small_sample_scale(cls.log_rms_stats[m].n, baseline_->policy);
-    EXPECT_GT(c_n, 1.0);
-    const double zr =
-        (std::log(r.features.rms_res) - cls.log_rms_stats[m].mean) / (c_n * cls.log_rms_stats[m].stddev);
-    const double ze =
-        (r.features.entropy_res - cls.entropy_stats[m].mean) / (c_n * cls.entropy_stats[m].stddev);
-    EXPECT_NEAR(r.z_rms, zr, 1e-9 * std::max(1.0, std::abs(zr)));
-    EXPECT_NEAR(r.z_entropy, ze, 1e-9 * std::max(1.0, std::abs(ze)));
-    // Cap h_alarm + (n - k) cusum_k with the engine's k-of-n 3 of 5: 7 + 2 = 9.
-    const double cap = seq.h_alarm + 2.0 * seq.k;
-    s_rms[c] = std::min(cap, std::max(0.0, s_rms[c] + zr - seq.k));
-    s_hi[c] = std::min(cap, std::max(0.0, s_hi[c] + ze - seq.k));
-    s_lo[c] = std::min(cap, std::max(0.0, s_lo[c] - ze - seq.k));
-    const double mine = std::max(s_rms[c], std::max(s_hi[c], s_lo[c]));
-    EXPECT_NEAR(r.seq_statistic, mine, 1e-6);
-    const double worst = std::max(std::max(s_rms[0], std::max(s_hi[0], s_lo[0])),
-                                  std::max(s_rms[1], std::max(s_hi[1], s_lo[1])));
-    EXPECT_NEAR(r.seq_max_statistic, worst, 1e-6);
-    EXPECT_EQ(r.seq_alarm, worst >= seq.h_alarm);
-    EXPECT_EQ(r.seq_warn, worst >= seq.h_warn);
-    EXPECT_EQ(r.alarm, r.kofn_alarm || r.seq_alarm);
-    const AlarmDetector want = r.kofn_alarm
-                                   ? (r.seq_alarm ? AlarmDetector::kBoth : AlarmDetector::kKOfN)
-                                   : (r.seq_alarm ? AlarmDetector::kSequential : AlarmDetector::kNone);
-    EXPECT_EQ(r.detector, want);
-    seq_alarm_seen = seq_alarm_seen || r.seq_alarm;
-    kofn_seen = kofn_seen || r.kofn_alarm;
+  for (const double q : {3.0, 0.0}) {  // the default between-day allowance, and none (session 6)
+    const auto res = monitor(make_stream(6, 6, 0.65), 700, Method::kPtda, q);
+    SequentialConfig seq;  // defaults: k 1, warn 4, alarm 7
+    seq.day_allowance = q;
+    std::vector<double> s_rms(2, 0.0), s_hi(2, 0.0), s_lo(2, 0.0);
+    bool seq_alarm_seen = false;
+    bool kofn_seen = false;
+    for (const WindowResult& r : res) {
+      ASSERT_EQ(r.status, WindowStatus::kScored);
+      const auto c = static_cast<std::size_t>(r.class_id);
+      const ClassBaseline& cls = baseline_->classes[c];
+      const auto m = static_cast<std::size_t>(Method::kPtda);
+      // Small-sample scale: n = 48 (class 0) and 36 (class 1) training windows.
+      const double c_n = small_sample_scale(cls.log_rms_stats[m].n, baseline_->policy);
+      EXPECT_GT(c_n, 1.0);
+      const double zr =
+          (std::log(r.features.rms_res) - cls.log_rms_stats[m].mean) / (c_n * cls.log_rms_stats[m].stddev);
+      const double ze =
+          (r.features.entropy_res - cls.entropy_stats[m].mean) / (c_n * cls.entropy_stats[m].stddev);
+      EXPECT_NEAR(r.z_rms, zr, 1e-9 * std::max(1.0, std::abs(zr)));
+      EXPECT_NEAR(r.z_entropy, ze, 1e-9 * std::max(1.0, std::abs(ze)));
+      // One training recording: the between-day sd is the prior 0.3 x within, so each statistic's allowance
+      // is k + 3 x 0.3 x sqrt(1 + 1/1) / c_n (docs/method.md §6).
+      const double extra = q * baseline_->policy.day_sd_floor * std::sqrt(2.0) / c_n;
+      EXPECT_EQ(cls.day_spread[m].recordings, 1U);
+      EXPECT_NEAR(r.seq_allowance_rms, extra, 1e-9);
+      EXPECT_NEAR(r.seq_allowance_entropy, extra, 1e-9);
+      // Cap h_alarm + (n - k) cusum_k with the engine's k-of-n 3 of 5: 7 + 2 = 9.
+      const double cap = seq.h_alarm + 2.0 * seq.k;
+      const double k_f = seq.k + extra;
+      s_rms[c] = std::min(cap, std::max(0.0, s_rms[c] + zr - k_f));
+      s_hi[c] = std::min(cap, std::max(0.0, s_hi[c] + ze - k_f));
+      s_lo[c] = std::min(cap, std::max(0.0, s_lo[c] - ze - k_f));
+      const double mine = std::max(s_rms[c], std::max(s_hi[c], s_lo[c]));
+      EXPECT_NEAR(r.seq_statistic, mine, 1e-6);
+      const double worst = std::max(std::max(s_rms[0], std::max(s_hi[0], s_lo[0])),
+                                    std::max(s_rms[1], std::max(s_hi[1], s_lo[1])));
+      EXPECT_NEAR(r.seq_max_statistic, worst, 1e-6);
+      EXPECT_EQ(r.seq_alarm, worst >= seq.h_alarm);
+      EXPECT_EQ(r.seq_warn, worst >= seq.h_warn);
+      EXPECT_EQ(r.alarm, r.kofn_alarm || r.seq_alarm);
+      const AlarmDetector want = r.kofn_alarm
+                                     ? (r.seq_alarm ? AlarmDetector::kBoth : AlarmDetector::kKOfN)
+                                     : (r.seq_alarm ? AlarmDetector::kSequential : AlarmDetector::kNone);
+      EXPECT_EQ(r.detector, want);
+      seq_alarm_seen = seq_alarm_seen || r.seq_alarm;
+      kofn_seen = kofn_seen || r.kofn_alarm;
+    }
+    // Impulses of amplitude 0.65 raise the residual by about 1-2 sd: no window of 42 leaves its (widened)
+    // band, so k-of-n never fires, but the evidence accumulates and the CUSUM reaches its alarm (measured:
+    // uncapped its largest value was 11.7 against cusum_alarm 7, so it reaches the cap of 9; at
+    // amplitude 0.5 it stays at 3.7).
+    // With the between-day allowance (about 0.95 more here, the baseline knows one recording) the same
+    // evidence no longer alarms: measured, the largest statistic was 1.57; amplitude 0.9 was the first of
+    // 0.65, 0.7, ..., 0.9 to alarm, and there k-of-n fires too (7 of 42 windows abnormal).
+    EXPECT_FALSE(kofn_seen);
+    EXPECT_EQ(seq_alarm_seen, q == 0.0) << "q " << q;
   }
-  // Impulses of amplitude 0.65 raise the residual by about 1-2 sd: one window of 42 leaves its band,
-  // so k-of-n never fires, but the evidence accumulates and the CUSUM reaches its alarm (measured:
-  // uncapped its largest value was 11.7 against cusum_alarm 7, so it reaches the cap of 9; at
-  // amplitude 0.5 it stays at 3.7).
-  EXPECT_FALSE(kofn_seen);
-  EXPECT_TRUE(seq_alarm_seen);
   // Switched off, the same data leaves every sequential field at rest and the alarm to k-of-n.
   DecisionConfig off{3, 5, {}};
   off.sequential.enabled = false;

@@ -235,6 +235,9 @@ TEST(BuildClassBaseline, ThresholdsComeFromLeaveOneOutFeatures) {
   // The closed form below holds for a residual linear in the mean: the floor gain's median is not.
   // BuildClassBaseline.LeavesTheWholeGroupOut checks leave-one-out scoring with the floor gain on.
   policy.ptda_floor_gain = false;
+  // No between-day prior: the bands are compared with fit_band() of the values alone (the widening
+  // has its own test, BuildClassBaseline.DaySpreadFromSeveralRecordings).
+  policy.day_sd_floor = 0.0;
   const ClassBaseline cls = build_class_baseline(SegmentClass{}, w, {}, policy);
 
   ASSERT_FALSE(cls.line_groups.empty());  // the tones are lines: the default line gain is exercised
@@ -301,6 +304,7 @@ TEST(BuildClassBaseline, BandsContainTheirTrainingFeaturesAndAreNonNegative) {
   ThresholdPolicy policy;
   policy.kind = ThresholdPolicy::Kind::kQuantile;
   policy.false_alarm_rate = 1e-3;
+  policy.day_sd_floor = 0.0;  // the sample quantiles themselves (the widening: day_spread_test.cpp)
   const ClassBaseline cls = build_class_baseline(SegmentClass{}, w, {}, policy);
   for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
     // Quantiles at 0.0005 / 0.9995 of 12 values are within 0.0055 of the min / max order statistic.

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "ptda/common/error.hpp"
+#include "ptda/dsp/training.hpp"
 
 namespace fs = std::filesystem;
 using ptda::Error;
@@ -52,6 +53,7 @@ Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
   b.window_len = n;
   b.gearbox = {ptda::dsp::GearboxInfo::Kind::kCycloidal, 10, 40, 41, 164.0};
   b.policy = {ptda::dsp::ThresholdPolicy::Kind::kQuantile, 1e-3, 0.1, 0.95, 0.25, false};  // no line gain
+  b.policy.day_sd_floor = 0.25;
   const auto stats = [&](std::uint32_t windows) {
     const double mean = u(rng);
     return ptda::dsp::FeatureStats{mean, pos(rng), mean - pos(rng), mean + pos(rng),
@@ -76,6 +78,14 @@ Baseline make_baseline(std::uint32_t n, std::uint32_t seed) {
       const auto part = [&] { return static_cast<std::uint32_t>(rng() % (held + 1)); };
       c.holdout[m] = {held, part(), part(), part(), part(), u(rng), pos(rng), u(rng), pos(rng)};
     }
+    for (auto& d : c.day_spread)
+      d = {static_cast<std::uint32_t>(rng() % 5) + 1,
+           pos(rng),
+           pos(rng),
+           pos(rng),
+           pos(rng),
+           pos(rng),
+           pos(rng)};
     c.windows_per_hour = 1440.0 + k;
     b.classes.push_back(c);
   }
@@ -109,6 +119,7 @@ void expect_equal(const Baseline& a, const Baseline& b) {
   EXPECT_EQ(a.policy.holdout_fraction, b.policy.holdout_fraction);
   EXPECT_EQ(a.policy.ptda_line_gain, b.policy.ptda_line_gain);
   EXPECT_EQ(a.policy.ptda_floor_gain, b.policy.ptda_floor_gain);
+  EXPECT_EQ(a.policy.day_sd_floor, b.policy.day_sd_floor);
   EXPECT_EQ(a.source, b.source);
   ASSERT_EQ(a.training.size(), b.training.size());
   for (std::size_t i = 0; i < a.training.size(); ++i) {
@@ -136,6 +147,15 @@ void expect_equal(const Baseline& a, const Baseline& b) {
       EXPECT_TRUE(same_bits(x.log_rms_stats[m].mean, y.log_rms_stats[m].mean));
       EXPECT_TRUE(same_bits(x.log_rms_stats[m].stddev, y.log_rms_stats[m].stddev));
       EXPECT_EQ(x.log_rms_stats[m].n, y.log_rms_stats[m].n);
+      const auto& dx = x.day_spread[m];
+      const auto& dy = y.day_spread[m];
+      EXPECT_EQ(dx.recordings, dy.recordings);
+      EXPECT_EQ(dx.log_rms_within_sd, dy.log_rms_within_sd);
+      EXPECT_EQ(dx.log_rms_between_est, dy.log_rms_between_est);
+      EXPECT_EQ(dx.log_rms_between_sd, dy.log_rms_between_sd);
+      EXPECT_EQ(dx.entropy_within_sd, dy.entropy_within_sd);
+      EXPECT_EQ(dx.entropy_between_est, dy.entropy_between_est);
+      EXPECT_EQ(dx.entropy_between_sd, dy.entropy_between_sd);
       const auto& hx = x.holdout[m];
       const auto& hy = y.holdout[m];
       EXPECT_EQ(hx.windows, hy.windows);
@@ -193,6 +213,24 @@ Bytes read_file(const fs::path& p) {
 constexpr std::size_t kOffWindowLen = 28;
 constexpr std::size_t kOffClassCount = 86;
 constexpr std::size_t kOffClasses = 90;
+// Version 4 tail before the CRC: day_sd_floor (f64), then per class 3 x (u32 + 6 f64) day spreads.
+constexpr std::size_t v4_tail(std::size_t classes) {
+  return 8 + classes * 3 * 52;
+}
+// Where the version-3 option flags sit in a version-4 file of `classes` classes.
+std::size_t options_at(const Bytes& b, std::size_t classes) {
+  return b.size() - 4 - v4_tail(classes) - 4;
+}
+// The same baseline as an older version: the fields added since cut off, the size and CRC fixed.
+Bytes as_version(const Bytes& v4, std::size_t classes, std::uint32_t version) {
+  Bytes b(v4.begin(), v4.end() - 4 - static_cast<std::ptrdiff_t>(v4_tail(classes)));
+  if (version < 3) b.resize(b.size() - 4);  // no option flags
+  b[8] = static_cast<std::uint8_t>(version);
+  put_u32(b, 12, static_cast<std::uint32_t>(b.size() + 4));
+  b.resize(b.size() + 4);
+  fix_crc(b);
+  return b;
+}
 
 }  // namespace
 
@@ -248,7 +286,8 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
   const std::size_t per_class = 41 + 4 * 9 + 4 + 4 * 16 + 96 + 216 + 108 + 8 + 156;
   std::size_t training = 4;
   for (const auto& t : b.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
-  ASSERT_EQ(bytes.size(), 90 + 3 * per_class + 4 + b.source.size() + training + 4 + 4);  // v3: options
+  ASSERT_EQ(bytes.size(),
+            90 + 3 * per_class + 4 + b.source.size() + training + 4 + v4_tail(3) + 4);  // v3 options, v4
   const std::size_t at_training = 90 + 3 * per_class + 4 + b.source.size();
   EXPECT_EQ(bytes[at_training], 2);                            // two training recordings
   EXPECT_EQ(bytes[at_training + 4], b.training[0].id.size());  // the first id's length
@@ -257,10 +296,15 @@ TEST(BaselineFile, ByteLayoutMatchesTheDocumentedTable) {
                   bytes.begin() + static_cast<std::ptrdiff_t>(at_training + 8 + b.training[0].id.size())),
       b.training[0].id);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 8), "PTDABASE");
-  EXPECT_EQ(bytes[8], 3);  // version 3, little-endian
-  EXPECT_EQ(
-      bytes[bytes.size() - 8] | bytes[bytes.size() - 7] | bytes[bytes.size() - 6] | bytes[bytes.size() - 5],
-      2);  // v3 option flags before the CRC: bit 1, the floor gain (default); this baseline has no line gain
+  EXPECT_EQ(bytes[8], 4);  // version 4, little-endian
+  const std::size_t opt = options_at(bytes, 3);
+  EXPECT_EQ(bytes[opt] | bytes[opt + 1] | bytes[opt + 2] | bytes[opt + 3],
+            2);  // v3 option flags: bit 1, the floor gain (default); this baseline has no line gain
+  std::uint64_t floor_bits = 0;
+  for (int i = 0; i < 8; ++i)
+    floor_bits |= static_cast<std::uint64_t>(bytes[opt + 4 + static_cast<std::size_t>(i)]) << (8 * i);
+  EXPECT_EQ(std::bit_cast<double>(floor_bits), 0.25);                 // v4: day_sd_floor
+  EXPECT_EQ(bytes[opt + 12], b.classes[0].day_spread[0].recordings);  // then class 0, method raw
   EXPECT_EQ(bytes[9] | bytes[10] | bytes[11], 0);
   std::uint64_t size = 0;
   for (int i = 0; i < 8; ++i)
@@ -303,7 +347,7 @@ TEST(BaselineFile, Version1FilesAreStillRead) {
   ASSERT_EQ(v1[8], 1);
   const Baseline read = parse_baseline(v1, "v1.bin");
   EXPECT_TRUE(read.training.empty());
-  // Written back it becomes version 3 with the same content and still no training list.
+  // Written back it becomes version 4 with the same content and still no training list.
   const Baseline again = parse_baseline(serialize_baseline(read), "v2.bin");
   expect_equal(again, read);
   // The same bytes marked version 2 lack the version-2 fields: reported, not misread.
@@ -318,13 +362,10 @@ TEST(BaselineFile, Version1FilesAreStillRead) {
 // with no options, and the line-gain option survives a round trip and prepares the line groups.
 TEST(BaselineFile, Version3OptionsAndVersion2Files) {
   Baseline b = make_baseline(8, 2);
-  b.policy.ptda_floor_gain = false;  // as a version-2 file reads: no options
-  const Bytes v3 = serialize_baseline(b);
-  Bytes v2(v3.begin(), v3.end() - 8);  // without the options and the CRC
-  v2[8] = 2;
-  put_u32(v2, 12, static_cast<std::uint32_t>(v2.size() + 4));
-  v2.resize(v2.size() + 4);
-  fix_crc(v2);
+  b.policy.ptda_floor_gain = false;  // as a version-2 file reads: no options, no day spread
+  b.policy.day_sd_floor = 0.0;
+  for (auto& c : b.classes) c.day_spread = {};
+  const Bytes v2 = as_version(serialize_baseline(b), 3, 2);
   const Baseline from_v2 = parse_baseline(v2, "v2.bin");
   EXPECT_FALSE(from_v2.policy.ptda_line_gain);
   expect_equal(from_v2, b);
@@ -342,13 +383,13 @@ TEST(BaselineFile, Version3OptionsAndVersion2Files) {
   // Bit 1: the floor gain, also handed to every class by the reader.
   b.policy.ptda_floor_gain = true;
   const Bytes fg_bytes = serialize_baseline(b);
-  EXPECT_EQ(fg_bytes[fg_bytes.size() - 8], 3U);  // options word (little-endian): bits 0 and 1
+  EXPECT_EQ(fg_bytes[options_at(fg_bytes, 3)], 3U);  // options word (little-endian): bits 0 and 1
   const Baseline fg = parse_baseline(fg_bytes, "fg.bin");
   EXPECT_TRUE(fg.policy.ptda_floor_gain);
   EXPECT_TRUE(fg.classes[0].floor_gain);
   // An unknown bit is refused, naming the known ones.
   Bytes bit2 = fg_bytes;
-  bit2[bit2.size() - 8] = 7;
+  bit2[options_at(bit2, 3)] = 7;
   fix_crc(bit2);
   EXPECT_NE(message_of(bit2).find("unknown option bits 0x00000004 (this build knows"), std::string::npos)
       << message_of(bit2);
@@ -371,10 +412,10 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
                                     std::to_string(good.size() + 1) + " (trailing bytes)");
   Bytes version = good;
-  version[8] = 4;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 4 (this build reads 1 to 3)");
+  version[8] = 5;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 5 (this build reads 1 to 4)");
   version[8] = 0;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 3)");
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 4)");
   Bytes flipped = good;
   flipped[good.size() / 2] ^= 0x01;
   const std::string crc_msg = message_of(flipped);
@@ -401,11 +442,12 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   policy[53] = 9;
   fix_crc(policy);
   EXPECT_EQ(message_of(policy),
-            "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9 for format version 3");
+            "b.bin: inconsistent baseline at byte 54: unknown threshold policy kind 9 for format version 4");
   const Baseline gb = make_baseline(8, 2);
   std::size_t training = 4;
   for (const auto& t : gb.training) training += 4 + t.id.size() + 4 + t.path.size() + 8 + 8 + 4;
-  const std::size_t at_training = good.size() - 4 - 4 - training;  // CRC, v3 options, training list
+  const std::size_t at_training =
+      good.size() - 4 - v4_tail(3) - 4 - training;  // CRC, v4 day spread, v3 options, training list
   Bytes src = good;
   put_u32(src, at_training - gb.source.size() - 4, 5);  // source shorter than stored: misaligned
   fix_crc(src);
@@ -416,11 +458,11 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   // The second recording's bytes are then read as the v3 option flags: a located error either way.
   EXPECT_EQ(message_of(fewer).rfind("b.bin: inconsistent baseline at byte", 0), 0U) << message_of(fewer);
   Bytes options = good;
-  put_u32(options, good.size() - 8, 0xCU);  // bits 2 and 3 mean nothing to this build
+  put_u32(options, options_at(good, 3), 0xCU);  // bits 2 and 3 mean nothing to this build
   fix_crc(options);
   EXPECT_EQ(
       message_of(options),
-      "b.bin: inconsistent baseline at byte " + std::to_string(good.size() - 4) +
+      "b.bin: inconsistent baseline at byte " + std::to_string(options_at(good, 3) + 4) +
           ": unknown option bits 0x0000000C (this build knows bit 0, line_gain, and bit 1, floor_gain)");
 
   // The same checks through the file API name the path.
@@ -482,10 +524,10 @@ TEST(BaselineFile, ReadsVersion1GoldenFile) {
                    std::log(s.mean) - 0.5 * (s.stddev / s.mean) * (s.stddev / s.mean));
   EXPECT_EQ(c0.holdout[ptda_m].windows, 0U);
   EXPECT_EQ(c0.windows_per_hour, 0.0);
-  // Written back, it becomes a version 3 file with the same content.
-  const Bytes v3 = serialize_baseline(b);
-  EXPECT_EQ(v3[8], 3);
-  expect_equal(parse_baseline(v3, "v3"), b);
+  // Written back, it becomes a version 4 file with the same content (floor 0, no day spread).
+  const Bytes v4 = serialize_baseline(b);
+  EXPECT_EQ(v4[8], 4);
+  expect_equal(parse_baseline(v4, "v4"), b);
 }
 
 namespace {
@@ -720,3 +762,43 @@ TEST(BaselineFile, FailedWriteLeavesPreviousFileIntact) {
   expect_equal(read_baseline(p), b);
   fs::remove_all(dir);
 }
+
+namespace {
+
+// Version 4 appends the between-day floor and the day spreads; a version-3 file (the same bytes without
+// them) reads with floor 0 and no day spread, which the sequential detector takes as the session-6
+// standardisation: no between-day allowance, the stats' own sd.
+TEST(BaselineFile, Version4DaySpreadAndVersion3Files) {
+  Baseline b = make_baseline(8, 2);
+  const Bytes v4 = serialize_baseline(b);
+  expect_equal(parse_baseline(v4, "v4.bin"), b);
+  const Baseline from_v3 = parse_baseline(as_version(v4, 3, 3), "v3.bin");
+  EXPECT_EQ(from_v3.policy.day_sd_floor, 0.0);
+  for (const auto& c : from_v3.classes) {
+    for (std::size_t m = 0; m < ptda::dsp::kMethodCount; ++m) {
+      EXPECT_EQ(c.day_spread[m].recordings, 0U);
+      const ptda::dsp::SeqScale z =
+          ptda::dsp::sequential_scale(c, static_cast<ptda::dsp::Method>(m), from_v3.policy, 3.0);
+      EXPECT_EQ(z.rms_allowance, 0.0);
+      EXPECT_EQ(z.log_rms.stddev, c.log_rms_stats[m].stddev);
+    }
+  }
+  // A negative spread is refused with its location.
+  b.classes[1].day_spread[2].entropy_between_sd = -1.0;
+  try {
+    (void)serialize_baseline(b);
+    FAIL() << "negative day spread written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("class 1 (id 8): method ptda, day spread entropy between sd is -1"),
+              std::string::npos)
+        << e.what();
+  }
+  // Truncated inside the day spreads: a located structural error.
+  Bytes cut(v4.begin(), v4.end() - 4 - 52);
+  put_u32(cut, 12, static_cast<std::uint32_t>(cut.size() + 4));
+  cut.resize(cut.size() + 4);
+  fix_crc(cut);
+  EXPECT_NE(message_of(cut).find("inconsistent baseline at byte"), std::string::npos) << message_of(cut);
+}
+
+}  // namespace

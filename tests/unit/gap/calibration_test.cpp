@@ -84,3 +84,69 @@ TEST(Calibration, SpeedExponentIsCalibratedWithinOneDirection) {
 
 }  // namespace
 }  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+TEST(Calibration, FloorSlopeIsCalibrationNotAnEffect) {
+  // The machine's floor rises by 8 dB per decade; the nominal's is white (docs/gap.md "Calibration").
+  sim::Scenario truth = test::joint_rotation_job(6);
+  truth.vibration.noise_tilt_db_per_decade = 8.0;
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 4321), truth);
+  sim::Scenario nominal = truth;
+  nominal.vibration.noise_tilt_db_per_decade = 0.0;
+  const Diagnosis d = diagnose(nominal, real, DiagnoseOptions{});
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
+  const CalibratedParam* t = find(d, "noise_tilt_db_per_decade");
+  ASSERT_NE(t, nullptr);
+  EXPECT_GT(t->sd_db, 0.0);
+  EXPECT_TRUE(t->significant) << t->sentence;
+  // Recovered within 3 sd + 1 dB/decade (the calibration stops below a 0.5 dB step).
+  EXPECT_NEAR(t->calibrated, 8.0, 3.0 * t->sd_db + 1.0) << t->sentence;
+  EXPECT_NEAR(d.calibrated_noise_tilt_db_per_decade, t->calibrated, 1e-12);
+  EXPECT_EQ(d.verdict.rfind("no unmodelled effect; nominal re-calibrated", 0), 0U) << d.verdict;
+  EXPECT_NE(d.verdict.find("slope"), std::string::npos) << d.verdict;
+}
+
+TEST(Calibration, WhiteFloorKeepsItsSlopeAtZero) {
+  // Same machine with the nominal's white floor: the slope is not reported as changed.
+  const sim::Scenario truth = test::joint_rotation_job(6);
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 4321), truth);
+  const Diagnosis d = diagnose(truth, real, DiagnoseOptions{});
+  const CalibratedParam* t = find(d, "noise_tilt_db_per_decade");
+  ASSERT_NE(t, nullptr);
+  EXPECT_FALSE(t->significant) << t->sentence;
+  EXPECT_LT(std::fabs(t->calibrated), 1.0) << t->sentence;
+}
+
+}  // namespace
+}  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+TEST(Calibration, ShaftOrderLineLevelsAreCalibration) {
+  // The machine has shaft-order lines 3 and 7 at 0.5 and 0.3 m/s^2; the nominal lists them 6 dB too low
+  // and 4 dB too high.
+  sim::Scenario truth = test::joint_rotation_job(6);
+  truth.vibration.shaft_orders = {3, 7};
+  truth.vibration.shaft_order_amplitudes = {0.5, 0.3};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 77), truth);
+  sim::Scenario nominal = truth;
+  nominal.vibration.shaft_order_amplitudes = {0.25, 0.3 * std::pow(10.0, 4.0 / 20.0)};
+  const Diagnosis d = diagnose(nominal, real, DiagnoseOptions{});
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
+  const CalibratedParam* s3 = find(d, "shaft_order_3");
+  const CalibratedParam* s7 = find(d, "shaft_order_7");
+  ASSERT_NE(s3, nullptr);
+  ASSERT_NE(s7, nullptr);
+  EXPECT_GT(s3->sd_db, 0.0);
+  EXPECT_NEAR(s3->offset_db, 6.02, 3.0 * s3->sd_db + 0.5) << s3->sentence;
+  EXPECT_NEAR(s7->offset_db, -4.0, 3.0 * s7->sd_db + 0.5) << s7->sentence;
+  EXPECT_TRUE(s3->significant);
+  EXPECT_TRUE(s7->significant);
+  EXPECT_NE(d.verdict.find("shaft order 3 is"), std::string::npos) << d.verdict;
+}
+
+}  // namespace
+}  // namespace ptda::gap

@@ -110,3 +110,44 @@ TEST(Diagnose, RunnersUpWithinTheTieMarginAreAlternatives) {
 
 }  // namespace
 }  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+TEST(Diagnose, KnocksOnAConstantSpeedRigAreFittedAtAPoissonRate) {
+  // A constant-speed rig (no torque reversal) with random knocks, 6 per second ringing at 3 kHz: the
+  // impacts candidate can only reproduce them with rate_hz > 0, which its fit now tries.
+  sim::Scenario s;
+  s.source = "test";
+  s.name = "rig";
+  s.motion.kind = sim::MotionKind::kConstant;
+  s.motion.shaft_speed_hz = 30.0;
+  s.motion.duration_s = 2.4;
+  s.motion.cycles = 1;
+  s.gearbox.kind = sim::GearboxKind::kParallel;
+  s.gearbox.z_in = 30;
+  s.gearbox.z_spur = 75;
+  s.gearbox.z_pin = 0;
+  s.vibration.gmf_amplitudes = {0.9, 0.1, 0.1};
+  s.vibration.reference_speed_rad_s = 75.398;
+  s.vibration.noise_rms = 0.5;
+  s.sensor.range_ms2 = 200.0;
+  sim::Scenario truth = s;
+  sim::EffectSpec knocks = sim::EffectSpec::with_defaults(sim::EffectKind::kImpacts);
+  knocks.set("rate_hz", 6.0);
+  knocks.set("resonance_hz", 3000.0);
+  knocks.set("amplitude_ms2", 20.0);
+  truth.effects = {knocks};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 5), truth);
+  DiagnoseOptions opt;
+  opt.candidates = {sim::EffectKind::kImpacts, sim::EffectKind::kTransferPath};
+  opt.max_effects = 1;
+  const Diagnosis d = diagnose(s, real, opt);
+  ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
+  EXPECT_EQ(d.chosen[0].effect.kind, sim::EffectKind::kImpacts) << d.verdict;
+  EXPECT_GT(d.chosen[0].effect.get("rate_hz"), 0.0);
+  EXPECT_NEAR(d.chosen[0].effect.get("resonance_hz") / 3000.0, 1.0, 0.2) << d.verdict;
+}
+
+}  // namespace
+}  // namespace ptda::gap

@@ -311,6 +311,30 @@ TEST(Effects, NoiseColorRaisesLowFrequencies) {
   EXPECT_GT(10.0 * std::log10(low), 20.0);  // about 29 dB at 25 Hz
 }
 
+TEST(Effects, NoiseColorWithTwoPolesFallsTwiceAsFast) {
+  // poles = 2: the double pole's |H|^2 = (1 - a^2)^2 / (1 + a^2) / |1 - a e^{-jw}|^4, unit variance.
+  Scenario s = rig(4.0);
+  s.vibration.gmf_amplitudes.clear();
+  s.vibration.noise_rms = 0.0;
+  const SimulatedSignals b = simulate_signals(
+      with(s, EffectKind::kNoiseColor, {{"rms_ms2", 0.5}, {"corner_hz", 50.0}, {"poles", 2.0}}), 4);
+  double e = 0.0;
+  for (double v : b.vibration.accel_ms2) e += v * v;
+  // rms over 32000 samples of noise correlated over ~1 / (2 pi 50 Hz): a few % of sampling spread.
+  EXPECT_NEAR(std::sqrt(e / static_cast<double>(b.vibration.accel_ms2.size())), 0.5, 0.05);
+  auto h2 = [](double f) {
+    const double a = std::exp(-2.0 * kPi * 50.0 / 8000.0);
+    const double w = 2.0 * kPi * f / 8000.0;
+    const double d2 = std::pow(1.0 - a * std::cos(w), 2) + std::pow(a * std::sin(w), 2);
+    return (1.0 - a * a) * (1.0 - a * a) / (1.0 + a * a) / (d2 * d2);
+  };
+  // A decade above the corner and the next octave: ~ -40 dB/decade (12 dB per octave).
+  const double p1 = band_power(b.vibration.accel_ms2, 8000, 480, 520);
+  const double p2 = band_power(b.vibration.accel_ms2, 8000, 960, 1040);
+  EXPECT_NEAR(10.0 * std::log10(h2(500.0) / h2(1000.0)), 11.64, 0.01);  // the formula at fs 8 kHz
+  EXPECT_NEAR(10.0 * std::log10(p1 / p2), 10.0 * std::log10(h2(500.0) / h2(1000.0)), 1.0);
+}
+
 TEST(Effects, DeterministicForASeed) {
   const Scenario s =
       with(with(rig(), EffectKind::kSpeedRipple, {}), EffectKind::kImpacts, {{"rate_hz", 3.0}});

@@ -99,6 +99,15 @@ TEST(ScenarioParse, WrongTypesAndValuesNameTheKey) {
                    "[gearbox]\nkind = \"parallel\"\nz_pinion = 20\nz_gear = 40\n"
                    "[vibration]\ndmf_amplitudes = [0.1]\n",
                "t.toml:9:18: vibration.dmf_amplitudes: only a cycloidal gearbox");
+  expect_error(
+      std::string(kMinimal) + "[vibration]\nshaft_orders = [5, 10]\nshaft_order_amplitudes = [0.1]\n",
+      "vibration.shaft_orders: needs one amplitude in shaft_order_amplitudes per entry");
+  expect_error(std::string(kMinimal) + "[vibration]\nshaft_orders = [56]\nshaft_order_amplitudes = [0.1]\n",
+               "vibration.shaft_orders: order 56 is GMF order 2 (a multiple of z_in)");
+  expect_error(std::string(kMinimal) + "[vibration]\nshaft_orders = [2.5]\nshaft_order_amplitudes = [0.1]\n",
+               "vibration.shaft_orders: orders must be whole numbers");
+  expect_error(std::string(kMinimal) + "[vibration]\nnoise_tilt_db_per_decade = 25.0\n",
+               "t.toml:5:28: vibration.noise_tilt_db_per_decade: must be in [-18, 18]");
 }
 
 // Issue 14 item 8: a 200 KB interface name once made an 836 MB can.log; names are limited (IFNAMSIZ)

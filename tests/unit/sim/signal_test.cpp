@@ -431,3 +431,38 @@ TEST(Can, SpeedTimestampsIncreaseWithThePeriod) {
 
 }  // namespace
 }  // namespace ptda::sim
+
+namespace ptda::sim {
+namespace {
+
+TEST(Vibration, ShaftOrderLinesFollowTheInputAngle) {
+  // Input shaft 20 Hz (z_in 28 by default: GMF 560 Hz); shaft orders 5 and 15 at 0.6 and 0.2 m/s^2.
+  Scenario s = constant_speed(20.0, 1.0);
+  s.vibration.noise_rms = 0.0;
+  s.vibration.amplitude_speed_exponent = 0.0;
+  s.vibration.shaft_orders = {15, 5};
+  s.vibration.shaft_order_amplitudes = {0.2, 0.6};
+  const MotionProfile m = build_motion(s, 1);
+  const Vibration v = synthesize_vibration(s, m, 1);
+  const double fs = m.fs_hz;
+  // Least-squares amplitude of sin/cos pairs at 100 Hz and 300 Hz over the whole second (whole periods).
+  auto amplitude = [&](double hz) {
+    double a = 0, b = 0;
+    for (std::size_t i = 0; i < v.accel_ms2.size(); ++i) {
+      const double t = static_cast<double>(i) / fs;
+      a += v.accel_ms2[i] * std::sin(2.0 * std::numbers::pi * hz * t);
+      b += v.accel_ms2[i] * std::cos(2.0 * std::numbers::pi * hz * t);
+    }
+    const double n = static_cast<double>(v.accel_ms2.size());
+    return 2.0 * std::sqrt(a * a + b * b) / n;
+  };
+  EXPECT_NEAR(amplitude(100.0), 0.6, 1e-3);
+  EXPECT_NEAR(amplitude(300.0), 0.2, 1e-3);
+  EXPECT_LT(amplitude(200.0), 1e-3);  // order 10 is not listed
+  // Same phase law as the mesh: sin(order * theta_in), theta_in = 2 pi 20 t from 0.
+  EXPECT_NEAR(fit_phase(v.accel_ms2, fs, 0, v.accel_ms2.size(), 2.0 * std::numbers::pi * 100.0, 0.0), 0.0,
+              0.01);
+}
+
+}  // namespace
+}  // namespace ptda::sim

@@ -120,7 +120,9 @@ struct CollectResult {
                                             double fs_hz, const RunOptions& options = {});
 
 /// Appends `more` to `all`, renumbering window and region sequence numbers so they stay unique
-/// (several training recordings: a region of one recording is never confused with another's).
+/// (several training recordings: a region of one recording is never confused with another's). The
+/// appended windows get the next recording index in all.recording (the first recording is 0), which
+/// training uses as the day of each window (docs/method.md §5).
 void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more);
 
 /// Keeps the windows [range.first(count), range.last(count)) in cut order and the regions they lie in.

@@ -63,6 +63,25 @@ struct ThresholdPolicy {
   /// the median little. Stored in the baseline (format >= 3, option bit 1). On by default since
   /// session 6 (docs/method.md §2 and §8).
   bool ptda_floor_gain = true;
+  /// The between-day (between-recording) standard deviation of each feature assumed when a class was
+  /// trained on one recording, as a fraction of its within-day sd (`[thresholds] day_sd_floor`,
+  /// docs/method.md §5; default measured there). With several recordings the random-effects estimate
+  /// is used instead. 0 = one recording is taken to show the whole spread (the session-6 bands).
+  double day_sd_floor = 0.3;
+};
+
+/// Within- and between-day (between-recording) spread of one method's features in one class
+/// (docs/method.md §5): a one-way random-effects decomposition of the leave-one-out features with the
+/// training recordings as groups. Standard deviations in the features' model units: ln(rms_res) and
+/// entropy_res. All 0 in baselines of format <= 3 (read as: within = the stats' stddev, no between).
+struct DaySpread {
+  std::uint32_t recordings = 0;      ///< training recordings (days) with windows in the class
+  double log_rms_within_sd = 0.0;    ///< pooled within-recording sd of ln(rms_res) (MSW^1/2)
+  double log_rms_between_est = 0.0;  ///< random-effects estimate of the between-day sd (0 for 1 recording)
+  double log_rms_between_sd = 0.0;  ///< the one used: the estimate, or day_sd_floor * within sd (1 recording)
+  double entropy_within_sd = 0.0;
+  double entropy_between_est = 0.0;
+  double entropy_between_sd = 0.0;
 };
 
 /// Bins [begin, end) of one spectral line of the healthy mean magnitude (with its leakage skirt).
@@ -107,6 +126,9 @@ struct ClassBaseline {
   /// Leave-one-out statistics of ln(rms_res): the sequential detector standardises with them.
   std::array<FeatureStats, kMethodCount> log_rms_stats{};
   std::array<HoldoutStats, kMethodCount> holdout{};
+  /// Within- and between-day spread per method (format >= 4): bands and the sequential detector's
+  /// scale and allowance use it (docs/method.md §5, §6).
+  std::array<DaySpread, kMethodCount> day_spread{};
   double windows_per_hour = 0.0;  ///< training windows of this class per hour of recording
   /// Runtime only (not stored): the line groups of mean_magnitude when the policy asks for PTDA line
   /// gains (find_line_groups(), filled by prepare_line_groups()), else empty = the paper's PTDA.

@@ -18,6 +18,9 @@ struct CollectedWindows {
   std::vector<WindowRef> refs;
   std::vector<std::vector<float>> windows;
   std::vector<RegionInfo> regions;
+  /// Per window: the index of the training recording (day) it came from, for the between-day spread
+  /// (docs/method.md §5). Empty = all windows come from one recording.
+  std::vector<std::uint32_t> recording;
 };
 
 struct ClassLearningConfig {

@@ -41,15 +41,38 @@ struct StandardScores {
 [[nodiscard]] StandardScores standardize(const Features& f, const FeatureStats& log_rms,
                                          const FeatureStats& entropy, double scale = 1.0) noexcept;
 
+/// How one class standardises a method's features for the sequential detector, and the CUSUM's extra
+/// allowance for the between-day spread (training.hpp sequential_scale(); docs/method.md §6):
+/// z_rms = (ln rms_res - log_rms.mean) / (scale log_rms.stddev), likewise for the entropy, where the
+/// stddevs are the within-day ones; the CUSUM on z_rms uses the allowance k + rms_allowance (in z
+/// units), those on z_entropy k + entropy_allowance.
+struct SeqScale {
+  FeatureStats log_rms;  ///< mean and within-day sd of ln(rms_res) (other fields unused)
+  FeatureStats entropy;  ///< mean and within-day sd of entropy_res
+  double scale = 1.0;    ///< small-sample scale c_n
+  double rms_allowance = 0.0;
+  double entropy_allowance = 0.0;
+};
+/// standardize(f, s.log_rms, s.entropy, s.scale). Thread: any. Never allocates.
+[[nodiscard]] inline StandardScores standardize(const Features& f, const SeqScale& s) noexcept {
+  return standardize(f, s.log_rms, s.entropy, s.scale);
+}
+
 /// Parameters of the per-class CUSUM on the standardised features ([decision] cusum_* keys).
 struct SequentialConfig {
   bool enabled = true;
   double k = 1.0;        ///< reference value (allowance) in standard deviations per window
   double h_warn = 4.0;   ///< decision interval of the warning level
   double h_alarm = 7.0;  ///< decision interval of the alarm level (the statistic is capped at 2 h_alarm)
+  /// Allowance for the between-day spread, in between-day standard deviations (`[decision]
+  /// cusum_day_allowance`, docs/method.md §6): a class's CUSUMs tolerate a persistent shift of the
+  /// features up to day_allowance * sd_between * sqrt(1 + 1/R) (R training days) before they
+  /// accumulate. 0 = the within-day CUSUM of session 6.
+  double day_allowance = 3.0;
 };
 
-/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10 and 0 < h_warn <= h_alarm <= 1000.
+/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h_warn <= h_alarm <= 1000 and
+/// 0 <= day_allowance <= 10.
 /// Thread: any (setup). Allocates only for the message.
 void check_sequential(const SequentialConfig& cfg);
 
@@ -74,8 +97,11 @@ enum class SeqFeature : std::uint8_t { kNone = 0, kRmsHigh = 1, kEntropyHigh = 2
 class Cusum {
  public:
   /// A non-finite z counts as z = k + 1 (one sd of evidence above the allowance), like the k-of-n
-  /// rule that counts a non-finite feature as abnormal. Thread: the owner's. Never allocates.
-  void update(double z_rms, double z_entropy, double k, double cap) noexcept;
+  /// rule that counts a non-finite feature as abnormal. extra_rms / extra_entropy are added to k for
+  /// the z_rms statistic / the two z_entropy statistics (the class's between-day allowance, SeqScale).
+  /// Thread: the owner's. Never allocates.
+  void update(double z_rms, double z_entropy, double k, double cap, double extra_rms = 0.0,
+              double extra_entropy = 0.0) noexcept;
   /// max of the three statistics and which one it is.
   [[nodiscard]] double statistic() const noexcept;
   [[nodiscard]] SeqFeature feature() const noexcept;
@@ -96,7 +122,8 @@ class Cusum {
 /// healthy standardised features with these means and sds: 1 / sum(1 / ARL_i) (rare, nearly
 /// independent crossings). Thread: any.
 [[nodiscard]] double class_cusum_arl(double z_rms_mean, double z_rms_sd, double z_entropy_mean,
-                                     double z_entropy_sd, double k, double h);
+                                     double z_entropy_sd, double k, double h, double extra_rms = 0.0,
+                                     double extra_entropy = 0.0);
 
 /// Alarm when at least k of the last n judged windows were abnormal. n <= kMaxN.
 class KOfNDebouncer {

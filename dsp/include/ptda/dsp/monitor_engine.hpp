@@ -56,9 +56,12 @@ struct WindowResult {
   AlarmDetector detector = AlarmDetector::kNone;  ///< which of them holds `alarm`
   double z_rms = 0.0;                             ///< standardised ln(rms_res) of this window (scored)
   double z_entropy = 0.0;                         ///< standardised entropy_res of this window (scored)
-  double seq_statistic = 0.0;                     ///< this window's class CUSUM after it (scored)
-  SeqFeature seq_feature = SeqFeature::kNone;     ///< which of that class's statistics is largest
-  double seq_max_statistic = 0.0;                 ///< largest CUSUM over all classes
+  /// The class's between-day allowances added to cusum_k (scored; SeqScale, docs/method.md §6).
+  double seq_allowance_rms = 0.0;
+  double seq_allowance_entropy = 0.0;
+  double seq_statistic = 0.0;                  ///< this window's class CUSUM after it (scored)
+  SeqFeature seq_feature = SeqFeature::kNone;  ///< which of that class's statistics is largest
+  double seq_max_statistic = 0.0;              ///< largest CUSUM over all classes
 };
 
 /// The decision after the verdicts: k-of-n over all scored windows and one CUSUM per class (fixed
@@ -67,8 +70,9 @@ struct WindowResult {
 class DecisionState {
  public:
   DecisionState(const DecisionConfig& decision, std::size_t classes);
-  /// A scored window of class index `cls` (< classes): reads w.verdict, w.z_rms, w.z_entropy and
-  /// fills the decision fields of w. Thread: the owner's. Never allocates or blocks.
+  /// A scored window of class index `cls` (< classes): reads w.verdict, w.z_rms, w.z_entropy,
+  /// w.seq_allowance_rms and w.seq_allowance_entropy and fills the decision fields of w. Thread: the owner's.
+  /// Never allocates or blocks.
   void scored(WindowResult& w, std::size_t cls) noexcept;
   /// A window not judged: its decision fields repeat the current state. Never allocates or blocks.
   void unscored(WindowResult& w) const noexcept;
@@ -117,8 +121,8 @@ class MonitorEngine {
   Method method_;
   WindowSlicer slicer_;
   WindowAnalyzer analyzer_;
-  DecisionState decision_;       ///< per-class state sized here at configure
-  std::vector<double> z_scale_;  ///< per class: small_sample_scale() of its training windows
+  DecisionState decision_;         ///< per-class state sized here at configure
+  std::vector<SeqScale> z_scale_;  ///< per class: sequential_scale() of the method
   std::vector<float> window_;
 };
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/decision.hpp"
 
 namespace ptda::dsp {
 
@@ -34,6 +35,35 @@ namespace ptda::dsp {
 /// grows (1.28 at n = 20, 1.18 at n = 40 for alpha 1e-3, confidence 0.9). Thread: any. Never throws.
 [[nodiscard]] double small_sample_scale(std::uint32_t n, const ThresholdPolicy& policy) noexcept;
 
+/// One-way random-effects (ANOVA) decomposition of values in groups (here: the training recordings,
+/// i.e. days). With N values in R groups of n_r, group means m_r and grand mean m:
+/// MSW = sum_r sum_i (x_ri - m_r)^2 / (N - R), MSB = sum_r n_r (m_r - m)^2 / (R - 1),
+/// n0 = (N - sum_r n_r^2 / N) / (R - 1), between_var = max(0, (MSB - MSW) / n0) (the method-of-moments
+/// estimator; Searle, Casella & McCulloch, Variance Components, 3.5). One group: within_var is the
+/// sample variance (N - 1), between_var 0. N == R (one value per group): within and between cannot be
+/// told apart; within_var is then the sample variance and between_var 0. Empty `groups`: one group.
+/// Throws ptda::Error when groups.size() is neither 0 nor values.size() or there are no values.
+/// Thread: any. Allocates (per-group sums).
+struct VarianceComponents {
+  double mean = 0.0;         ///< grand mean of all values
+  double within_var = 0.0;   ///< MSW
+  double between_var = 0.0;  ///< max(0, (MSB - MSW) / n0)
+  double msb = 0.0;          ///< MSB (0 for one group)
+  double n0 = 0.0;           ///< effective group size (0 for one group)
+  std::uint32_t groups = 0;  ///< R
+  std::uint32_t n = 0;       ///< N
+};
+[[nodiscard]] VarianceComponents variance_components(std::span<const double> values,
+                                                     std::span<const std::uint32_t> groups);
+
+/// The sequential detector's standardisation for `method` in class `c` (docs/method.md §6): means of the
+/// leave-one-out ln(rms_res) and entropy_res, their within-day sds (c.day_spread; the stats' stddev for a
+/// baseline of format <= 3), the small-sample scale c_n of small_sample_scale(), and the between-day
+/// allowances q sd_between sqrt(1 + 1/R) / (c_n sd_within) with q = day_allowance (0 when the baseline
+/// has no between-day spread). Thread: any. Never allocates or throws.
+[[nodiscard]] SeqScale sequential_scale(const ClassBaseline& c, Method method, const ThresholdPolicy& policy,
+                                        double day_allowance) noexcept;
+
 /// How a feature's band is modelled by a kTolerance policy (other kinds ignore it).
 enum class FeatureScale : std::uint8_t {
   kLinear = 0,  ///< two-sided tolerance interval on the values
@@ -46,10 +76,16 @@ enum class FeatureScale : std::uint8_t {
 ///  - kTolerance: kLinear: mean +- k2(n, 1 - alpha, confidence) sd; kLog: exp(m +- k1(n, 1 - alpha,
 ///    confidence) s) with m, s the mean and sd of ln(values) (needs values > 0 and n >= 3);
 /// then both ends move out by policy.margin * (hi - lo).
+/// Between-day spread (docs/method.md §5): day_ratio = sd_between / sd_within and within_ratio =
+/// sd_within / sample sd of the feature (unitless, so they hold on the ln or the linear scale); when
+/// day_ratio > 0, kGaussian and kTolerance use sample sd x within_ratio x sqrt(1 + day_ratio^2) =
+/// sqrt(sd_within^2 + sd_between^2), and kQuantile moves both quantiles away from the median by the
+/// factor within_ratio x sqrt(1 + day_ratio^2). The tolerance factor keeps n = values.size().
 /// Throws ptda::Error when there are too few values, a value is not finite, alpha is not in (0, 1)
 /// or the margin is negative. Thread: any. Allocates (kQuantile sorts a copy).
 [[nodiscard]] Band fit_band(std::span<const double> values, const ThresholdPolicy& policy,
-                            FeatureScale scale = FeatureScale::kLinear);
+                            FeatureScale scale = FeatureScale::kLinear, double day_ratio = 0.0,
+                            double within_ratio = 1.0);
 
 /// Problems with the amount of training data for the policy's false-alarm rate, one sentence each,
 /// saying how many windows would be needed: kQuantile needs n >= 2 / alpha leave-one-out values per
@@ -69,14 +105,19 @@ enum class FeatureScale : std::uint8_t {
 ///    the means of the windows whose group differs from groups[i] (groups = constant-speed region, so
 ///    overlapping windows of one cycle never enter each other's average either); a window is never
 ///    part of its own |D_avg|. Empty groups: every window is its own group.
+///  - day_spread per method: variance_components() of the leave-one-out ln(rms_res) and entropy_res with
+///    `recordings` (the training recording, i.e. day, of each window; empty = one recording) as groups;
+///    the between-day sd used pools the estimate with the prior policy.day_sd_floor * within sd
+///    (((R - 1) estimate^2 + prior^2) / R), and the bands are widened by it (fit_band()).
 /// Band lower ends are clamped at 0 (both features are non-negative).
 /// Throws ptda::Error when there are no windows, fewer than 3 groups, groups.size() is neither 0 nor M,
-/// a window has the wrong length or a non-finite sample (naming the window and sample), or N is not a
-/// RealFft length. Thread: any (offline or the daemon's training mode). Allocates; O(M) FFTs, memory
-/// O(N) beyond the windows.
+/// recordings.size() is neither 0 nor M, a window has the wrong length or a non-finite sample (naming the
+/// window and sample), or N is not a RealFft length. Thread: any (offline or the daemon's training mode).
+/// Allocates; O(M) FFTs, memory O(N) beyond the windows.
 [[nodiscard]] ClassBaseline build_class_baseline(const SegmentClass& segment,
                                                  const std::vector<std::vector<float>>& windows,
                                                  std::span<const std::uint64_t> groups,
-                                                 const ThresholdPolicy& policy);
+                                                 const ThresholdPolicy& policy,
+                                                 std::span<const std::uint32_t> recordings = {});
 
 }  // namespace ptda::dsp

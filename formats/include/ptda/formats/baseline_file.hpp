@@ -18,8 +18,10 @@ namespace ptda::formats {
 /// threshold confidence and hold-out fraction, per class the ln(rms_res) statistics, windows per hour
 /// and hold-out results, and after the source text the training recordings. Version 1 files are still
 /// read (log statistics derived from the linear ones, no hold-out, no training list). Version 3 appends
-/// option flags before the CRC (bit 0: PTDA line gain); versions 1 and 2 read with no options.
-inline constexpr std::uint32_t kBaselineFormatVersion = 3;
+/// option flags before the CRC (bit 0: PTDA line gain); versions 1 and 2 read with no options. Version 4
+/// appends the between-day floor and per class and method the day spread (dsp::DaySpread); versions
+/// 1 to 3 read with floor 0 and no day spread (the session-6 standardisation, same verdicts).
+inline constexpr std::uint32_t kBaselineFormatVersion = 4;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 
 /// Throws ptda::Error for an inconsistent baseline, ptda::WriteError (naming the path, the failed step

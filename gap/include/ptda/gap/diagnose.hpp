@@ -63,12 +63,13 @@ struct CandidateResult {
 
 /// One calibrated parameter of the nominal model (docs/gap.md "Calibration").
 struct CalibratedParam {
-  std::string name;          ///< "gmf_order_2", "noise_rms"
-  int order = 0;             ///< GMF order (0: not a harmonic)
-  double nominal = 0.0;      ///< the nominal scenario's value
-  double calibrated = 0.0;   ///< after calibration on the fit part
-  double offset_db = 0.0;    ///< 20 log10(calibrated / nominal)
-  double sd_db = 0.0;        ///< sampling standard deviation of the offset (measured fit part's spread)
+  std::string name;         ///< "gmf_order_2", "noise_rms"
+  int order = 0;            ///< GMF order (0: not a harmonic)
+  double nominal = 0.0;     ///< the nominal scenario's value
+  double calibrated = 0.0;  ///< after calibration on the fit part
+  double offset_db =
+      0.0;             ///< 20 log10(calibrated / nominal); the floor tilt: calibrated - nominal (dB/decade)
+  double sd_db = 0.0;  ///< sampling standard deviation of the offset (measured fit part's spread)
   bool significant = false;  ///< |offset| > max(1 dB, 2 sd)
   std::string sentence;      ///< "order 2 is 6.1 dB below the nominal (+- 0.4 dB)"
 };
@@ -99,6 +100,7 @@ struct Diagnosis {
   bool recalibrated = false;                 ///< any calibration parameter significant
   std::vector<double> calibrated_gmf_amplitudes;
   double calibrated_noise_rms = 0.0;
+  double calibrated_noise_tilt_db_per_decade = 0.0;
   GapBreakdown nominal_heldout;            ///< calibrated nominal model vs held-out cycles
   double nominal_heldout_replicate = 0.0;  ///< the same against a second model realisation
   double noise_gap = 0.0;     ///< held-out gap expected from sampling alone (measured cycles' spread)

@@ -40,6 +40,7 @@ struct ProbeSet {
   std::vector<ProbeElement> elements;
   std::vector<ClassReference> classes;  ///< indexed like AnalysisPlan::speeds
   std::size_t windows = 0;
+  double fs_hz = 0.0;  ///< the recording's rate (the floor tilt's pivot, sim::noise_tilt_pivot_hz)
   // For calibration and effect initialisation (averaged spectra in power, amplitude^2 of a sine).
   std::map<int, std::vector<double>> class_power;  ///< per constant class
   std::vector<double> accel_power;
@@ -53,7 +54,8 @@ struct ProbeSet {
 
 struct ProbeContext {
   sim::GearboxSpec gearbox;
-  std::vector<int> nominal_orders;  ///< GMF orders with a non-zero nominal amplitude
+  std::vector<int> nominal_orders;        ///< GMF orders with a non-zero nominal amplitude
+  std::vector<int> nominal_shaft_orders;  ///< input-shaft orders with a non-zero nominal line amplitude
   AnalysisPlan plan;
 };
 
@@ -86,9 +88,12 @@ struct GapBreakdown {
   };
   std::vector<Top> top;                    ///< largest contributions, descending (at most 12)
   std::vector<double> harmonic_offset_db;  ///< profiled-out per-order level offsets (real - sim), by order
-  double noise_offset_db = 0.0;            ///< profiled-out overall noise-floor offset
-  double expected = 0.0;                   ///< gap expected from sampling alone (0 without a noise model)
-  double expected_sd = 0.0;                ///< its standard deviation
+  double noise_offset_db = 0.0;            ///< profiled-out noise-floor offset at the tilt pivot
+  double noise_tilt_db_per_decade = 0.0;   ///< profiled-out noise-floor slope (real - sim)
+  std::map<int, double>
+      shaft_order_offset_db;  ///< profiled-out level offsets of the nominal shaft-order lines
+  double expected = 0.0;      ///< gap expected from sampling alone (0 without a noise model)
+  double expected_sd = 0.0;   ///< its standard deviation
 };
 
 /// Sampling variance per element ("probe/key" -> variance in the element's units) to add to its fixed
@@ -96,16 +101,20 @@ struct GapBreakdown {
 using ElementVariance = std::map<std::string, double>;
 
 /// gap = sum over probes of mean z^2 over the probe's elements, after profiling out the nominal model's
-/// free parameters: per-order harmonic level offsets (mean over classes) and one noise-floor offset
-/// (median over constant-speed bands). Elements present on one side only are skipped. With `noise`,
-/// each element's scale is widened by its sampling variance, and the breakdown carries the gap expected
-/// from sampling alone and its standard deviation (chi-square approximation).
+/// free parameters: per-order harmonic and shaft-order line level offsets (mean over classes) and the
+/// noise floor's level and
+/// slope (a robust line in dB against log10 frequency over the constant-speed bands: Theil-Sen slope,
+/// median intercept at sim::noise_tilt_pivot_hz). Elements present on one side only are skipped. With
+/// `noise`, each element's scale is widened by its sampling variance, and the breakdown carries the gap
+/// expected from sampling alone and its standard deviation (chi-square approximation).
 [[nodiscard]] GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim,
                                           const ElementVariance* noise = nullptr);
 
 /// The per-element differences real - sim after profiling out the free parameters (as compare_probes
 /// uses them), keyed "probe/key", plus the profiled-out offsets themselves ("calib/order.kK" per GMF
-/// order, "calib/noise_offset"; dB), whose jackknife variance is the calibration's uncertainty.
+/// order, "calib/shaft.sJ" per nominal shaft order, "calib/noise_offset"; dB; "calib/noise_tilt",
+/// dB/decade), whose jackknife variance is the
+/// calibration's uncertainty.
 [[nodiscard]] std::map<std::string, double> profiled_differences(const ProbeSet& real, const ProbeSet& sim);
 
 /// Jackknife over cycles: the sampling variance of each element's profiled value when the probes use

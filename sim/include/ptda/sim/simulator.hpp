@@ -86,7 +86,15 @@ struct VibrationSpec {
   double reference_speed_rad_s = 1.0;     ///< output speed where the amplitudes apply
   double amplitude_speed_exponent = 1.0;  ///< A_k(w) = A_k * (|w| / w_ref)^exponent
   std::vector<double> dmf_amplitudes;     ///< cycloid mesh harmonics (small), same speed law
-  double noise_rms = 0.05;                ///< white Gaussian background
+  double noise_rms = 0.05;                ///< Gaussian background (white, or its level at the tilt's pivot)
+  /// Spectral tilt of the background: its PSD changes by this many dB per decade, with noise_rms kept
+  /// as the white level at noise_tilt_pivot_hz(fs) (ptda/sim/noise_tilt.hpp). 0: white. |tilt| <= 18.
+  double noise_tilt_db_per_decade = 0.0;
+  /// Lines at whole orders of the input shaft that are not GMF harmonics (unbalance, run-out, a second
+  /// shaft or belt, the GFD rig's multiples of 5): sin(order * theta_in), amplitude at the reference
+  /// speed with the mesh's speed law. Orders must be > 0, distinct and not multiples of z_in.
+  std::vector<int> shaft_orders;
+  std::vector<double> shaft_order_amplitudes;  ///< one per entry of shaft_orders
   /// Cycle-to-cycle variation of the mesh (payload, temperature, lubrication, load sharing): in job
   /// cycle c, GMF entry k is multiplied by exp(rel * z_ck), z_ck ~ N(0, 1) independent per cycle and
   /// entry (log-normal: median 1, relative spread ~rel). 0: off, every cycle has the same amplitudes.
