@@ -37,6 +37,7 @@ struct SpeedFrames {
   double period_true_s;
   Rng rng;
   std::uint64_t k = 0;
+  PieceCursor cursor;  // the speed frames' instants increase
 
   SpeedFrames(const Scenario& s, const MotionProfile& mp, std::uint64_t seed)
       : c(s.can),
@@ -44,14 +45,15 @@ struct SpeedFrames {
         spec(s.can.speed_frame),
         start_ns(seconds_to_ns(s.start_time_s)),
         period_true_s(s.can.period_s * (1.0 + s.can.clock_drift_ppm * 1e-6)),
-        rng(seed, kStreamCan) {
+        rng(seed, kStreamCan),
+        cursor(mp) {
     spec.period_s = c.period_s;
   }
   bool next(SimCanFrame& f) {
     const double t = c.clock_offset_s + static_cast<double>(k) * period_true_s;
     if (t > m.duration_s) return false;
     ++k;
-    const MotionState st = motion_at(m, t);
+    const MotionState st = motion_at(m, cursor, t);
     const double jitter = c.jitter_s * rng.uniform();
     const std::int64_t t_ns = round_to_us(start_ns + seconds_to_ns(t + c.delay_s + jitter));
     f.frame = config::encode_speed(spec, t_ns, st.speed_rad_s, st.angle_rad);

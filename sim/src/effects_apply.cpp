@@ -112,7 +112,8 @@ struct SignalEffects::Step {
   bool active = false;
   // impacts: knocks at torque reversals (pieces in order), then random (Poisson) knocks
   double amp = 0.0, f_res = 0.0, zeta = 0.0, rate = 0.0;
-  std::size_t piece = 0;
+  std::optional<PieceCursor> rev;  // the next piece to look at for a reversal
+  bool rev_done = false;
   double last_sign = 0.0;
   bool random_pending = false;
   double t_random = 0.0;
@@ -151,6 +152,7 @@ SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uin
         st.zeta = e.get("damping_ratio");
         st.rate = e.get("rate_hz");
         st.active = st.amp > 0.0;
+        if (st.active) st.rev.emplace(m);
         if (st.active && st.rate > 0.0) {
           st.t_random = 0.0;
           st.t_random += -std::log(1.0 - st.rng.uniform()) / st.rate;
@@ -222,17 +224,20 @@ void SignalEffects::schedule(std::size_t i_end) {
     if (st.kind != EffectKind::kImpacts || !st.active) continue;
     // Torque reversals: every start of an acceleration piece whose sign differs from the last non-zero
     // one (start from rest, start of braking, reversal). Backlash closes there.
-    const std::vector<MotionPiece>& pieces = m_->pieces;
-    for (; st.piece < pieces.size(); ++st.piece) {
-      const MotionPiece& p = pieces[st.piece];
+    while (!st.rev_done) {
+      const MotionPiece p = st.rev->current();
       const double sg = sign_of(p.accel_rad_s2);
-      if (sg == 0.0) continue;
-      if (sg != st.last_sign) {
+      if (sg != 0.0 && sg != st.last_sign) {
         if (start_of(p.t0_s) >= i_end) break;
         st.reversals.add(make_ringing(fs, p.t0_s, st.amp, st.f_res, st.zeta));
         ++impacts_;
       }
-      st.last_sign = sg;
+      if (sg != 0.0) st.last_sign = sg;
+      if (st.rev->has_next()) {
+        st.rev->advance();
+      } else {
+        st.rev_done = true;
+      }
     }
     while (st.random_pending && start_of(st.t_random) < i_end) {
       st.random.add(make_ringing(fs, st.t_random, st.amp, st.f_res, st.zeta));

@@ -295,40 +295,17 @@ MotionProfile build_motion_plan(const Scenario& s, std::uint64_t seed) {
     prof.pieces.reserve(static_cast<std::size_t>(m.cycles) * (plan.pieces.size() + 3) + 1);
     prof.plateaus.reserve(static_cast<std::size_t>(m.cycles) * plan.plateaus.size());
     prof.cycle_start_s.reserve(m.cycles);
-    Rng rng(seed, kStreamJitter);
-    double t = 0.0;
-    double angle = m.via_points_rad.front();
-    auto hold = [&](double dur, std::uint32_t c) {
-      if (dur <= 0.0) return;
-      prof.pieces.push_back(MotionPiece{t, t + dur, angle, 0.0, 0.0, c});
-      t += dur;
-    };
-    hold(m.lead_in_s, 0);
-    for (std::uint32_t c = 0; c < m.cycles; ++c) {
-      // [drift] program pause: the robot stands still before every pause_every_cycles-th cycle.
-      if (s.drift.pauses_on() && c > 0 && c % s.drift.pause_every_cycles == 0) {
-        prof.pause_start_s.push_back(t);
-        hold(s.drift.pause_s, c);
-      }
-      hold(m.start_jitter_s * rng.uniform(), c);
-      const double t_cycle = t;
-      const double a_cycle = angle;
-      prof.cycle_start_s.push_back(t_cycle);
-      for (const MotionPiece& p : plan.pieces) {
-        prof.pieces.push_back(MotionPiece{t_cycle + p.t0_s, t_cycle + p.t1_s, a_cycle + p.angle0_rad,
-                                          p.speed0_rad_s, p.accel_rad_s2, c});
-      }
-      for (const Plateau& p : plan.plateaus) {
-        prof.plateaus.push_back(Plateau{c, t_cycle + p.t_start_s, t_cycle + p.t_end_s, p.speed_rad_s});
-      }
-      if (!plan.pieces.empty()) {
-        const MotionPiece& last = plan.pieces.back();
-        const double dur = last.t1_s - last.t0_s;
-        angle = a_cycle + last.angle0_rad + last.speed0_rad_s * dur + 0.5 * last.accel_rad_s2 * dur * dur;
-      }
-      t = t_cycle + plan.duration_s;
-      hold(m.dwell_s, c);
+    const LazyMotionPlan lp{m, s.drift, std::move(plan), seed};
+    CycleWalker walker(lp);
+    PlanCycle cyc;
+    double pause_start = -1.0;
+    while (walker.next(cyc, &pause_start)) {
+      if (pause_start >= 0.0) prof.pause_start_s.push_back(pause_start);
+      prof.cycle_start_s.push_back(cyc.start_s);
+      prof.pieces.insert(prof.pieces.end(), cyc.pieces.begin(), cyc.pieces.end());
+      prof.plateaus.insert(prof.plateaus.end(), cyc.plateaus.begin(), cyc.plateaus.end());
     }
+    const double t = walker.t_s();
     prof.duration_s = t;
   }
   if (prof.duration_s <= 0.0 || prof.pieces.empty()) throw Error(where + ": the motion has zero duration");
@@ -338,14 +315,178 @@ MotionProfile build_motion_plan(const Scenario& s, std::uint64_t seed) {
   return prof;
 }
 
+CycleWalker::CycleWalker(const LazyMotionPlan& lp)
+    : lp_(&lp), rng_(lp.seed, kStreamJitter), angle_(lp.motion.via_points_rad.front()) {}
+
+bool CycleWalker::next(PlanCycle& out, double* pause_start_s) {
+  const MotionSpec& m = lp_->motion;
+  const CyclePlan& plan = lp_->plan;
+  if (pause_start_s != nullptr) *pause_start_s = -1.0;
+  if (c_ >= m.cycles) return false;
+  const std::uint32_t c = c_++;
+  out.cycle = c;
+  out.pieces.clear();
+  out.plateaus.clear();
+  auto hold = [&](double dur) {
+    if (dur <= 0.0) return;
+    out.pieces.push_back(MotionPiece{t_, t_ + dur, angle_, 0.0, 0.0, c});
+    t_ += dur;
+  };
+  if (c == 0) hold(m.lead_in_s);
+  // [drift] program pause: the robot stands still before every pause_every_cycles-th cycle.
+  if (lp_->drift.pauses_on() && c > 0 && c % lp_->drift.pause_every_cycles == 0) {
+    if (pause_start_s != nullptr) *pause_start_s = t_;
+    hold(lp_->drift.pause_s);
+  }
+  hold(m.start_jitter_s * rng_.uniform());
+  const double t_cycle = t_;
+  const double a_cycle = angle_;
+  out.start_s = t_cycle;
+  for (const MotionPiece& p : plan.pieces) {
+    out.pieces.push_back(MotionPiece{t_cycle + p.t0_s, t_cycle + p.t1_s, a_cycle + p.angle0_rad,
+                                     p.speed0_rad_s, p.accel_rad_s2, c});
+  }
+  for (const Plateau& p : plan.plateaus) {
+    out.plateaus.push_back(Plateau{c, t_cycle + p.t_start_s, t_cycle + p.t_end_s, p.speed_rad_s});
+  }
+  if (!plan.pieces.empty()) {
+    const MotionPiece& last = plan.pieces.back();
+    const double dur = last.t1_s - last.t0_s;
+    angle_ = a_cycle + last.angle0_rad + last.speed0_rad_s * dur + 0.5 * last.accel_rad_s2 * dur * dur;
+  }
+  t_ = t_cycle + plan.duration_s;
+  hold(m.dwell_s);
+  return true;
+}
+
+MotionProfile build_motion_lazy(const Scenario& s, std::uint64_t seed) {
+  if (s.motion.kind != MotionKind::kLspb) return build_motion_plan(s, seed);
+  const MotionSpec& m = s.motion;
+  const std::string where = s.source.empty() ? std::string("scenario") : s.source;
+  MotionProfile prof;
+  prof.fs_hz = s.sensor.fs_hz;
+  prof.cycles = m.cycles;
+  if (m.cycles == 0) throw Error(where + ": [motion] cycles must be >= 1");
+  auto lp = std::make_shared<LazyMotionPlan>();
+  try {
+    lp->plan = plan_cycle(m);
+  } catch (const Error& e) {
+    throw Error(where + ": [motion] " + e.what());
+  }
+  lp->motion = m;
+  lp->drift = s.drift;
+  lp->seed = seed;
+  // One walk for the duration and the pauses (what build_motion_plan stores besides the cycles' parts).
+  CycleWalker walker(*lp);
+  PlanCycle cyc;
+  double pause_start = -1.0;
+  bool any_piece = false;
+  while (walker.next(cyc, &pause_start)) {
+    if (pause_start >= 0.0) prof.pause_start_s.push_back(pause_start);
+    any_piece = any_piece || !cyc.pieces.empty();
+  }
+  prof.duration_s = walker.t_s();
+  if (prof.duration_s <= 0.0 || !any_piece) throw Error(where + ": the motion has zero duration");
+  const double samples = std::round(prof.duration_s * prof.fs_hz);
+  if (samples > 2.0e9) throw Error(where + ": the recording would exceed 2e9 samples");
+  prof.lazy = std::move(lp);
+  return prof;
+}
+
+void for_each_cycle(const MotionProfile& m, const std::function<bool(const PlanCycle&)>& fn) {
+  PlanCycle cyc;
+  if (m.lazy) {
+    CycleWalker walker(*m.lazy);
+    while (walker.next(cyc)) {
+      if (!fn(cyc)) return;
+    }
+    return;
+  }
+  // Stored: the pieces and plateaus of each cycle (the lead-in with cycle 0).
+  std::size_t k = 0;
+  std::size_t q = 0;
+  for (std::uint32_t c = 0; c < m.cycle_start_s.size(); ++c) {
+    cyc.cycle = c;
+    cyc.start_s = m.cycle_start_s[c];
+    cyc.pieces.clear();
+    cyc.plateaus.clear();
+    for (; k < m.pieces.size() && m.pieces[k].cycle == c; ++k) cyc.pieces.push_back(m.pieces[k]);
+    for (; q < m.plateaus.size() && m.plateaus[q].cycle == c; ++q) cyc.plateaus.push_back(m.plateaus[q]);
+    if (!fn(cyc)) return;
+  }
+}
+
+struct PieceCursor::Walk {
+  explicit Walk(const LazyMotionPlan& lp) : walker(lp) {}
+  CycleWalker walker;
+  PlanCycle cycle;
+  std::vector<MotionPiece> buf;  // pieces of the cycles walked, from the current one on
+  std::size_t pos = 0;
+  bool done = false;
+  /// Makes buf[pos + 1] available if there is a next piece.
+  bool fill_next() {
+    while (pos + 1 >= buf.size() && !done) {
+      if (pos > 0) {  // drop what has been passed
+        buf.erase(buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(pos));
+        pos = 0;
+      }
+      if (!walker.next(cycle)) {
+        done = true;
+        break;
+      }
+      buf.insert(buf.end(), cycle.pieces.begin(), cycle.pieces.end());
+    }
+    return pos + 1 < buf.size();
+  }
+};
+
+PieceCursor::PieceCursor(const MotionProfile& m) : m_(&m) {
+  if (m.lazy) {
+    walk_ = std::make_unique<Walk>(*m.lazy);
+    walk_->fill_next();  // the first piece (and the next one when there is one)
+  }
+}
+
+PieceCursor::~PieceCursor() = default;
+PieceCursor::PieceCursor(PieceCursor&&) noexcept = default;
+PieceCursor& PieceCursor::operator=(PieceCursor&&) noexcept = default;
+
+const MotionPiece& PieceCursor::current() const noexcept {
+  return walk_ ? walk_->buf[walk_->pos] : m_->pieces[k_];
+}
+
+bool PieceCursor::has_next() {
+  return walk_ ? walk_->fill_next() : k_ + 1 < m_->pieces.size();
+}
+
+void PieceCursor::advance() {
+  if (walk_) {
+    walk_->fill_next();
+    ++walk_->pos;
+  } else {
+    ++k_;
+  }
+}
+
+MotionState motion_at(const MotionProfile& m, PieceCursor& cursor, double t_s) {
+  // As motion_at(m, t): clamped to the plan (it starts at 0 and ends at duration_s), then the first piece
+  // ending after t_s, else the last.
+  t_s = std::clamp(t_s, 0.0, m.duration_s);
+  while (cursor.has_next() && t_s >= cursor.current().t1_s) cursor.advance();
+  const MotionPiece& p = cursor.current();
+  const double tau = t_s - p.t0_s;
+  return MotionState{p.angle0_rad + p.speed0_rad_s * tau + 0.5 * p.accel_rad_s2 * tau * tau,
+                     p.speed0_rad_s + p.accel_rad_s2 * tau, p.accel_rad_s2, p.cycle};
+}
+
 std::size_t motion_samples(const MotionProfile& m) noexcept {
   return static_cast<std::size_t>(std::round(m.duration_s * m.fs_hz));
 }
 
-MotionState MotionSampler::at(std::size_t i) noexcept {
-  const double t = static_cast<double>(i) / m_->fs_hz;
-  while (k_ + 1 < m_->pieces.size() && t >= m_->pieces[k_].t1_s) ++k_;
-  const MotionPiece& p = m_->pieces[k_];
+MotionState MotionSampler::at(std::size_t i) {
+  const double t = static_cast<double>(i) / fs_hz_;
+  while (pieces_.has_next() && t >= pieces_.current().t1_s) pieces_.advance();
+  const MotionPiece& p = pieces_.current();
   const double tau = t - p.t0_s;
   return MotionState{p.angle0_rad + p.speed0_rad_s * tau + 0.5 * p.accel_rad_s2 * tau * tau,
                      p.speed0_rad_s + p.accel_rad_s2 * tau, p.accel_rad_s2, p.cycle};

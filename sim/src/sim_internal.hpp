@@ -21,6 +21,32 @@ struct CyclePlan {
 /// location) when a segment is too short for the acceleration limit.
 [[nodiscard]] CyclePlan plan_cycle(const MotionSpec& m);
 
+/// What regenerates an lspb motion plan cycle by cycle (MotionProfile::lazy).
+struct LazyMotionPlan {
+  MotionSpec motion;
+  DriftSpec drift;
+  CyclePlan plan;
+  std::uint64_t seed = 0;
+};
+
+/// The cycles of an lspb plan in order, as build_motion_plan lays them out: a pause (drift), the start
+/// jitter wait, the cycle's pieces, the dwell; cycle 0 starts with the lead-in.
+class CycleWalker {
+ public:
+  explicit CycleWalker(const LazyMotionPlan& lp);
+  /// The next cycle (its pause start, if any, in *pause_start_s); false after the last one.
+  bool next(PlanCycle& out, double* pause_start_s = nullptr);
+  /// End of what has been walked (the duration once next() returned false).
+  [[nodiscard]] double t_s() const noexcept { return t_; }
+
+ private:
+  const LazyMotionPlan* lp_;
+  Rng rng_;
+  double t_ = 0.0;
+  double angle_ = 0.0;
+  std::uint32_t c_ = 0;
+};
+
 /// PRNG stream ids (one per independent kind of draw).
 inline constexpr std::uint64_t kStreamJitter = 1;
 inline constexpr std::uint64_t kStreamNoise = 2;

@@ -49,6 +49,8 @@ struct TruthCounts {
   std::uint64_t effect_impacts = 0;
   std::uint64_t effect_clipped_samples = 0;
   std::uint64_t other_frames = 0;
+  /// The cycle variation's factors; nullptr: drawn again while printing (draw_cycle_variation's
+  /// streams, from the summary's seed), one cycle at a time.
   const CycleVariation* cycle_variation = nullptr;
 };
 
@@ -86,6 +88,47 @@ void insert_array(toml::table& t, const std::string& key, std::size_t size,
 
 std::function<void(toml::array&, std::size_t)> doubles(const std::vector<double>& v) {
   return [&v](toml::array& a, std::size_t i) { a.push_back(v[i]); };
+}
+
+/// f(start of cycle i) for i = 0, 1, 2, ... in order (a lazy plan is walked once, forwards).
+std::function<void(toml::array&, std::size_t)> per_cycle_start(const MotionProfile& m,
+                                                               std::function<double(double)> f) {
+  if (!m.lazy) return [&m, f](toml::array& a, std::size_t i) { a.push_back(f(m.cycle_start_s[i])); };
+  struct Walk {
+    explicit Walk(std::shared_ptr<const LazyMotionPlan> p) : plan(std::move(p)), walker(*plan) {}
+    std::shared_ptr<const LazyMotionPlan> plan;
+    CycleWalker walker;
+    PlanCycle cycle;
+    std::size_t next = 0;
+  };
+  auto w = std::make_shared<Walk>(m.lazy);
+  return [w, f](toml::array& a, std::size_t i) {
+    while (w->next <= i) {
+      if (!w->walker.next(w->cycle)) throw Error("truth.toml: fewer cycles than announced");
+      ++w->next;
+    }
+    a.push_back(f(w->cycle.start_s));
+  };
+}
+
+std::size_t cycle_count(const MotionProfile& m) {
+  return m.lazy ? m.cycles : m.cycle_start_s.size();
+}
+
+bool has_plateaus(const MotionProfile& m) {
+  return m.lazy ? !m.lazy->plan.plateaus.empty() : !m.plateaus.empty();
+}
+
+/// fn(plateau) for every plateau in order (stored or regenerated).
+void for_each_plateau(const MotionProfile& m, const std::function<void(const Plateau&)>& fn) {
+  if (!m.lazy) {
+    for (const Plateau& p : m.plateaus) fn(p);
+    return;
+  }
+  for_each_cycle(m, [&fn](const PlanCycle& c) {
+    for (const Plateau& p : c.plateaus) fn(p);
+    return true;
+  });
 }
 
 toml::table plateau_table(const GearboxSpec& g, double start_time_s, const Plateau& p) {
@@ -131,7 +174,8 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
                                                              : "measured");
   mo.insert("duration_s", m.duration_s);
   mo.insert("cycles", static_cast<std::int64_t>(m.cycles));
-  insert_array(mo, "cycle_start_s", m.cycle_start_s.size(), doubles(m.cycle_start_s), {"motion"}, deferred);
+  insert_array(mo, "cycle_start_s", cycle_count(m), per_cycle_start(m, [](double t) { return t; }),
+               {"motion"}, deferred);
   if (s.motion.kind == MotionKind::kLspb) {
     mo.insert("via_points_rad", to_array(s.motion.via_points_rad));
     mo.insert("accel_rad_s2", s.motion.accel_rad_s2);
@@ -143,9 +187,9 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
   }
   root.insert("motion", std::move(mo));
 
-  if (deferred == nullptr || m.plateaus.empty()) {  // streamed by write_truth (the file's last section)
+  if (deferred == nullptr || !has_plateaus(m)) {  // streamed by write_truth (the file's last section)
     toml::array plateaus;
-    for (const Plateau& p : m.plateaus) plateaus.push_back(plateau_table(g, s.start_time_s, p));
+    for_each_plateau(m, [&](const Plateau& p) { plateaus.push_back(plateau_table(g, s.start_time_s, p)); });
     root.insert("plateau", std::move(plateaus));
   }
 
@@ -166,19 +210,37 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
   }
   vb.insert("harmonics_above_nyquist", static_cast<std::int64_t>(vib.harmonics_above_nyquist));
   // The cycle variation only when on: without it truth.toml stays as it was before the feature.
-  const CycleVariation& cv = *vib.cycle_variation;
-  if (s.vibration.cycle_amplitude_jitter_rel > 0.0) {
-    vb.insert("cycle_amplitude_jitter_rel", s.vibration.cycle_amplitude_jitter_rel);
+  const VibrationSpec& vs = s.vibration;
+  const std::size_t cv_cycles = std::max<std::uint32_t>(m.cycles, 1);
+  if (vs.cycle_amplitude_jitter_rel > 0.0) {
+    vb.insert("cycle_amplitude_jitter_rel", vs.cycle_amplitude_jitter_rel);
     // [cycle][k]: factor on gmf_amplitudes[k] in that cycle
-    insert_array(
-        vb, "cycle_amplitude_factors", cv.amplitude_factors.size(),
-        [&cv](toml::array& a, std::size_t i) { a.push_back(to_array(cv.amplitude_factors[i])); },
-        {"vibration"}, deferred);
+    std::function<void(toml::array&, std::size_t)> rows;
+    if (vib.cycle_variation != nullptr) {
+      const CycleVariation& cv = *vib.cycle_variation;
+      rows = [&cv](toml::array& a, std::size_t i) { a.push_back(to_array(cv.amplitude_factors[i])); };
+    } else {  // the rows in order, as draw_cycle_variation draws them
+      auto rng = std::make_shared<Rng>(sum.seed, kStreamCycleAmplitude);
+      rows = [rng, &vs](toml::array& a, std::size_t) {
+        std::vector<double> row(vs.gmf_amplitudes.size());
+        for (double& f : row) f = std::exp(vs.cycle_amplitude_jitter_rel * rng->normal());
+        a.push_back(to_array(row));
+      };
+    }
+    insert_array(vb, "cycle_amplitude_factors", cv_cycles, std::move(rows), {"vibration"}, deferred);
   }
-  if (s.vibration.cycle_noise_jitter_rel > 0.0) {
-    vb.insert("cycle_noise_jitter_rel", s.vibration.cycle_noise_jitter_rel);
-    insert_array(vb, "cycle_noise_factors", cv.noise_factors.size(), doubles(cv.noise_factors), {"vibration"},
-                 deferred);
+  if (vs.cycle_noise_jitter_rel > 0.0) {
+    vb.insert("cycle_noise_jitter_rel", vs.cycle_noise_jitter_rel);
+    std::function<void(toml::array&, std::size_t)> factors;
+    if (vib.cycle_variation != nullptr) {
+      factors = doubles(vib.cycle_variation->noise_factors);
+    } else {
+      auto rng = std::make_shared<Rng>(sum.seed, kStreamCycleNoise);
+      factors = [rng, &vs](toml::array& a, std::size_t) {
+        a.push_back(std::exp(vs.cycle_noise_jitter_rel * rng->normal()));
+      };
+    }
+    insert_array(vb, "cycle_noise_factors", cv_cycles, std::move(factors), {"vibration"}, deferred);
   }
   root.insert("vibration", std::move(vb));
 
@@ -245,14 +307,11 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
     // Factors at each cycle start, and the state at the end: a following recording continues the drift
     // with time_offset_s = time_end_s and initial_coldness = coldness_at_end (scripts/drift_soak.sh).
     // (The model is copied into the functions: the deferred arrays are written after this returns.)
-    insert_array(
-        dt, "mesh_gain_at_cycle_start", m.cycle_start_s.size(),
-        [&m, model](toml::array& a, std::size_t i) { a.push_back(model.at(m.cycle_start_s[i]).mesh_gain); },
-        {"drift"}, deferred);
-    insert_array(
-        dt, "coldness_at_cycle_start", m.cycle_start_s.size(),
-        [&m, model](toml::array& a, std::size_t i) { a.push_back(model.at(m.cycle_start_s[i]).coldness); },
-        {"drift"}, deferred);
+    insert_array(dt, "mesh_gain_at_cycle_start", cycle_count(m),
+                 per_cycle_start(m, [model](double t) { return model.at(t).mesh_gain; }), {"drift"},
+                 deferred);
+    insert_array(dt, "coldness_at_cycle_start", cycle_count(m),
+                 per_cycle_start(m, [model](double t) { return model.at(t).coldness; }), {"drift"}, deferred);
     const DriftFactors end = model.at(m.duration_s);
     dt.insert("time_end_s", d.time_offset_s + m.duration_s);
     dt.insert("coldness_at_end", end.coldness);
@@ -359,14 +418,14 @@ void write_truth(std::ostream& out, const Scenario& s, const MotionProfile& m, c
     from = pos + marker(k).size() + 2;
   }
   out << std::string_view(text).substr(from);
-  if (!m.plateaus.empty()) {
-    for (const Plateau& p : m.plateaus) {
+  if (has_plateaus(m)) {
+    for_each_plateau(m, [&](const Plateau& p) {
       toml::table one;
       toml::array aot;
       aot.push_back(plateau_table(s.gearbox, s.start_time_s, p));
       one.insert("plateau", std::move(aot));
       out << "\n\n" << one;
-    }
+    });
   }
 }
 
@@ -375,12 +434,16 @@ void fill_summary(const Scenario& s, const MotionProfile& m, SimulationSummary& 
   sum.duration_s = m.duration_s;
   sum.samples = motion_samples(m);
   sum.fs_hz = s.sensor.fs_hz;
-  for (const Plateau& p : m.plateaus) {
+  std::vector<Plateau> first;  // the first plateau and those of cycle 0
+  for_each_plateau(m, [&first](const Plateau& p) {
+    if (first.empty() || p.cycle == 0) first.push_back(p);
+  });
+  for (const Plateau& p : first) {
     if (p.cycle != 0) break;
     sum.plateau_speeds_rad_s.push_back(p.speed_rad_s);
     sum.plateau_durations_s.push_back(p.t_end_s - p.t_start_s);
   }
-  sum.gmf_hz_at_first_plateau = m.plateaus.empty() ? 0.0 : gmf_hz(s.gearbox, m.plateaus.front().speed_rad_s);
+  sum.gmf_hz_at_first_plateau = first.empty() ? 0.0 : gmf_hz(s.gearbox, first.front().speed_rad_s);
   sum.ratio = reduction_ratio(s.gearbox);
   sum.severity_per_cycle.reserve(m.cycles);
   for (std::uint32_t c = 0; c < m.cycles; ++c) {
@@ -414,7 +477,9 @@ std::string truth_toml_streamed(const Scenario& s, const MotionProfile& m, const
   counts.effect_impacts = vib.effect_impacts;
   counts.effect_clipped_samples = vib.effect_clipped_samples;
   counts.other_frames = other_frames;
-  counts.cycle_variation = &vib.cycle_variation;
+  const CycleVariation& cv = vib.cycle_variation;
+  // Empty factors: drawn again while printing, as simulate_to_directory does.
+  counts.cycle_variation = cv.amplitude_factors.empty() && cv.noise_factors.empty() ? nullptr : &cv;
   std::ostringstream ss;
   write_truth(ss, s, m, counts, sum);
   return ss.str();
@@ -455,7 +520,7 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
   if (!s.effects.empty()) timing_scenarios(s, for_motion, for_can);
   const Scenario& sm = s.effects.empty() ? s : for_motion;
   const Scenario& sc = s.effects.empty() ? s : for_can;
-  const MotionProfile m = build_motion_plan(sm, sum.seed);
+  const MotionProfile m = build_motion_lazy(sm, sum.seed);
   fill_summary(s, m, sum);
 
   std::error_code ec;
@@ -508,7 +573,7 @@ SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem
   counts.effect_impacts = vib.effect_impacts();
   counts.effect_clipped_samples = vib.effect_clipped_samples();
   counts.other_frames = sum.can_frames - sum.speed_frames;
-  counts.cycle_variation = &vib.cycle_variation();
+  counts.cycle_variation = nullptr;  // drawn again while printing
   const std::filesystem::path truth_path = out_dir / "truth.toml";
   std::ofstream out(truth_path, std::ios::binary | std::ios::trunc);
   if (!out) throw Error(truth_path.string() + ": cannot open for writing");

@@ -106,11 +106,20 @@ struct VibrationStream::Impl {
   std::vector<Harmonic> dmf;
   std::uint32_t harmonics_above_nyquist = 0;
   std::uint32_t cycles = 1;
-  std::vector<double> harmonic_gain;  // per cycle (distributed wear)
-  std::vector<double> noise_gain;     // per cycle (distributed wear, cycle variation)
-  CycleVariation cycle_variation;
-  std::uint32_t amp_cycle = std::numeric_limits<std::uint32_t>::max();
-  std::vector<double> amp;  // GMF amplitudes of cycle amp_cycle
+  std::uint64_t seed_ = 0;
+  // The current cycle's factors, drawn when the synthesis enters it (cycles only increase along the
+  // samples): distributed wear and the cycle variation, whose factors come from their own streams in
+  // cycle order, as draw_cycle_variation() draws them for every cycle at once.
+  std::uint32_t cur_cycle = std::numeric_limits<std::uint32_t>::max();
+  double harmonic_gain = 1.0;
+  double noise_gain = 1.0;
+  std::vector<double> amp;  // GMF amplitudes of cur_cycle
+  Rng amp_rng;
+  Rng noise_rng;
+  std::uint32_t rows_drawn = 0;
+  std::vector<double>
+      amp_row;  // cycle variation factors of the last row drawn (one per gmf_amplitudes entry)
+  double noise_factor = 1.0;
   std::vector<const FaultSpec*> tooth;
   MeshPerturber pert;
   DriftModel drift;
@@ -140,6 +149,9 @@ struct VibrationStream::Impl {
         keep_impulses(keep),
         n(motion_samples(mp)),
         motion(mp),
+        seed_(seed),
+        amp_rng(seed, kStreamCycleAmplitude),
+        noise_rng(seed, kStreamCycleNoise),
         pert(sc, mp.fs_hz, seed),
         drift(sc.drift, mp.pause_start_s),
         drifting(sc.drift.load_on() || sc.drift.warmup_on()),
@@ -171,25 +183,9 @@ struct VibrationStream::Impl {
       dmf.push_back({order, vs.dmf_amplitudes[k], 0.0, k, static_cast<int>(k + 1), 1.0, 0.0});
     }
 
-    // Per-cycle gains of the faults (severity is constant within a cycle).
     cycles = std::max<std::uint32_t>(m.cycles, 1);
-    harmonic_gain.assign(cycles, 1.0);
-    noise_gain.assign(cycles, 1.0);
-    for (const FaultSpec& f : s.faults) {
-      if (f.kind != FaultKind::kDistributedWear) continue;
-      for (std::uint32_t c = 0; c < cycles; ++c) {
-        const double sev = fault_severity(f, c);
-        harmonic_gain[c] *= 1.0 + f.harmonic_gain * sev;
-        noise_gain[c] *= 1.0 + f.noise_gain * sev;
-      }
-    }
-    // Cycle-to-cycle variation: the GMF amplitudes of each cycle (the nominal ones when off, so the
-    // product below is the same as without the feature) and the noise level.
-    cycle_variation = draw_cycle_variation(vs, cycles, seed);
-    if (!cycle_variation.noise_factors.empty()) {
-      for (std::uint32_t c = 0; c < cycles; ++c) noise_gain[c] *= cycle_variation.noise_factors[c];
-    }
     amp.resize(gmf.size());
+    amp_row.assign(vs.gmf_amplitudes.size(), 1.0);
     for (const FaultSpec& f : s.faults) {
       if (f.kind == FaultKind::kSpurTooth) tooth.push_back(&f);
     }
@@ -214,17 +210,32 @@ struct VibrationStream::Impl {
       tilted.emplace(vs.noise_tilt_db_per_decade, m.fs_hz);
   }
 
-  /// GMF amplitudes of cycle c: the nominal ones times the cycle's variation factors.
-  const std::vector<double>& gmf_amplitude(std::uint32_t c) {
-    if (c != amp_cycle) {
-      const CycleVariation& cv = cycle_variation;
-      for (std::size_t j = 0; j < gmf.size(); ++j) {
-        amp[j] = cv.amplitude_factors.empty() ? gmf[j].amplitude
-                                              : gmf[j].amplitude * cv.amplitude_factors[c][gmf[j].entry];
+  /// Enters cycle c (>= the current one): the per-cycle gains of the faults (severity is constant within
+  /// a cycle) and the cycle variation (the GMF amplitudes of the cycle, the nominal ones when off, and
+  /// the noise level).
+  void enter_cycle(std::uint32_t c) {
+    const VibrationSpec& vs = s.vibration;
+    for (; rows_drawn <= c; ++rows_drawn) {
+      if (vs.cycle_amplitude_jitter_rel > 0.0) {
+        for (double& f : amp_row) f = std::exp(vs.cycle_amplitude_jitter_rel * amp_rng.normal());
       }
-      amp_cycle = c;
+      if (vs.cycle_noise_jitter_rel > 0.0)
+        noise_factor = std::exp(vs.cycle_noise_jitter_rel * noise_rng.normal());
     }
-    return amp;
+    harmonic_gain = 1.0;
+    noise_gain = 1.0;
+    for (const FaultSpec& f : s.faults) {
+      if (f.kind != FaultKind::kDistributedWear) continue;
+      const double sev = fault_severity(f, c);
+      harmonic_gain *= 1.0 + f.harmonic_gain * sev;
+      noise_gain *= 1.0 + f.noise_gain * sev;
+    }
+    if (vs.cycle_noise_jitter_rel > 0.0) noise_gain *= noise_factor;
+    for (std::size_t j = 0; j < gmf.size(); ++j) {
+      amp[j] =
+          vs.cycle_amplitude_jitter_rel > 0.0 ? gmf[j].amplitude * amp_row[gmf[j].entry] : gmf[j].amplitude;
+    }
+    cur_cycle = c;
   }
 
   /// Tooth impacts: once per spur revolution, when the defect angle passes a multiple of 2 pi (either
@@ -288,6 +299,7 @@ struct VibrationStream::Impl {
       const double theta_in = ratio * theta_out;
       const double theta_mesh = perturbed ? theta_in + pert_offset : theta_in;
       const std::uint32_t c = std::min(ms.cycle, cycles - 1);
+      if (c != cur_cycle) enter_cycle(c);
       const double sf = speed_factor(vs, ms.speed_rad_s);
       const DriftFactors d = drifting ? drift.at(static_cast<double>(i) / fs) : DriftFactors{};
       double mesh = 0.0;
@@ -296,7 +308,7 @@ struct VibrationStream::Impl {
         // and cycle-to-cycle start differences move the phase exactly as a real mesh does.
         // The orders are whole numbers: e^{i k b} by repeated rotation from e^{i b}, one sin/cos pair per
         // sample instead of one sin per harmonic (the simulator's hot loop in `ptda gap`'s fits).
-        const std::vector<double>& amp_c = gmf_amplitude(c);
+        const std::vector<double>& amp_c = amp;
         const double b = z_in * theta_mesh;
         const double c1 = std::cos(b), s1 = std::sin(b);
         double ck = 1.0, sk = 0.0;
@@ -309,7 +321,7 @@ struct VibrationStream::Impl {
           }
           mesh += amp_c[j] * (sk * gmf[j].cos_phase + ck * gmf[j].sin_phase);  // sin(k b + phi)
         }
-        mesh *= harmonic_gain[c];
+        mesh *= harmonic_gain;
         if (perturbed) mesh *= pert_gain;
         for (const FaultSpec* f : tooth) {
           const double depth = f->am_depth * fault_severity(*f, c);
@@ -332,8 +344,7 @@ struct VibrationStream::Impl {
         }
       }
       double noise = 0.0;
-      if (vs.noise_rms > 0.0)
-        noise = vs.noise_rms * noise_gain[c] * (tilted ? tilted->next(rng) : rng.normal());
+      if (vs.noise_rms > 0.0) noise = vs.noise_rms * noise_gain * (tilted ? tilted->next(rng) : rng.normal());
       if (drifting) noise *= d.noise_gain;
       x[q] = sf * mesh + noise;
     }
@@ -394,16 +405,12 @@ std::uint64_t VibrationStream::effect_clipped_samples() const noexcept {
   return impl_->effects ? impl_->effects->clipped_samples() : 0;
 }
 
-const CycleVariation& VibrationStream::cycle_variation() const noexcept {
-  return impl_->cycle_variation;
-}
-
 void VibrationStream::take_truth(Vibration& v) {
   Impl& im = *impl_;
   v.harmonics_above_nyquist = im.harmonics_above_nyquist;
   v.effect_impacts = effect_impacts();
   v.effect_clipped_samples = effect_clipped_samples();
-  v.cycle_variation = std::move(im.cycle_variation);
+  v.cycle_variation = draw_cycle_variation(im.s.vibration, im.cycles, im.seed_);
   v.impulse_times_s.clear();
   v.impulse_amplitudes_ms2.clear();
   for (std::size_t q = 0; q < im.impulse_t.size(); ++q) {

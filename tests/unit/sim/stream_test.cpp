@@ -161,8 +161,13 @@ TEST(VibrationStream, BlocksGiveTheWholeSignalsBitsAndTruth) {
   ASSERT_GT(whole.effect_impacts, 10U);
   ASSERT_GT(whole.effect_clipped_samples, 0U);
 
-  const MotionProfile plan = build_motion_plan(for_motion, s.seed);
+  // The lazy plan (pieces regenerated cycle by cycle, what simulate_to_directory streams from).
+  const MotionProfile plan = build_motion_lazy(for_motion, s.seed);
   EXPECT_TRUE(plan.angle_rad.empty());
+  EXPECT_TRUE(plan.pieces.empty());
+  ASSERT_NE(plan.lazy, nullptr);
+  EXPECT_EQ(plan.pause_start_s, whole_motion.pause_start_s);
+  EXPECT_EQ(plan.duration_s, whole_motion.duration_s);
   VibrationStream stream(for_motion, plan, s.seed, true);
   ASSERT_EQ(stream.samples(), whole.accel_ms2.size());
   std::vector<double> got;
@@ -215,10 +220,12 @@ TEST(CanStream, FramesInTheWholeLogsOrderWithSmallWindows) {
   s.motion.cycles = 4;
   s.can.other_frames_per_s = 400;  // many ties with the speed frames' microseconds
   const MotionProfile m = build_motion_plan(s, 7);
+  const MotionProfile lazy = build_motion_lazy(s, 7);
+  ASSERT_NE(lazy.lazy, nullptr);
   const std::vector<SimCanFrame> whole = generate_can(s, m, 7);
   for (const std::size_t window : {std::size_t{1}, std::size_t{13}, std::size_t{1000000}}) {
     SCOPED_TRACE(window);
-    CanStream stream(s, m, 7, window);
+    CanStream stream(s, window == 13 ? lazy : m, 7, window);
     SimCanFrame f;
     std::size_t k = 0;
     while (stream.next(f)) {
@@ -253,6 +260,15 @@ TEST(TruthToml, StreamedLongArraysAndPlateausEqualTheWholeTable) {
   const std::string whole = truth_toml_whole(s, m, v, 56, sum);
   const std::string streamed = truth_toml_streamed(s, m, v, 56, sum);
   EXPECT_EQ(streamed, whole);
+  // From the lazy plan (plateaus and cycle starts regenerated while printing).
+  const MotionProfile lazy = build_motion_lazy(s, 11);
+  ASSERT_NE(lazy.lazy, nullptr);
+  EXPECT_EQ(truth_toml_streamed(s, lazy, v, 56, sum), whole);
+  EXPECT_EQ(truth_toml_whole(s, lazy, v, 56, sum), whole);
+  // The cycle variation drawn again while printing (what simulate_to_directory does).
+  Vibration drawn = v;
+  drawn.cycle_variation = CycleVariation{};
+  EXPECT_EQ(truth_toml_streamed(s, lazy, drawn, 56, sum), whole);
   EXPECT_NE(whole.find("cycle_amplitude_factors = [\n    [ "), std::string::npos);  // multi-line rows
   EXPECT_GT(whole.size(), 100000U);
 }

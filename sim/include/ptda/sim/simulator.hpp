@@ -5,6 +5,8 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -199,6 +201,8 @@ struct MotionState {
   std::uint32_t cycle = 0;
 };
 
+struct LazyMotionPlan;  // sim/src/sim_internal.hpp
+
 /// Output (joint) motion sampled on the ADC clock plus its plateaus.
 struct MotionProfile {
   double fs_hz = 0.0;
@@ -213,6 +217,43 @@ struct MotionProfile {
   std::vector<double> pause_start_s;  ///< program pauses ([drift] pause_every_cycles), each pause_s long
   std::uint32_t cycles = 0;
   double duration_s = 0.0;
+  /// Set by build_motion_lazy(): pieces, plateaus and cycle_start_s stay empty and are regenerated cycle
+  /// by cycle, in order, by PieceCursor and for_each_cycle() (what a streamed simulation reads).
+  std::shared_ptr<const LazyMotionPlan> lazy;
+};
+
+/// One job cycle of a motion plan, in order (for_each_cycle).
+struct PlanCycle {
+  std::uint32_t cycle = 0;
+  double start_s = 0.0;             ///< cycle_start_s[cycle]
+  std::vector<MotionPiece> pieces;  ///< its pieces (cycle 0 starts with the lead-in)
+  std::vector<Plateau> plateaus;    ///< its plateaus
+};
+
+/// Calls fn(const PlanCycle&) for each cycle of the plan in order (stored or lazy); stops when fn
+/// returns false. Any thread; allocates (one cycle at a time).
+void for_each_cycle(const MotionProfile& m, const std::function<bool(const PlanCycle&)>& fn);
+
+/// The plan's pieces one after the other (stored or regenerated). Thread: the owner's; allocates only
+/// one cycle's pieces at a time.
+class PieceCursor {
+ public:
+  explicit PieceCursor(const MotionProfile& m);
+  ~PieceCursor();
+  PieceCursor(PieceCursor&&) noexcept;
+  PieceCursor& operator=(PieceCursor&&) noexcept;
+  /// The current piece (the first one after construction). Needs at least one piece.
+  [[nodiscard]] const MotionPiece& current() const noexcept;
+  /// Whether a piece follows the current one.
+  [[nodiscard]] bool has_next();
+  /// Moves to the next piece (has_next() must be true).
+  void advance();
+
+ private:
+  struct Walk;
+  const MotionProfile* m_;
+  std::size_t k_ = 0;           // stored pieces: index
+  std::unique_ptr<Walk> walk_;  // lazy: the cycles being regenerated
 };
 
 /// Dead band (rad/s^2) below which an interval of a measured speed trace counts as constant speed:
@@ -247,14 +288,24 @@ struct MotionProfile {
 /// Thread: the owner's; no allocation.
 class MotionSampler {
  public:
-  explicit MotionSampler(const MotionProfile& m) noexcept : m_(&m) {}
+  explicit MotionSampler(const MotionProfile& m) : fs_hz_(m.fs_hz), pieces_(m) {}
   /// Motion at sample i (time i / fs_hz). Needs at least one piece.
-  [[nodiscard]] MotionState at(std::size_t i) noexcept;
+  [[nodiscard]] MotionState at(std::size_t i);
 
  private:
-  const MotionProfile* m_;
-  std::size_t k_ = 0;
+  double fs_hz_;
+  PieceCursor pieces_;
 };
+
+/// build_motion_plan for a streamed simulation: an lspb motion's pieces, plateaus and cycle starts are
+/// not stored but regenerated in order (MotionProfile::lazy; the same values), so that the plan's memory
+/// does not grow with the cycles; pause_start_s, cycles and duration_s are filled. Other motion kinds:
+/// build_motion_plan. Any thread; allocates.
+[[nodiscard]] MotionProfile build_motion_lazy(const Scenario& s, std::uint64_t seed);
+/// Motion at t_s (clamped to [0, duration_s]) through a cursor: motion_at() for times that do not
+/// decrease between calls, also on a lazy plan. Thread: the cursor's owner; no allocation per call
+/// beyond the cursor's cycle.
+[[nodiscard]] MotionState motion_at(const MotionProfile& m, PieceCursor& cursor, double t_s);
 
 /// Severity of fault f in job cycle `cycle`: 0 before onset_cycle, then
 /// severity * min(1, (cycle - onset + 1) / ramp_cycles) (a step when ramp_cycles = 0). Any thread; no
@@ -319,7 +370,8 @@ struct SimulatedSignals {
   std::uint64_t seed = 0;
 };
 
-/// Motion, vibration (with effects), quantisation and CAN for scenario `s` with `seed`. Deterministic.
+/// Motion, vibration (with effects), quantisation and CAN for scenario `s` with `seed`, whole in memory
+/// (O(samples): for the gap fits and tests; simulate_to_directory streams). Deterministic.
 /// Throws ptda::Error like build_motion. Any thread; allocates.
 [[nodiscard]] SimulatedSignals simulate_signals(const Scenario& s, std::uint64_t seed);
 
@@ -343,7 +395,10 @@ struct SimulationSummary {
 };
 
 /// Writes a recording directory (recording.toml, vibration.wav, can.log, truth.toml), creating it.
-/// `seed` overrides the scenario seed when set. Throws ptda::Error. Any thread; allocates; file I/O.
+/// `seed` overrides the scenario seed when set. Streams (sim/include/ptda/sim/stream.hpp, docs/simulator.md
+/// "Streaming"): memory does not grow with the samples, nor with an lspb motion's cycles beyond 8 bytes
+/// per cycle (severity_per_cycle); the files are the ones simulate_signals() would give. Throws
+/// ptda::Error. Any thread; allocates; file I/O.
 SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
                                         std::optional<std::uint64_t> seed = std::nullopt);
 

@@ -1,5 +1,5 @@
 // Streaming synthesis: the vibration and the CAN log of a scenario block by block, with memory that does
-// not grow with the recording's length (beyond the motion plan: a few pieces per job cycle). The
+// not grow with the recording's length (with a lazy motion plan, build_motion_lazy()). The
 // whole-signal functions of simulator.hpp (synthesize_vibration, generate_can) give the same values,
 // sample for sample and frame for frame; simulate_to_directory writes through these streams.
 #pragma once
@@ -16,8 +16,9 @@ namespace ptda::sim {
 
 /// The sensor signal of synthesize_vibration() (m/s^2, effects included, before quantisation), block by
 /// block: block boundaries do not change a single bit. `s` and `m` (a motion plan from
-/// build_motion_plan() is enough) must outlive the stream. Thread: the owner's. The constructor
-/// allocates (O(cycles)); next() allocates only while knocks ring (a few ringings at a time).
+/// build_motion_plan() or build_motion_lazy() is enough) must outlive the stream. Thread: the owner's.
+/// Allocates at construction, and in next() while knocks ring (a few ringings at a time) and when a
+/// lazy plan's next cycle is generated.
 class VibrationStream {
  public:
   /// `keep_impulses`: record the spur-tooth impact times and amplitudes (impulse_times_s(); they grow
@@ -38,8 +39,8 @@ class VibrationStream {
   [[nodiscard]] std::uint64_t impulses() const noexcept;        ///< spur-tooth impacts
   [[nodiscard]] std::uint64_t effect_impacts() const noexcept;  ///< knocks of impacts effects
   [[nodiscard]] std::uint64_t effect_clipped_samples() const noexcept;
-  [[nodiscard]] const CycleVariation& cycle_variation() const noexcept;
-  /// Moves the truth into v (impulse times sorted as synthesize_vibration sorts them when kept).
+  /// Moves the truth into v (impulse times sorted as synthesize_vibration sorts them when kept; the cycle
+  /// variation drawn again: the stream keeps only the current cycle's factors).
   void take_truth(Vibration& v);
 
  private:
@@ -82,14 +83,15 @@ struct SimulateOptions {
   std::size_t can_window_frames = 65536;  ///< CanStream window
 };
 
-/// simulate_to_directory with options. Peak memory does not depend on the recording's length beyond the
-/// motion plan (O(cycles)). Throws ptda::Error. Any thread; allocates; file I/O.
+/// simulate_to_directory with options. Throws ptda::Error. Any thread; allocates; file I/O.
 SimulationSummary simulate_to_directory(const Scenario& s, const std::filesystem::path& out_dir,
                                         std::optional<std::uint64_t> seed, const SimulateOptions& options);
 
 /// truth.toml's text (without the leading comment and the final newline) for a simulation held in memory:
 /// printed whole by toml++ (`whole`) or as simulate_to_directory streams it (the plateaus and the long
-/// per-cycle arrays element by element). The two are equal; tests compare them. Any thread; allocates.
+/// per-cycle arrays element by element; vib.cycle_variation empty: its factors drawn again from sum.seed
+/// while printing, as simulate_to_directory does). The two are equal; tests compare them. Any thread;
+/// allocates.
 [[nodiscard]] std::string truth_toml_whole(const Scenario& s, const MotionProfile& m, const Vibration& vib,
                                            std::uint64_t other_frames, const SimulationSummary& sum);
 [[nodiscard]] std::string truth_toml_streamed(const Scenario& s, const MotionProfile& m, const Vibration& vib,
