@@ -126,6 +126,12 @@ TEST(SimulateStreaming, WritesTheWholeSignalBytesAtAnyBlockSize) {
 }
 
 TEST(SimulateStreaming, MatchesTheWholeSignalImplementationItReplaced) {
+#if !defined(__x86_64__)
+  // The pins are x86-64 bytes: libm's sin/cos/exp and the compiler's FMA contraction differ on other
+  // targets in the last bit, which changes float samples. The streamed-against-whole tests above hold
+  // on every target; this one pins the history on the reference target only.
+  GTEST_SKIP() << "hashes pinned from the x86-64 build of b614402";
+#endif
   // FNV-1a 64 of the files `ptda simulate --scenario <file>` wrote at commit b614402 (the whole-signal
   // implementation, before the streaming one), run in the scenario's directory so that truth.toml's
   // `source` is the bare file name. A deliberate change of the synthesis changes these: re-pin them then.
