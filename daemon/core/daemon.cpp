@@ -254,6 +254,7 @@ DaemonView Daemon::view() const noexcept {
   v.watchdog_pings = pings_.load();
   v.watchdog_skipped = pings_skipped_.load();
   v.status_writes = status_writes_.load();
+  v.status_write_failures = status_write_failures_.load();
   v.local_clears = local_clears_.load();
   return v;
 }
@@ -790,6 +791,7 @@ void Daemon::supervise(std::int64_t now) noexcept {
   if (writer_) {
     if (writer_->write(snapshot_) == StatusWriteResult::kOk)
       status_writes_.fetch_add(1, std::memory_order_relaxed);
+    status_write_failures_.store(writer_->health(StateFile::kStatus).failures, std::memory_order_relaxed);
     log_status_write_changes();
   }
   Pipeline* p = pipeline_.get();

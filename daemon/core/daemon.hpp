@@ -61,6 +61,7 @@ struct DaemonView {
   std::uint64_t watchdog_pings = 0;
   std::uint64_t watchdog_skipped = 0;  ///< pings withheld because a stage made no progress
   std::uint64_t status_writes = 0;
+  std::uint64_t status_write_failures = 0;  ///< failed status.json write attempts (StateFileHealth)
   std::uint64_t local_clears = 0;  ///< local clear commands (SIGUSR1, request_clear())
   std::uint32_t window_len = 0;    ///< of the configuration in use
   double min_hold_s = 0.0;         ///< of the configuration in use
@@ -181,7 +182,7 @@ class Daemon {
   FixedString<kStatusTextBytes> last_reload_error_;
   std::atomic<DaemonState> state_{DaemonState::kConfigured};
   std::atomic<std::uint64_t> reloads_{0}, reload_failures_{0}, pings_{0}, pings_skipped_{0},
-      status_writes_{0};
+      status_writes_{0}, status_write_failures_{0};
   mutable std::mutex reason_mutex_;  ///< guards reason_ for view()
   char status_text_[kStatusTextBytes + 160] = {};
 };
