@@ -408,12 +408,19 @@ void status_dir_deleted() {
   ASSERT_TRUE(wait_for([&] { return has(read_text(s.status()), "\"state\":"); }));
   fs::remove_all(s.status_dir());
   ASSERT_TRUE(live.reach(dev, loop / 2));
-  // (a) the directory is back (0755) with both files: the writer creates it again before any failure.
-  ASSERT_TRUE(wait_for([&] { return has(read_text(s.status()), "\"state\":") && fs::exists(s.prom()); }));
+  // (a) the directory is back (0755) with both files, and the status file reports itself healthy. A
+  // deletion that lands between a write's open and its rename fails that one attempt (ENOENT); the
+  // file written next still renders the health from before its own write, so the wait is for a
+  // status.json that says "failing":false, not for the first file back.
+  std::string st;
+  ASSERT_TRUE(wait_for([&] {
+    st = read_text(s.status());
+    return has(st, "\"state\":") && fs::exists(s.prom()) &&
+           has(state_file_json(st, "status"), "\"failing\":false");
+  })) << st;
   EXPECT_EQ(fs::status(s.status_dir()).permissions() & fs::perms::all,
             fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
                 fs::perms::others_exec);
-  EXPECT_TRUE(has(state_file_json(read_text(s.status()), "status"), "\"failing\":false"));
   // (b)
   s.expect_baseline_kept();
   // (c) the windows written into the new status.json keep counting up to the end.
