@@ -123,6 +123,7 @@ void Daemon::build_status_writer() {
     fs::create_directories(cfg_.daemon.metrics_path.parent_path(), ec);
     wc.prom_path = cfg_.daemon.metrics_path;
   }
+  wc.joint = cfg_.daemon.joint;
   for (const fs::path& p : {wc.json_path, wc.prom_path}) remove_stale_temp_files_of(p);
   writer_.reset();
   status_failing_logged_[0] = status_failing_logged_[1] = false;

@@ -186,6 +186,18 @@ class DaemonTablesBuilder {
                        {"error", "error"}})) {
       note(r, "log_level");
     }
+    if (r.read("joint", daemon_.joint)) {
+      const bool ok = !daemon_.joint.empty() && daemon_.joint.size() <= 32 &&
+                      std::all_of(daemon_.joint.begin(), daemon_.joint.end(), [](char ch) {
+                        return std::isalnum(static_cast<unsigned char>(ch)) != 0 || ch == '_' || ch == '.' ||
+                               ch == '-';
+                      });
+      if (!ok) {
+        r.fail_value("joint", "must be 1 to 32 characters of A-Z, a-z, 0-9, '_', '.' and '-', not \"" +
+                                  daemon_.joint + "\"");
+      }
+      note(r, "joint");
+    }
     get(r, "status_period_s", daemon_.status_period_s, 0.05, 60.0);
     get(r, "speed_stale_periods", daemon_.speed_stale_periods, 2.0, 100000.0);
     get(r, "sensor_stale_s", daemon_.sensor_stale_s, 0.01, 3600.0);

@@ -34,6 +34,9 @@ struct DaemonSection {
   std::filesystem::path status_dir = "/run/ptda";  ///< status.json goes here ("" = none)
   std::filesystem::path metrics_path;              ///< node_exporter textfile (*.prom); "" = off
   std::string log_level = "info";                  ///< trace, debug, info, warn, error
+  /// Name of the monitored joint ("joint4"): "joint" in status.json, the label joint="..." on every
+  /// metric. 1-32 of A-Z a-z 0-9 _ . - (it also names MQTT topics and instances). "" = none.
+  std::string joint;
   double status_period_s = 1.0;                    ///< status file, STATUS= and counter log period
   double speed_stale_periods = 25.0;               ///< no speed for this many frame periods: paused
   double sensor_stale_s = 1.0;                     ///< no vibration block for this long: paused

@@ -305,10 +305,12 @@ void render_state_files_json(Json& j, const StateFileHealth* files) noexcept {
 }
 
 /// `files`: the kStateFileCount entries of "state_files" (write() passes its live health).
-void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHealth* files) noexcept {
+void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHealth* files,
+                      std::string_view joint) noexcept {
   Json j(b);
   j.open('{');
   j.u64("version", 1);
+  if (!joint.empty()) j.str("joint", joint);
   j.str("state", daemon_state_name(s.state));
   j.str("phase", s.phase.view());
   j.str("reason", s.reason.view());
@@ -478,7 +480,7 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
 // ----------------------------------------------------------------------------------------- Prometheus
 class Prom {
  public:
-  explicit Prom(TextBuffer& b) noexcept : b_(b) {}
+  Prom(TextBuffer& b, std::string_view joint) noexcept : b_(b), joint_(joint) {}
   /// "# HELP name help\n# TYPE name type\n"
   void family(std::string_view name, std::string_view type, std::string_view help) noexcept {
     b_.append("# HELP ");
@@ -495,9 +497,15 @@ class Prom {
   void begin(std::string_view name,
              std::initializer_list<std::pair<std::string_view, std::string_view>> labels) noexcept {
     b_.append(name);
-    if (labels.size() != 0) {
+    if (labels.size() != 0 || !joint_.empty()) {
       b_.append_char('{');
       bool first = true;
+      if (!joint_.empty()) {  // the same label on every sample (several joints per textfile directory)
+        b_.append("joint=\"");
+        b_.append_label_value(joint_);
+        b_.append_char('"');
+        first = false;
+      }
       for (const auto& [k, v] : labels) {
         if (!first) b_.append_char(',');
         first = false;
@@ -545,6 +553,7 @@ class Prom {
 
  private:
   TextBuffer& b_;
+  std::string_view joint_;
 };
 
 /// Decimal text of a small integer in a caller's buffer (label values).
@@ -572,8 +581,9 @@ void render_state_files_prom(Prom& p, const StateFileHealth* files) noexcept {
   }
 }
 
-void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHealth* files) noexcept {
-  Prom p(b);
+void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHealth* files,
+                      std::string_view joint) noexcept {
+  Prom p(b, joint);
   p.family("ptda_info", "gauge",
            "Constant 1; labels: monitoring method, phase, state reason, baseline path and source.");
   p.sample("ptda_info",
@@ -739,6 +749,7 @@ StatusWriter::StatusWriter(const StatusWriterConfig& cfg) {
   json_buf_.assign(cfg.buffer_bytes, '\0');
   prom_buf_.assign(cfg.buffer_bytes, '\0');
   recreate_dir_mode_ = cfg.recreate_dir_mode;
+  joint_ = cfg.joint;
   const auto target = [](Target& t, const std::filesystem::path& p) {
     if (p.empty()) return;
     t.path = p.string();
@@ -751,7 +762,7 @@ StatusWriter::StatusWriter(const StatusWriterConfig& cfg) {
 
 std::string_view StatusWriter::render_json(const StatusSnapshot& s) noexcept {
   TextBuffer b(json_buf_.data(), json_buf_.size());
-  render_json_into(b, s, s.state_files.data());
+  render_json_into(b, s, s.state_files.data(), joint_);
   if (b.overflow()) {
     ++counters_.overflows;
     return {};
@@ -761,7 +772,7 @@ std::string_view StatusWriter::render_json(const StatusSnapshot& s) noexcept {
 
 std::string_view StatusWriter::render_prometheus(const StatusSnapshot& s) noexcept {
   TextBuffer b(prom_buf_.data(), prom_buf_.size());
-  render_prom_into(b, s, s.state_files.data());
+  render_prom_into(b, s, s.state_files.data(), joint_);
   if (b.overflow()) {
     ++counters_.overflows;
     return {};
@@ -833,7 +844,7 @@ StatusWriteResult StatusWriter::write(const StatusSnapshot& s) noexcept {
     files[kStatus].failing = false;
     files[kMetrics] = prom_.health;
     TextBuffer b(json_buf_.data(), json_buf_.size());
-    render_json_into(b, s, files.data());
+    render_json_into(b, s, files.data(), joint_);
     if (b.overflow()) ++counters_.overflows;
     merge(b.overflow() ? StatusWriteResult::kOverflow : replace_file(json_, b.view()));
   }
@@ -842,7 +853,7 @@ StatusWriteResult StatusWriter::write(const StatusSnapshot& s) noexcept {
     files[kMetrics] = prom_.health;
     files[kMetrics].failing = false;
     TextBuffer b(prom_buf_.data(), prom_buf_.size());
-    render_prom_into(b, s, files.data());
+    render_prom_into(b, s, files.data(), joint_);
     if (b.overflow()) ++counters_.overflows;
     merge(b.overflow() ? StatusWriteResult::kOverflow : replace_file(prom_, b.view()));
   }

@@ -265,6 +265,10 @@ struct StatusWriterConfig {
   /// When a file's directory is missing (deleted under the running daemon), it is created again with
   /// this mode (set with fchmod, whatever the umask); only the last path component. 0 = never.
   mode_t recreate_dir_mode = 0755;
+  /// The monitored joint's name ([daemon] joint, e.g. "joint4"): "joint" in status.json and the label
+  /// joint="..." on every metric sample, so several daemons of one cabinet can share node_exporter's
+  /// textfile directory. "" = neither (one joint per cabinet).
+  std::string joint;
 };
 
 /// Consecutive failures of a file make write() skip it for 2^(n-1) - 1 calls, at most this many.
@@ -329,6 +333,7 @@ class StatusWriter {
   std::vector<char> prom_buf_;
   Target json_, prom_;
   mode_t recreate_dir_mode_ = 0755;
+  std::string joint_;  ///< StatusWriterConfig::joint
   StatusWriterCounters counters_;
   int last_errno_ = 0;
 };

@@ -24,6 +24,7 @@ TEST(DaemonConfig, DefaultsAndOwnTablesBesideThePipeline) {
   EXPECT_EQ(c.daemon.baseline, fs::path("/var/lib/ptda/baseline.bin"));
   EXPECT_EQ(c.daemon.status_dir, fs::path("/run/ptda"));
   EXPECT_TRUE(c.daemon.metrics_path.empty());
+  EXPECT_TRUE(c.daemon.joint.empty());
   EXPECT_EQ(c.adc.backend, AdcBackend::kSim);
   EXPECT_EQ(c.can.backend, CanBackend::kSim);
   EXPECT_EQ(c.adc.block_len, 256U);
@@ -81,6 +82,14 @@ TEST(DaemonConfig, ErrorsAreLocated) {
             std::string::npos);
   EXPECT_NE(error_of(kMinimal + "[daemon]\nmetrics_path = \"/tmp/x.txt\"\n").find("must end in \".prom\""),
             std::string::npos);
+  // The joint's name labels metrics and (later) MQTT topics: no '/', '+', '#', spaces or quotes.
+  const std::string bad_joint = kMinimal + "[daemon]\njoint = \"robot 17/j4\"\n";
+  EXPECT_EQ(error_of(bad_joint),
+            "t.toml:6:9: daemon.joint must be 1 to 32 characters of A-Z, a-z, 0-9, '_', '.' and '-', not "
+            "\"robot 17/j4\"");
+  EXPECT_EQ(error_of(kMinimal + "[daemon]\njoint = \"\"\n").rfind("t.toml:6:9: daemon.joint must be", 0), 0U);
+  EXPECT_EQ(parse_daemon_config(kMinimal + "[daemon]\njoint = \"r17.j4-a_b\"\n", "t.toml").daemon.joint,
+            "r17.j4-a_b");
   const std::string zero_timeout = kMinimal + "[daemon]\ncoverage_timeout_s = 0\n";
   EXPECT_EQ(error_of(zero_timeout).rfind("t.toml:6:22: daemon.coverage_timeout_s", 0), 0U)
       << error_of(zero_timeout);

@@ -266,6 +266,40 @@ TEST(StatusWriter, EscapesIllFormedUtf8AndNul) {
   EXPECT_EQ(prom.find('\0'), std::string::npos);
 }
 
+TEST(StatusWriter, JointNameLabelsEveryMetricAndNamesTheStatus) {
+  // Several daemons of one cabinet share node_exporter's textfile directory: without a label of their
+  // own their samples would collide.
+  StatusWriterConfig c;
+  c.json_path = scratch("joint") / "status.json";
+  c.prom_path = scratch("joint") / "ptda.prom";
+  c.joint = "joint4";
+  StatusWriter w(c);
+  const StatusSnapshot s = known_snapshot();
+  const std::string prom(w.render_prometheus(s));
+  std::istringstream lines(prom);
+  std::size_t samples = 0;
+  for (std::string line; std::getline(lines, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    ++samples;
+    const auto brace = line.find('{');
+    ASSERT_NE(brace, std::string::npos) << line;
+    EXPECT_EQ(line.compare(brace, 15, "{joint=\"joint4\""), 0) << line;
+  }
+  EXPECT_GT(samples, 50U);
+  EXPECT_EQ(test::prom_samples(prom, "ptda_uptime_seconds"),
+            std::vector<std::string>{R"(ptda_uptime_seconds{joint="joint4"} 3600.25)"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_state").at(1), R"(ptda_state{joint="joint4",state="running"} 1)");
+  const std::string json(w.render_json(s));
+  EXPECT_EQ(json.rfind("{\"version\":1,\"joint\":\"joint4\",", 0), 0U) << json.substr(0, 80);
+  EXPECT_TRUE(JsonChecker(json).valid());
+  // Without a name, neither appears (one joint per cabinet, the files as before).
+  StatusWriterConfig unnamed = c;
+  unnamed.joint.clear();
+  StatusWriter plain(unnamed);
+  EXPECT_EQ(std::string(plain.render_prometheus(s)).find("joint="), std::string::npos);
+  EXPECT_EQ(std::string(plain.render_json(s)).find("\"joint\""), std::string::npos);
+}
+
 TEST(StatusWriter, FixedStringTruncates) {
   FixedString<8> f;
   f.assign("0123456789");
