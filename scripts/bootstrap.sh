@@ -2,7 +2,8 @@
 # Installs the Debian 12 packages ptda builds and tests with. Idempotent: apt runs only when something
 # is missing. Needs root (or sudo) on a fresh machine; nothing is downloaded from outside Debian.
 # Usage: scripts/bootstrap.sh [base] [cross] [vm] [pkg] [fuzz]     (base is always included)
-#   base  - includes chromium: the report test renders `ptda report` headless (ctest -L report)
+#   base  - includes chromium: the report test renders `ptda report` headless (ctest -L report), and
+#           prometheus for promtool (the fleet rules and textfile checks, ctest -L fleet)
 #   cross - aarch64/armhf cross compilers, qemu-user, the foreign architectures for apt-get download
 #           (the target libraries go into a sysroot: scripts/sysroot.sh)
 #   vm    - qemu-system for the x86_64 and aarch64 kernel tests, busybox, cpio
@@ -17,6 +18,7 @@ BASE=(
   libgpiod-dev libsystemd-dev can-utils systemd
   python3-numpy
   chromium
+  prometheus
 )
 CROSS=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev)
 VM=(qemu-system-x86 qemu-system-arm busybox-static cpio iproute2 can-utils gpiod dpkg-dev xz-utils)

@@ -8,7 +8,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -298,6 +300,87 @@ TEST(StatusWriter, JointNameLabelsEveryMetricAndNamesTheStatus) {
   StatusWriter plain(unnamed);
   EXPECT_EQ(std::string(plain.render_prometheus(s)).find("joint="), std::string::npos);
   EXPECT_EQ(std::string(plain.render_json(s)).find("\"joint\""), std::string::npos);
+}
+
+// --- The fleet files (issue 15 item 5): alerting rules and dashboard use only metrics the daemon writes.
+
+/// Every "ptda_<name>" token of `text` (lower-case letters, digits, '_'), e.g. the metric names of a
+/// PromQL expression. File names ("ptda-alerts.yml") and label values are not tokens of this form.
+std::set<std::string> ptda_tokens(const std::string& text) {
+  std::set<std::string> out;
+  const auto word = [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_'; };
+  for (std::size_t at = text.find("ptda_"); at != std::string::npos; at = text.find("ptda_", at + 1)) {
+    if (at > 0 && (word(text[at - 1]) || (text[at - 1] >= 'A' && text[at - 1] <= 'Z'))) continue;
+    std::size_t end = at + 5;
+    while (end < text.size() && word(text[end])) ++end;
+    out.insert(text.substr(at, end - at));
+  }
+  return out;
+}
+
+/// The metric families ("# TYPE name ...") of a rendered textfile.
+std::set<std::string> families(const std::string& prom) {
+  std::set<std::string> out;
+  std::istringstream lines(prom);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("# TYPE ", 0) == 0) out.insert(line.substr(7, line.find(' ', 7) - 7));
+  }
+  return out;
+}
+
+std::string read_source_file(const std::string& relative) {
+  std::ifstream in(fs::path(PTDA_SOURCE_DIR) / relative);
+  EXPECT_TRUE(in.good()) << relative;
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(FleetFiles, RulesAndDashboardUseOnlyMetricsTheDaemonWrites) {
+  StatusWriterConfig c;
+  const fs::path dir = scratch("fleet");
+  c.prom_path = dir / "ptda.prom";
+  c.joint = "joint4";
+  StatusWriter w(c);
+  // Monitoring with a window, an alarm and partial coverage; then field training (its own families).
+  const StatusSnapshot monitoring = known_snapshot();
+  StatusSnapshot training = known_snapshot();
+  training.state = DaemonState::kTraining;
+  training.training_windows = 120;
+  training.training_capacity = 4096;
+  const std::string prom_monitoring(w.render_prometheus(monitoring));
+  const std::string prom_training(w.render_prometheus(training));
+  ASSERT_FALSE(prom_monitoring.empty());
+  ASSERT_FALSE(prom_training.empty());
+  // Kept for `promtool check metrics` (tests/fleet/prometheus_check.sh runs this test for them).
+  std::ofstream(dir / "monitoring.prom") << prom_monitoring;
+  std::ofstream(dir / "training.prom") << prom_training;
+  std::set<std::string> written = families(prom_monitoring);
+  for (const std::string& f : families(prom_training)) written.insert(f);
+  ASSERT_GT(written.size(), 50U);
+
+  const auto missing = [&](const std::set<std::string>& used) {
+    std::vector<std::string> out;
+    for (const std::string& m : used) {
+      if (written.count(m) == 0) out.push_back(m);
+    }
+    return out;
+  };
+  // The check itself can fail: a misspelt metric is reported.
+  EXPECT_EQ(missing(ptda_tokens("rate(ptda_windows_judged_totl[5m]) and ptda_alarm_level")),
+            std::vector<std::string>{"ptda_windows_judged_totl"});
+
+  const std::string dashboard = read_source_file("packaging/grafana/ptda-joint.json");
+  EXPECT_TRUE(test::JsonChecker(dashboard).valid()) << "packaging/grafana/ptda-joint.json is not valid JSON";
+  const std::set<std::string> dash_metrics = ptda_tokens(dashboard);
+  EXPECT_GE(dash_metrics.size(), 15U);  // state, verdict, features and bands, coverage, counters
+  EXPECT_EQ(missing(dash_metrics), std::vector<std::string>{}) << "ptda-joint.json uses metrics ptdad never writes";
+  // Per joint: the dashboard selects by the label the daemon writes with [daemon] joint.
+  EXPECT_NE(dashboard.find("joint=~\\\"$joint\\\""), std::string::npos);
+
+  for (const char* rules : {"packaging/prometheus/ptda-alerts.yml", "packaging/prometheus/ptda-alerts.test.yml"}) {
+    const std::set<std::string> used = ptda_tokens(read_source_file(rules));
+    EXPECT_GE(used.size(), 8U) << rules;
+    EXPECT_EQ(missing(used), std::vector<std::string>{}) << rules << " uses metrics ptdad never writes";
+  }
 }
 
 TEST(StatusWriter, FixedStringTruncates) {
