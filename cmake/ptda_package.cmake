@@ -102,6 +102,7 @@ endforeach()
 # ---- daemon: ptdad -------------------------------------------------------------------------------
 # (/usr/bin/ptdad: daemon/CMakeLists.txt)
 install(FILES "${PROJECT_SOURCE_DIR}/systemd/ptdad.service" DESTINATION "${PTDA_SYSTEMD_UNIT_DIR}" COMPONENT daemon)
+install(FILES "${PTDA_TEMPLATE_UNIT}" DESTINATION "${PTDA_SYSTEMD_UNIT_DIR}" COMPONENT daemon)  # ptda_units.cmake
 install(FILES "${PROJECT_SOURCE_DIR}/systemd/ptda.sysusers" DESTINATION "${PTDA_SYSUSERS_DIR}" RENAME ptda.conf
         COMPONENT daemon)
 install(FILES "${PROJECT_SOURCE_DIR}/systemd/ptda.tmpfiles" DESTINATION "${PTDA_TMPFILES_DIR}" RENAME ptda.conf

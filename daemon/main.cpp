@@ -21,7 +21,7 @@ constexpr int kExitUsage = 2;
 
 constexpr const char* kUsage =
     "usage: ptdad [--config FILE] [--config-dir DIR] [--check-config] [--train] [--status-dir DIR]\n"
-    "             [--foreground] [--exit-at-end] [--help] [--version]\n"
+    "             [--joint NAME] [--foreground] [--exit-at-end] [--help] [--version]\n"
     "\n"
     "Monitors a robot gearbox by phase-based time domain averaging: vibration from the ADC, joint speed\n"
     "from CAN, constant-speed windows, residual features against a trained baseline, k-of-n alarm on a\n"
@@ -35,6 +35,8 @@ constexpr const char* kUsage =
     "                     baseline) and exit: 0 = valid, 1 = \"file:line:column: what\" or a path problem\n"
     "  --train            field training: collect healthy windows, write the baseline, then monitor\n"
     "  --status-dir DIR   write status.json to DIR instead of [daemon] status_dir\n"
+    "  --joint NAME       the joint's name instead of [daemon] joint (label joint=NAME on every metric;\n"
+    "                     ptdad@NAME.service passes its instance)\n"
     "  --foreground       log to the terminal even under systemd (default: journal when\n"
     "                     $JOURNAL_STREAM is set, terminal otherwise)\n"
     "  --exit-at-end      exit 0 once a replay (adc wav / candump, sim without loop) is processed\n"
@@ -95,6 +97,12 @@ Cli parse_cli(int argc, char** argv) {
     } else if (a == "--status-dir") {
       cli.options.status_dir = value();
       if (cli.options.status_dir.empty()) usage_error("--status-dir: empty path");
+    } else if (a == "--joint") {
+      cli.options.joint = value();
+      if (!ptda::daemon::valid_joint_name(cli.options.joint)) {
+        usage_error("--joint: '" + cli.options.joint +
+                    "' is not a joint name (1 to 32 characters of A-Z, a-z, 0-9, '_', '.' and '-')");
+      }
     } else if (a == "--foreground") {
       cli.foreground = true;
     } else if (a == "--exit-at-end") {

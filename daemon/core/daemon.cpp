@@ -103,6 +103,7 @@ DaemonConfig Daemon::load_config() const {
       options_.config_dir ? *options_.config_dir : options_.config_file.parent_path() / "conf.d";
   DaemonConfig cfg = load_daemon_config(options_.config_file, list_dropins(dir));
   if (!options_.status_dir.empty()) cfg.daemon.status_dir = options_.status_dir;
+  if (!options_.joint.empty()) cfg.daemon.joint = options_.joint;
   for (const std::string& w : cfg.pipeline.warnings) spdlog::warn("{}", w);
   return cfg;
 }

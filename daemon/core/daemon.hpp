@@ -40,6 +40,7 @@ struct DaemonOptions {
   std::optional<std::filesystem::path> config_dir;
   bool train = false;                ///< field training mode (--train)
   std::filesystem::path status_dir;  ///< non-empty: overrides [daemon] status_dir
+  std::string joint;                 ///< non-empty: overrides [daemon] joint (ptdad@.service: the instance)
   std::string notify_socket;         ///< $NOTIFY_SOCKET ("" = not under systemd)
   WatchdogSettings watchdog;         ///< from $WATCHDOG_USEC / $WATCHDOG_PID
   bool exit_at_end = false;          ///< stop (exit 0) once a replay ended and was processed
@@ -62,9 +63,9 @@ struct DaemonView {
   std::uint64_t watchdog_skipped = 0;  ///< pings withheld because a stage made no progress
   std::uint64_t status_writes = 0;
   std::uint64_t status_write_failures = 0;  ///< failed status.json write attempts (StateFileHealth)
-  std::uint64_t local_clears = 0;  ///< local clear commands (SIGUSR1, request_clear())
-  std::uint32_t window_len = 0;    ///< of the configuration in use
-  double min_hold_s = 0.0;         ///< of the configuration in use
+  std::uint64_t local_clears = 0;           ///< local clear commands (SIGUSR1, request_clear())
+  std::uint32_t window_len = 0;             ///< of the configuration in use
+  double min_hold_s = 0.0;                  ///< of the configuration in use
 };
 
 class Daemon {

@@ -21,6 +21,12 @@ namespace fs = std::filesystem;
 using config::SourceLocation;
 using config::TableReader;
 
+bool valid_joint_name(std::string_view name) noexcept {
+  return !name.empty() && name.size() <= 32 && std::all_of(name.begin(), name.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) != 0 || ch == '_' || ch == '.' || ch == '-';
+  });
+}
+
 const char* adc_backend_name(AdcBackend b) noexcept {
   switch (b) {
     case AdcBackend::kIio:
@@ -187,12 +193,7 @@ class DaemonTablesBuilder {
       note(r, "log_level");
     }
     if (r.read("joint", daemon_.joint)) {
-      const bool ok = !daemon_.joint.empty() && daemon_.joint.size() <= 32 &&
-                      std::all_of(daemon_.joint.begin(), daemon_.joint.end(), [](char ch) {
-                        return std::isalnum(static_cast<unsigned char>(ch)) != 0 || ch == '_' || ch == '.' ||
-                               ch == '-';
-                      });
-      if (!ok) {
+      if (!valid_joint_name(daemon_.joint)) {
         r.fail_value("joint", "must be 1 to 32 characters of A-Z, a-z, 0-9, '_', '.' and '-', not \"" +
                                   daemon_.joint + "\"");
       }

@@ -37,13 +37,17 @@ struct DaemonSection {
   /// Name of the monitored joint ("joint4"): "joint" in status.json, the label joint="..." on every
   /// metric. 1-32 of A-Z a-z 0-9 _ . - (it also names MQTT topics and instances). "" = none.
   std::string joint;
-  double status_period_s = 1.0;                    ///< status file, STATUS= and counter log period
-  double speed_stale_periods = 25.0;               ///< no speed for this many frame periods: paused
-  double sensor_stale_s = 1.0;                     ///< no vibration block for this long: paused
-  double stage_stall_s = 2.0;  ///< a stage whose heartbeat stood still this long is stalled
+  double status_period_s = 1.0;       ///< status file, STATUS= and counter log period
+  double speed_stale_periods = 25.0;  ///< no speed for this many frame periods: paused
+  double sensor_stale_s = 1.0;        ///< no vibration block for this long: paused
+  double stage_stall_s = 2.0;         ///< a stage whose heartbeat stood still this long is stalled
   /// No window judged for this long while the joint moves: phase "not judging", kFault cause coverage.
   double coverage_timeout_s = 60.0;
 };
+
+/// A joint name fit for a metric label, an MQTT topic level and a unit instance: 1-32 characters of
+/// A-Z a-z 0-9 _ . - ([daemon] joint, ptdad --joint). Thread: any. Never allocates.
+[[nodiscard]] bool valid_joint_name(std::string_view name) noexcept;
 
 /// [adc]
 struct AdcSection {

@@ -197,10 +197,20 @@ TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
       std::string::npos)
       << ko.err;
 
-  const RunResult run = run_ptdad(
-      {"--config", p.config.string(), "--config-dir", "", "--exit-at-end", "--foreground"}, p.dir, "run");
+  // A joint name unfit for a label or topic is a usage error (exit 2) naming the option.
+  const RunResult bad_joint =
+      run_ptdad({"--config", p.config.string(), "--joint", "robot 17/j4"}, p.dir, "joint");
+  EXPECT_EQ(bad_joint.exit_code, 2);
+  EXPECT_NE(bad_joint.err.find("--joint: 'robot 17/j4' is not a joint name"), std::string::npos)
+      << bad_joint.err;
+
+  // --joint (what ptdad@joint4.service passes) names the joint in status.json.
+  const RunResult run = run_ptdad({"--config", p.config.string(), "--config-dir", "", "--exit-at-end",
+                                   "--foreground", "--joint", "joint4"},
+                                  p.dir, "run");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const cli::JsonValue status = cli::parse_json(read_file(p.dir / "status" / "status.json"), "status.json");
+  EXPECT_EQ(status.at("joint").as_string(), "joint4");
   std::size_t scored = 0, abnormal = 0;
   for (const auto& line : p.lines) {
     const cli::JsonValue w = cli::parse_json(line, "jsonl");

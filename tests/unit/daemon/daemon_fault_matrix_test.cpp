@@ -86,8 +86,7 @@ struct Scene {
   [[nodiscard]] std::string config(const std::string& extra = "") const {
     // log_level "error": the rows check files and counters, not log lines, and a CI excerpt of this
     // test's output should show the failing row's message rather than the daemons' info lines.
-    return fake_config(dir, extra, "",
-                       "metrics_path = \"" + prom().string() + "\"\nlog_level = \"error\"\n");
+    return fake_config(dir, extra, "", "metrics_path = \"" + prom().string() + "\"\nlog_level = \"error\"\n");
   }
   [[nodiscard]] std::string training_config(std::uint32_t target_cycles) const {
     return config("[training]\ntarget_cycles = " + std::to_string(target_cycles) + "\noutput = \"" +
@@ -409,7 +408,7 @@ void status_dir_deleted() {
   Live live(s, s.config(), dev);
   ASSERT_TRUE(live.reach(dev, loop / 4));
   ASSERT_TRUE(wait_for([&] { return has(read_text(s.status()), "\"state\":"); }));
-  fs::remove_all(s.status_dir());
+  remove_dir_under_daemon(s.status_dir());
   ASSERT_TRUE(live.reach(dev, loop / 2));
   // (a) the directory is back (0755) with both files, and the status file reports itself healthy. A
   // deletion that lands between a write's open and its rename fails that one attempt (ENOENT); the

@@ -85,14 +85,14 @@ TEST_F(StateFiles, StaleTempFilesGoFailuresShowAndWritingResumes) {
   ASSERT_TRUE(wait_for([&] { return fs::exists(blocker / "ptda.prom"); }));
 
   // 3. The status directory deleted: created again, status.json written again.
-  fs::remove_all(status_dir);
+  remove_dir_under_daemon(status_dir);
   ASSERT_TRUE(wait_for([&] { return read_text(status).find("\"state\":") != std::string::npos; }));
   EXPECT_EQ(fs::status(status_dir).permissions() & fs::perms::all,
             fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
                 fs::perms::others_exec);
 
   // 4. The status directory replaced by a regular file: the metrics file shows the failure.
-  fs::remove_all(status_dir);
+  remove_dir_under_daemon(status_dir);
   touch(status_dir);
   const fs::path prom = blocker / "ptda.prom";
   ASSERT_TRUE(wait_for([&] {

@@ -202,6 +202,16 @@ class DaemonRunThread {
   std::thread t_;
 };
 
+/// Deletes a directory a running daemon writes into, as at once as a file system allows: rename, then
+/// delete the renamed tree. A plain remove_all() races with the daemon's next temporary file and throws
+/// "Directory not empty" (seen under qemu-user on a loaded machine).
+inline void remove_dir_under_daemon(const fs::path& dir) {
+  const fs::path gone = dir.parent_path() / (dir.filename().string() + ".gone");
+  fs::remove_all(gone);
+  fs::rename(dir, gone);
+  fs::remove_all(gone);
+}
+
 /// Multiplier for failure-guard deadlines: PTDA_TEST_TIME_SCALE, which the cross test presets set
 /// (CMakePresets.json) because everything runs 5-20x slower under qemu-user; 1 when unset.
 inline double test_time_scale() {
