@@ -372,11 +372,13 @@ TEST(FleetFiles, RulesAndDashboardUseOnlyMetricsTheDaemonWrites) {
   EXPECT_TRUE(test::JsonChecker(dashboard).valid()) << "packaging/grafana/ptda-joint.json is not valid JSON";
   const std::set<std::string> dash_metrics = ptda_tokens(dashboard);
   EXPECT_GE(dash_metrics.size(), 15U);  // state, verdict, features and bands, coverage, counters
-  EXPECT_EQ(missing(dash_metrics), std::vector<std::string>{}) << "ptda-joint.json uses metrics ptdad never writes";
+  EXPECT_EQ(missing(dash_metrics), std::vector<std::string>{})
+      << "ptda-joint.json uses metrics ptdad never writes";
   // Per joint: the dashboard selects by the label the daemon writes with [daemon] joint.
   EXPECT_NE(dashboard.find("joint=~\\\"$joint\\\""), std::string::npos);
 
-  for (const char* rules : {"packaging/prometheus/ptda-alerts.yml", "packaging/prometheus/ptda-alerts.test.yml"}) {
+  for (const char* rules :
+       {"packaging/prometheus/ptda-alerts.yml", "packaging/prometheus/ptda-alerts.test.yml"}) {
     const std::set<std::string> used = ptda_tokens(read_source_file(rules));
     EXPECT_GE(used.size(), 8U) << rules;
     EXPECT_EQ(missing(used), std::vector<std::string>{}) << rules << " uses metrics ptdad never writes";
