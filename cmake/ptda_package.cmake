@@ -125,6 +125,11 @@ install(FILES "${PROJECT_SOURCE_DIR}/systemd/ptdad.service.d/10-can0.conf"
               "${PROJECT_SOURCE_DIR}/systemd/ptdad.service.d/20-realtime.conf.example"
               "${PROJECT_SOURCE_DIR}/systemd/80-can0.network"
         DESTINATION "${PTDA_DATA_DIR}/examples/systemd" COMPONENT common)
+# Fleet view (docs/fleet.md): Prometheus alerting rules with their unit tests, the Grafana dashboard.
+install(FILES "${PROJECT_SOURCE_DIR}/packaging/prometheus/ptda-alerts.yml"
+              "${PROJECT_SOURCE_DIR}/packaging/prometheus/ptda-alerts.test.yml"
+              "${PROJECT_SOURCE_DIR}/packaging/grafana/ptda-joint.json"
+        DESTINATION "${PTDA_DATA_DIR}/fleet" COMPONENT common)
 install(FILES "${PROJECT_SOURCE_DIR}/README.md" DESTINATION "${PTDA_DOC_DIR}" COMPONENT common)
 install(FILES "${PROJECT_SOURCE_DIR}/config/README.md" DESTINATION "${PTDA_DOC_DIR}/config" COMPONENT common)
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/docs/" DESTINATION "${PTDA_DOC_DIR}/docs" COMPONENT common
