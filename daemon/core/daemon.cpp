@@ -88,6 +88,31 @@ void remove_stale_temp_files_of(const fs::path& target) {
   if (n > 0) spdlog::info("removed {} stale temporary file(s) of {}", n, target.string());
 }
 
+
+/// "rms+entropy", "coverage", "none": the AlarmCause bits. Never allocates.
+void cause_text(std::uint8_t causes, char* out, std::size_t cap) noexcept {
+  static constexpr std::pair<std::uint8_t, const char*> kNames[] = {
+      {drivers::kCauseRms, "rms"},           {drivers::kCauseEntropy, "entropy"},
+      {drivers::kCauseSensor, "sensor"},     {drivers::kCauseSpeed, "speed"},
+      {drivers::kCauseBaseline, "baseline"}, {drivers::kCauseInternal, "internal"},
+      {drivers::kCauseCoverage, "coverage"}};
+  std::size_t n = 0;
+  out[0] = '\0';
+  for (const auto& [bit, name] : kNames) {
+    if ((causes & bit) == 0) continue;
+    const int k = std::snprintf(out + n, cap - n, "%s%s", n == 0 ? "" : "+", name);
+    if (k < 0 || static_cast<std::size_t>(k) >= cap - n) break;
+    n += static_cast<std::size_t>(k);
+  }
+  if (n == 0) std::snprintf(out, cap, "none");
+}
+
+/// "rms_res 0.0123 out of [0.001, 0.01]". Never allocates.
+int feature_text(char* out, std::size_t cap, const char* name, double v, const dsp::Band& band) noexcept {
+  const bool in = v >= band.lo && v <= band.hi;
+  return std::snprintf(out, cap, "%s %.4g %s [%.4g, %.4g]", name, v, in ? "in" : "out of", band.lo, band.hi);
+}
+
 }  // namespace
 
 Daemon::Daemon(DaemonOptions options, drivers::Clock& clock) : options_(std::move(options)), clock_(clock) {}
@@ -106,6 +131,34 @@ DaemonConfig Daemon::load_config() const {
   if (!options_.joint.empty()) cfg.daemon.joint = options_.joint;
   for (const std::string& w : cfg.pipeline.warnings) spdlog::warn("{}", w);
   return cfg;
+}
+
+void Daemon::build_history() {
+  history_.reset();
+  if (cfg_.history.dir.empty()) return;
+  HistoryConfig hc;
+  hc.dir = cfg_.history.dir;
+  hc.max_file_bytes = static_cast<std::uint64_t>(cfg_.history.max_file_mib * 1024.0 * 1024.0);
+  hc.files = cfg_.history.files;
+  hc.joint = cfg_.daemon.joint;
+  hc.method = std::string(dsp::method_name(cfg_.pipeline.method));
+  history_ = std::make_unique<HistoryLog>(hc);
+}
+
+// The windows the processing thread handed over since the last call, as history lines. The wall time
+// of a window's end: its daemon-clock time plus the clock's offset to UTC now.
+void Daemon::drain_history(Pipeline& p) noexcept {
+  const std::int64_t offset = drivers::realtime_offset_ns(clock_);
+  while (p.pop_window_log(history_window_)) history_->window(history_window_, history_window_.ref.t_end_ns + offset);
+  history_->counters().ring_dropped = p.status().window_log_dropped;
+}
+
+void Daemon::history_state(const PipelineStatus& ps, const char* reason) noexcept {
+  char causes[64];
+  cause_text(ps.report.causes, causes, sizeof causes);
+  const DaemonState st = state_.load(std::memory_order_relaxed);
+  history_->state(clock_.now_ns() + drivers::realtime_offset_ns(clock_), daemon_state_name(st),
+                  phase_name(ps.phase), drivers::alarm_level_name(ps.alarm.level), causes, reason);
 }
 
 void Daemon::build_status_writer() {
@@ -157,9 +210,11 @@ void Daemon::configure() {
   remove_stale_temp_files_of(cfg_.daemon.baseline);
   if (mode_ == PipelineMode::kTrain) remove_stale_temp_files_of(cfg_.training.output);
   build_status_writer();
+  build_history();
 
   auto p = std::make_unique<Pipeline>(cfg_, mode_, clock_);
   p->set_window_sink(sink_);
+  p->enable_window_log(history_ != nullptr);
   p->set_device_factory(factory_);
   p->set_probe(probe_);
   p->configure();
@@ -264,6 +319,7 @@ DaemonView Daemon::view() const noexcept {
 void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   auto fresh = std::make_unique<Pipeline>(cfg, mode, clock_);
   fresh->set_window_sink(sink_);
+  fresh->enable_window_log(history_ != nullptr);
   fresh->set_device_factory(factory_);
   fresh->set_probe(probe_);
   {
@@ -271,6 +327,7 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
     std::lock_guard lock(pipeline_mutex_);
     if (pipeline_) {
       pipeline_->deactivate();
+      if (history_) drain_history(*pipeline_);  // its last windows, before it goes
       // Field training goes on: keep the collected windows for the new pipeline (held here until it
       // started, so a reload that fails keeps them for the restart with the previous configuration).
       if (mode == PipelineMode::kTrain && pipeline_->mode() == PipelineMode::kTrain) {
@@ -337,6 +394,13 @@ void Daemon::reload() {
       spdlog::error("reload: status files disabled: {}", e.what());
       writer_.reset();
     }
+    try {
+      build_history();
+    } catch (const Error& e) {
+      spdlog::error("reload: event history disabled: {}", e.what());
+      history_.reset();
+    }
+    pipeline_->enable_window_log(history_ != nullptr);
     reloads_.fetch_add(1);
     spdlog::info("reload: new configuration active ({})", pipeline_->inputs_text());
   } catch (const Error& e) {
@@ -461,6 +525,7 @@ void Daemon::update_state_and_reason(std::int64_t now) noexcept {
   }
   state_.store(state, std::memory_order_release);
   if (ps.phase != last_phase_ || state != last_state_) {
+    if (history_) history_state(ps, reason);
     if (ps.phase == Phase::kRefused || ps.phase == Phase::kPausedSpeed || ps.phase == Phase::kPausedSensor ||
         ps.phase == Phase::kNotJudging) {
       spdlog::warn("state {} ({}): {}", daemon_state_name(state), phase_name(ps.phase), reason);
@@ -622,33 +687,6 @@ void Daemon::log_counter_changes() noexcept {
   last_slicer_ = sc;
 }
 
-namespace {
-
-/// "rms+entropy", "coverage", "none": the AlarmCause bits. Never allocates.
-void cause_text(std::uint8_t causes, char* out, std::size_t cap) noexcept {
-  static constexpr std::pair<std::uint8_t, const char*> kNames[] = {
-      {drivers::kCauseRms, "rms"},           {drivers::kCauseEntropy, "entropy"},
-      {drivers::kCauseSensor, "sensor"},     {drivers::kCauseSpeed, "speed"},
-      {drivers::kCauseBaseline, "baseline"}, {drivers::kCauseInternal, "internal"},
-      {drivers::kCauseCoverage, "coverage"}};
-  std::size_t n = 0;
-  out[0] = '\0';
-  for (const auto& [bit, name] : kNames) {
-    if ((causes & bit) == 0) continue;
-    const int k = std::snprintf(out + n, cap - n, "%s%s", n == 0 ? "" : "+", name);
-    if (k < 0 || static_cast<std::size_t>(k) >= cap - n) break;
-    n += static_cast<std::size_t>(k);
-  }
-  if (n == 0) std::snprintf(out, cap, "none");
-}
-
-/// "rms_res 0.0123 out of [0.001, 0.01]". Never allocates.
-int feature_text(char* out, std::size_t cap, const char* name, double v, const dsp::Band& band) noexcept {
-  const bool in = v >= band.lo && v <= band.hi;
-  return std::snprintf(out, cap, "%s %.4g %s [%.4g, %.4g]", name, v, in ? "in" : "out of", band.lo, band.hi);
-}
-
-}  // namespace
 
 // Runs on the supervisor (the processing thread only sets the alarm state; it never logs). Lines stay
 // under spdlog's 250-byte inline buffer, so logging them does not allocate.
@@ -698,6 +736,7 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
     cause_text(ps.report.causes, causes, sizeof causes);
     std::snprintf(evidence, sizeof evidence, "no verdict (%s); cause %s", phase_name(ps.phase), causes);
   }
+  if (history_) history_state(ps, evidence);
   if (level == drivers::AlarmLevel::kNormal) {
     spdlog::info("{}{}) at {}: {}", head, extra, since, evidence);
   } else {
@@ -789,6 +828,7 @@ void Daemon::supervise(std::int64_t now) noexcept {
   }
   fill_snapshot(now);
   if (pipeline_) log_alarm_changes(pipeline_->status());
+  if (history_ && pipeline_) drain_history(*pipeline_);
   snapshot_.state_files[static_cast<std::size_t>(StateFile::kBaseline)] = baseline_health_;
   if (writer_) {
     if (writer_->write(snapshot_) == StatusWriteResult::kOk)
@@ -877,6 +917,7 @@ int Daemon::run() {
   deactivate();
   now = clock_.now_ns();
   update_state_and_reason(now);
+  if (history_ && pipeline_) drain_history(*pipeline_);
   state_.store(DaemonState::kStopping);
   fill_snapshot(now);
   if (writer_) writer_->write(snapshot_);

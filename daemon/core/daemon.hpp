@@ -30,6 +30,7 @@
 #include "core/pipeline.hpp"
 #include "ptda/drivers/clock.hpp"
 #include "rt/sd_notify.hpp"
+#include "status/history_log.hpp"
 #include "status/status_writer.hpp"
 
 namespace ptda::daemon {
@@ -132,6 +133,9 @@ class Daemon {
   void update_state_and_reason(std::int64_t now) noexcept;
   void log_counter_changes() noexcept;
   void log_status_write_changes() noexcept;
+  void build_history();                                   ///< history_ from cfg_ ([history])
+  void drain_history(Pipeline& p) noexcept;                ///< the window log into the history
+  void history_state(const PipelineStatus& ps, const char* reason) noexcept;  ///< a state line
   void log_alarm_changes(const PipelineStatus& ps) noexcept;
   void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);
 
@@ -149,6 +153,8 @@ class Daemon {
   mutable std::mutex pipeline_mutex_;  ///< guards the pipeline_ pointer (swapped by reloads)
   std::unique_ptr<Pipeline> pipeline_;
   std::unique_ptr<StatusWriter> writer_;
+  std::unique_ptr<HistoryLog> history_;  ///< [history] dir set; written by the supervisor
+  dsp::WindowResult history_window_;     ///< drain_history()'s buffer (not on the stack: ~300 bytes)
   SdNotifier notifier_;
   int signal_fd_ = -1;
   int event_fd_ = -1;

@@ -60,6 +60,7 @@ std::vector<std::string> daemon_owned_tables() {
           "adc",
           "alarm",
           "training",
+          "history",
           "can.backend",
           "can.interface",
           "can.replay_file",
@@ -104,6 +105,7 @@ class DaemonTablesBuilder {
     if (const toml::table* t = top.table("can")) apply_can(*t, source);
     if (const toml::table* t = top.table("alarm")) apply_alarm(*t, source);
     if (const toml::table* t = top.table("training")) apply_training(*t, source);
+    if (const toml::table* t = top.table("history")) apply_history(*t, source);
   }
 
   void finish(DaemonConfig& out) const {
@@ -112,6 +114,7 @@ class DaemonTablesBuilder {
     out.can = can_;
     out.alarm = alarm_;
     out.training = training_;
+    out.history = history_;
     const double fs = out.pipeline.fs_hz;
     if (adc_.backend == AdcBackend::kIio && fs == 0.0) {
       fail_key("adc.backend", "adc.backend = \"iio\" needs [acquisition] fs_hz (the ADC's sample rate)");
@@ -334,6 +337,15 @@ class DaemonTablesBuilder {
     r.finish();
   }
 
+  void apply_history(const toml::table& t, const std::string& source) {
+    remember_source(source);
+    TableReader r(t, "history", source);
+    get_path(r, "dir", history_.dir);
+    get(r, "max_file_mib", history_.max_file_mib, 0.01, 4096.0);
+    get(r, "files", history_.files, std::uint32_t{2}, std::uint32_t{1000});
+    r.finish();
+  }
+
   void remember_source(const std::string& source) {
     if (first_source_.empty()) first_source_ = source;
   }
@@ -343,6 +355,7 @@ class DaemonTablesBuilder {
   CanSection can_;
   AlarmSection alarm_;
   TrainingSection training_;
+  HistorySection history_;
   fs::path base_dir_;
   std::string first_source_;
   std::map<std::string, SourceLocation, std::less<>> set_at_;

@@ -116,6 +116,13 @@ struct TrainingSection {
   std::uint32_t max_regions = 4096;
 };
 
+/// [history]: the event history on the cabinet (docs/fleet.md, "Event history").
+struct HistorySection {
+  std::filesystem::path dir;           ///< history.jsonl and its rotations ("" = no history)
+  double max_file_mib = 16.0;          ///< a file is rotated before it passes this size
+  std::uint32_t files = 8;             ///< history.jsonl + files - 1 rotations: the bound is files x size
+};
+
 struct DaemonConfig {
   config::PipelineConfig pipeline;
   DaemonSection daemon;
@@ -123,6 +130,7 @@ struct DaemonConfig {
   CanSection can;
   AlarmSection alarm;
   TrainingSection training;
+  HistorySection history;
   std::vector<std::filesystem::path> files;  ///< the files read, in order (main first)
 };
 

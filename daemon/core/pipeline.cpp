@@ -304,6 +304,7 @@ void Pipeline::configure_rings_and_timing() {
   const config::PipelineConfig& pc = cfg_.pipeline;
   sample_ring_ = std::make_unique<SampleRing>();
   speed_ring_ = std::make_unique<SpeedRing>();
+  window_log_ = std::make_unique<WindowLogRing>();
   acq_block_ = std::make_unique<drivers::SampleBlock>();
   held_block_ = std::make_unique<drivers::SampleBlock>();
   latency_ns_ = seconds_to_ns(pc.speed_latency_s);
@@ -676,6 +677,7 @@ void Pipeline::drain_windows(std::int64_t now) noexcept {
       if (coverage_) coverage_->on_window(r);
       alarm_->on_window(r, alarm_time(fast_ ? r.ref.t_end_ns : now));
       if (sink_ != nullptr) sink_->on_window(r);
+      if (window_log_on_.load(std::memory_order_relaxed) && !window_log_->try_push(r)) ++st_.window_log_dropped;
     }
     if (coverage_) {
       const dsp::SlicerCounters& sc = engine_->slicer().counters();

@@ -83,6 +83,11 @@ inline constexpr std::int64_t kTimeJumpNs = 100'000'000;
 
 using SampleRing = SpscRing<drivers::SampleBlock, kSampleRingBlocks>;
 using SpeedRing = SpscRing<dsp::SpeedSample, kSpeedRingSamples>;
+/// Windows handed from processing to the supervisor for the event history ([history]); the supervisor
+/// drains it every status period, so 256 windows cover periods of seconds at any window rate a
+/// 25.6 kHz channel gives (at most 8 windows/s of 3200 samples without overlap).
+inline constexpr std::size_t kWindowLogWindows = 256;
+using WindowLogRing = SpscRing<dsp::WindowResult, kWindowLogWindows>;
 
 /// What the processing stage is doing (the reason behind the daemon state).
 enum class Phase : std::uint8_t {
@@ -162,6 +167,7 @@ struct PipelineStatus {
   std::uint64_t time_jumps = 0;      ///< block stamps that jumped against the sample index (> kTimeJumpNs)
   std::uint64_t speeds_before_t0 = 0;
   std::uint64_t pauses = 0;           ///< transitions into a paused phase
+  std::uint64_t window_log_dropped = 0;  ///< windows the history ring could not hold (supervisor late)
   std::int64_t max_block_dev_ns = 0;  ///< max |block stamp - (t0 + index / fs)|
   dsp::SlicerCounters slicer;
   bool have_window = false;
@@ -204,6 +210,12 @@ class Pipeline {
 
   /// Test/tool hook, set before activate(). Thread: main.
   void set_window_sink(WindowSink* sink) noexcept { sink_ = sink; }
+  /// Hand every window to the supervisor through the window log ring (the event history). Thread: main,
+  /// before activate(), or the supervisor after a reload. Never allocates (the ring is allocated in configure()).
+  void enable_window_log(bool on) noexcept { window_log_on_.store(on, std::memory_order_relaxed); }
+  /// The next window for the history, oldest first; false when none. Thread: the supervisor only (the
+  /// ring's consumer). Never blocks or allocates.
+  bool pop_window_log(dsp::WindowResult& out) noexcept { return window_log_ && window_log_->try_pop(out); }
   /// Test-only hook, set before configure() (see DeviceFactory). Thread: main.
   void set_device_factory(DeviceFactory* f) noexcept { factory_ = f; }
   /// Benchmark hook, set before activate(). Thread: main.
@@ -323,6 +335,8 @@ class Pipeline {
   std::vector<float> train_window_;
   std::unique_ptr<AlarmManager> alarm_;
   WindowSink* sink_ = nullptr;
+  std::atomic<bool> window_log_on_{false};  ///< a reload may turn the history on while processing runs
+  std::unique_ptr<WindowLogRing> window_log_;
   PipelineProbe* probe_ = nullptr;
   DeviceFactory* factory_ = nullptr;
 

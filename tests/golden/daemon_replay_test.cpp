@@ -204,11 +204,52 @@ TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
   EXPECT_NE(bad_joint.err.find("--joint: 'robot 17/j4' is not a joint name"), std::string::npos)
       << bad_joint.err;
 
-  // --joint (what ptdad@joint4.service passes) names the joint in status.json.
-  const RunResult run = run_ptdad({"--config", p.config.string(), "--config-dir", "", "--exit-at-end",
+  // --joint (what ptdad@joint4.service passes) names the joint in status.json and the history; the
+  // event history ([history], issue 15 item 3) gets every window.
+  const fs::path history = p.dir / "history";
+  fs::remove_all(history);
+  const fs::path with_history = p.dir / "with_history.toml";
+  {
+    std::ifstream in(p.config);
+    std::ofstream out(with_history);
+    out << in.rdbuf() << "\n[history]\ndir = \"" << history.string() << "\"\n";
+  }
+  const RunResult run = run_ptdad({"--config", with_history.string(), "--config-dir", "", "--exit-at-end",
                                    "--foreground", "--joint", "joint4"},
                                   p.dir, "run");
   ASSERT_EQ(run.exit_code, 0) << run.err;
+  // The history's window lines are `ptda monitor`'s windows, one for one: same numbers, classes and
+  // verdicts; the features as %.9g of the same doubles.
+  std::vector<cli::JsonValue> windows, states;
+  {
+    std::ifstream in(history / "history.jsonl");
+    for (std::string line; std::getline(in, line);) {
+      cli::JsonValue v = cli::parse_json(line, "history.jsonl");
+      (v.at("type").as_string() == "window" ? windows : states).push_back(std::move(v));
+    }
+  }
+  ASSERT_EQ(windows.size(), p.lines.size());
+  for (std::size_t i = 0; i < windows.size(); ++i) {
+    const cli::JsonValue m = cli::parse_json(p.lines[i], "jsonl");
+    const cli::JsonValue& h = windows[i];
+    EXPECT_EQ(h.at("joint").as_string(), "joint4");
+    EXPECT_EQ(h.at("n").as_number(), m.at("n").as_number()) << i;
+    EXPECT_EQ(h.at("status").as_string(), m.at("status").as_string()) << i;
+    EXPECT_EQ(h.at("abnormal").as_bool(), m.at("abnormal").as_bool()) << i;
+    EXPECT_EQ(h.at("alarm").as_bool(), m.at("alarm").as_bool()) << i;
+    EXPECT_EQ(h.at("detector").as_string(), m.at("detector").as_string()) << i;
+    if (m.at("status").as_string() == "scored") {
+      EXPECT_EQ(h.at("segment").as_number(), m.at("segment").as_number()) << i;
+      EXPECT_NEAR(h.at("rms_res").as_number(), m.at("rms_res").as_number(), 1e-8 * m.at("rms_res").as_number());
+      EXPECT_NEAR(h.at("entropy_res").as_number(), m.at("entropy_res").as_number(), 1e-8);
+    }
+  }
+  // State lines: the start of monitoring and the end of the replay, each with its alarm level.
+  ASSERT_GE(states.size(), 2U);
+  EXPECT_EQ(states.front().at("state").as_string(), "running");
+  bool ended = false;
+  for (const auto& st : states) ended = ended || st.at("phase").as_string() == "replay ended";
+  EXPECT_TRUE(ended);
   const cli::JsonValue status = cli::parse_json(read_file(p.dir / "status" / "status.json"), "status.json");
   EXPECT_EQ(status.at("joint").as_string(), "joint4");
   std::size_t scored = 0, abnormal = 0;

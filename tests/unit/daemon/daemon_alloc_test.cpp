@@ -24,7 +24,10 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
       dir / "ptdad.toml",
       sim_config(dir / "baseline.bin", dir / "status", "fast",
                  "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\n",
-                 "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\nperiod_s = 0.05\n"));
+                 "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\nperiod_s = 0.05\n"
+                 // The event history, small files: the two passes below write and rotate it.
+                 "[history]\ndir = \"" +
+                     (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n"));
   // A datagram socket for sd_notify (nobody reads it; a full queue is counted, not fatal).
   const fs::path sock = dir / "notify.sock";
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
@@ -74,6 +77,10 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   EXPECT_GT(after.watchdog_pings, before.watchdog_pings);
   EXPECT_EQ(after.counters.acq_ring_full_blocks, 0U);
   EXPECT_GT(after.counters.can_frames, 0U);
+  // The history was written and rotated while the allocations were counted (~700 bytes a window line:
+  // a 50 KiB file holds ~70 of the ~200 windows).
+  EXPECT_TRUE(fs::exists(dir / "history" / "history.2.jsonl"));
+  EXPECT_FALSE(fs::exists(dir / "history" / "history.3.jsonl"));
 }
 
 }  // namespace

@@ -1,0 +1,234 @@
+#include "status/history_log.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <system_error>
+
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/decision.hpp"
+#include "status/status_writer.hpp"
+
+namespace ptda::daemon {
+namespace {
+
+constexpr std::size_t kLineBytes = 4096;  // a window line is ~700 bytes, a state line < 1 KiB
+
+/// `"key":` (after a ',' unless first).
+class Line {
+ public:
+  explicit Line(TextBuffer& b) noexcept : b_(b) { b_.append_char('{'); }
+  TextBuffer& key(std::string_view k) noexcept {
+    if (!first_) b_.append_char(',');
+    first_ = false;
+    b_.append_char('"');
+    b_.append(k);
+    b_.append("\":");
+    return b_;
+  }
+  void str(std::string_view k, std::string_view v) noexcept { key(k).append_json_string(v); }
+  void num(std::string_view k, double v) noexcept { key(k).append_double(v, "null"); }
+  void u64(std::string_view k, std::uint64_t v) noexcept { key(k).append_u64(v); }
+  void i64(std::string_view k, std::int64_t v) noexcept { key(k).append_i64(v); }
+  void boolean(std::string_view k, bool v) noexcept { key(k).append(v ? "true" : "false"); }
+  void null(std::string_view k) noexcept { key(k).append("null"); }
+  void pair(std::string_view k, double lo, double hi) noexcept {
+    key(k).append_char('[');
+    b_.append_double(lo, "null");
+    b_.append_char(',');
+    b_.append_double(hi, "null");
+    b_.append_char(']');
+  }
+  void utc(std::string_view k, std::int64_t unix_ns) noexcept {
+    char buf[32];
+    const std::size_t n = unix_ns > 0 ? format_rfc3339_utc(unix_ns, buf, sizeof buf) : 0;
+    if (n == 0) {
+      null(k);
+    } else {
+      key(k).append_char('"');
+      b_.append(std::string_view(buf, n));
+      b_.append_char('"');
+    }
+  }
+  void end() noexcept { b_.append("}\n"); }
+
+ private:
+  TextBuffer& b_;
+  bool first_ = true;
+};
+
+double seconds(std::int64_t ns) noexcept {
+  return static_cast<double>(ns) * 1e-9;
+}
+
+}  // namespace
+
+HistoryLog::HistoryLog(HistoryConfig cfg) : cfg_(std::move(cfg)), line_(kLineBytes) {
+  if (cfg_.dir.empty()) throw Error("[history] dir: empty path");
+  if (cfg_.files < 2) throw Error("[history] files: at least 2 (the current file and one rotation)");
+  std::error_code ec;
+  if (!std::filesystem::is_directory(cfg_.dir, ec)) {
+    std::filesystem::create_directories(cfg_.dir, ec);
+    if (ec) throw Error("[history] dir " + cfg_.dir.string() + ": cannot create: " + ec.message());
+    std::filesystem::permissions(cfg_.dir, std::filesystem::perms(0750), ec);
+  }
+  path_ = file(0);
+  rotated_.reserve(cfg_.files);
+  for (std::uint32_t k = 0; k < cfg_.files; ++k) rotated_.push_back(file(k).string());
+  if (!open_current()) {
+    throw Error("[history] " + path_.string() + ": cannot open for appending: " +
+                std::error_code(counters_.last_errno, std::generic_category()).message());
+  }
+}
+
+HistoryLog::~HistoryLog() {
+  if (fd_ >= 0) {
+    ::fsync(fd_);  // the history survives a power cut up to the daemon's stop
+    ::close(fd_);
+  }
+}
+
+std::filesystem::path HistoryLog::file(std::uint32_t k) const {
+  return cfg_.dir / (k == 0 ? std::string("history.jsonl") : "history." + std::to_string(k) + ".jsonl");
+}
+
+bool HistoryLog::open_current() noexcept {
+  fd_ = ::open(rotated_[0].c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | O_NOFOLLOW, 0640);
+  if (fd_ < 0) {
+    counters_.last_errno = errno;
+    return false;
+  }
+  struct stat st {};
+  size_ = ::fstat(fd_, &st) == 0 ? static_cast<std::uint64_t>(st.st_size) : 0;
+  return true;
+}
+
+void HistoryLog::rotate() noexcept {
+  if (fd_ >= 0) {
+    ::fsync(fd_);  // a rotated file is complete on disk before its name moves
+    ::close(fd_);
+    fd_ = -1;
+  }
+  // history.<n-2> -> history.<n-1> (replacing the oldest), ..., history -> history.1
+  for (std::uint32_t k = cfg_.files - 1; k >= 1; --k) {
+    if (::rename(rotated_[k - 1].c_str(), rotated_[k].c_str()) != 0 && errno != ENOENT) {
+      counters_.last_errno = errno;
+    }
+  }
+  ++counters_.rotations;
+  open_current();
+}
+
+void HistoryLog::write_line(std::size_t len) noexcept {
+  if (size_ > 0 && size_ + len > cfg_.max_file_bytes) rotate();
+  if (fd_ < 0 && !open_current()) {
+    ++counters_.write_failures;
+    return;
+  }
+  const char* p = line_.data();
+  std::size_t left = len;
+  while (left > 0) {
+    const ssize_t n = ::write(fd_, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      counters_.last_errno = n < 0 ? errno : EIO;
+      ++counters_.write_failures;
+      // A partial line would break the JSON Lines: cut the file back to the last whole line.
+      if (left != len && ::ftruncate(fd_, static_cast<off_t>(size_)) != 0) {
+        ::close(fd_);
+        fd_ = -1;
+      }
+      return;
+    }
+    p += n;
+    left -= static_cast<std::size_t>(n);
+  }
+  size_ += len;
+  ++counters_.lines;
+  counters_.bytes += len;
+}
+
+void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) noexcept {
+  TextBuffer b(line_.data(), line_.size());
+  Line o(b);
+  o.str("type", "window");
+  if (!cfg_.joint.empty()) o.str("joint", cfg_.joint);
+  o.utc("t_utc", end_unix_ns);
+  o.u64("n", w.ref.seq);
+  o.num("t_start", seconds(w.ref.t_start_ns));
+  o.num("t_end", seconds(w.ref.t_end_ns));
+  const bool scored = w.status == dsp::WindowStatus::kScored;
+  if (w.class_id >= 0) {
+    o.i64("segment", w.class_id);
+  } else {
+    o.null("segment");
+  }
+  o.u64("region", w.ref.region_seq);
+  o.num("speed_rad_s", w.ref.speed_rad_s);
+  o.str("status", scored ? "scored" : "no_class");
+  o.str("method", cfg_.method);
+  if (scored) {
+    o.num("rms_res", w.features.rms_res);
+    o.num("entropy_res", w.features.entropy_res);
+    o.pair("rms_band", w.thresholds.rms.lo, w.thresholds.rms.hi);
+    o.pair("entropy_band", w.thresholds.entropy.lo, w.thresholds.entropy.hi);
+  } else {
+    o.null("rms_res");
+    o.null("entropy_res");
+    o.null("rms_band");
+    o.null("entropy_band");
+  }
+  o.boolean("rms_out", scored && w.verdict.rms_out);
+  o.boolean("entropy_out", scored && w.verdict.entropy_out);
+  o.boolean("abnormal", scored && w.verdict.abnormal());
+  o.boolean("alarm", w.alarm);
+  o.u64("abnormal_in_last_n", w.abnormal_in_last_n);
+  o.boolean("rms_low", scored && w.verdict.rms_low);
+  o.str("detector", dsp::alarm_detector_name(w.detector));
+  o.boolean("kofn_alarm", w.kofn_alarm);
+  o.boolean("seq_alarm", w.seq_alarm);
+  o.boolean("seq_warn", w.seq_warn);
+  if (scored) {
+    o.num("z_rms", w.z_rms);
+    o.num("z_entropy", w.z_entropy);
+    o.num("cusum", w.seq_statistic);
+    o.str("cusum_feature", dsp::seq_feature_name(w.seq_feature));
+  } else {
+    o.null("z_rms");
+    o.null("z_entropy");
+    o.null("cusum");
+    o.null("cusum_feature");
+  }
+  o.num("cusum_max", w.seq_max_statistic);
+  o.end();
+  if (b.overflow()) {
+    ++counters_.write_failures;
+    return;
+  }
+  write_line(b.size());
+}
+
+void HistoryLog::state(std::int64_t unix_ns, std::string_view state, std::string_view phase,
+                       std::string_view level, std::string_view causes, std::string_view reason) noexcept {
+  TextBuffer b(line_.data(), line_.size());
+  Line o(b);
+  o.str("type", "state");
+  if (!cfg_.joint.empty()) o.str("joint", cfg_.joint);
+  o.utc("t_utc", unix_ns);
+  o.str("state", state);
+  o.str("phase", phase);
+  o.str("level", level);
+  o.str("causes", causes);
+  o.str("reason", reason);
+  o.end();
+  if (b.overflow()) {
+    ++counters_.write_failures;
+    return;
+  }
+  write_line(b.size());
+}
+
+}  // namespace ptda::daemon
