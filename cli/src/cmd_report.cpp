@@ -6,6 +6,7 @@
 
 #include "ptda/cli/args.hpp"
 #include "ptda/cli/commands.hpp"
+#include "ptda/cli/history_report.hpp"
 #include "ptda/cli/monitor_output.hpp"
 #include "ptda/cli/pipeline_runner.hpp"
 #include "ptda/cli/report.hpp"
@@ -91,16 +92,25 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
       "report",
       "--recording DIR [--recording DIR ...] --config FILE --baseline BASELINE --html OUT [--label NAME "
       "...]\n"
-      "       [--envelope-band LO:HI]",
+      "       [--envelope-band LO:HI]\n"
+      "       ptda report --history DIR --html OUT [--last-hours H]",
       "Monitors each recording with raw, TDA and PTDA residuals and writes one self-contained HTML file:\n"
       "a verdict per recording, the gearbox orders, the feature trends against the class bands on a time\n"
       "axis, and per recording its most abnormal window and its normal window closest to the band (raw,\n"
       "deterministic and residual parts in time, as dB spectra, zoomed on the GMF harmonics, and as\n"
       "envelope spectra).");
-  parser.option("recording", "DIR", "recording directory (e.g. a healthy and a faulty one)", true, true)
-      .option("config", "FILE", "pipeline configuration TOML", true)
-      .option("baseline", "BASELINE", "baseline file written by ptda train", true)
+  parser
+      .option("recording", "DIR",
+              "recording directory (e.g. a healthy and a faulty one) (required unless --history)", false,
+              true)
+      .option("config", "FILE", "pipeline configuration TOML (required unless --history)")
+      .option("baseline", "BASELINE", "baseline file written by ptda train (required unless --history)")
       .option("html", "OUT", "HTML file to write", true)
+      .option("history", "DIR",
+              "instead of recordings: a daemon's event history ([history] dir; docs/fleet.md): its trends, "
+              "alarms\n"
+              "                         and state changes")
+      .option("last-hours", "H", "with --history: only its last H hours (default: all of it)")
       .option("label", "NAME", "name of each recording in the report, in --recording order", false, true)
       .option("envelope-band", "LO:HI",
               "band of the envelope spectra in Hz (default: chosen from the most abnormal window)");
@@ -108,6 +118,29 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   if (a.help()) {
     out << parser.help_text();
     return kExitOk;
+  }
+  if (a.has("history")) {
+    for (const char* o : {"recording", "config", "baseline", "label", "envelope-band"}) {
+      if (a.has(o))
+        throw UsageError(std::string("--") + o + " does not go with --history (a history has no samples)");
+    }
+    HistoryReadOptions ho;
+    if (a.has("last-hours")) {
+      ho.last_hours = parse_double_arg(a.value("last-hours"), "last-hours");
+      if (!(ho.last_hours > 0.0))
+        throw UsageError("--last-hours: must be > 0, got '" + a.value("last-hours") + "'");
+    }
+    const ReportData data = history_report_data(a.value("history"), ho);
+    write_html_report(a.value("html"), data);
+    out << "report: " << a.value("html") << " (" << data.recordings.front().verdict << ")\n";
+    return kExitOk;
+  }
+  if (a.has("last-hours")) throw UsageError("--last-hours goes with --history");
+  for (const auto& [o, v] : {std::pair{"recording", "DIR"}, {"config", "FILE"}, {"baseline", "BASELINE"}}) {
+    if (!a.has(o)) {
+      throw UsageError(std::string("missing required option --") + o + " " + v +
+                       " (or --history DIR for a daemon's event history)");
+    }
   }
   const std::vector<std::string> recordings = a.values("recording");
   std::vector<std::string> labels = a.values("label");

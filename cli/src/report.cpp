@@ -304,9 +304,12 @@ std::string detection_table(const std::vector<MethodTrend>& trends) {
       o += "<tr><td>" + svg::escape_xml(method_display_name(tr.method)) + "</td><td>" + svg::escape_xml(rec) +
            "</td><td>" + std::to_string(c.windows) + "</td><td>" + std::to_string(c.abnormal) + "</td><td>" +
            svg::format_fixed(pct, 1) + "</td><td>" + std::to_string(c.alarm) + "</td><td>" +
-           (c.first_alarm ? "<span class=\"alarm-time\">" + report_time(c.first_alarm->first) +
-                                "</span> (window " + std::to_string(c.first_alarm->second) + ")"
-                          : std::string("none")) +
+           (c.first_alarm
+                ? "<span class=\"alarm-time\">" +
+                      (tr.time_axis_label.empty() ? report_time(c.first_alarm->first)
+                                                  : svg::format_fixed(c.first_alarm->first, 3) + " h") +
+                      "</span> (window " + std::to_string(c.first_alarm->second) + ")"
+                : std::string("none")) +
            "</td></tr>\n";
     }
   }
@@ -387,7 +390,8 @@ svg::Plot trend_plot(const MethodTrend& trend, TrendFeature feature, const std::
   const bool rms = feature == TrendFeature::kRms;
   svg::Plot p;
   p.title = method_display_name(trend.method) + (rms ? ": RMS_res" : ": Entropy_res");
-  p.x_label = "time in the recording [s]";
+  p.x_label =
+      trend.time_axis_label.empty() ? std::string("time in the recording [s]") : trend.time_axis_label;
   p.y_label = rms ? "RMS_res [" + signal_unit + "]" : "Entropy_res [-]";
   p.empty_message = "no data: no windows judged";
 
@@ -595,7 +599,7 @@ std::string render_html_report(const ReportData& data) {
     }
     o += "</ul>\n";
   }
-  o += gearbox_section(data);
+  if (!data.from_history) o += gearbox_section(data);
 
   o += "<h2 id=\"summary\">Summary</h2>\n<table class=\"summary\">\n";
   for (const auto& [k, v] : data.summary) {
@@ -605,6 +609,12 @@ std::string render_html_report(const ReportData& data) {
   if (!data.trends.empty()) o += detection_table(data.trends);
 
   o += "<h2 id=\"how-to-read\">How to read this report</h2>\n";
+  if (data.from_history) {
+    o += "<p class=\"meta\">This report is built from a daemon's event history: each dot is a window the "
+         "daemon judged, placed at the wall time of its end (hours since the history's first line), against "
+         "the band it was judged with. The history keeps features, not samples, so there are no example "
+         "windows. The notes list the state and alarm-level changes.</p>\n";
+  }
   o += kHowToRead;
 
   o += "<h2 id=\"trends\">Feature trends</h2>\n";
@@ -624,8 +634,8 @@ std::string render_html_report(const ReportData& data) {
     o += "</div>\n";
   }
 
-  o += "<h2 id=\"examples\">Example windows</h2>\n";
-  if (data.examples.empty()) o += "<p>No example windows in this report.</p>\n";
+  if (!data.from_history) o += "<h2 id=\"examples\">Example windows</h2>\n";
+  if (data.examples.empty() && !data.from_history) o += "<p>No example windows in this report.</p>\n";
   for (std::size_t i = 0; i < data.examples.size(); ++i) {
     o += example_section(data.examples[i], data, i);
   }

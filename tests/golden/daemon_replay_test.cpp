@@ -240,7 +240,8 @@ TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
     EXPECT_EQ(h.at("detector").as_string(), m.at("detector").as_string()) << i;
     if (m.at("status").as_string() == "scored") {
       EXPECT_EQ(h.at("segment").as_number(), m.at("segment").as_number()) << i;
-      EXPECT_NEAR(h.at("rms_res").as_number(), m.at("rms_res").as_number(), 1e-8 * m.at("rms_res").as_number());
+      EXPECT_NEAR(h.at("rms_res").as_number(), m.at("rms_res").as_number(),
+                  1e-8 * m.at("rms_res").as_number());
       EXPECT_NEAR(h.at("entropy_res").as_number(), m.at("entropy_res").as_number(), 1e-8);
     }
   }
@@ -250,6 +251,39 @@ TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
   bool ended = false;
   for (const auto& st : states) ended = ended || st.at("phase").as_string() == "replay ended";
   EXPECT_TRUE(ended);
+  // `ptda report --history`: the trend report of that history.
+  std::size_t judged = 0, alarmed = 0;
+  for (const auto& w : windows) {
+    judged += w.at("status").as_string() == "scored" ? 1 : 0;
+    alarmed += w.at("alarm").as_bool() ? 1 : 0;
+  }
+  const fs::path html = p.dir / "history.html";
+  const RunResult rep =
+      run_ptda({"report", "--history", history.string(), "--html", html.string()}, p.dir, "history_report");
+  ASSERT_EQ(rep.exit_code, 0) << rep.err;
+  const std::string page = read_file(html);
+  EXPECT_NE(page.find("<h1>PTDA event history of joint4</h1>"), std::string::npos);
+  EXPECT_NE(page.find("<tr><th>judged</th><td>" + std::to_string(judged) + "</td></tr>"), std::string::npos);
+  EXPECT_NE(page.find(alarmed > 0 ? "ALARM first at " : "no alarm in "), std::string::npos);
+  EXPECT_NE(page.find("hours since "), std::string::npos);
+  EXPECT_EQ(page.find("Example windows"), std::string::npos);
+  // A partial last line (power cut while writing) is left out with a note; a broken line elsewhere is
+  // an error naming the file and line.
+  const fs::path cut = p.dir / "history_cut";
+  fs::remove_all(cut);
+  fs::create_directories(cut);
+  fs::copy_file(history / "history.jsonl", cut / "history.1.jsonl");
+  std::ofstream(cut / "history.jsonl") << "{\"type\":\"window\",\"joint\":\"joint4\",\"t_ut";
+  const RunResult partial =
+      run_ptda({"report", "--history", cut.string(), "--html", html.string()}, p.dir, "history_partial");
+  ASSERT_EQ(partial.exit_code, 0) << partial.err;
+  EXPECT_NE(read_file(html).find("left out a partial last line of " + (cut / "history.jsonl").string()),
+            std::string::npos);
+  std::ofstream(cut / "history.jsonl") << "{\"type\":\"window\"\n{\"type\":\"state\"}\n";
+  const RunResult broken =
+      run_ptda({"report", "--history", cut.string(), "--html", html.string()}, p.dir, "history_broken");
+  EXPECT_EQ(broken.exit_code, 1);
+  EXPECT_NE(broken.err.find((cut / "history.jsonl").string() + ":1"), std::string::npos) << broken.err;
   const cli::JsonValue status = cli::parse_json(read_file(p.dir / "status" / "status.json"), "status.json");
   EXPECT_EQ(status.at("joint").as_string(), "joint4");
   std::size_t scored = 0, abnormal = 0;

@@ -214,6 +214,97 @@ TEST(ReportBrowser, ChromiumRendersEverySectionAndOneAlarmTime) {
             std::string::npos);
 }
 
+// A daemon's event history (`ptda report --history`, docs/fleet.md): a week of one joint written as
+// ptdad writes it, rendered by the browser: the trends on an hours axis, the alarm episode, the state
+// changes, no gearbox header and no example windows.
+TEST(ReportBrowser, ChromiumRendersAHistoryReport) {
+  const std::string chromium = find_chromium();
+  if (chromium.empty()) {
+    if (std::getenv("PTDA_REQUIRE_SHARED_DATA") != nullptr) {
+      FAIL() << "PTDA_REQUIRE_SHARED_DATA is set but chromium is not installed";
+    }
+    GTEST_SKIP() << "chromium not found at /usr/bin/chromium (scripts/bootstrap.sh base installs it)";
+  }
+  const fs::path dir = scratch_dir("report_browser_history");
+  const fs::path hist = dir / "history";
+  fs::create_directories(hist);
+  // 7 days, one window every 30 min per class (2 classes); abnormal and alarm on the last day.
+  const auto line = [](int day, int minute, int cls, double rms, bool abnormal, bool alarm, int n) {
+    char t[32];
+    std::snprintf(t, sizeof t, "2026-11-%02dT%02d:%02d:00.000Z", 20 + day, minute / 60, minute % 60);
+    char buf[640];
+    std::snprintf(buf, sizeof buf,
+                  "{\"type\":\"window\",\"joint\":\"joint4\",\"t_utc\":\"%s\",\"n\":%d,\"t_start\":%d,"
+                  "\"t_end\":%d.125,\"segment\":%d,\"region\":%d,\"speed_rad_s\":1.2,\"status\":\"scored\","
+                  "\"method\":\"ptda\",\"rms_res\":%.4f,\"entropy_res\":0.88,\"rms_band\":[0.2,0.3],"
+                  "\"entropy_band\":[0.85,0.91],\"rms_out\":%s,\"entropy_out\":false,\"abnormal\":%s,"
+                  "\"alarm\":%s,\"abnormal_in_last_n\":0,\"rms_low\":false,\"detector\":\"%s\","
+                  "\"kofn_alarm\":false,\"seq_alarm\":false,\"seq_warn\":false,\"z_rms\":0.1,"
+                  "\"z_entropy\":0.1,\"cusum\":0,\"cusum_feature\":\"none\",\"cusum_max\":0}\n",
+                  t, n, n, n, cls, n, rms, abnormal ? "true" : "false", abnormal ? "true" : "false",
+                  alarm ? "true" : "false", alarm ? "k_of_n" : "none");
+    return std::string(buf);
+  };
+  std::ofstream older(hist / "history.1.jsonl"), newest(hist / "history.jsonl");
+  int n = 0, alarms = 0;
+  for (int day = 0; day < 7; ++day) {
+    std::ofstream& out = day < 4 ? older : newest;
+    if (day == 0) {
+      out << "{\"type\":\"state\",\"joint\":\"joint4\",\"t_utc\":\"2026-11-20T00:00:00.000Z\","
+             "\"state\":\"running\",\"phase\":\"monitoring\",\"level\":\"normal\",\"causes\":\"none\","
+             "\"reason\":\"\"}\n";
+    }
+    for (int minute = 0; minute < 1440; minute += 30) {
+      for (int cls = 0; cls < 2; ++cls) {
+        const bool bad = day == 6 && minute >= 720;
+        alarms += bad ? 1 : 0;
+        out << line(day, minute, cls, bad ? 0.35 : 0.25 + 0.01 * cls, bad, bad, n++);
+      }
+    }
+  }
+  newest << "{\"type\":\"state\",\"joint\":\"joint4\",\"t_utc\":\"2026-11-26T12:00:00.000Z\","
+            "\"state\":\"running\",\"phase\":\"monitoring\",\"level\":\"alarm\",\"causes\":\"rms\","
+            "\"reason\":\"class 0, rms_res 0.35 above 0.3\"}\n";
+  older.close();
+  newest.close();
+  const fs::path html = dir / "history.html";
+  const RunResult rep =
+      run_ptda({"report", "--history", hist.string(), "--html", html.string()}, dir, "report");
+  ASSERT_EQ(rep.exit_code, 0) << rep.err;
+
+  const RunResult dom = run_chromium(chromium, {"--dump-dom"}, html, dir, "dom");
+  ASSERT_EQ(dom.exit_code, 0) << dom.err;
+  const std::string& d = dom.out;
+  ASSERT_NE(d.find("</html>"), std::string::npos) << "no DOM dumped; stderr:\n" << dom.err;
+  for (const char* bad : {"Uncaught", ":CONSOLE", "ERR_FILE_NOT_FOUND", "Failed to load"}) {
+    EXPECT_EQ(dom.err.find(bad), std::string::npos) << bad << " in chromium's log:\n" << dom.err;
+  }
+  std::size_t at = 0;
+  for (const char* id : {"verdicts", "summary", "how-to-read", "trends", "notes"}) {
+    const auto p = d.find(std::string("id=\"") + id + "\"");
+    EXPECT_NE(p, std::string::npos) << id;
+    EXPECT_GT(p, at) << id << " out of order";
+    if (p != std::string::npos) at = p;
+  }
+  EXPECT_EQ(d.find("id=\"gearbox\""), std::string::npos);
+  EXPECT_EQ(d.find("id=\"examples\""), std::string::npos);
+  EXPECT_EQ(count(d, "<svg "), 4U);  // RMS and entropy trends, each an outer and a plot-area svg
+  EXPECT_EQ(count(d, "hours since 2026-11-20T00:00:00.000Z"), 2U);
+  EXPECT_NE(d.find("<tr><th>judged</th><td>" + std::to_string(n) + "</td></tr>"), std::string::npos);
+  EXPECT_NE(d.find("<b>history</b>: ALARM first at 2026-11-26T12:00:00.000Z (" + std::to_string(alarms) +
+                   " windows with the alarm active)"),
+            std::string::npos);
+  EXPECT_EQ(between(d, "<span class=\"alarm-time\">", "</span>", "detection table"), "156.000 h");
+  EXPECT_NE(d.find("2026-11-26T12:00:00.000Z: running (monitoring), level alarm, cause rms: class 0"),
+            std::string::npos);
+  const fs::path png = dir / "history.png";
+  const RunResult shot =
+      run_chromium(chromium, {"--window-size=1250,2000", "--screenshot=" + png.string()}, html, dir, "shot");
+  ASSERT_EQ(shot.exit_code, 0) << shot.err;
+  ASSERT_TRUE(fs::exists(png)) << shot.err;
+  EXPECT_GT(fs::file_size(png), 60000U) << "a blank page compresses to a few kB";
+}
+
 // --envelope-band: a given band is used for every example; a bad one is a usage error naming the
 // option and the limit (no chromium needed).
 TEST(ReportCli, EnvelopeBandOption) {

@@ -85,6 +85,8 @@ struct MethodTrend {
   std::vector<TrendPoint> points;
   std::vector<std::pair<std::int32_t, ptda::dsp::FeatureThresholds>> class_thresholds;
   double window_s = 0.0;  ///< window duration (alarm shading extends to the end of the last window)
+  /// The time axis's label; "" = "time in the recording [s]" (a history: hours since its first line).
+  std::string time_axis_label;
 };
 
 /// One recording of the report, in --recording order.
@@ -110,6 +112,9 @@ struct ReportData {
   std::string signal_unit = "m/s^2";  ///< unit of the vibration samples
   double spectrum_max_hz = 0.0;       ///< upper limit of the full spectra; <= 0: fs/2
   EnvelopeBand envelope_band;         ///< hi_hz <= 0: chosen per example from its PTDA residual
+  /// A daemon's event history (ptda report --history): no gearbox header, no example windows; times
+  /// in hours since the history's first line.
+  bool from_history = false;
 };
 
 /// Dynamic range of the dB spectra: the floor is this far below the top of each plot's scale.
