@@ -88,7 +88,6 @@ void remove_stale_temp_files_of(const fs::path& target) {
   if (n > 0) spdlog::info("removed {} stale temporary file(s) of {}", n, target.string());
 }
 
-
 /// "rms+entropy", "coverage", "none": the AlarmCause bits. Never allocates.
 void cause_text(std::uint8_t causes, char* out, std::size_t cap) noexcept {
   static constexpr std::pair<std::uint8_t, const char*> kNames[] = {
@@ -149,7 +148,8 @@ void Daemon::build_history() {
 // of a window's end: its daemon-clock time plus the clock's offset to UTC now.
 void Daemon::drain_history(Pipeline& p) noexcept {
   const std::int64_t offset = drivers::realtime_offset_ns(clock_);
-  while (p.pop_window_log(history_window_)) history_->window(history_window_, history_window_.ref.t_end_ns + offset);
+  while (p.pop_window_log(history_window_))
+    history_->window(history_window_, history_window_.ref.t_end_ns + offset);
   history_->counters().ring_dropped = p.status().window_log_dropped;
 }
 
@@ -686,7 +686,6 @@ void Daemon::log_counter_changes() noexcept {
   last_source_ = a;
   last_slicer_ = sc;
 }
-
 
 // Runs on the supervisor (the processing thread only sets the alarm state; it never logs). Lines stay
 // under spdlog's 250-byte inline buffer, so logging them does not allocate.

@@ -133,8 +133,8 @@ class Daemon {
   void update_state_and_reason(std::int64_t now) noexcept;
   void log_counter_changes() noexcept;
   void log_status_write_changes() noexcept;
-  void build_history();                                   ///< history_ from cfg_ ([history])
-  void drain_history(Pipeline& p) noexcept;                ///< the window log into the history
+  void build_history();                      ///< history_ from cfg_ ([history])
+  void drain_history(Pipeline& p) noexcept;  ///< the window log into the history
   void history_state(const PipelineStatus& ps, const char* reason) noexcept;  ///< a state line
   void log_alarm_changes(const PipelineStatus& ps) noexcept;
   void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);

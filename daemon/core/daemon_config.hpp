@@ -118,9 +118,9 @@ struct TrainingSection {
 
 /// [history]: the event history on the cabinet (docs/fleet.md, "Event history").
 struct HistorySection {
-  std::filesystem::path dir;           ///< history.jsonl and its rotations ("" = no history)
-  double max_file_mib = 16.0;          ///< a file is rotated before it passes this size
-  std::uint32_t files = 8;             ///< history.jsonl + files - 1 rotations: the bound is files x size
+  std::filesystem::path dir;   ///< history.jsonl and its rotations ("" = no history)
+  double max_file_mib = 16.0;  ///< a file is rotated before it passes this size
+  std::uint32_t files = 8;     ///< history.jsonl + files - 1 rotations: the bound is files x size
 };
 
 struct DaemonConfig {

@@ -677,7 +677,8 @@ void Pipeline::drain_windows(std::int64_t now) noexcept {
       if (coverage_) coverage_->on_window(r);
       alarm_->on_window(r, alarm_time(fast_ ? r.ref.t_end_ns : now));
       if (sink_ != nullptr) sink_->on_window(r);
-      if (window_log_on_.load(std::memory_order_relaxed) && !window_log_->try_push(r)) ++st_.window_log_dropped;
+      if (window_log_on_.load(std::memory_order_relaxed) && !window_log_->try_push(r))
+        ++st_.window_log_dropped;
     }
     if (coverage_) {
       const dsp::SlicerCounters& sc = engine_->slicer().counters();

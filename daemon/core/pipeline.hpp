@@ -166,9 +166,9 @@ struct PipelineStatus {
                                      ///< device timestamp back or jumping): their windows are discarded
   std::uint64_t time_jumps = 0;      ///< block stamps that jumped against the sample index (> kTimeJumpNs)
   std::uint64_t speeds_before_t0 = 0;
-  std::uint64_t pauses = 0;           ///< transitions into a paused phase
+  std::uint64_t pauses = 0;              ///< transitions into a paused phase
   std::uint64_t window_log_dropped = 0;  ///< windows the history ring could not hold (supervisor late)
-  std::int64_t max_block_dev_ns = 0;  ///< max |block stamp - (t0 + index / fs)|
+  std::int64_t max_block_dev_ns = 0;     ///< max |block stamp - (t0 + index / fs)|
   dsp::SlicerCounters slicer;
   bool have_window = false;
   dsp::WindowResult last_window;  ///< last scored window (times on the daemon clock)
@@ -211,7 +211,8 @@ class Pipeline {
   /// Test/tool hook, set before activate(). Thread: main.
   void set_window_sink(WindowSink* sink) noexcept { sink_ = sink; }
   /// Hand every window to the supervisor through the window log ring (the event history). Thread: main,
-  /// before activate(), or the supervisor after a reload. Never allocates (the ring is allocated in configure()).
+  /// before activate(), or the supervisor after a reload. Never allocates (the ring is allocated in
+  /// configure()).
   void enable_window_log(bool on) noexcept { window_log_on_.store(on, std::memory_order_relaxed); }
   /// The next window for the history, oldest first; false when none. Thread: the supervisor only (the
   /// ring's consumer). Never blocks or allocates.

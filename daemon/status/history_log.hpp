@@ -21,20 +21,20 @@
 namespace ptda::daemon {
 
 struct HistoryConfig {
-  std::filesystem::path dir;                     ///< history.jsonl and its rotations go here
-  std::uint64_t max_file_bytes = 16ULL << 20U;   ///< rotate before a line would pass this size
-  std::uint32_t files = 8;                       ///< history.jsonl + files - 1 rotations (>= 2)
-  std::string joint;                             ///< "joint" on every line ("" = none)
-  std::string method;                            ///< the monitoring method, on window lines
+  std::filesystem::path dir;                    ///< history.jsonl and its rotations go here
+  std::uint64_t max_file_bytes = 16ULL << 20U;  ///< rotate before a line would pass this size
+  std::uint32_t files = 8;                      ///< history.jsonl + files - 1 rotations (>= 2)
+  std::string joint;                            ///< "joint" on every line ("" = none)
+  std::string method;                           ///< the monitoring method, on window lines
 };
 
 struct HistoryCounters {
-  std::uint64_t lines = 0;          ///< lines written
-  std::uint64_t bytes = 0;          ///< bytes written (all files)
-  std::uint64_t rotations = 0;      ///< files rotated
-  std::uint64_t write_failures = 0; ///< lines lost to a failed open/write/rename (dropped, counted)
-  int last_errno = 0;               ///< of the latest failure (0: none)
-  std::uint64_t ring_dropped = 0;   ///< windows the ring could not hold (filled in by the daemon)
+  std::uint64_t lines = 0;           ///< lines written
+  std::uint64_t bytes = 0;           ///< bytes written (all files)
+  std::uint64_t rotations = 0;       ///< files rotated
+  std::uint64_t write_failures = 0;  ///< lines lost to a failed open/write/rename (dropped, counted)
+  int last_errno = 0;                ///< of the latest failure (0: none)
+  std::uint64_t ring_dropped = 0;    ///< windows the ring could not hold (filled in by the daemon)
 };
 
 /// One window as a history line: the fields of `ptda monitor --jsonl` (cli window_json) plus

@@ -93,15 +93,15 @@ TEST(DaemonConfig, ErrorsAreLocated) {
   EXPECT_EQ(parse_daemon_config(kMinimal + "[daemon]\njoint = \"r17.j4-a_b\"\n", "t.toml").daemon.joint,
             "r17.j4-a_b");
   // [history]: the event history's bound is part of the configuration.
-  const DaemonConfig hist =
-      parse_daemon_config(kMinimal + "[history]\ndir = \"/var/lib/ptda/history\"\nmax_file_mib = 2.5\nfiles = 4\n",
-                          "t.toml");
+  const DaemonConfig hist = parse_daemon_config(
+      kMinimal + "[history]\ndir = \"/var/lib/ptda/history\"\nmax_file_mib = 2.5\nfiles = 4\n", "t.toml");
   EXPECT_EQ(hist.history.dir, fs::path("/var/lib/ptda/history"));
   EXPECT_EQ(hist.history.max_file_mib, 2.5);
   EXPECT_EQ(hist.history.files, 4U);
   EXPECT_EQ(error_of(kMinimal + "[history]\nfiles = 1\n").rfind("t.toml:6:9: history.files", 0), 0U)
       << error_of(kMinimal + "[history]\nfiles = 1\n");
-  EXPECT_EQ(error_of(kMinimal + "[history]\nmax_files = 3\n").rfind("t.toml:6:1: unknown key 'max_files' in [history]", 0),
+  EXPECT_EQ(error_of(kMinimal + "[history]\nmax_files = 3\n")
+                .rfind("t.toml:6:1: unknown key 'max_files' in [history]", 0),
             0U)
       << error_of(kMinimal + "[history]\nmax_files = 3\n");
   const std::string zero_timeout = kMinimal + "[daemon]\ncoverage_timeout_s = 0\n";

@@ -84,21 +84,23 @@ TEST(HistoryLog, WindowAndStateLinesAreTheMonitorFieldsAsJsonLines) {
   const std::vector<std::string> lines = lines_of(dir / "history.jsonl");
   ASSERT_EQ(lines.size(), 3U);
   for (const std::string& l : lines) EXPECT_TRUE(test::JsonChecker(l).valid()) << l;
-  EXPECT_EQ(lines[0],
-            R"({"type":"window","joint":"joint4","t_utc":"2023-11-14T22:13:20.123Z","n":7,"t_start":1.875,)"
-            R"("t_end":2,"segment":3,"region":3,"speed_rad_s":-1.2,"status":"scored","method":"ptda",)"
-            R"("rms_res":0.25,"entropy_res":0.875,"rms_band":[0.2,0.3],"entropy_band":[0.8,0.9],"rms_out":true,)"
-            R"("entropy_out":false,"abnormal":true,"alarm":false,"abnormal_in_last_n":1,"rms_low":false,)"
-            R"("detector":"none","kofn_alarm":false,"seq_alarm":false,"seq_warn":false,"z_rms":0.5,)"
-            R"("z_entropy":-0.25,"cusum":0,"cusum_feature":"none","cusum_max":0})");
+  EXPECT_EQ(
+      lines[0],
+      R"({"type":"window","joint":"joint4","t_utc":"2023-11-14T22:13:20.123Z","n":7,"t_start":1.875,)"
+      R"("t_end":2,"segment":3,"region":3,"speed_rad_s":-1.2,"status":"scored","method":"ptda",)"
+      R"("rms_res":0.25,"entropy_res":0.875,"rms_band":[0.2,0.3],"entropy_band":[0.8,0.9],"rms_out":true,)"
+      R"("entropy_out":false,"abnormal":true,"alarm":false,"abnormal_in_last_n":1,"rms_low":false,)"
+      R"("detector":"none","kofn_alarm":false,"seq_alarm":false,"seq_warn":false,"z_rms":0.5,)"
+      R"("z_entropy":-0.25,"cusum":0,"cusum_feature":"none","cusum_max":0})");
   // Not scored: the features are null, never stale numbers; no wall time known: null.
   EXPECT_NE(lines[1].find(R"("t_utc":null,"n":8,)"), std::string::npos) << lines[1];
   EXPECT_NE(lines[1].find(R"("segment":null,)"), std::string::npos) << lines[1];
   EXPECT_NE(lines[1].find(R"("status":"no_class","method":"ptda","rms_res":null,"entropy_res":null,)"),
             std::string::npos)
       << lines[1];
-  EXPECT_EQ(lines[2], R"({"type":"state","joint":"joint4","t_utc":"2023-11-14T22:13:21.000Z","state":"running",)"
-                      R"("phase":"monitoring","level":"alarm","causes":"rms","reason":"class 3, rms \"high\""})");
+  EXPECT_EQ(lines[2],
+            R"({"type":"state","joint":"joint4","t_utc":"2023-11-14T22:13:21.000Z","state":"running",)"
+            R"("phase":"monitoring","level":"alarm","causes":"rms","reason":"class 3, rms \"high\""})");
 }
 
 TEST(HistoryLog, RotationBoundsTheHistoryAndKeepsTheNewestInOrder) {
