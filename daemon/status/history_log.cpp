@@ -17,49 +17,6 @@ namespace {
 
 constexpr std::size_t kLineBytes = 4096;  // a window line is ~700 bytes, a state line < 1 KiB
 
-/// `"key":` (after a ',' unless first).
-class Line {
- public:
-  explicit Line(TextBuffer& b) noexcept : b_(b) { b_.append_char('{'); }
-  TextBuffer& key(std::string_view k) noexcept {
-    if (!first_) b_.append_char(',');
-    first_ = false;
-    b_.append_char('"');
-    b_.append(k);
-    b_.append("\":");
-    return b_;
-  }
-  void str(std::string_view k, std::string_view v) noexcept { key(k).append_json_string(v); }
-  void num(std::string_view k, double v) noexcept { key(k).append_double(v, "null"); }
-  void u64(std::string_view k, std::uint64_t v) noexcept { key(k).append_u64(v); }
-  void i64(std::string_view k, std::int64_t v) noexcept { key(k).append_i64(v); }
-  void boolean(std::string_view k, bool v) noexcept { key(k).append(v ? "true" : "false"); }
-  void null(std::string_view k) noexcept { key(k).append("null"); }
-  void pair(std::string_view k, double lo, double hi) noexcept {
-    key(k).append_char('[');
-    b_.append_double(lo, "null");
-    b_.append_char(',');
-    b_.append_double(hi, "null");
-    b_.append_char(']');
-  }
-  void utc(std::string_view k, std::int64_t unix_ns) noexcept {
-    char buf[32];
-    const std::size_t n = unix_ns > 0 ? format_rfc3339_utc(unix_ns, buf, sizeof buf) : 0;
-    if (n == 0) {
-      null(k);
-    } else {
-      key(k).append_char('"');
-      b_.append(std::string_view(buf, n));
-      b_.append_char('"');
-    }
-  }
-  void end() noexcept { b_.append("}\n"); }
-
- private:
-  TextBuffer& b_;
-  bool first_ = true;
-};
-
 double seconds(std::int64_t ns) noexcept {
   return static_cast<double>(ns) * 1e-9;
 }
@@ -153,7 +110,8 @@ void HistoryLog::write_line(std::size_t len) noexcept {
 
 void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) noexcept {
   TextBuffer b(line_.data(), line_.size());
-  Line o(b);
+  JsonWriter o(b);
+  o.open('{');
   o.str("type", "window");
   if (!cfg_.joint.empty()) o.str("joint", cfg_.joint);
   o.utc("t_utc", end_unix_ns);
@@ -173,8 +131,8 @@ void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) no
   if (scored) {
     o.num("rms_res", w.features.rms_res);
     o.num("entropy_res", w.features.entropy_res);
-    o.pair("rms_band", w.thresholds.rms.lo, w.thresholds.rms.hi);
-    o.pair("entropy_band", w.thresholds.entropy.lo, w.thresholds.entropy.hi);
+    o.band("rms_band", w.thresholds.rms.lo, w.thresholds.rms.hi);
+    o.band("entropy_band", w.thresholds.entropy.lo, w.thresholds.entropy.hi);
   } else {
     o.null("rms_res");
     o.null("entropy_res");
@@ -203,7 +161,8 @@ void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) no
     o.null("cusum_feature");
   }
   o.num("cusum_max", w.seq_max_statistic);
-  o.end();
+  o.close('}');
+  b.append_char('\n');
   if (b.overflow()) {
     ++counters_.write_failures;
     return;
@@ -214,7 +173,8 @@ void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) no
 void HistoryLog::state(std::int64_t unix_ns, std::string_view state, std::string_view phase,
                        std::string_view level, std::string_view causes, std::string_view reason) noexcept {
   TextBuffer b(line_.data(), line_.size());
-  Line o(b);
+  JsonWriter o(b);
+  o.open('{');
   o.str("type", "state");
   if (!cfg_.joint.empty()) o.str("joint", cfg_.joint);
   o.utc("t_utc", unix_ns);
@@ -223,7 +183,8 @@ void HistoryLog::state(std::int64_t unix_ns, std::string_view state, std::string
   o.str("level", level);
   o.str("causes", causes);
   o.str("reason", reason);
-  o.end();
+  o.close('}');
+  b.append_char('\n');
   if (b.overflow()) {
     ++counters_.write_failures;
     return;

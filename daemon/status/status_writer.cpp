@@ -87,6 +87,20 @@ void TextBuffer::append_label_value(std::string_view s) noexcept {
   append_escaped(escape_prom_label_value, s);
 }
 
+void append_seconds(TextBuffer& b, double s) noexcept {
+  if (!std::isfinite(s)) {
+    b.append("null");
+    return;
+  }
+  char buf[48];
+  const int n = std::snprintf(buf, sizeof buf, "%.3f", s);
+  if (n <= 0 || static_cast<std::size_t>(n) >= sizeof buf) {
+    b.append("null");
+    return;
+  }
+  b.append(std::string_view(buf, static_cast<std::size_t>(n)));
+}
+
 std::size_t format_rfc3339_utc(std::int64_t unix_ns, char* out, std::size_t cap) noexcept {
   // 253402300799 s = 9999-12-31T23:59:59Z: four-digit years only.
   if (cap < 25 || unix_ns < 0 || unix_ns / 1'000'000'000 > 253'402'300'799) return 0;
@@ -103,21 +117,6 @@ namespace {
 
 using drivers::AlarmLevel;
 
-/// Seconds with millisecond resolution ("%.3f"); JSON null when not finite.
-void append_seconds(TextBuffer& b, double s) noexcept {
-  if (!std::isfinite(s)) {
-    b.append("null");
-    return;
-  }
-  char buf[48];
-  const int n = std::snprintf(buf, sizeof buf, "%.3f", s);
-  if (n <= 0 || static_cast<std::size_t>(n) >= sizeof buf) {
-    b.append("null");
-    return;
-  }
-  b.append(std::string_view(buf, static_cast<std::size_t>(n)));
-}
-
 constexpr std::array<std::pair<std::uint8_t, std::string_view>, 7> kCauseNames{{
     {drivers::kCauseRms, "rms"},
     {drivers::kCauseEntropy, "entropy"},
@@ -130,80 +129,6 @@ constexpr std::array<std::pair<std::uint8_t, std::string_view>, 7> kCauseNames{{
 
 constexpr std::array<dsp::UnmatchedReason, dsp::kUnmatchedReasonCount> kUnmatchedReasons{
     dsp::UnmatchedReason::kSpeed, dsp::UnmatchedReason::kDirection, dsp::UnmatchedReason::kInvalid};
-
-// ----------------------------------------------------------------------------------------------- JSON
-class Json {
- public:
-  explicit Json(TextBuffer& b) noexcept : b_(b) {}
-  void open(char c) noexcept {
-    b_.append_char(c);
-    first_ = true;
-  }
-  void close(char c) noexcept {
-    b_.append_char(c);
-    first_ = false;
-  }
-  void key(std::string_view k) noexcept {
-    if (!first_) b_.append_char(',');
-    first_ = false;
-    b_.append_json_string(k);
-    b_.append_char(':');
-  }
-  void item() noexcept {
-    if (!first_) b_.append_char(',');
-    first_ = false;
-  }
-  void str(std::string_view k, std::string_view v) noexcept {
-    key(k);
-    b_.append_json_string(v);
-  }
-  void u64(std::string_view k, std::uint64_t v) noexcept {
-    key(k);
-    b_.append_u64(v);
-  }
-  void i64(std::string_view k, std::int64_t v) noexcept {
-    key(k);
-    b_.append_i64(v);
-  }
-  void num(std::string_view k, double v) noexcept {
-    key(k);
-    b_.append_double(v, "null");
-  }
-  void secs(std::string_view k, double v) noexcept {
-    key(k);
-    append_seconds(b_, v);
-  }
-  void boolean(std::string_view k, bool v) noexcept {
-    key(k);
-    b_.append(v ? "true" : "false");
-  }
-  void band(std::string_view k, double lo, double hi) noexcept {
-    key(k);
-    b_.append_char('[');
-    b_.append_double(lo, "null");
-    b_.append_char(',');
-    b_.append_double(hi, "null");
-    b_.append_char(']');
-  }
-  void null(std::string_view k) noexcept {
-    key(k);
-    b_.append("null");
-  }
-  /// RFC 3339 UTC text of a unix time in ns; null when unknown (0).
-  void utc(std::string_view k, std::int64_t unix_ns) noexcept {
-    char buf[32];
-    const std::size_t n = unix_ns > 0 ? format_rfc3339_utc(unix_ns, buf, sizeof buf) : 0;
-    if (n == 0) {
-      null(k);
-    } else {
-      str(k, std::string_view(buf, n));
-    }
-  }
-
- private:
-  TextBuffer& b_;
-  bool first_ = true;
-};
 
 // The counters of status.json and the Prometheus file, from one table so the two cannot drift apart:
 // status.json groups them ({"acquisition": {...}, "can": {...}, ...}), Prometheus prints each as a
@@ -282,7 +207,7 @@ constexpr StateFile kStateFiles[kStateFileCount] = {StateFile::kStatus, StateFil
                                                     StateFile::kBaseline};
 
 /// "state_files":{"status":{"failing":..,"failures":..,"last_errno":..,"last_error":".."},...}
-void render_state_files_json(Json& j, const StateFileHealth* files) noexcept {
+void render_state_files_json(JsonWriter& j, const StateFileHealth* files) noexcept {
   j.key("state_files");
   j.open('{');
   for (const StateFile f : kStateFiles) {
@@ -307,7 +232,7 @@ void render_state_files_json(Json& j, const StateFileHealth* files) noexcept {
 /// `files`: the kStateFileCount entries of "state_files" (write() passes its live health).
 void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHealth* files,
                       std::string_view joint) noexcept {
-  Json j(b);
+  JsonWriter j(b);
   j.open('{');
   j.u64("version", 1);
   if (!joint.empty()) j.str("joint", joint);

@@ -258,6 +258,84 @@ class TextBuffer {
   bool overflow_ = false;
 };
 
+/// Seconds with millisecond resolution ("%.3f"); JSON null when not finite. Never allocates.
+void append_seconds(TextBuffer& b, double s) noexcept;
+
+/// Writes JSON into a TextBuffer: objects, arrays and typed members (status.json, the event history).
+/// Thread: the buffer's owner. Never allocates.
+class JsonWriter {
+ public:
+  explicit JsonWriter(TextBuffer& b) noexcept : b_(b) {}
+  void open(char c) noexcept {
+    b_.append_char(c);
+    first_ = true;
+  }
+  void close(char c) noexcept {
+    b_.append_char(c);
+    first_ = false;
+  }
+  void key(std::string_view k) noexcept {
+    if (!first_) b_.append_char(',');
+    first_ = false;
+    b_.append_json_string(k);
+    b_.append_char(':');
+  }
+  void item() noexcept {
+    if (!first_) b_.append_char(',');
+    first_ = false;
+  }
+  void str(std::string_view k, std::string_view v) noexcept {
+    key(k);
+    b_.append_json_string(v);
+  }
+  void u64(std::string_view k, std::uint64_t v) noexcept {
+    key(k);
+    b_.append_u64(v);
+  }
+  void i64(std::string_view k, std::int64_t v) noexcept {
+    key(k);
+    b_.append_i64(v);
+  }
+  void num(std::string_view k, double v) noexcept {
+    key(k);
+    b_.append_double(v, "null");
+  }
+  void secs(std::string_view k, double v) noexcept {
+    key(k);
+    append_seconds(b_, v);
+  }
+  void boolean(std::string_view k, bool v) noexcept {
+    key(k);
+    b_.append(v ? "true" : "false");
+  }
+  void band(std::string_view k, double lo, double hi) noexcept {
+    key(k);
+    b_.append_char('[');
+    b_.append_double(lo, "null");
+    b_.append_char(',');
+    b_.append_double(hi, "null");
+    b_.append_char(']');
+  }
+  void null(std::string_view k) noexcept {
+    key(k);
+    b_.append("null");
+  }
+  /// RFC 3339 UTC text of a unix time in ns; null when unknown (0).
+  void utc(std::string_view k, std::int64_t unix_ns) noexcept {
+    char buf[32];
+    const std::size_t n = unix_ns > 0 ? format_rfc3339_utc(unix_ns, buf, sizeof buf) : 0;
+    if (n == 0) {
+      null(k);
+    } else {
+      str(k, std::string_view(buf, n));
+    }
+  }
+
+ private:
+  TextBuffer& b_;
+  bool first_ = true;
+};
+
 struct StatusWriterConfig {
   std::filesystem::path json_path;       ///< empty = no JSON file (e.g. /run/ptda/status.json)
   std::filesystem::path prom_path;       ///< empty = none; must end in ".prom" (e.g. .../ptda.prom)
