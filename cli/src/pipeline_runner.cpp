@@ -245,8 +245,9 @@ namespace {
 
 class CollectSink final : public PipelineSink {
  public:
-  CollectSink(const dsp::ExtractionConfig& cfg, double fs_hz, std::int64_t t0_ns)
-      : slicer_(cfg, fs_hz, t0_ns), buf_(cfg.window_len) {}
+  CollectSink(const dsp::ExtractionConfig& cfg, double fs_hz, std::int64_t t0_ns,
+              const CollectVisitor& visitor)
+      : slicer_(cfg, fs_hz, t0_ns), buf_(cfg.window_len), visitor_(visitor) {}
 
   void on_speed(const dsp::SpeedSample& s) override { slicer_.push_speed(s); }
   void on_samples(std::span<const float> block) override { slicer_.push_samples(block); }
@@ -264,7 +265,11 @@ class CollectSink final : public PipelineSink {
     dsp::WindowRef ref;
     while (slicer_.pop(ref, buf_)) {
       data.refs.push_back(ref);
-      data.windows.push_back(buf_);
+      if (visitor_) {
+        visitor_(ref, buf_);
+      } else {
+        data.windows.push_back(buf_);
+      }
     }
     dsp::RegionInfo region;
     while (slicer_.pop_region(region)) data.regions.push_back(region);
@@ -272,6 +277,7 @@ class CollectSink final : public PipelineSink {
 
   dsp::WindowSlicer slicer_;
   std::vector<float> buf_;
+  const CollectVisitor& visitor_;
 };
 
 class MonitorSink final : public PipelineSink {
@@ -314,8 +320,8 @@ class MonitorSink final : public PipelineSink {
 }  // namespace
 
 CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg, double fs_hz,
-                              const RunOptions& options) {
-  CollectSink sink(cfg.extraction, fs_hz, rec.t0_ns);
+                              const RunOptions& options, const CollectVisitor& visitor) {
+  CollectSink sink(cfg.extraction, fs_hz, rec.t0_ns, visitor);
   CollectResult result;
   result.can = run_recording(rec, cfg, sink, options);
   result.slicer = sink.slicer().counters();
@@ -347,7 +353,7 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
     ref.seq += window_offset;
     ref.region_seq += region_offset;
     all.refs.push_back(ref);
-    all.windows.push_back(std::move(more.windows[i]));
+    if (more.windows.size() == more.refs.size()) all.windows.push_back(std::move(more.windows[i]));
     all.recording.push_back(recording);
   }
 }
@@ -360,7 +366,7 @@ dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const Fra
   std::set<std::uint64_t> regions_used;
   for (std::uint64_t i = first; i < last; ++i) {
     out.refs.push_back(all.refs[i]);
-    out.windows.push_back(all.windows[i]);
+    if (all.windows.size() == all.refs.size()) out.windows.push_back(all.windows[i]);
     if (all.recording.size() == all.refs.size()) out.recording.push_back(all.recording[i]);
     regions_used.insert(all.refs[i].region_seq);
   }
