@@ -156,7 +156,7 @@ class DoctorSink final : public PipelineSink {
   double speed_lo = 0.0, speed_hi = 0.0;
   std::int64_t first_speed_t_ns = 0, last_speed_t_ns = 0;
   std::vector<dsp::RegionInfo> regions;
-  std::vector<dsp::WindowRef> windows;
+  std::vector<std::int64_t> window_starts;  // t_start_ns of each configured window
   std::vector<float> fastest_window;
   double fastest_speed_rad_s = 0.0;
 
@@ -164,7 +164,7 @@ class DoctorSink final : public PipelineSink {
   void drain() {
     dsp::WindowRef ref;
     while (configured_.pop(ref, buf_)) {
-      windows.push_back(ref);
+      window_starts.push_back(ref.t_start_ns);
       // The configured windows are longer (a finer spectrum): preferred for the GMF check.
       if (!configured_fastest_ || std::fabs(ref.speed_rad_s) > fastest_speed_rad_s) {
         configured_fastest_ = true;
@@ -471,9 +471,9 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
     }
     regions = std::move(merged);
   }
-  for (const dsp::WindowRef& w : sink.windows) {
+  for (const std::int64_t t_start_ns : sink.window_starts) {
     for (Region& r : regions) {
-      if (w.t_start_ns >= r.t_begin_ns - 1000000 && w.t_start_ns <= r.t_end_ns) {
+      if (t_start_ns >= r.t_begin_ns - 1000000 && t_start_ns <= r.t_end_ns) {
         ++r.windows;
         break;
       }

@@ -331,6 +331,12 @@ CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineCo
 }
 
 void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
+  if (all.refs.empty() && all.regions.empty() && all.windows.empty()) {
+    // The first recording: taken as it is (recording 0, nothing to renumber), without a second copy.
+    all = std::move(more);
+    all.recording.assign(all.refs.size(), 0U);
+    return;
+  }
   // Recording (day) index of the appended windows: one past the last one's (docs/method.md §5).
   std::uint32_t recording = 0;
   if (!all.refs.empty()) {
@@ -344,6 +350,11 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
     region_offset = std::max(region_offset, w.region_seq + 1);
     window_offset = std::max(window_offset, w.seq + 1);
   }
+  // Exact sizes: no doubling slack on top of a long recording's refs.
+  all.regions.reserve(all.regions.size() + more.regions.size());
+  all.refs.reserve(all.refs.size() + more.refs.size());
+  all.recording.reserve(all.recording.size() + more.refs.size());
+  if (more.windows.size() == more.refs.size()) all.windows.reserve(all.windows.size() + more.windows.size());
   for (auto& r : more.regions) {
     r.seq += region_offset;
     all.regions.push_back(r);

@@ -212,13 +212,13 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
   // What each kept class needs from the passes: its fit windows' groups (in order, with their sizes) and
   // its held-out windows' features.
   struct Plan {
-    std::size_t candidate = 0;  // index into candidates.classes / members
     ClassBaselineBuilder builder;
     std::map<std::uint64_t, std::size_t> group_size;  // fit groups, ascending, and their window counts
     std::map<std::uint64_t, std::vector<std::pair<std::vector<float>, std::uint32_t>>> pending;
     std::map<std::uint64_t, std::size_t>::const_iterator next_group;
     std::vector<std::array<Features, kMethodCount>> held;  // features of the held-out windows, in cut order
     std::size_t held_windows = 0;
+    std::size_t class_windows = 0;  // windows matching the class (fit and held out)
   };
   std::vector<Plan> plans;
   constexpr std::int32_t kNoClass = -1;
@@ -248,7 +248,7 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
     const std::uint64_t first_held = n_hold == 0 ? ~std::uint64_t{0} : distinct[distinct.size() - n_hold];
     SegmentClass renumbered = seg;
     renumbered.id = static_cast<std::uint32_t>(plans.size());
-    Plan plan{k, ClassBaselineBuilder(renumbered, n, policy), {}, {}, {}, {}, 0};
+    Plan plan{ClassBaselineBuilder(renumbered, n, policy), {}, {}, {}, {}, 0, 0};
     for (std::size_t j = 0; j < members[k].windows.size(); ++j) {
       const std::size_t i = members[k].windows[j];
       plan_of[i] = static_cast<std::int32_t>(plans.size());
@@ -259,8 +259,10 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
         ++plan.group_size[members[k].groups[j]];
       }
     }
+    plan.class_windows = members[k].windows.size();
     plans.push_back(std::move(plan));
   }
+  members = {};  // the plans hold what the passes need
 
   // Pass 1: the class sums of the fit windows.
   std::size_t expected = 0;
@@ -333,9 +335,8 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
                   std::to_string(p.builder.means().segment.id) +
                   " unscored (the windows changed between passes)");
     }
-    const std::size_t k = p.candidate;
     ClassBaseline cb = p.builder.finish();
-    cb.windows_per_hour = hours > 0.0 ? static_cast<double>(members[k].windows.size()) / hours : 0.0;
+    cb.windows_per_hour = hours > 0.0 ? static_cast<double>(p.class_windows) / hours : 0.0;
     if (!p.held.empty()) {
       for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
         HoldoutStats& h = cb.holdout[mi];
