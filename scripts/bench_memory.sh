@@ -16,7 +16,9 @@
 #   build_dir  default build/release (daemon/ptdad, cli/ptda, and the recording in bench-data/)
 #   out_dir    default out/bench-memory: the recording (deleted at the end), results.tsv, logs
 # Environment: PTDAD, PTDA (other binaries, e.g. copies of an older build), KEEP=1 keeps the recording,
-#   SKIP="train" skips commands (space separated). Without the cached recording (scripts/bench_daemon.sh)
+#   SKIP="train" skips commands (space separated), TRAIN_COPIES=N gives `ptda train` the long recording N
+#   times (N recordings, N x HOURS of signal: 24 h of training data are two 12 h recordings, as a WAV
+#   holds at most 12.9 h). Without the cached recording (scripts/bench_daemon.sh)
 #   it is prepared here as daemon_bench does: ptda simulate of the healthy (seed 1001) and faulty (seed
 #   3003) scenarios, ptda train on the healthy one.
 set -euo pipefail
@@ -116,7 +118,12 @@ measure() {  # name, command...
 printf 'command\thours\tpeak_rss_mib\twall_s\tcpu_s\n' >"$out/results.tsv"
 measure replay "$ptdad" --config "$out/ptdad/ptdad.toml" --config-dir '' --exit-at-end --foreground
 measure monitor "$ptda" monitor --recording "$rec" --config "$cfg" --baseline "$base" --quiet
-measure train "$ptda" train --recording "$rec" --config "$cfg" --out "$out/train.bin"
+train_args=()
+for ((i = 0; i < ${TRAIN_COPIES:-1}; ++i)); do train_args+=(--recording "$rec"); done
+signal_h_one=$signal_h
+[[ $signal_h == - ]] || signal_h=$(echo "$signal_h * ${TRAIN_COPIES:-1}" | bc -l | sed 's/^\./0./')
+measure train "$ptda" train "${train_args[@]}" --config "$cfg" --out "$out/train.bin"
+signal_h=$signal_h_one
 [[ ${KEEP:-0} == 1 ]] || rm -rf "$rec"
 
 # simulate: the faulty scenario with as many job cycles as make HOURS (its 20 cycles = the 63.4 s

@@ -1,8 +1,11 @@
 // ptda train --recording DIR [--recording DIR ...] --config FILE --out BASELINE [--windows FROM:TO]
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <iostream>
 #include <ostream>
+#include <span>
+#include <string>
 
 #include "ptda/cli/args.hpp"
 #include "ptda/cli/commands.hpp"
@@ -81,9 +84,11 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
                   " at " + general(fs_hz, 10) + " Hz (all training recordings need one rate)");
     }
     RunOptions opts;
-    opts.progress_label = "train " + rec.dir.filename().string();
     opts.config_source = config_path;
-    CollectResult c = collect_windows(rec, cfg, fs, opts);
+    // Pass 0: the windows' places and the regions only; the samples come in the training's two passes.
+    opts.progress_label = "train " + rec.dir.filename().string() + " (pass 1 of 3)";
+    CollectResult c =
+        collect_windows(rec, cfg, fs, opts, [](const dsp::WindowRef&, std::span<const float>) {});
     // The commissioning checks of `ptda doctor` (speed scale against the vibration, plateaus against
     // the window): a baseline on a wrong speed scale must not be written silently.
     diagnoses.push_back(diagnose_commissioning(rec, cfg, config_path, nullptr, ""));
@@ -125,6 +130,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     }
   }
   source += " --config " + config_path;
+  const std::uint64_t total_windows = all.refs.size();
   if (!range.whole()) {
     const std::uint64_t n = all.refs.size();
     all = select_windows(all, range);
@@ -157,9 +163,45 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
                 ", min_duration_s " + general(cfg.extraction.min_duration_s) + ")");
   }
 
+  // The training streams each recording twice more (the class sums, then the leave-one-group-out
+  // features) instead of holding every window: memory does not grow with the recordings' length.
+  const std::uint64_t kept_first = range.whole() ? 0 : range.first(total_windows);
+  int pass_no = 1;
+  const dsp::TrainingWindowPass pass = [&](const dsp::TrainingWindowVisitor& visit) {
+    ++pass_no;
+    for (std::size_t r = 0; r < spans.size(); ++r) {
+      const Span& sp = spans[r];
+      const std::uint64_t lo = std::max<std::uint64_t>(sp.begin, kept_first);
+      const std::uint64_t hi = std::min<std::uint64_t>(sp.end, kept_first + all.refs.size());
+      if (lo >= hi) continue;  // none of this recording's windows is trained on
+      RunOptions opts;
+      opts.config_source = config_path;
+      opts.progress_label =
+          "train " + recs[r].dir.filename().string() + " (pass " + std::to_string(pass_no) + " of 3)";
+      std::uint64_t cut = sp.begin;  // index of the next window in the whole cut order
+      (void)collect_windows(
+          recs[r], cfg, fs_hz, opts, [&](const dsp::WindowRef& ref, std::span<const float> x) {
+            const std::uint64_t g = cut++;
+            if (g < lo || g >= hi) return;
+            const auto i = static_cast<std::size_t>(g - kept_first);
+            if (ref.first_sample != all.refs[i].first_sample || ref.t_start_ns != all.refs[i].t_start_ns) {
+              throw Error(recs[r].dir.string() + ": window " + std::to_string(g - sp.begin) +
+                          " is not where the first pass cut it (sample " + std::to_string(ref.first_sample) +
+                          ", was " + std::to_string(all.refs[i].first_sample) +
+                          "): did the recording change?");
+            }
+            visit(i, x);
+          });
+      if (cut != sp.end) {
+        throw Error(recs[r].dir.string() + ": " + std::to_string(cut - sp.begin) +
+                    " windows cut, the first pass cut " + std::to_string(sp.end - sp.begin) +
+                    ": did the recording change?");
+      }
+    }
+  };
   std::vector<std::string> dropped;
-  dsp::Baseline baseline =
-      dsp::train_baseline(all, cfg.classes, cfg.thresholds, fs_hz, cfg.gearbox, &dropped);
+  dsp::Baseline baseline = dsp::train_baseline_streamed(all, cfg.extraction.window_len, pass, cfg.classes,
+                                                        cfg.thresholds, fs_hz, cfg.gearbox, &dropped);
   baseline.source = source;
   baseline.training = training;
   formats::write_baseline(a.value("out"), baseline);

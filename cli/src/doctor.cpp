@@ -46,10 +46,21 @@ double gmf_hz(const dsp::GearboxInfo& g, double speed_rad_s) {
 }
 
 // Decoded speeds of one id with the configured layout; empty when the layout cannot apply.
+// The likeness is judged on the first kLikenessFrames decoded values of each id (68 min of a 256 Hz
+// speed frame), so the doctor's memory does not grow with the recording; the range covers them all.
+constexpr std::size_t kLikenessFrames = std::size_t{1} << 20;
 struct IdTrial {
   std::uint32_t key = 0;
   std::uint64_t frames = 0;
-  std::vector<double> speeds;
+  std::vector<double> speeds;  // the first kLikenessFrames decoded values
+  double lo = 0.0, hi = 0.0;   // range of all decoded values (when decoded > 0)
+  std::uint64_t decoded = 0;
+  void add(double v) {
+    if (decoded == 0 || v < lo) lo = v;
+    if (decoded == 0 || v > hi) hi = v;
+    ++decoded;
+    if (speeds.size() < kLikenessFrames) speeds.push_back(v);
+  }
 };
 
 // How much a series of decoded values looks like a joint speed: in range, moving, and smooth
@@ -122,9 +133,11 @@ class DoctorSink final : public PipelineSink {
         relaxed_buf_(relaxed.window_len) {}
 
   void on_speed(const dsp::SpeedSample& s) override {
-    if (speeds.empty()) first_speed_t_ns = s.t_ns;
+    if (speeds == 0) first_speed_t_ns = s.t_ns;
     last_speed_t_ns = s.t_ns;
-    speeds.push_back(s.speed_rad_s);
+    if (speeds == 0 || s.speed_rad_s < speed_lo) speed_lo = s.speed_rad_s;
+    if (speeds == 0 || s.speed_rad_s > speed_hi) speed_hi = s.speed_rad_s;
+    ++speeds;
     configured_.push_speed(s);
     relaxed_.push_speed(s);
   }
@@ -139,10 +152,11 @@ class DoctorSink final : public PipelineSink {
     drain();
   }
 
-  std::vector<double> speeds;
+  std::uint64_t speeds = 0;  // speed samples, and their range (kept as counts: memory stays flat)
+  double speed_lo = 0.0, speed_hi = 0.0;
   std::int64_t first_speed_t_ns = 0, last_speed_t_ns = 0;
   std::vector<dsp::RegionInfo> regions;
-  std::vector<dsp::WindowRef> windows;
+  std::vector<std::int64_t> window_starts;  // t_start_ns of each configured window
   std::vector<float> fastest_window;
   double fastest_speed_rad_s = 0.0;
 
@@ -150,7 +164,7 @@ class DoctorSink final : public PipelineSink {
   void drain() {
     dsp::WindowRef ref;
     while (configured_.pop(ref, buf_)) {
-      windows.push_back(ref);
+      window_starts.push_back(ref.t_start_ns);
       // The configured windows are longer (a finer spectrum): preferred for the GMF check.
       if (!configured_fastest_ || std::fabs(ref.speed_rad_s) > fastest_speed_rad_s) {
         configured_fastest_ = true;
@@ -312,7 +326,7 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
       s.extended = record.frame.extended();
       config::DecodedSpeed d;
       if (config::decode_speed(record.frame, s, d) == config::DecodeResult::kOk) {
-        t.speeds.push_back(d.speed_rad_s);
+        t.add(d.speed_rad_s);
         if (key == configured_key) ++rep.speed_frames;
       }
     }
@@ -352,7 +366,8 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
   } catch (const Error& e) {
     std::string text = e.what();
     if (best != nullptr && best->key != configured_key && best_score > 0.5) {
-      const auto [lo, hi] = std::minmax_element(best->speeds.begin(), best->speeds.end());
+      const double* lo = &best->lo;
+      const double* hi = &best->hi;
       text += ". The most likely speed frame is " + id_text(best->key) + " (" + std::to_string(best->frames) +
               " frames, decoding to " + general(*lo, 4) + " .. " + general(*hi, 4) +
               " rad/s with the configured layout): set id = 0x" +
@@ -369,8 +384,9 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
   }
 
   // ---- speed range against [extraction] and [gearbox] ----
-  if (!sink.speeds.empty()) {
-    const auto [lo, hi] = std::minmax_element(sink.speeds.begin(), sink.speeds.end());
+  if (sink.speeds > 0) {
+    const double* lo = &sink.speed_lo;
+    const double* hi = &sink.speed_hi;
     rep.speed_min_rad_s = *lo;
     rep.speed_max_rad_s = *hi;
     const double peak = std::max(std::fabs(*lo), std::fabs(*hi));
@@ -455,9 +471,9 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
     }
     regions = std::move(merged);
   }
-  for (const dsp::WindowRef& w : sink.windows) {
+  for (const std::int64_t t_start_ns : sink.window_starts) {
     for (Region& r : regions) {
-      if (w.t_start_ns >= r.t_begin_ns - 1000000 && w.t_start_ns <= r.t_end_ns) {
+      if (t_start_ns >= r.t_begin_ns - 1000000 && t_start_ns <= r.t_end_ns) {
         ++r.windows;
         break;
       }

@@ -245,8 +245,9 @@ namespace {
 
 class CollectSink final : public PipelineSink {
  public:
-  CollectSink(const dsp::ExtractionConfig& cfg, double fs_hz, std::int64_t t0_ns)
-      : slicer_(cfg, fs_hz, t0_ns), buf_(cfg.window_len) {}
+  CollectSink(const dsp::ExtractionConfig& cfg, double fs_hz, std::int64_t t0_ns,
+              const CollectVisitor& visitor)
+      : slicer_(cfg, fs_hz, t0_ns), buf_(cfg.window_len), visitor_(visitor) {}
 
   void on_speed(const dsp::SpeedSample& s) override { slicer_.push_speed(s); }
   void on_samples(std::span<const float> block) override { slicer_.push_samples(block); }
@@ -264,7 +265,11 @@ class CollectSink final : public PipelineSink {
     dsp::WindowRef ref;
     while (slicer_.pop(ref, buf_)) {
       data.refs.push_back(ref);
-      data.windows.push_back(buf_);
+      if (visitor_) {
+        visitor_(ref, buf_);
+      } else {
+        data.windows.push_back(buf_);
+      }
     }
     dsp::RegionInfo region;
     while (slicer_.pop_region(region)) data.regions.push_back(region);
@@ -272,6 +277,7 @@ class CollectSink final : public PipelineSink {
 
   dsp::WindowSlicer slicer_;
   std::vector<float> buf_;
+  const CollectVisitor& visitor_;
 };
 
 class MonitorSink final : public PipelineSink {
@@ -314,8 +320,8 @@ class MonitorSink final : public PipelineSink {
 }  // namespace
 
 CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg, double fs_hz,
-                              const RunOptions& options) {
-  CollectSink sink(cfg.extraction, fs_hz, rec.t0_ns);
+                              const RunOptions& options, const CollectVisitor& visitor) {
+  CollectSink sink(cfg.extraction, fs_hz, rec.t0_ns, visitor);
   CollectResult result;
   result.can = run_recording(rec, cfg, sink, options);
   result.slicer = sink.slicer().counters();
@@ -325,6 +331,12 @@ CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineCo
 }
 
 void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
+  if (all.refs.empty() && all.regions.empty() && all.windows.empty()) {
+    // The first recording: taken as it is (recording 0, nothing to renumber), without a second copy.
+    all = std::move(more);
+    all.recording.assign(all.refs.size(), 0U);
+    return;
+  }
   // Recording (day) index of the appended windows: one past the last one's (docs/method.md §5).
   std::uint32_t recording = 0;
   if (!all.refs.empty()) {
@@ -338,6 +350,11 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
     region_offset = std::max(region_offset, w.region_seq + 1);
     window_offset = std::max(window_offset, w.seq + 1);
   }
+  // Exact sizes: no doubling slack on top of a long recording's refs.
+  all.regions.reserve(all.regions.size() + more.regions.size());
+  all.refs.reserve(all.refs.size() + more.refs.size());
+  all.recording.reserve(all.recording.size() + more.refs.size());
+  if (more.windows.size() == more.refs.size()) all.windows.reserve(all.windows.size() + more.windows.size());
   for (auto& r : more.regions) {
     r.seq += region_offset;
     all.regions.push_back(r);
@@ -347,7 +364,7 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
     ref.seq += window_offset;
     ref.region_seq += region_offset;
     all.refs.push_back(ref);
-    all.windows.push_back(std::move(more.windows[i]));
+    if (more.windows.size() == more.refs.size()) all.windows.push_back(std::move(more.windows[i]));
     all.recording.push_back(recording);
   }
 }
@@ -360,7 +377,7 @@ dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const Fra
   std::set<std::uint64_t> regions_used;
   for (std::uint64_t i = first; i < last; ++i) {
     out.refs.push_back(all.refs[i]);
-    out.windows.push_back(all.windows[i]);
+    if (all.windows.size() == all.refs.size()) out.windows.push_back(all.windows[i]);
     if (all.recording.size() == all.refs.size()) out.recording.push_back(all.recording[i]);
     regions_used.insert(all.refs[i].region_seq);
   }

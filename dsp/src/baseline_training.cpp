@@ -4,8 +4,10 @@
 #include "ptda/dsp/baseline_training.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <string>
 #include <utility>
 
@@ -96,23 +98,33 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
     throw Error("train_baseline: " + std::to_string(data.refs.size()) + " window refs but " +
                 std::to_string(data.windows.size()) + " windows");
   }
-  if (!(policy.holdout_fraction >= 0.0 && policy.holdout_fraction <= 0.9)) {
-    throw Error("thresholds.holdout_fraction: must be in [0, 0.9], got " + num(policy.holdout_fraction));
-  }
-  if (!data.recording.empty() && data.recording.size() != data.windows.size()) {
-    throw Error("train_baseline: " + std::to_string(data.recording.size()) + " recording ids but " +
-                std::to_string(data.windows.size()) + " windows");
-  }
-  if (data.windows.empty()) {
-    throw Error("train_baseline: no constant-speed windows in the training data (" +
-                std::to_string(data.regions.size()) + " regions found)");
-  }
-  const std::size_t n = data.windows.front().size();
+  const std::size_t n = data.windows.empty() ? 0 : data.windows.front().size();
   for (std::size_t i = 0; i < data.windows.size(); ++i) {
     if (data.windows[i].size() != n) {
       throw Error("train_baseline: window " + std::to_string(i) + " has " +
                   std::to_string(data.windows[i].size()) + " samples, the first has " + std::to_string(n));
     }
+  }
+  const TrainingWindowPass pass = [&data](const TrainingWindowVisitor& visit) {
+    for (std::size_t i = 0; i < data.windows.size(); ++i) visit(i, data.windows[i]);
+  };
+  return train_baseline_streamed(data, n, pass, classes, policy, fs_hz, gearbox, dropped);
+}
+
+Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, const TrainingWindowPass& pass,
+                                 const ClassLearningConfig& classes, const ThresholdPolicy& policy,
+                                 double fs_hz, const GearboxInfo& gearbox,
+                                 std::vector<std::string>* dropped) {
+  if (!(policy.holdout_fraction >= 0.0 && policy.holdout_fraction <= 0.9)) {
+    throw Error("thresholds.holdout_fraction: must be in [0, 0.9], got " + num(policy.holdout_fraction));
+  }
+  if (!data.recording.empty() && data.recording.size() != data.refs.size()) {
+    throw Error("train_baseline: " + std::to_string(data.recording.size()) + " recording ids but " +
+                std::to_string(data.refs.size()) + " windows");
+  }
+  if (data.refs.empty()) {
+    throw Error("train_baseline: no constant-speed windows in the training data (" +
+                std::to_string(data.regions.size()) + " regions found)");
   }
 
   // Why each speed group or class is left out, for the caller and for the error below.
@@ -197,6 +209,21 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
   out.gearbox = gearbox;
   out.policy = policy;
   std::string summary;
+  // What each kept class needs from the passes: its fit windows' groups (in order, with their sizes) and
+  // its held-out windows' features.
+  struct Plan {
+    ClassBaselineBuilder builder;
+    std::map<std::uint64_t, std::size_t> group_size;  // fit groups, ascending, and their window counts
+    std::map<std::uint64_t, std::vector<std::pair<std::vector<float>, std::uint32_t>>> pending;
+    std::map<std::uint64_t, std::size_t>::const_iterator next_group;
+    std::vector<std::array<Features, kMethodCount>> held;  // features of the held-out windows, in cut order
+    std::size_t held_windows = 0;
+    std::size_t class_windows = 0;  // windows matching the class (fit and held out)
+  };
+  std::vector<Plan> plans;
+  constexpr std::int32_t kNoClass = -1;
+  std::vector<std::int32_t> plan_of(data.refs.size(), kNoClass);  // the window's plan, when it has one
+  std::vector<bool> is_held(data.refs.size(), false);
   for (std::size_t k = 0; k < candidates.classes.size(); ++k) {
     const SegmentClass& seg = candidates.classes[k].segment;
     std::vector<std::uint64_t> distinct = members[k].groups;
@@ -219,33 +246,104 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
         static_cast<std::size_t>(std::floor(policy.holdout_fraction * static_cast<double>(distinct.size()))),
         distinct.size() - 3);
     const std::uint64_t first_held = n_hold == 0 ? ~std::uint64_t{0} : distinct[distinct.size() - n_hold];
-    std::vector<std::vector<float>> windows;
-    std::vector<std::uint64_t> fit_groups;
-    std::vector<std::uint32_t> fit_recordings;
-    std::vector<std::size_t> held;
-    windows.reserve(members[k].windows.size());
+    SegmentClass renumbered = seg;
+    renumbered.id = static_cast<std::uint32_t>(plans.size());
+    Plan plan{ClassBaselineBuilder(renumbered, n, policy), {}, {}, {}, {}, 0, 0};
     for (std::size_t j = 0; j < members[k].windows.size(); ++j) {
       const std::size_t i = members[k].windows[j];
+      plan_of[i] = static_cast<std::int32_t>(plans.size());
       if (members[k].groups[j] >= first_held) {
-        held.push_back(i);
-        continue;
+        is_held[i] = true;
+        ++plan.held_windows;
+      } else {
+        ++plan.group_size[members[k].groups[j]];
       }
-      windows.push_back(data.windows[i]);
-      fit_groups.push_back(members[k].groups[j]);
-      if (!data.recording.empty()) fit_recordings.push_back(data.recording[i]);
     }
-    SegmentClass renumbered = seg;
-    renumbered.id = static_cast<std::uint32_t>(out.classes.size());
-    ClassBaseline cb = build_class_baseline(renumbered, windows, fit_groups, policy, fit_recordings);
-    cb.windows_per_hour = hours > 0.0 ? static_cast<double>(members[k].windows.size()) / hours : 0.0;
-    if (!held.empty()) {
-      WindowAnalyzer analyzer(n);
+    plan.class_windows = members[k].windows.size();
+    plans.push_back(std::move(plan));
+  }
+  members = {};  // the plans hold what the passes need
+
+  // Pass 1: the class sums of the fit windows.
+  std::size_t expected = 0;
+  const auto check_order = [&](std::size_t i, const char* what) {
+    if (i != expected) {
+      throw Error(std::string("train_baseline: ") + what + " handed over window " + std::to_string(i) +
+                  " where window " + std::to_string(expected) +
+                  " was expected (the windows changed between passes)");
+    }
+    ++expected;
+  };
+  const auto check_complete = [&](const char* what) {
+    if (expected != data.refs.size()) {
+      throw Error(std::string("train_baseline: ") + what + " handed over " + std::to_string(expected) +
+                  " of " + std::to_string(data.refs.size()) +
+                  " windows (the windows changed between passes)");
+    }
+  };
+  pass([&](std::size_t i, std::span<const float> x) {
+    check_order(i, "pass 1");
+    if (plan_of[i] != kNoClass && !is_held[i])
+      plans[static_cast<std::size_t>(plan_of[i])].builder.add_to_mean(x);
+  });
+  check_complete("pass 1");
+  for (Plan& p : plans) {
+    p.builder.finish_mean();
+    p.next_group = p.group_size.cbegin();
+  }
+
+  // Pass 2: each fit window's leave-one-group-out features, a group at a time in group order (a group is
+  // held until all its windows have come), and the held-out windows' features against the class means.
+  expected = 0;
+  WindowAnalyzer analyzer(n);
+  std::vector<std::span<const float>> group_windows;
+  std::vector<std::uint32_t> group_recordings;
+  pass([&](std::size_t i, std::span<const float> x) {
+    check_order(i, "pass 2");
+    if (plan_of[i] == kNoClass) return;
+    Plan& p = plans[static_cast<std::size_t>(plan_of[i])];
+    if (is_held[i]) {
+      std::array<Features, kMethodCount> f{};
+      for (std::size_t mi = 0; mi < kMethodCount; ++mi)
+        f[mi] = analyzer.analyze(x, p.builder.means(), static_cast<Method>(mi));
+      p.held.push_back(f);
+      return;
+    }
+    p.pending[group[i]].emplace_back(std::vector<float>(x.begin(), x.end()),
+                                     data.recording.empty() ? 0U : data.recording[i]);
+    while (p.next_group != p.group_size.cend()) {
+      const auto it = p.pending.find(p.next_group->first);
+      if (it == p.pending.end() || it->second.size() < p.next_group->second) break;
+      group_windows.clear();
+      group_recordings.clear();
+      for (const auto& [w, rec] : it->second) {
+        group_windows.emplace_back(w);
+        group_recordings.push_back(rec);
+      }
+      p.builder.score_group(group_windows, data.recording.empty()
+                                               ? std::span<const std::uint32_t>{}
+                                               : std::span<const std::uint32_t>(group_recordings));
+      p.pending.erase(it);
+      ++p.next_group;
+    }
+  });
+  check_complete("pass 2");
+
+  for (Plan& p : plans) {
+    if (p.next_group != p.group_size.cend() || p.held.size() != p.held_windows) {
+      throw Error("train_baseline: pass 2 left windows of class " +
+                  std::to_string(p.builder.means().segment.id) +
+                  " unscored (the windows changed between passes)");
+    }
+    ClassBaseline cb = p.builder.finish();
+    cb.windows_per_hour = hours > 0.0 ? static_cast<double>(p.class_windows) / hours : 0.0;
+    if (!p.held.empty()) {
       for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
         HoldoutStats& h = cb.holdout[mi];
         std::vector<double> zr;
         std::vector<double> ze;
-        for (const std::size_t i : held) {
-          const Features f = analyzer.analyze(data.windows[i], cb, static_cast<Method>(mi));
+        for (const auto& fh : p.held) {
+          const Features& f = fh[mi];
           const Verdict v = judge(f, cb.thresholds[mi]);
           ++h.windows;
           h.abnormal += v.abnormal() ? 1U : 0U;
@@ -272,7 +370,7 @@ Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig&
     throw Error("train_baseline: no segment class has enough training data (needs >= " +
                 std::to_string(classes.min_regions) +
                 " regions and >= 3 non-overlapping window groups): " + std::to_string(data.regions.size()) +
-                " regions, " + std::to_string(data.windows.size()) + " windows" +
+                " regions, " + std::to_string(data.refs.size()) + " windows" +
                 (unmatched > 0 ? ", " + std::to_string(unmatched) + " of them in dropped speed groups" : "") +
                 (candidates.classes.empty() ? std::string("; no class learned") : summary) + reasons);
   }

@@ -4,9 +4,12 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <string>
 
@@ -262,126 +265,191 @@ Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, Fea
   return b;
 }
 
-ClassBaseline build_class_baseline(const SegmentClass& segment,
-                                   const std::vector<std::vector<float>>& windows,
-                                   std::span<const std::uint64_t> groups, const ThresholdPolicy& policy,
-                                   std::span<const std::uint32_t> recordings) {
+struct ClassBaselineBuilder::State {
+  State(const SegmentClass& seg, std::size_t n_in, const ThresholdPolicy& pol)
+      : where("class " + std::to_string(seg.id)),
+        policy(pol),
+        n(n_in),
+        bins(n_in / 2 + 1),
+        analyzer(n_in),
+        fft(n_in),
+        mag(bins),
+        total_mag(bins, 0.0),
+        total_x(n_in, 0.0),
+        group_mag(bins),
+        group_x(n_in),
+        loo_mag(bins),
+        loo_x(n_in),
+        loo_x_spectrum(bins) {
+    cls.segment = seg;
+  }
+  std::string where;
+  ThresholdPolicy policy;
+  std::size_t n;
+  std::size_t bins;
+  WindowAnalyzer analyzer;
+  RealFft fft;
+  ClassBaseline cls;
+  std::size_t m = 0;  // pass-1 windows
+  bool mean_done = false;
+  bool finished = false;
+  std::size_t groups = 0;  // pass-2 groups scored
+  std::vector<float> mag;
+  // Sums over all windows, in double so subtracting one group's share loses nothing.
+  std::vector<double> total_mag;
+  std::vector<double> total_x;
+  std::vector<double> group_mag;
+  std::vector<double> group_x;
+  std::vector<float> loo_mag;
+  std::vector<float> loo_x;
+  std::vector<std::complex<float>> loo_x_spectrum;
+  std::array<std::vector<double>, kMethodCount> rms_values;
+  std::array<std::vector<double>, kMethodCount> entropy_values;
+  std::vector<std::uint32_t> value_recording;  // the recording of each value, in the values' order
+};
+
+ClassBaselineBuilder::ClassBaselineBuilder(const SegmentClass& segment, std::size_t window_len,
+                                           const ThresholdPolicy& policy) {
   const std::string where = "class " + std::to_string(segment.id);
-  if (windows.empty()) throw Error(where + ": no training windows");
-  const std::size_t m = windows.size();
-  const std::size_t n = windows[0].size();
-  if (!RealFft::supported_length(n)) {
-    throw Error(where + ": window length " + std::to_string(n) +
+  if (!RealFft::supported_length(window_len)) {
+    throw Error(where + ": window length " + std::to_string(window_len) +
                 " is not supported (even, >= 4, prime factors 2, 3, 5 only)");
-  }
-  for (std::size_t i = 0; i < m; ++i) {
-    if (windows[i].size() != n) {
-      throw Error(where + ": window " + std::to_string(i) + " has " + std::to_string(windows[i].size()) +
-                  " samples, expected " + std::to_string(n));
-    }
-    for (std::size_t j = 0; j < n; ++j) {
-      if (!std::isfinite(windows[i][j])) {
-        throw Error(where + ": window " + std::to_string(i) + " sample " + std::to_string(j) +
-                    " is not finite");
-      }
-    }
-  }
-  if (!groups.empty() && groups.size() != m) {
-    throw Error(where + ": " + std::to_string(groups.size()) + " group ids for " + std::to_string(m) +
-                " windows");
-  }
-  if (!recordings.empty() && recordings.size() != m) {
-    throw Error(where + ": " + std::to_string(recordings.size()) + " recording ids for " + std::to_string(m) +
-                " windows");
   }
   if (!(std::isfinite(policy.day_sd_floor) && policy.day_sd_floor >= 0.0)) {
     throw Error(where + ": thresholds.day_sd_floor must be finite and >= 0");
   }
-  // Window indices per group (ordered map: deterministic processing order).
-  std::map<std::uint64_t, std::vector<std::size_t>> members;
-  for (std::size_t i = 0; i < m; ++i) members[groups.empty() ? i : groups[i]].push_back(i);
-  if (members.size() < 3) {
-    throw Error(where +
-                ": leave-one-group-out training needs windows from at least 3 groups (regions), got " +
-                std::to_string(members.size()));
-  }
+  s_ = std::make_unique<State>(segment, window_len, policy);
+}
 
-  const std::size_t bins = n / 2 + 1;
-  WindowAnalyzer analyzer(n);
-  std::vector<float> mag(bins);
-  // Sums over all windows, in double so subtracting one group's share loses nothing.
-  std::vector<double> total_mag(bins, 0.0);
-  std::vector<double> total_x(n, 0.0);
-  const auto nb = static_cast<Eigen::Index>(bins);
-  const auto nn = static_cast<Eigen::Index>(n);
-  const Eigen::Map<const Eigen::ArrayXf> mag_a(mag.data(), nb);
-  Eigen::Map<Eigen::ArrayXd> total_mag_a(total_mag.data(), nb);
-  Eigen::Map<Eigen::ArrayXd> total_x_a(total_x.data(), nn);
-  for (const auto& w : windows) {
-    analyzer.magnitude(w, mag);
-    total_mag_a += mag_a.cast<double>();
-    total_x_a += Eigen::Map<const Eigen::ArrayXf>(w.data(), nn).cast<double>();
-  }
+ClassBaselineBuilder::~ClassBaselineBuilder() = default;
+ClassBaselineBuilder::ClassBaselineBuilder(ClassBaselineBuilder&&) noexcept = default;
+ClassBaselineBuilder& ClassBaselineBuilder::operator=(ClassBaselineBuilder&&) noexcept = default;
 
-  ClassBaseline cls;
-  cls.segment = segment;
-  cls.n_windows = static_cast<std::uint32_t>(m);
-  cls.mean_magnitude.resize(bins);
-  cls.tda_mean.resize(n);
+void ClassBaselineBuilder::add_to_mean(std::span<const float> x) {
+  State& s = *s_;
+  if (s.mean_done) throw Error(s.where + ": add_to_mean() after finish_mean()");
+  if (x.size() != s.n) {
+    throw Error(s.where + ": window " + std::to_string(s.m) + " has " + std::to_string(x.size()) +
+                " samples, expected " + std::to_string(s.n));
+  }
+  for (std::size_t j = 0; j < s.n; ++j) {
+    if (!std::isfinite(x[j])) {
+      throw Error(s.where + ": window " + std::to_string(s.m) + " sample " + std::to_string(j) +
+                  " is not finite");
+    }
+  }
+  const auto nb = static_cast<Eigen::Index>(s.bins);
+  const auto nn = static_cast<Eigen::Index>(s.n);
+  s.analyzer.magnitude(x, s.mag);
+  Eigen::Map<Eigen::ArrayXd>(s.total_mag.data(), nb) +=
+      Eigen::Map<const Eigen::ArrayXf>(s.mag.data(), nb).cast<double>();
+  Eigen::Map<Eigen::ArrayXd>(s.total_x.data(), nn) +=
+      Eigen::Map<const Eigen::ArrayXf>(x.data(), nn).cast<double>();
+  ++s.m;
+}
+
+void ClassBaselineBuilder::finish_mean() {
+  State& s = *s_;
+  if (s.mean_done) throw Error(s.where + ": finish_mean() called twice");
+  if (s.m == 0) throw Error(s.where + ": no training windows");
+  s.mean_done = true;
+  const auto nb = static_cast<Eigen::Index>(s.bins);
+  const auto nn = static_cast<Eigen::Index>(s.n);
+  ClassBaseline& cls = s.cls;
+  cls.n_windows = static_cast<std::uint32_t>(s.m);
+  cls.mean_magnitude.resize(s.bins);
+  cls.tda_mean.resize(s.n);
   Eigen::Map<Eigen::ArrayXf>(cls.mean_magnitude.data(), nb) =
-      (total_mag_a / static_cast<double>(m)).cast<float>();
-  Eigen::Map<Eigen::ArrayXf>(cls.tda_mean.data(), nn) = (total_x_a / static_cast<double>(m)).cast<float>();
+      (Eigen::Map<const Eigen::ArrayXd>(s.total_mag.data(), nb) / static_cast<double>(s.m)).cast<float>();
+  Eigen::Map<Eigen::ArrayXf>(cls.tda_mean.data(), nn) =
+      (Eigen::Map<const Eigen::ArrayXd>(s.total_x.data(), nn) / static_cast<double>(s.m)).cast<float>();
   // The line groups come from the mean of all the class's windows and are used for every
   // leave-one-out residual too (a group's gain is fitted per window, so the grouping barely depends on
   // the one window left out).
-  if (policy.ptda_line_gain) cls.line_groups = find_line_groups(cls.mean_magnitude);
-  cls.floor_gain = policy.ptda_floor_gain;
+  if (s.policy.ptda_line_gain) cls.line_groups = find_line_groups(cls.mean_magnitude);
+  cls.floor_gain = s.policy.ptda_floor_gain;
+  cls.tda_spectrum.resize(s.bins);
+  s.fft.forward(cls.tda_mean, cls.tda_spectrum);
+  for (auto& v : s.rms_values) v.reserve(s.m);
+  for (auto& v : s.entropy_values) v.reserve(s.m);
+  s.value_recording.reserve(s.m);
+}
 
-  RealFft fft(n);
-  cls.tda_spectrum.resize(bins);
-  fft.forward(cls.tda_mean, cls.tda_spectrum);
+const ClassBaseline& ClassBaselineBuilder::means() const noexcept {
+  return s_->cls;
+}
 
-  // Leave-one-group-out: each window is scored against the means of the windows of the other groups.
-  // One group's sums are formed at a time (O(N) extra memory). Forward transforms per window: one for
-  // the totals above, one for its group's sums, one for the three methods' features (none when the
-  // group is that one window: the group pass's transform is reused); plus one per group for the
-  // leave-one-out TDA mean (was 8 per window: 2 magnitudes, raw 1, TDA 2, PTDA 2 + 1 inverse).
-  std::array<std::vector<double>, kMethodCount> rms_values;
-  std::array<std::vector<double>, kMethodCount> entropy_values;
-  std::vector<std::uint32_t> value_recording;  // the recording of each value, in the values' order
-  value_recording.reserve(m);
-  for (auto& v : rms_values) v.reserve(m);
-  for (auto& v : entropy_values) v.reserve(m);
-  std::vector<double> group_mag(bins);
-  std::vector<double> group_x(n);
-  std::vector<float> loo_mag(bins);
-  std::vector<float> loo_x(n);
-  std::vector<std::complex<float>> loo_x_spectrum(bins);
-  std::array<Features, kMethodCount> f{};
-  Eigen::Map<Eigen::ArrayXd> group_mag_a(group_mag.data(), nb);
-  Eigen::Map<Eigen::ArrayXd> group_x_a(group_x.data(), nn);
-  for (const auto& [group, idx] : members) {
-    group_mag_a.setZero();
-    group_x_a.setZero();
-    for (const std::size_t i : idx) {
-      analyzer.magnitude(windows[i], mag);
-      group_mag_a += mag_a.cast<double>();
-      group_x_a += Eigen::Map<const Eigen::ArrayXf>(windows[i].data(), nn).cast<double>();
-    }
-    const auto others = static_cast<double>(m - idx.size());
-    Eigen::Map<Eigen::ArrayXf>(loo_mag.data(), nb) = ((total_mag_a - group_mag_a) / others).cast<float>();
-    Eigen::Map<Eigen::ArrayXf>(loo_x.data(), nn) = ((total_x_a - group_x_a) / others).cast<float>();
-    fft.forward(loo_x, loo_x_spectrum);
-    const bool reuse = idx.size() == 1;  // the analyzer still holds that window's transform
-    for (const std::size_t i : idx) {
-      analyzer.analyze_all(windows[i], loo_mag, loo_x_spectrum, cls.line_groups, f, reuse, cls.floor_gain);
-      value_recording.push_back(recordings.empty() ? 0U : recordings[i]);
-      for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
-        rms_values[mi].push_back(f[mi].rms_res);
-        entropy_values[mi].push_back(f[mi].entropy_res);
-      }
+void ClassBaselineBuilder::score_group(std::span<const std::span<const float>> windows,
+                                       std::span<const std::uint32_t> recordings) {
+  State& s = *s_;
+  if (!s.mean_done || s.finished) throw Error(s.where + ": score_group() outside pass 2");
+  if (windows.empty()) throw Error(s.where + ": score_group() with no windows");
+  if (!recordings.empty() && recordings.size() != windows.size()) {
+    throw Error(s.where + ": " + std::to_string(recordings.size()) + " recording ids for a group of " +
+                std::to_string(windows.size()) + " windows");
+  }
+  if (windows.size() >= s.m) {
+    throw Error(s.where + ": a group of " + std::to_string(windows.size()) + " windows leaves none of the " +
+                std::to_string(s.m) + " windows of the mean");
+  }
+  for (const auto& w : windows) {
+    if (w.size() != s.n) {
+      throw Error(s.where + ": a window of " + std::to_string(w.size()) + " samples, expected " +
+                  std::to_string(s.n));
     }
   }
+  // Leave-one-group-out: each window is scored against the means of the windows of the other groups.
+  // One group's sums are formed at a time (O(N) extra memory). Forward transforms per window: one for
+  // the totals of pass 1, one for its group's sums, one for the three methods' features (none when the
+  // group is that one window: the group pass's transform is reused); plus one per group for the
+  // leave-one-out TDA mean (was 8 per window: 2 magnitudes, raw 1, TDA 2, PTDA 2 + 1 inverse).
+  const auto nb = static_cast<Eigen::Index>(s.bins);
+  const auto nn = static_cast<Eigen::Index>(s.n);
+  const Eigen::Map<const Eigen::ArrayXf> mag_a(s.mag.data(), nb);
+  const Eigen::Map<const Eigen::ArrayXd> total_mag_a(s.total_mag.data(), nb);
+  const Eigen::Map<const Eigen::ArrayXd> total_x_a(s.total_x.data(), nn);
+  Eigen::Map<Eigen::ArrayXd> group_mag_a(s.group_mag.data(), nb);
+  Eigen::Map<Eigen::ArrayXd> group_x_a(s.group_x.data(), nn);
+  group_mag_a.setZero();
+  group_x_a.setZero();
+  for (const auto& w : windows) {
+    s.analyzer.magnitude(w, s.mag);
+    group_mag_a += mag_a.cast<double>();
+    group_x_a += Eigen::Map<const Eigen::ArrayXf>(w.data(), nn).cast<double>();
+  }
+  const auto others = static_cast<double>(s.m - windows.size());
+  Eigen::Map<Eigen::ArrayXf>(s.loo_mag.data(), nb) = ((total_mag_a - group_mag_a) / others).cast<float>();
+  Eigen::Map<Eigen::ArrayXf>(s.loo_x.data(), nn) = ((total_x_a - group_x_a) / others).cast<float>();
+  s.fft.forward(s.loo_x, s.loo_x_spectrum);
+  const bool reuse = windows.size() == 1;  // the analyzer still holds that window's transform
+  std::array<Features, kMethodCount> f{};
+  for (std::size_t k = 0; k < windows.size(); ++k) {
+    s.analyzer.analyze_all(windows[k], s.loo_mag, s.loo_x_spectrum, s.cls.line_groups, f, reuse,
+                           s.cls.floor_gain);
+    s.value_recording.push_back(recordings.empty() ? 0U : recordings[k]);
+    for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
+      s.rms_values[mi].push_back(f[mi].rms_res);
+      s.entropy_values[mi].push_back(f[mi].entropy_res);
+    }
+  }
+  ++s.groups;
+}
+
+ClassBaseline ClassBaselineBuilder::finish() {
+  State& s = *s_;
+  if (!s.mean_done || s.finished) throw Error(s.where + ": finish() outside pass 2");
+  if (s.groups < 3) {
+    throw Error(s.where +
+                ": leave-one-group-out training needs windows from at least 3 groups (regions), got " +
+                std::to_string(s.groups));
+  }
+  s.finished = true;
+  ClassBaseline& cls = s.cls;
+  const ThresholdPolicy& policy = s.policy;
+  const std::string& where = s.where;
+  auto& rms_values = s.rms_values;
+  auto& entropy_values = s.entropy_values;
+  const auto& value_recording = s.value_recording;
 
   for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
     const std::string what = where + ", method " + std::string(method_name(static_cast<Method>(mi)));
@@ -438,7 +506,67 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
     // A zero residual (possible only for a window identical to the mean) is left out of the log stats.
     cls.log_rms_stats[mi] = feature_stats(logs);
   }
-  return cls;
+  return std::move(cls);
+}
+
+ClassBaseline build_class_baseline(const SegmentClass& segment,
+                                   const std::vector<std::vector<float>>& windows,
+                                   std::span<const std::uint64_t> groups, const ThresholdPolicy& policy,
+                                   std::span<const std::uint32_t> recordings) {
+  const std::string where = "class " + std::to_string(segment.id);
+  if (windows.empty()) throw Error(where + ": no training windows");
+  const std::size_t m = windows.size();
+  const std::size_t n = windows[0].size();
+  if (!RealFft::supported_length(n)) {
+    throw Error(where + ": window length " + std::to_string(n) +
+                " is not supported (even, >= 4, prime factors 2, 3, 5 only)");
+  }
+  for (std::size_t i = 0; i < m; ++i) {
+    if (windows[i].size() != n) {
+      throw Error(where + ": window " + std::to_string(i) + " has " + std::to_string(windows[i].size()) +
+                  " samples, expected " + std::to_string(n));
+    }
+    for (std::size_t j = 0; j < n; ++j) {
+      if (!std::isfinite(windows[i][j])) {
+        throw Error(where + ": window " + std::to_string(i) + " sample " + std::to_string(j) +
+                    " is not finite");
+      }
+    }
+  }
+  if (!groups.empty() && groups.size() != m) {
+    throw Error(where + ": " + std::to_string(groups.size()) + " group ids for " + std::to_string(m) +
+                " windows");
+  }
+  if (!recordings.empty() && recordings.size() != m) {
+    throw Error(where + ": " + std::to_string(recordings.size()) + " recording ids for " + std::to_string(m) +
+                " windows");
+  }
+  if (!(std::isfinite(policy.day_sd_floor) && policy.day_sd_floor >= 0.0)) {
+    throw Error(where + ": thresholds.day_sd_floor must be finite and >= 0");
+  }
+  // Window indices per group (ordered map: deterministic processing order).
+  std::map<std::uint64_t, std::vector<std::size_t>> members;
+  for (std::size_t i = 0; i < m; ++i) members[groups.empty() ? i : groups[i]].push_back(i);
+  if (members.size() < 3) {
+    throw Error(where +
+                ": leave-one-group-out training needs windows from at least 3 groups (regions), got " +
+                std::to_string(members.size()));
+  }
+  ClassBaselineBuilder builder(segment, n, policy);
+  for (const auto& w : windows) builder.add_to_mean(w);
+  builder.finish_mean();
+  std::vector<std::span<const float>> group_windows;
+  std::vector<std::uint32_t> group_recordings;
+  for (const auto& [group, idx] : members) {
+    group_windows.clear();
+    group_recordings.clear();
+    for (const std::size_t i : idx) {
+      group_windows.emplace_back(windows[i]);
+      if (!recordings.empty()) group_recordings.push_back(recordings[i]);
+    }
+    builder.score_group(group_windows, group_recordings);
+  }
+  return builder.finish();
 }
 
 std::vector<std::string> training_warnings(const Baseline& baseline) {

@@ -2,6 +2,7 @@
 // class grouping, ids, durations, leave-out groups from window overlap, and the errors.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -281,6 +282,114 @@ TEST(TrainBaseline, ErrorsNameTheProblem) {
   mismatch.windows.pop_back();
   EXPECT_THROW(
       (void)train_baseline(mismatch, ClassLearningConfig{}, ThresholdPolicy{}, 2000.0, GearboxInfo{}), Error);
+}
+
+// Streamed training (`ptda train`): the windows come through two passes instead of being held.
+TEST(TrainBaselineStreamed, TwoPassesGiveTheSameBaselineAsTheWindowsHeldWithAHoldOut) {
+  std::mt19937 rng(6);
+  CollectedWindows d;
+  // 6 regions of class +1.0 with overlapping windows (groups of 3), cut interleaved with a second class
+  // -2.0 so each class's groups arrive between the other's windows.
+  for (std::uint64_t r = 0; r < 6; ++r) {
+    add_region(d, rng, 2 * r, 1.0, 3, kN / 2, 1000 * static_cast<std::int64_t>(r));
+    add_region(d, rng, 2 * r + 1, -2.0, 2, kN, 100'000 + 1000 * static_cast<std::int64_t>(r));
+  }
+  d.recording.assign(d.refs.size(), 0U);
+  for (std::size_t i = d.refs.size() / 2; i < d.refs.size(); ++i) d.recording[i] = 1U;  // two days
+  ThresholdPolicy policy;
+  policy.holdout_fraction = 0.34;  // 2 of the 6 groups of +1.0 and of the 6 of -2.0
+  const Baseline held = train_baseline(d, ClassLearningConfig{}, policy, 2000.0, GearboxInfo{});
+  ASSERT_EQ(held.classes.size(), 2U);
+  EXPECT_EQ(held.classes[0].holdout[0].windows, 6U);  // 2 groups of 3 windows
+  EXPECT_EQ(held.classes[1].holdout[0].windows, 4U);  // 4 of its 12 one-window groups
+
+  CollectedWindows index = d;
+  index.windows.clear();
+  int passes = 0;
+  const TrainingWindowPass pass = [&](const TrainingWindowVisitor& visit) {
+    ++passes;
+    std::vector<float> scratch;  // the samples live for the call only
+    for (std::size_t i = 0; i < d.windows.size(); ++i) {
+      scratch = d.windows[i];
+      visit(i, scratch);
+      std::fill(scratch.begin(), scratch.end(), std::nanf(""));
+    }
+  };
+  const Baseline streamed =
+      train_baseline_streamed(index, kN, pass, ClassLearningConfig{}, policy, 2000.0, GearboxInfo{});
+  EXPECT_EQ(passes, 2);
+  ASSERT_EQ(streamed.classes.size(), held.classes.size());
+  for (std::size_t k = 0; k < held.classes.size(); ++k) {
+    const ClassBaseline& a = held.classes[k];
+    const ClassBaseline& b = streamed.classes[k];
+    EXPECT_TRUE(same_thresholds(a, b)) << k;
+    EXPECT_EQ(a.mean_magnitude, b.mean_magnitude);
+    EXPECT_EQ(a.tda_mean, b.tda_mean);
+    EXPECT_EQ(a.n_windows, b.n_windows);
+    for (std::size_t m = 0; m < kMethodCount; ++m) {
+      EXPECT_EQ(a.rms_stats[m].mean, b.rms_stats[m].mean);
+      EXPECT_EQ(a.entropy_stats[m].stddev, b.entropy_stats[m].stddev);
+      EXPECT_EQ(a.day_spread[m].log_rms_between_sd, b.day_spread[m].log_rms_between_sd);
+      EXPECT_EQ(a.holdout[m].windows, b.holdout[m].windows);
+      EXPECT_EQ(a.holdout[m].z_rms_mean, b.holdout[m].z_rms_mean);
+      EXPECT_EQ(a.holdout[m].z_entropy_sd, b.holdout[m].z_entropy_sd);
+    }
+  }
+  // The per-class builder, fed group by group, is what train_baseline runs: the same as building the
+  // class from its windows (the fit windows of class +1.0: the first 4 regions).
+  std::vector<std::vector<float>> w;
+  std::vector<std::uint64_t> groups;
+  std::vector<std::uint32_t> days;
+  for (std::size_t i = 0; i < d.refs.size(); ++i) {
+    if (d.refs[i].speed_rad_s > 0.0 && d.refs[i].region_seq < 8) {
+      w.push_back(d.windows[i]);
+      groups.push_back(d.refs[i].region_seq);
+      days.push_back(d.recording[i]);
+    }
+  }
+  ASSERT_EQ(w.size(), 12U);
+  const ClassBaseline direct = build_class_baseline(held.classes[0].segment, w, groups, policy, days);
+  EXPECT_EQ(direct.mean_magnitude, held.classes[0].mean_magnitude);
+  EXPECT_TRUE(same_thresholds(direct, held.classes[0]));
+}
+
+TEST(TrainBaselineStreamed, APassThatSkipsOrReordersWindowsIsRefused) {
+  std::mt19937 rng(7);
+  CollectedWindows d;
+  for (std::uint64_t r = 0; r < 4; ++r)
+    add_region(d, rng, r, 1.0, 2, kN, 1000 * static_cast<std::int64_t>(r));
+  CollectedWindows index = d;
+  index.windows.clear();
+  const auto train = [&](const TrainingWindowPass& pass) {
+    return train_baseline_streamed(index, kN, pass, ClassLearningConfig{}, ThresholdPolicy{}, 2000.0,
+                                   GearboxInfo{});
+  };
+  const auto message = [&](const TrainingWindowPass& pass) -> std::string {
+    try {
+      (void)train(pass);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_EQ(train([&](const TrainingWindowVisitor& v) {
+              for (std::size_t i = 0; i < d.windows.size(); ++i) v(i, d.windows[i]);
+            }).classes.size(),
+            1U);
+  EXPECT_EQ(message([&](const TrainingWindowVisitor& v) {
+              for (std::size_t i = 0; i + 1 < d.windows.size(); ++i) v(i, d.windows[i]);
+            }),
+            "train_baseline: pass 1 handed over 7 of 8 windows (the windows changed between passes)");
+  EXPECT_EQ(message([&](const TrainingWindowVisitor& v) {
+              for (std::size_t i = 1; i < d.windows.size(); ++i) v(i, d.windows[i]);
+            }),
+            "train_baseline: pass 1 handed over window 1 where window 0 was expected (the windows changed "
+            "between passes)");
+  const std::vector<float> short_window(kN / 2, 0.0F);
+  EXPECT_EQ(message([&](const TrainingWindowVisitor& v) {
+              for (std::size_t i = 0; i < d.windows.size(); ++i) v(i, i == 3 ? short_window : d.windows[i]);
+            }),
+            "class 0: window 3 has 32 samples, expected 64");
 }
 
 }  // namespace

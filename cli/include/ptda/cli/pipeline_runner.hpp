@@ -116,16 +116,24 @@ struct CollectResult {
   CanCounters can;
   double fs_hz = 0.0;
 };
+/// Receives each window as it is cut (its samples live for the call only).
+using CollectVisitor = std::function<void(const dsp::WindowRef&, std::span<const float>)>;
+/// Cuts the recording's windows as the monitor does. Without a visitor, every window is kept in
+/// data.windows (memory grows with the recording: 4 N bytes per window); with one, each window goes to
+/// it and only the refs and regions are kept (`ptda train` streams its passes this way).
 [[nodiscard]] CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg,
-                                            double fs_hz, const RunOptions& options = {});
+                                            double fs_hz, const RunOptions& options = {},
+                                            const CollectVisitor& visitor = {});
 
-/// Appends `more` to `all`, renumbering window and region sequence numbers so they stay unique
+/// Appends `more` to `all` (its windows when it holds them; refs only when its windows are empty),
+/// renumbering window and region sequence numbers so they stay unique
 /// (several training recordings: a region of one recording is never confused with another's). The
 /// appended windows get the next recording index in all.recording (the first recording is 0), which
 /// training uses as the day of each window (docs/method.md §5).
 void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more);
 
-/// Keeps the windows [range.first(count), range.last(count)) in cut order and the regions they lie in.
+/// Keeps the windows [range.first(count), range.last(count)) in cut order and the regions they lie in
+/// (refs only when `all` holds no windows).
 [[nodiscard]] dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all,
                                                    const FractionRange& range);
 

@@ -3,7 +3,10 @@
 // field training at finish: allocates and throws ptda::Error.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -12,6 +15,12 @@
 #include "ptda/dsp/window_slicer.hpp"
 
 namespace ptda::dsp {
+
+/// Receives window `index` (into the training data's refs) with its samples.
+using TrainingWindowVisitor = std::function<void(std::size_t index, std::span<const float> x)>;
+/// One pass over the training windows: calls the visitor once for every window of the training data,
+/// in cut order (index 0, 1, ...); the samples need only live for the call.
+using TrainingWindowPass = std::function<void(const TrainingWindowVisitor&)>;
 
 /// Offline training input: every window of a healthy recording with its region (allocates).
 struct CollectedWindows {
@@ -49,5 +58,20 @@ struct ClassLearningConfig {
 [[nodiscard]] Baseline train_baseline(const CollectedWindows& data, const ClassLearningConfig& classes,
                                       const ThresholdPolicy& policy, double fs_hz, const GearboxInfo& gearbox,
                                       std::vector<std::string>* dropped = nullptr);
+
+/// train_baseline() without holding the windows: `index` holds the refs, regions and recording ids
+/// (its `windows` is ignored) and `pass` hands the windows over, one at a time; it is called twice
+/// (the class sums, then the leave-one-group-out features and the hold-out's features), so a caller
+/// can stream a recording twice instead of keeping it. Same result, byte for byte, as train_baseline()
+/// on the same windows (it is built on this). Memory: O(N) per class, a few doubles per window, and the
+/// windows of one overlap group at a time (groups whose windows arrive interleaved are held until
+/// complete). Throws as train_baseline() does, and when a pass does not visit every window exactly
+/// once, in order. Thread: any (offline). Allocates.
+[[nodiscard]] Baseline train_baseline_streamed(const CollectedWindows& index, std::size_t window_len,
+                                               const TrainingWindowPass& pass,
+                                               const ClassLearningConfig& classes,
+                                               const ThresholdPolicy& policy, double fs_hz,
+                                               const GearboxInfo& gearbox,
+                                               std::vector<std::string>* dropped = nullptr);
 
 }  // namespace ptda::dsp

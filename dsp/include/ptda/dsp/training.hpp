@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -98,6 +99,46 @@ enum class FeatureScale : std::uint8_t {
 /// Summary statistics of values (population of the training set; stddev with n-1, 0 for n < 2;
 /// all zero with n = 0 for no values). Thread: any. Never allocates or throws.
 [[nodiscard]] FeatureStats feature_stats(std::span<const double> values);
+
+/// The class baseline of build_class_baseline(), built from windows handed over one at a time, so a
+/// caller can stream them from a recording in two passes instead of holding them (`ptda train`):
+///  1. add_to_mean() every window of the class (in the order build_class_baseline() would sum them),
+///     then finish_mean(): mean magnitude, TDA mean and spectrum, line groups (means() is then valid
+///     for scoring other windows, e.g. a hold-out);
+///  2. score_group() each leave-out group with all its windows (in group order, as
+///     build_class_baseline() visits its groups), then finish(): thresholds, stats, day spread.
+/// Same arithmetic in the same order as build_class_baseline() (which is built on it), so the same
+/// windows give the same bytes. Memory: O(N) (sums in double) plus 6 doubles and 4 bytes per window
+/// for the features; the caller holds at most one group's windows. Thread: one at a time (offline or
+/// the daemon's training mode). Allocates; throws ptda::Error on a wrong length, a non-finite sample,
+/// a call out of order or (finish) fewer than 3 groups.
+class ClassBaselineBuilder {
+ public:
+  ClassBaselineBuilder(const SegmentClass& segment, std::size_t window_len, const ThresholdPolicy& policy);
+  ~ClassBaselineBuilder();
+  ClassBaselineBuilder(ClassBaselineBuilder&&) noexcept;
+  ClassBaselineBuilder& operator=(ClassBaselineBuilder&&) noexcept;
+  ClassBaselineBuilder(const ClassBaselineBuilder&) = delete;
+  ClassBaselineBuilder& operator=(const ClassBaselineBuilder&) = delete;
+
+  /// Pass 1: adds one window to the class's sums.
+  void add_to_mean(std::span<const float> x);
+  /// Ends pass 1 (needs at least one window).
+  void finish_mean();
+  /// The class baseline so far: segment, n_windows, means, TDA spectrum, line groups (after
+  /// finish_mean()); thresholds and stats are set by finish().
+  [[nodiscard]] const ClassBaseline& means() const noexcept;
+  /// Pass 2: scores each window of one group against the means of all pass-1 windows outside it (the
+  /// group's windows must be among them). `recordings`: the recording (day) of each window, or empty.
+  void score_group(std::span<const std::span<const float>> windows,
+                   std::span<const std::uint32_t> recordings);
+  /// Ends pass 2 and returns the class baseline.
+  [[nodiscard]] ClassBaseline finish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> s_;
+};
 
 /// Builds one class baseline from its M healthy windows (each of length N):
 ///  - mean_magnitude = mean |X_i| (eq. 7) and tda_mean = mean x_i (eq. 5) over all M windows;
