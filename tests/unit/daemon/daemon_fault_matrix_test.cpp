@@ -569,13 +569,25 @@ void sighup_during_training() {
   dev.gate.t_ns = healthy()->loop_ns / 5;  // every pipeline replays the stream from its start up to here
   Live live(s, s.training_config(12), dev, true);
   std::string text;
+  // Settled: everything up to the gate processed, the training counts caught up with the pipeline's
+  // windows, and the regions unchanged for 0.3 s (a region is counted after its last window, when the
+  // slicer sees it end: under qemu on a loaded machine that lagged the windows by a status period).
   const auto settled = [&](std::uint64_t carried) {
+    std::uint64_t last_regions = ~0ULL;
+    auto since = std::chrono::steady_clock::now();
     return wait_for([&] {
       text = read_text(s.status());
       const DaemonView v = live.d.view();
+      const std::uint64_t r = training_u64(text, "regions");
+      const auto now = std::chrono::steady_clock::now();
+      if (r != last_regions) {
+        last_regions = r;
+        since = now;
+      }
       return has(text, "\"state\":\"training\"") && v.pipeline.windows > 0 &&
              v.pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000 &&
-             training_u64(text, "windows") == carried + v.pipeline.windows;
+             training_u64(text, "windows") == carried + v.pipeline.windows &&
+             now - since >= std::chrono::milliseconds(300);
     });
   };
   ASSERT_TRUE(settled(0)) << text;
