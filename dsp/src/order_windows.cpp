@@ -27,6 +27,14 @@ OrderWindowCutter::OrderWindowCutter(const OrderWindowConfig& cfg) : cfg_(cfg) {
                 " is not an FFT length (even, prime factors 2, 3, 5 only)");
   }
   buf_.assign(n, 0.0F);
+  if (!(cfg.max_order >= 0.0) || !std::isfinite(cfg.max_order))
+    throw Error("order_windows.max_order must be >= 0");
+  if (cfg.max_order > 0.0) {
+    fft_ = std::make_unique<RealFft>(n);
+    spec_.resize(fft_->bins());
+    keep_bins_ =
+        std::min(spec_.size(), static_cast<std::size_t>(std::floor(cfg.max_order * cfg.revolutions)) + 1);
+  }
 }
 
 bool OrderWindowCutter::push(const OrderSample& s, OrderWindowRef& ref, std::span<float> out) noexcept {
@@ -46,7 +54,13 @@ bool OrderWindowCutter::push(const OrderSample& s, OrderWindowRef& ref, std::spa
   if (fill_ < buf_.size()) return false;
   fill_ = 0;
   if (out.size() != buf_.size()) return false;
-  std::copy(buf_.begin(), buf_.end(), out.begin());
+  if (fft_) {
+    fft_->forward(buf_, spec_);
+    std::fill(spec_.begin() + static_cast<std::ptrdiff_t>(keep_bins_), spec_.end(), std::complex<float>{});
+    fft_->inverse(spec_, out);
+  } else {
+    std::copy(buf_.begin(), buf_.end(), out.begin());
+  }
   ref.seq = seq_++;
   ref.segment = segment_;
   ref.k_start = k_start_;

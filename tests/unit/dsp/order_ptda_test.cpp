@@ -131,14 +131,14 @@ OrderWindows time_windows(const Job& job) {
   return w;
 }
 
-/// Order windows: the job through AngleResampler and OrderWindowCutter, blocks of 512 samples with the
-/// frames interleaved in time order.
-OrderWindows order_windows(const Job& job) {
+/// Order windows: the job through AngleResampler and OrderWindowCutter (band-limited to the resampler's
+/// pass band unless band_limit is false), blocks of 512 samples with the frames interleaved in time order.
+OrderWindows order_windows(const Job& job, bool band_limit = true) {
   AngleResamplerConfig rc;
   rc.samples_per_rev = kS;
   rc.ratio = kRatio;
   AngleResampler res(rc, kFs, kT0);
-  OrderWindowCutter cut(OrderWindowConfig{kS, kR, kRatio});
+  OrderWindowCutter cut(OrderWindowConfig{kS, kR, kRatio, band_limit ? res.pass_order() : 0.0});
   OrderWindows w;
   std::vector<float> buf(kN);
   OrderWindowRef ref;
@@ -179,54 +179,99 @@ OrderWindows plateau_only(const OrderWindows& w) {
   return out;
 }
 
+/// The same band limit as the cutter's, on a time window: bins above floor(max_order R) set to 0.
+std::vector<float> band_limited(const std::vector<float>& x, double max_order) {
+  RealFft fft(x.size());
+  std::vector<std::complex<float>> spec(fft.bins());
+  fft.forward(x, spec);
+  const auto keep = static_cast<std::size_t>(std::floor(max_order * kR)) + 1;
+  std::fill(spec.begin() + static_cast<std::ptrdiff_t>(keep), spec.end(), std::complex<float>{});
+  std::vector<float> out(x.size());
+  fft.inverse(spec, out);
+  return out;
+}
+
+struct Agreement {
+  double rms_rel = 0.0, ent_abs = 0.0, raw_rel = 0.0;
+};
+
+/// Largest differences of PTDA and raw features between paired time and order windows, each domain
+/// trained on its own windows (each window its own leave-out group).
+Agreement agreement(const std::vector<std::vector<float>>& t, const std::vector<std::vector<float>>& o) {
+  std::vector<std::uint64_t> groups(t.size());
+  for (std::size_t i = 0; i < groups.size(); ++i) groups[i] = i;
+  const ClassBaseline tb = build_class_baseline(SegmentClass{}, t, groups, ThresholdPolicy{});
+  const ClassBaseline ob = build_class_baseline(SegmentClass{}, o, groups, ThresholdPolicy{});
+  WindowAnalyzer a(kN);
+  Agreement g;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const Features ft = a.analyze(t[i], tb, Method::kPtda);
+    const Features fo = a.analyze(o[i], ob, Method::kPtda);
+    g.rms_rel = std::max(g.rms_rel, std::fabs(fo.rms_res / ft.rms_res - 1.0));
+    g.ent_abs = std::max(g.ent_abs, std::fabs(fo.entropy_res - ft.entropy_res));
+    const Features rt = a.analyze(t[i], tb, Method::kRaw);
+    const Features ro = a.analyze(o[i], ob, Method::kRaw);
+    g.raw_rel = std::max(g.raw_rel, std::fabs(ro.rms_res / rt.rms_res - 1.0));
+  }
+  return g;
+}
+
 TEST(OrderPtda, ConstantSpeedAgreesWithTimeDomain) {
-  // One plateau of 40 windows (327680 samples, an FFT length for the noise filter) at f0 = 25 Hz from t = 0
-  // with angle 0: order sample k is at sample k. Noise low-passed to 0.3 fs = order 307 (inside the
-  // resampler's pass band up to order 369), so the order windows equal the time windows within the kernel's
-  // pass-band ripple (<= 1e-4 of the signal).
+  // One plateau of 40 windows (327680 samples, an FFT length for the noise filter) at f0 = 25 Hz from
+  // t = 0 with angle 0: order sample k is at sample k. Noise low-passed to 0.3 fs = order 307 (inside the
+  // resampler's pass band up to order 369), so the order windows equal the time windows within the
+  // kernel's pass-band ripple (<= 1e-4 of the signal). The features are compared with the cutter's band
+  // limit (orders above the pass band set to 0) applied to both: it changes the features of a window
+  // whose content is not periodic in it (the edges' leakage above the pass band is removed), in both
+  // domains alike.
   const Job job = make_job(11, 1, 0.0, 40.0 * kN / kFs, 0.3, true, true);
   const OrderWindows tw = time_windows(job);
-  const OrderWindows ow = order_windows(job);
+  const OrderWindows ow = order_windows(job, false);
+  const OrderWindows owb = order_windows(job, true);
   ASSERT_GE(ow.windows.size(), 38U);
+  ASSERT_EQ(owb.windows.size(), ow.windows.size());
+  AngleResamplerConfig rc;
+  rc.samples_per_rev = kS;
+  rc.ratio = kRatio;
+  const double pass = AngleResampler(rc, kFs, kT0).pass_order();
   // Pair order window k_start = m N with time window m (time windows start at sample 0).
   std::vector<std::vector<float>> tpaired, opaired;
+  double max_diff = 0.0;
   for (std::size_t i = 0; i < ow.refs.size(); ++i) {
     const auto m = static_cast<std::size_t>(ow.refs[i].k_start / static_cast<std::int64_t>(kN));
     ASSERT_LT(m, tw.windows.size());
-    tpaired.push_back(tw.windows[m]);
-    opaired.push_back(ow.windows[i]);
     ASSERT_NEAR(ow.refs[i].shaft_speed_rad_s, 2.0 * kPi * kF0, 1e-6 * 2.0 * kPi * kF0);
-  }
-  double max_diff = 0.0;
-  for (std::size_t i = 0; i < tpaired.size(); ++i)
     for (std::size_t n = 0; n < kN; ++n)
-      max_diff = std::max(max_diff, static_cast<double>(std::fabs(tpaired[i][n] - opaired[i][n])));
-  std::vector<std::uint64_t> groups(tpaired.size());
-  for (std::size_t i = 0; i < groups.size(); ++i) groups[i] = i;
-  SegmentClass c;
-  const ClassBaseline tb = build_class_baseline(c, tpaired, groups, ThresholdPolicy{});
-  const ClassBaseline ob = build_class_baseline(c, opaired, groups, ThresholdPolicy{});
-  WindowAnalyzer a(kN);
-  double rms_rel = 0.0, ent_abs = 0.0, raw_rel = 0.0;
-  for (std::size_t i = 0; i < tpaired.size(); ++i) {
-    const Features ft = a.analyze(tpaired[i], tb, Method::kPtda);
-    const Features fo = a.analyze(opaired[i], ob, Method::kPtda);
-    rms_rel = std::max(rms_rel, std::fabs(fo.rms_res / ft.rms_res - 1.0));
-    ent_abs = std::max(ent_abs, std::fabs(fo.entropy_res - ft.entropy_res));
-    const Features rt = a.analyze(tpaired[i], tb, Method::kRaw);
-    const Features ro = a.analyze(opaired[i], ob, Method::kRaw);
-    raw_rel = std::max(raw_rel, std::fabs(ro.rms_res / rt.rms_res - 1.0));
+      max_diff = std::max(max_diff, static_cast<double>(std::fabs(tw.windows[m][n] - ow.windows[i][n])));
+    tpaired.push_back(band_limited(tw.windows[m], pass));
+    opaired.push_back(owb.windows[i]);
   }
-  std::printf("max |sample diff| %.3g; PTDA rms_res rel %.3g, entropy abs %.3g; raw rms rel %.3g\n", max_diff,
-              rms_rel, ent_abs, raw_rel);
+  // Features without the band limit (the resampler alone) and with it on both sides.
+  std::vector<std::vector<float>> traw, oraw;
+  for (std::size_t i = 0; i < ow.refs.size(); ++i) {
+    traw.push_back(tw.windows[static_cast<std::size_t>(ow.refs[i].k_start / static_cast<std::int64_t>(kN))]);
+    oraw.push_back(ow.windows[i]);
+  }
+  const Agreement unbanded = agreement(traw, oraw);
+  const Agreement banded = agreement(tpaired, opaired);
+  std::printf(
+      "max |sample diff| %.3g; PTDA rms_res rel %.3g, entropy abs %.3g, raw rms rel %.3g; band-limited: "
+      "PTDA rms_res rel %.3g, entropy abs %.3g\n",
+      max_diff, unbanded.rms_rel, unbanded.ent_abs, unbanded.raw_rel, banded.rms_rel, banded.ent_abs);
   // Tolerance: a sample differs by at most the kernel ripple times the signal's peak (about 2.2 here),
   // so 2.2e-4 absolute; the PTDA residual (about 0.47 x the 0.3 noise rms, docs/method.md §2) is 0.14,
   // so its rms can move by up to 2.2e-4 / 0.14 = 1.6e-3 relative. Measured (x86-64, GCC 12, release):
-  // samples 8.0e-5, PTDA rms_res 1.4e-4 relative, entropy 4.6e-6, raw rms 1.5e-5 relative.
+  // samples 8.0e-5, PTDA rms_res 1.4e-4 relative, entropy 4.6e-6, raw rms 1.5e-5.
   EXPECT_LT(max_diff, 2.2e-4);
-  EXPECT_LT(raw_rel, 2e-4);
-  EXPECT_LT(rms_rel, 1.6e-3);
-  EXPECT_LT(ent_abs, 1e-3);
+  EXPECT_LT(unbanded.raw_rel, 2e-4);
+  EXPECT_LT(unbanded.rms_rel, 1.6e-3);
+  EXPECT_LT(unbanded.ent_abs, 1e-3);
+  // With the band limit on both sides the agreement is looser: measured PTDA rms_res 1.6e-2 relative,
+  // entropy 1.4e-3. Not derived: PTDA's line groups (4 x a local median) and floor gain (a median) are
+  // discrete decisions that the small differences can flip once the top bins hold only the windows'
+  // edge leakage (docs/method.md §9 lists this as open). Pinned at about twice the measured values.
+  EXPECT_LT(banded.rms_rel, 0.03);
+  EXPECT_LT(banded.ent_abs, 3e-3);
 }
 
 double mean_ptda_rms(const ClassBaseline& cls, const OrderWindows& w) {
@@ -320,6 +365,26 @@ TEST(OrderPtda, CutterDropsAPartialWindowAtAGap) {
   }
   EXPECT_EQ(windows, 5);  // [0,32) [32,64) [96,128) [128,160) [160,192)
   EXPECT_THROW(OrderWindowCutter(OrderWindowConfig{16, 7, 1.0}), Error);  // 112 = 2^4 7
+}
+
+TEST(OrderPtda, CutterBandLimitsTheWindowToMaxOrder) {
+  // N = 64 samples over R = 4 revolutions (S = 16): orders 1 and 5 in, max_order 3: order 5 (bin 20)
+  // must vanish, order 1 (bin 4) stay.
+  OrderWindowCutter cut(OrderWindowConfig{16, 4, 1.0, 3.0});
+  std::vector<float> out(64);
+  OrderWindowRef ref;
+  bool got = false;
+  for (std::int64_t k = 0; k < 64; ++k) {
+    OrderSample s;
+    s.k = k;
+    s.t_ns = k;
+    const double a = 2.0 * kPi * static_cast<double>(k) / 16.0;
+    s.value = static_cast<float>(std::cos(a) + std::cos(5.0 * a));
+    got = cut.push(s, ref, out);
+  }
+  ASSERT_TRUE(got);
+  for (std::int64_t k = 0; k < 64; ++k)
+    EXPECT_NEAR(out[static_cast<std::size_t>(k)], std::cos(2.0 * kPi * static_cast<double>(k) / 16.0), 1e-5);
 }
 
 }  // namespace

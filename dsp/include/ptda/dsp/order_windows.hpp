@@ -5,13 +5,16 @@
 // frequencies k fs / N.
 #pragma once
 
+#include <complex>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "ptda/dsp/angle_resampler.hpp"
 #include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/real_fft.hpp"
 #include "ptda/dsp/training.hpp"
 
 namespace ptda::dsp {
@@ -20,6 +23,12 @@ struct OrderWindowConfig {
   std::uint32_t samples_per_rev = 0;  ///< S, as the resampler's
   std::uint32_t revolutions = 0;      ///< R: a window spans R input-shaft revolutions (N = R S)
   double ratio = 0.0;                 ///< input-shaft / joint speed, to report the joint speed
+  /// Orders above this are set to exactly 0 in every window (one forward and one inverse FFT per
+  /// window); 0 = keep every bin. Set it to the resampler's pass_order(): above it the spectrum holds
+  /// only the kernel's transition and stop band, whose tiny leakage of whatever the window contains
+  /// would otherwise enter PTDA's floor gain (the median of |X| / a over the floor bins) as a level
+  /// change that scales with a defect, and refer the defect away (docs/method.md §9).
+  double max_order = 0.0;
 };
 
 /// Where an order window lies. Bin k of its spectrum is order k / R of the input shaft.
@@ -54,6 +63,9 @@ class OrderWindowCutter {
  private:
   OrderWindowConfig cfg_;
   std::vector<float> buf_;
+  std::unique_ptr<RealFft> fft_;  ///< when max_order > 0
+  std::vector<std::complex<float>> spec_;
+  std::size_t keep_bins_ = 0;  ///< bins 0..keep_bins_-1 kept
   std::size_t fill_ = 0;
   std::int64_t k_start_ = 0;
   std::int64_t t_start_ns_ = 0;
