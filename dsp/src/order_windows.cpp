@@ -1,0 +1,166 @@
+// Order-domain windows and classes (docs/method.md §9).
+#include "ptda/dsp/order_windows.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <set>
+#include <string>
+#include <utility>
+
+#include "number_text.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/real_fft.hpp"
+
+namespace ptda::dsp {
+
+using detail::num;
+
+OrderWindowCutter::OrderWindowCutter(const OrderWindowConfig& cfg) : cfg_(cfg) {
+  if (cfg.samples_per_rev == 0 || cfg.revolutions == 0)
+    throw Error("order_windows.revolutions and samples_per_rev must be >= 1");
+  if (!(cfg.ratio > 0.0) || !std::isfinite(cfg.ratio)) throw Error("order_windows.ratio must be > 0");
+  const std::size_t n = static_cast<std::size_t>(cfg.samples_per_rev) * cfg.revolutions;
+  if (!RealFft::supported_length(n)) {
+    throw Error("order_windows.revolutions: " + std::to_string(cfg.revolutions) + " x " +
+                std::to_string(cfg.samples_per_rev) + " samples per revolution = " + std::to_string(n) +
+                " is not an FFT length (even, prime factors 2, 3, 5 only)");
+  }
+  buf_.assign(n, 0.0F);
+  if (!(cfg.max_order >= 0.0) || !std::isfinite(cfg.max_order))
+    throw Error("order_windows.max_order must be >= 0");
+  if (cfg.max_order > 0.0) {
+    fft_ = std::make_unique<RealFft>(n);
+    spec_.resize(fft_->bins());
+    keep_bins_ =
+        std::min(spec_.size(), static_cast<std::size_t>(std::floor(cfg.max_order * cfg.revolutions)) + 1);
+  }
+}
+
+bool OrderWindowCutter::push(const OrderSample& s, OrderWindowRef& ref, std::span<float> out) noexcept {
+  const auto n = static_cast<std::int64_t>(buf_.size());
+  if (fill_ > 0 && (s.segment != segment_ || s.k != k_start_ + static_cast<std::int64_t>(fill_))) fill_ = 0;
+  if (fill_ == 0) {
+    if (s.k % n != 0) return false;  // windows start at multiples of N
+    k_start_ = s.k;
+    t_start_ns_ = s.t_ns;
+    segment_ = s.segment;
+    direction_ = s.direction;
+    min_w_ = max_w_ = s.shaft_speed_rad_s;
+  }
+  buf_[fill_++] = s.value;
+  min_w_ = std::min(min_w_, s.shaft_speed_rad_s);
+  max_w_ = std::max(max_w_, s.shaft_speed_rad_s);
+  if (fill_ < buf_.size()) return false;
+  fill_ = 0;
+  if (out.size() != buf_.size()) return false;
+  if (fft_) {
+    fft_->forward(buf_, spec_);
+    std::fill(spec_.begin() + static_cast<std::ptrdiff_t>(keep_bins_), spec_.end(), std::complex<float>{});
+    fft_->inverse(spec_, out);
+  } else {
+    std::copy(buf_.begin(), buf_.end(), out.begin());
+  }
+  ref.seq = seq_++;
+  ref.segment = segment_;
+  ref.k_start = k_start_;
+  ref.t_start_ns = t_start_ns_;
+  ref.t_end_ns = s.t_ns;
+  ref.direction = direction_;
+  // N - 1 sample steps of 2 pi / S over the time between the first and the last sample.
+  const double span_rad = static_cast<double>(n - 1) * 2.0 * std::numbers::pi / cfg_.samples_per_rev;
+  const double dt_s = static_cast<double>(s.t_ns - t_start_ns_) * 1e-9;
+  ref.shaft_speed_rad_s = dt_s > 0.0 ? span_rad / dt_s : 0.0;
+  ref.min_shaft_speed_rad_s = min_w_;
+  ref.max_shaft_speed_rad_s = max_w_;
+  ref.joint_speed_rad_s = direction_ * ref.shaft_speed_rad_s / cfg_.ratio;
+  return true;
+}
+
+std::vector<SegmentClass> learn_order_classes(const std::vector<OrderWindowRef>& refs, double band_rel,
+                                              std::uint32_t min_segments, std::vector<std::string>* dropped) {
+  if (!(band_rel > 0.0 && band_rel < 1.0))
+    throw Error("order classes: band_rel must be in (0, 1), got " + num(band_rel));
+  std::vector<SegmentClass> out;
+  for (const std::int8_t dir : {std::int8_t{1}, std::int8_t{-1}}) {
+    std::vector<std::pair<double, std::uint64_t>> items;  // |joint speed|, segment
+    for (const OrderWindowRef& r : refs) {
+      if ((r.direction < 0 ? -1 : 1) == dir) items.emplace_back(std::fabs(r.joint_speed_rad_s), r.segment);
+    }
+    std::stable_sort(items.begin(), items.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::size_t i = 0;
+    while (i < items.size()) {
+      const double anchor = items[i].first;
+      std::size_t j = i;
+      double sum = 0.0;
+      std::set<std::uint64_t> segments;
+      while (j < items.size() && items[j].first <= anchor * (1.0 + band_rel)) {
+        sum += items[j].first;
+        segments.insert(items[j].second);
+        ++j;
+      }
+      const double mean = sum / static_cast<double>(j - i);
+      if (segments.size() >= min_segments) {
+        SegmentClass c;
+        c.direction = dir;
+        c.speed_rad_s = mean;
+        c.speed_tol_rad_s = 0.5 * band_rel * mean;
+        c.regions = static_cast<std::uint32_t>(segments.size());
+        out.push_back(c);
+      } else if (dropped != nullptr) {
+        dropped->push_back("order class " + std::string(dir < 0 ? "-" : "+") + num(mean) +
+                           " rad/s: " + std::to_string(segments.size()) + " segment(s), fewer than " +
+                           std::to_string(min_segments));
+      }
+      i = j;
+    }
+  }
+  for (std::size_t k = 0; k < out.size(); ++k) out[k].id = static_cast<std::uint32_t>(k);
+  return out;
+}
+
+Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig& cfg, double band_rel,
+                              const ThresholdPolicy& policy, const GearboxInfo& gearbox,
+                              std::vector<std::string>* dropped) {
+  if (data.refs.size() != data.windows.size())
+    throw Error("train_order_baseline: " + std::to_string(data.refs.size()) + " refs but " +
+                std::to_string(data.windows.size()) + " windows");
+  std::vector<std::string> why;
+  Baseline b;
+  b.fs_hz = cfg.samples_per_rev;
+  b.window_len = cfg.samples_per_rev * cfg.revolutions;
+  b.gearbox = gearbox;
+  b.policy = policy;
+  for (const SegmentClass& c : learn_order_classes(data.refs, band_rel, 3, &why)) {
+    std::vector<std::vector<float>> windows;
+    std::vector<std::uint64_t> groups;
+    std::vector<std::uint32_t> recordings;
+    for (std::size_t i = 0; i < data.refs.size(); ++i) {
+      const OrderWindowRef& r = data.refs[i];
+      if ((r.direction < 0 ? -1 : 1) != c.direction) continue;
+      if (std::fabs(std::fabs(r.joint_speed_rad_s) - c.speed_rad_s) > c.speed_tol_rad_s) continue;
+      windows.push_back(data.windows[i]);
+      groups.push_back(r.seq);  // non-overlapping windows: each its own leave-out group
+      if (!data.recording.empty()) recordings.push_back(data.recording[i]);
+    }
+    if (windows.size() < 3) {
+      why.push_back("order class " + num(c.speed_rad_s) + " rad/s: " + std::to_string(windows.size()) +
+                    " window(s) within its band, fewer than 3");
+      continue;
+    }
+    ClassBaseline cb = build_class_baseline(c, windows, groups, policy, recordings);
+    cb.segment.id = static_cast<std::uint32_t>(b.classes.size());
+    b.classes.push_back(std::move(cb));
+  }
+  if (dropped != nullptr) dropped->insert(dropped->end(), why.begin(), why.end());
+  if (b.classes.empty()) {
+    std::string msg = "train_order_baseline: no order class has enough windows (" +
+                      std::to_string(data.windows.size()) + " windows)";
+    for (const std::string& w : why) msg += "; " + w;
+    throw Error(msg);
+  }
+  return b;
+}
+
+}  // namespace ptda::dsp
