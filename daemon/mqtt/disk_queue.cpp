@@ -165,12 +165,17 @@ void DiskQueue::recover() {
     if (end == text.c_str()) throw Error(acked.string() + ": not a sequence number: '" + text + "'");
   }
   std::vector<std::pair<std::uint64_t, fs::path>> found;
-  for (const auto& e : fs::directory_iterator(cfg_.dir)) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(cfg_.dir, ec)) {
     const std::string n = e.path().filename().string();
     if (n.size() != 22 || n.rfind("seg-", 0) != 0 || n.substr(20) != ".q") continue;
     found.emplace_back(std::strtoull(n.substr(4, 16).c_str(), nullptr, 16), e.path());
   }
+  if (ec) throw Error("queue " + cfg_.dir.string() + ": cannot list: " + ec.message());
   std::sort(found.begin(), found.end());
+  // Temporary files of a compaction or an ack rewrite that a crash interrupted (outside the bound).
+  (void)remove_stale_temp_files(cfg_.dir.c_str(), "acked");
+  for (const auto& f : found) (void)remove_stale_temp_files(cfg_.dir.c_str(), f.second.filename().native());
   next_seq_ = acked_seq_ + 1;
   for (std::size_t i = 0; i < found.size(); ++i) {
     const auto& [first, path] = found[i];
@@ -223,8 +228,12 @@ void DiskQueue::start_segment(std::uint64_t first_seq) {
   }
 }
 
-void DiskQueue::sync_tail() {
-  if (tail_fd_ >= 0 && tail_dirty_) ::fsync(tail_fd_);
+void DiskQueue::sync_tail() const {
+  if (tail_fd_ >= 0 && tail_dirty_) {
+    if (::fsync(tail_fd_) != 0) {
+      throw Error(segments_.back().path.string() + ": fsync failed: " + errno_text(errno));
+    }
+  }
   tail_dirty_ = false;
 }
 
@@ -240,12 +249,24 @@ std::uint64_t DiskQueue::append(EventKind kind, std::string_view payload) {
     ++counters_.dropped_summaries;
     return 0;
   }
+  if (tail_fd_ < 0) open_tail();
   if (segments_.back().bytes + need > cfg_.segment_bytes && segments_.back().bytes > 0)
     start_segment(next_seq_);
   const std::uint64_t seq = next_seq_;
   const std::vector<unsigned char> rec = encode(seq, kind, payload);
   Segment& tail = segments_.back();
-  write_all(tail_fd_, rec.data(), rec.size(), tail.path);
+  try {
+    write_all(tail_fd_, rec.data(), rec.size(), tail.path);
+  } catch (const Error&) {
+    // Part of the record may be in the file: cut it back so the next record lands where the index
+    // says; if even that fails, continue in a new segment.
+    if (::ftruncate(tail_fd_, static_cast<off_t>(tail.bytes)) != 0) {
+      ::close(tail_fd_);
+      tail_fd_ = -1;
+      start_segment(next_seq_);
+    }
+    throw;
+  }
   index_.push_back({seq, kind, tail.first_seq, tail.bytes, static_cast<std::uint32_t>(payload.size())});
   tail.bytes += rec.size();
   ++next_seq_;
@@ -258,19 +279,28 @@ std::uint64_t DiskQueue::append(EventKind kind, std::string_view payload) {
 bool DiskQueue::front(QueuedEvent& out) const {
   if (index_.empty()) return false;
   const Entry& e = index_.front();
+  // A record leaves the queue only once it is on disk: after a crash its sequence number is never
+  // given to another event (a receiver drops repeated numbers as duplicates).
+  if (e.segment == segments_.back().first_seq) sync_tail();
   const Segment& s = segment_of(e);
   const int fd = ::open(s.path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw Error(s.path.string() + ": cannot open: " + errno_text(errno));
-  out.seq = e.seq;
-  out.kind = e.kind;
-  out.payload.resize(e.len);
-  const ssize_t n = ::pread(fd, out.payload.data(), e.len, static_cast<off_t>(e.offset + kHeader));
+  std::vector<unsigned char> rec(kHeader + e.len + kTrailer);
+  const ssize_t n = ::pread(fd, rec.data(), rec.size(), static_cast<off_t>(e.offset));
   const int err = errno;
   ::close(fd);
-  if (n != static_cast<ssize_t>(e.len)) {
+  if (n != static_cast<ssize_t>(rec.size())) {
     throw Error(s.path.string() + ": cannot read event " + std::to_string(e.seq) + ": " +
                 errno_text(n < 0 ? err : EIO));
   }
+  if (get_u32(rec.data()) != kMagic || get_u64(rec.data() + 8) != e.seq ||
+      formats::crc32(rec.data(), kHeader + e.len) != get_u32(rec.data() + kHeader + e.len)) {
+    throw Error(s.path.string() + ": event " + std::to_string(e.seq) + " at offset " +
+                std::to_string(e.offset) + " does not read back (CRC or sequence mismatch)");
+  }
+  out.seq = e.seq;
+  out.kind = e.kind;
+  out.payload.assign(reinterpret_cast<const char*>(rec.data()) + kHeader, e.len);
   return true;
 }
 
@@ -350,6 +380,20 @@ bool DiskQueue::compact_oldest_with_summaries() {
       ::close(tail_fd_);
       tail_fd_ = -1;
     }
+    // The tail is reopened whatever happens below (a failed rewrite must not leave appends on a closed
+    // descriptor).
+    struct Reopen {
+      DiskQueue* q;
+      bool on;
+      ~Reopen() {
+        if (on && q->tail_fd_ < 0) {
+          try {
+            q->open_tail();
+          } catch (const Error&) {  // append() tries again and reports it
+          }
+        }
+      }
+    } reopen{this, is_tail};
     const std::vector<unsigned char> data = read_file(s.path);
     std::vector<unsigned char> kept;
     std::deque<Entry> index;
@@ -379,7 +423,6 @@ bool DiskQueue::compact_oldest_with_summaries() {
     s.bytes = kept.size();
     counters_.dropped_summaries += dropped;
     ++counters_.compactions;
-    if (is_tail) open_tail();
     return true;
   }
   return false;

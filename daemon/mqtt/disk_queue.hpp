@@ -103,14 +103,14 @@ class DiskQueue {
   bool compact_oldest_with_summaries();
   void drop_acked_segments();
   void persist_acked();
-  void sync_tail();
+  void sync_tail() const;
   [[nodiscard]] const Segment& segment_of(const Entry& e) const;
 
   DiskQueueConfig cfg_;
   std::vector<Segment> segments_;
   std::deque<Entry> index_;  ///< undelivered events, oldest first
   int tail_fd_ = -1;
-  bool tail_dirty_ = false;  ///< summaries written since the last fsync
+  mutable bool tail_dirty_ = false;  ///< summaries written since the last fsync
   std::uint64_t next_seq_ = 1;
   std::uint64_t acked_seq_ = 0;
   DiskQueueCounters counters_;

@@ -198,6 +198,34 @@ TEST(DiskQueue, FullOfAlarmsTheOldestGoAndANewSummaryIsRefused) {
   EXPECT_EQ(got.back().substr(0, 2), "39");  // the newest kept
 }
 
+TEST(DiskQueue, ARecordChangedOnDiskIsNotDeliveredAndCrashLeftoversAreRemoved) {
+  const fs::path dir = scratch("leftovers");
+  {
+    DiskQueue q(small(dir));
+    q.append(EventKind::kAlarm, "first alarm");
+  }
+  const fs::path seg = segments(dir).front();
+  // Leftovers of a compaction and of an ack rewrite that a crash interrupted.
+  std::ofstream(seg.string() + ".tmp-abcdefghijkl") << "half a segment";
+  std::ofstream(dir / "acked.tmp-abcdefghijkl") << "1";
+  DiskQueue q(small(dir));
+  EXPECT_FALSE(fs::exists(seg.string() + ".tmp-abcdefghijkl"));
+  EXPECT_FALSE(fs::exists(dir / "acked.tmp-abcdefghijkl"));
+  {
+    std::fstream f(seg, std::ios::binary | std::ios::in | std::ios::out);
+    f.seekp(20 + 3);  // inside the payload, after the queue read the file
+    f.put('X');
+  }
+  QueuedEvent e;
+  try {
+    (void)q.front(e);
+    FAIL() << "a changed record was delivered: " << e.payload;
+  } catch (const Error& err) {
+    EXPECT_NE(std::string(err.what()).find("event 1 at offset 0 does not read back"), std::string::npos)
+        << err.what();
+  }
+}
+
 TEST(DiskQueue, BadConfigurationAndPathsAreErrors) {
   const fs::path dir = scratch("errors");
   DiskQueueConfig c = small(dir);
