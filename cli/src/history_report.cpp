@@ -56,10 +56,49 @@ std::optional<double> utc_seconds(const std::string& t) {
   return days * 86400.0 + h * 3600.0 + mi * 60.0 + s + ms / 1000.0;
 }
 
+/// What the report needs of one line (a whole JsonValue per line would take ~6 KB: a 128 MiB history
+/// would need over 1 GB).
 struct Line {
-  JsonValue v;
   double t_unix = 0.0;
+  bool state = false;
+  std::string t_utc;
+  std::string text;  ///< state: the note; window: the method
+  std::string joint;
+  bool scored = false, abnormal = false, alarm = false;
+  std::int32_t segment = -1;
+  std::uint32_t n = 0;
+  double rms = 0.0, entropy = 0.0, duration_s = 0.0;
+  dsp::FeatureThresholds th;
 };
+
+Line compact(const JsonValue& v, double t_unix) {
+  Line l;
+  l.t_unix = t_unix;
+  l.t_utc = v.at("t_utc").as_string();
+  if (v.object.count("joint") != 0) l.joint = v.at("joint").as_string();
+  if (v.at("type").as_string() == "state") {
+    l.state = true;
+    const std::string& causes = v.at("causes").as_string();
+    const std::string& reason = v.at("reason").as_string();
+    l.text = l.t_utc + ": " + v.at("state").as_string() + " (" + v.at("phase").as_string() + "), level " +
+             v.at("level").as_string() + (causes == "none" ? std::string() : ", cause " + causes) +
+             (reason.empty() ? std::string() : ": " + reason);
+    return l;
+  }
+  l.text = v.at("method").as_string();
+  l.alarm = v.at("alarm").as_bool();
+  l.scored = v.at("status").as_string() == "scored";
+  if (!l.scored) return l;
+  l.n = static_cast<std::uint32_t>(v.at("n").as_number());
+  l.segment = static_cast<std::int32_t>(v.at("segment").as_number());
+  l.rms = v.at("rms_res").as_number();
+  l.entropy = v.at("entropy_res").as_number();
+  l.abnormal = v.at("abnormal").as_bool();
+  l.duration_s = v.at("t_end").as_number() - v.at("t_start").as_number();
+  l.th.rms = {v.at("rms_band").array.at(0).as_number(), v.at("rms_band").array.at(1).as_number()};
+  l.th.entropy = {v.at("entropy_band").array.at(0).as_number(), v.at("entropy_band").array.at(1).as_number()};
+  return l;
+}
 
 }  // namespace
 
@@ -67,7 +106,8 @@ ReportData history_report_data(const fs::path& dir, const HistoryReadOptions& op
   std::vector<Line> lines;
   std::vector<std::string> notes;
   const std::vector<fs::path> files = history_files(dir);
-  std::size_t partial = 0;
+  std::size_t partial = 0, unreadable = 0;
+  std::string first_unreadable;
   for (std::size_t f = 0; f < files.size(); ++f) {
     std::ifstream in(files[f], std::ios::binary);
     if (!in) throw Error(files[f].string() + ": cannot open");
@@ -78,32 +118,38 @@ ReportData history_report_data(const fs::path& dir, const HistoryReadOptions& op
       if (text.empty()) continue;
       const bool last_of_newest = f + 1 == files.size() && in.peek() == std::char_traits<char>::eof();
       const std::string where = files[f].string() + ":" + std::to_string(no);
-      Line l;
       try {
-        l.v = parse_json(text, where);
-        if (l.v.kind != JsonValue::Kind::kObject) throw Error(where + ": not a JSON object");
-        const std::string& type = l.v.at("type").as_string();
+        const JsonValue v = parse_json(text, where);
+        if (v.kind != JsonValue::Kind::kObject) throw Error(where + ": not a JSON object");
+        const std::string& type = v.at("type").as_string();
         if (type != "window" && type != "state") throw Error(where + ": unknown \"type\" \"" + type + "\"");
-      } catch (const Error&) {
+        const JsonValue& t = v.at("t_utc");
+        const std::optional<double> ts = t.is_null() ? std::nullopt : utc_seconds(t.as_string());
+        if (!ts) {
+          if (type == "state") throw Error(where + ": \"t_utc\" is not a UTC time");
+          continue;  // a window without wall time cannot be placed on the time axis
+        }
+        if (opt.last_hours <= 0.0 || lines.empty() || *ts >= lines.back().t_unix - opt.last_hours * 3600.0) {
+          lines.push_back(compact(v, *ts));
+        }
+      } catch (const Error& e) {
         if (last_of_newest && text.back() != '}') {  // cut by a power loss while being written
           ++partial;
           continue;
         }
-        throw;
+        // One unreadable line does not make a week of history unreadable: left out, said where.
+        if (unreadable++ == 0) first_unreadable = e.what();
       }
-      const JsonValue& t = l.v.at("t_utc");
-      const std::optional<double> ts = t.is_null() ? std::nullopt : utc_seconds(t.as_string());
-      if (!ts) {
-        if (l.v.at("type").as_string() == "state") throw Error(where + ": \"t_utc\" is not a UTC time");
-        continue;  // a window without wall time cannot be placed on the time axis
-      }
-      l.t_unix = *ts;
-      lines.push_back(std::move(l));
     }
   }
-  if (partial > 0)
+  if (partial > 0) {
     notes.push_back("left out a partial last line of " + files.back().string() +
                     " (written while the power failed?)");
+  }
+  if (unreadable > 0) {
+    notes.push_back("left out " + std::to_string(unreadable) +
+                    " unreadable line(s); the first: " + first_unreadable);
+  }
   if (lines.empty()) throw Error(dir.string() + ": the history has no line with a time");
   std::stable_sort(lines.begin(), lines.end(),
                    [](const Line& a, const Line& b) { return a.t_unix < b.t_unix; });
@@ -123,52 +169,44 @@ ReportData history_report_data(const fs::path& dir, const HistoryReadOptions& op
   double window_h = 0.0;
   std::vector<std::string> state_notes;
   for (const Line& l : lines) {
-    const JsonValue& v = l.v;
-    if (joint.empty() && v.object.count("joint") != 0) joint = v.at("joint").as_string();
-    if (v.at("type").as_string() == "state") {
-      state_notes.push_back(
-          v.at("t_utc").as_string() + ": " + v.at("state").as_string() + " (" + v.at("phase").as_string() +
-          "), level " + v.at("level").as_string() +
-          (v.at("causes").as_string() == "none" ? std::string() : ", cause " + v.at("causes").as_string()) +
-          (v.at("reason").as_string().empty() ? std::string() : ": " + v.at("reason").as_string()));
+    if (joint.empty()) joint = l.joint;
+    if (l.state) {
+      state_notes.push_back(l.text);
       continue;
     }
     ++windows;
-    if (v.at("alarm").as_bool()) {
+    if (l.alarm) {
       ++alarm_windows;
-      if (!first_alarm) first_alarm = v.at("t_utc").as_string();
+      if (!first_alarm) first_alarm = l.t_utc;
     }
-    if (v.at("status").as_string() != "scored") continue;
+    if (!l.scored) continue;
     ++judged;
-    MethodTrend& tr = trends[v.at("method").as_string()];
-    tr.method = v.at("method").as_string();
+    MethodTrend& tr = trends[l.text];
+    tr.method = l.text;
     TrendPoint p;
     p.t_s = (l.t_unix - t_first) / 3600.0;  // hours: the trend axis of a history
-    p.window_seq = static_cast<std::uint32_t>(v.at("n").as_number());
-    p.class_id = static_cast<std::int32_t>(v.at("segment").as_number());
-    p.rms_res = v.at("rms_res").as_number();
-    p.entropy_res = v.at("entropy_res").as_number();
-    p.abnormal = v.at("abnormal").as_bool();
-    p.alarm = v.at("alarm").as_bool();
+    p.window_seq = l.n;
+    p.class_id = l.segment;
+    p.rms_res = l.rms;
+    p.entropy_res = l.entropy;
+    p.abnormal = l.abnormal;
+    p.alarm = l.alarm;
     p.recording = "history";
     if (p.abnormal) ++abnormal;
     tr.points.push_back(p);
-    window_h = std::max(window_h, (v.at("t_end").as_number() - v.at("t_start").as_number()) / 3600.0);
+    window_h = std::max(window_h, l.duration_s / 3600.0);
     // The band each class was last judged against (a reload with a new baseline moves it).
-    dsp::FeatureThresholds th;
-    th.rms = {v.at("rms_band").array.at(0).as_number(), v.at("rms_band").array.at(1).as_number()};
-    th.entropy = {v.at("entropy_band").array.at(0).as_number(), v.at("entropy_band").array.at(1).as_number()};
     auto it = std::find_if(tr.class_thresholds.begin(), tr.class_thresholds.end(),
                            [&](const auto& c) { return c.first == p.class_id; });
     if (it == tr.class_thresholds.end()) {
-      tr.class_thresholds.emplace_back(p.class_id, th);
+      tr.class_thresholds.emplace_back(p.class_id, l.th);
     } else {
-      it->second = th;
+      it->second = l.th;
     }
   }
   for (auto& [m, tr] : trends) {
     tr.window_s = window_h;
-    tr.time_axis_label = "hours since " + lines.front().v.at("t_utc").as_string();
+    tr.time_axis_label = "hours since " + lines.front().t_utc;
     data.trends.push_back(std::move(tr));
   }
   const double hours = (t_last - t_first) / 3600.0;
@@ -182,8 +220,8 @@ ReportData history_report_data(const fs::path& dir, const HistoryReadOptions& op
                            : "no alarm in " + std::to_string(judged) + " judged windows";
   data.recordings.push_back(rs);
   data.summary = {{"history", dir.string() + " (" + std::to_string(files.size()) + " file(s))"},
-                  {"from", lines.front().v.at("t_utc").as_string()},
-                  {"to", lines.back().v.at("t_utc").as_string()},
+                  {"from", lines.front().t_utc},
+                  {"to", lines.back().t_utc},
                   {"span", fixed(hours, 2) + " h"},
                   {"windows", std::to_string(windows)},
                   {"judged", std::to_string(judged)},

@@ -826,8 +826,9 @@ void Daemon::supervise(std::int64_t now) noexcept {
     spdlog::error("field training: {}", e.what());
   }
   fill_snapshot(now);
-  if (pipeline_) log_alarm_changes(pipeline_->status());
+  // The windows first, then the level change they caused: the history stays in time order.
   if (history_ && pipeline_) drain_history(*pipeline_);
+  if (pipeline_) log_alarm_changes(pipeline_->status());
   snapshot_.state_files[static_cast<std::size_t>(StateFile::kBaseline)] = baseline_health_;
   if (writer_) {
     if (writer_->write(snapshot_) == StatusWriteResult::kOk)

@@ -53,13 +53,38 @@ std::filesystem::path HistoryLog::file(std::uint32_t k) const {
 }
 
 bool HistoryLog::open_current() noexcept {
-  fd_ = ::open(rotated_[0].c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | O_NOFOLLOW, 0640);
+  fd_ = ::open(rotated_[0].c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC | O_NOFOLLOW, 0640);
   if (fd_ < 0) {
     counters_.last_errno = errno;
     return false;
   }
   struct stat st {};
   size_ = ::fstat(fd_, &st) == 0 ? static_cast<std::uint64_t>(st.st_size) : 0;
+  // A line cut by a power loss (no '\n' at the end): cut the file back to its last whole line, so the
+  // next line does not glue onto the fragment.
+  if (size_ > 0) {
+    char last = '\n';
+    if (::pread(fd_, &last, 1, static_cast<off_t>(size_ - 1)) == 1 && last != '\n') {
+      std::uint64_t end = size_;
+      char buf[4096];
+      while (end > 0) {
+        const std::uint64_t from = end > sizeof buf ? end - sizeof buf : 0;
+        const ssize_t n = ::pread(fd_, buf, end - from, static_cast<off_t>(from));
+        if (n <= 0) break;
+        std::uint64_t i = static_cast<std::uint64_t>(n);
+        while (i > 0 && buf[i - 1] != '\n') --i;
+        if (i > 0) {
+          end = from + i;
+          break;
+        }
+        end = from;
+      }
+      if (::ftruncate(fd_, static_cast<off_t>(end)) == 0) {
+        counters_.cut_bytes += size_ - end;
+        size_ = end;
+      }
+    }
+  }
   return true;
 }
 

@@ -35,6 +35,7 @@ struct HistoryCounters {
   std::uint64_t write_failures = 0;  ///< lines lost to a failed open/write/rename (dropped, counted)
   int last_errno = 0;                ///< of the latest failure (0: none)
   std::uint64_t ring_dropped = 0;    ///< windows the ring could not hold (filled in by the daemon)
+  std::uint64_t cut_bytes = 0;       ///< a partial last line (power loss) cut off when the file was opened
 };
 
 /// One window as a history line: the fields of `ptda monitor --jsonl` (cli window_json) plus

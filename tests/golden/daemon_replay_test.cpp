@@ -267,8 +267,7 @@ TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
   EXPECT_NE(page.find(alarmed > 0 ? "ALARM first at " : "no alarm in "), std::string::npos);
   EXPECT_NE(page.find("hours since "), std::string::npos);
   EXPECT_EQ(page.find("Example windows"), std::string::npos);
-  // A partial last line (power cut while writing) is left out with a note; a broken line elsewhere is
-  // an error naming the file and line.
+  // A partial last line (power cut while writing) is left out with a note.
   const fs::path cut = p.dir / "history_cut";
   fs::remove_all(cut);
   fs::create_directories(cut);
@@ -279,11 +278,15 @@ TEST(DaemonBinary, ReplaysARecordingAndChecksConfigurations) {
   ASSERT_EQ(partial.exit_code, 0) << partial.err;
   EXPECT_NE(read_file(html).find("left out a partial last line of " + (cut / "history.jsonl").string()),
             std::string::npos);
+  // A broken line elsewhere is left out with a note naming the file and line (one glitch does not make
+  // a week of history unreadable).
   std::ofstream(cut / "history.jsonl") << "{\"type\":\"window\"\n{\"type\":\"state\"}\n";
   const RunResult broken =
       run_ptda({"report", "--history", cut.string(), "--html", html.string()}, p.dir, "history_broken");
-  EXPECT_EQ(broken.exit_code, 1);
-  EXPECT_NE(broken.err.find((cut / "history.jsonl").string() + ":1"), std::string::npos) << broken.err;
+  ASSERT_EQ(broken.exit_code, 0) << broken.err;
+  EXPECT_NE(read_file(html).find(
+                "left out 2 unreadable line(s); the first: " + (cut / "history.jsonl").string() + ":1"),
+            std::string::npos);
   const cli::JsonValue status = cli::parse_json(read_file(p.dir / "status" / "status.json"), "status.json");
   EXPECT_EQ(status.at("joint").as_string(), "joint4");
   std::size_t scored = 0, abnormal = 0;

@@ -156,6 +156,26 @@ TEST(HistoryLog, ARestartAppendsToTheCurrentFile) {
   EXPECT_NE(lines[0].find("\"method\":\"tda\""), std::string::npos);
 }
 
+TEST(HistoryLog, APartialLastLineIsCutBeforeTheNextOne) {
+  // A power loss in the middle of a line: the next start must not glue its first line onto it.
+  const fs::path dir = scratch("partial");
+  HistoryConfig c;
+  c.dir = dir;
+  c.method = "ptda";
+  { HistoryLog(c).window(scored_window(1), 1700000000000000000); }
+  const std::string fragment = "{\"type\":\"window\",\"t_ut";
+  std::ofstream(dir / "history.jsonl", std::ios::app) << fragment;
+  {
+    HistoryLog h(c);
+    EXPECT_EQ(h.counters().cut_bytes, fragment.size());
+    h.window(scored_window(2), 1700000000000000000);
+  }
+  const std::vector<std::string> lines = lines_of(dir / "history.jsonl");
+  ASSERT_EQ(lines.size(), 2U);
+  for (const std::string& l : lines) EXPECT_TRUE(test::JsonChecker(l).valid()) << l;
+  EXPECT_EQ(u64_of(lines[1], "n"), 2U);
+}
+
 TEST(HistoryLog, ADirectoryThatCannotBeMadeIsAnErrorNamingIt) {
   const fs::path dir = scratch("blocked");
   fs::create_directories(dir);
