@@ -133,13 +133,27 @@ void HistoryLog::write_line(std::size_t len) noexcept {
   counters_.bytes += len;
 }
 
+void HistoryLog::begin_line(JsonWriter& o, std::string_view type, std::int64_t unix_ns) const noexcept {
+  o.open('{');
+  o.str("type", type);
+  if (!cfg_.joint.empty()) o.str("joint", cfg_.joint);
+  o.utc("t_utc", unix_ns);
+}
+
+void HistoryLog::finish_line(TextBuffer& b, JsonWriter& o) noexcept {
+  o.close('}');
+  b.append_char('\n');
+  if (b.overflow()) {
+    ++counters_.write_failures;  // a line longer than the buffer: dropped, counted
+    return;
+  }
+  write_line(b.size());
+}
+
 void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) noexcept {
   TextBuffer b(line_.data(), line_.size());
   JsonWriter o(b);
-  o.open('{');
-  o.str("type", "window");
-  if (!cfg_.joint.empty()) o.str("joint", cfg_.joint);
-  o.utc("t_utc", end_unix_ns);
+  begin_line(o, "window", end_unix_ns);
   o.u64("n", w.ref.seq);
   o.num("t_start", seconds(w.ref.t_start_ns));
   o.num("t_end", seconds(w.ref.t_end_ns));
@@ -186,35 +200,20 @@ void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) no
     o.null("cusum_feature");
   }
   o.num("cusum_max", w.seq_max_statistic);
-  o.close('}');
-  b.append_char('\n');
-  if (b.overflow()) {
-    ++counters_.write_failures;
-    return;
-  }
-  write_line(b.size());
+  finish_line(b, o);
 }
 
 void HistoryLog::state(std::int64_t unix_ns, std::string_view state, std::string_view phase,
                        std::string_view level, std::string_view causes, std::string_view reason) noexcept {
   TextBuffer b(line_.data(), line_.size());
   JsonWriter o(b);
-  o.open('{');
-  o.str("type", "state");
-  if (!cfg_.joint.empty()) o.str("joint", cfg_.joint);
-  o.utc("t_utc", unix_ns);
+  begin_line(o, "state", unix_ns);
   o.str("state", state);
   o.str("phase", phase);
   o.str("level", level);
   o.str("causes", causes);
   o.str("reason", reason);
-  o.close('}');
-  b.append_char('\n');
-  if (b.overflow()) {
-    ++counters_.write_failures;
-    return;
-  }
-  write_line(b.size());
+  finish_line(b, o);
 }
 
 }  // namespace ptda::daemon

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "ptda/dsp/monitor_engine.hpp"
+#include "status/status_writer.hpp"
 
 namespace ptda::daemon {
 
@@ -65,6 +66,10 @@ class HistoryLog {
 
  private:
   void write_line(std::size_t len) noexcept;  ///< line_[0..len) ends in '\n'
+  /// '{' and the members every line starts with: type, joint (when set), t_utc.
+  void begin_line(JsonWriter& o, std::string_view type, std::int64_t unix_ns) const noexcept;
+  /// '}' and '\n', then the write (an overflowing line is dropped and counted).
+  void finish_line(TextBuffer& b, JsonWriter& o) noexcept;
   bool open_current() noexcept;
   void rotate() noexcept;
 
