@@ -29,6 +29,8 @@ constexpr double kRecalibrateDb = 0.5;
 constexpr double kRecalibrateExponent = 0.05;
 // The held-out part is compared with a model simulated with seed + this (see Evaluator::gap).
 constexpr std::uint64_t kHeldoutSeedOffset = 7777;
+// A speed-scale estimate smaller than this is not applied (the lines' interpolation bias is ~50 ppm).
+constexpr double kSpeedScaleMinPpm = 100.0;
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wformat-nonliteral"
@@ -850,20 +852,47 @@ std::string measured_speed_problem(const GapRecording& real) {
   return "";
 }
 
-Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, const DiagnoseOptions& opt) {
+Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in, const DiagnoseOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   auto log = [&](const std::string& s) {
     if (opt.log) opt.log(s);
   };
   Diagnosis d;
   d.scenario = nominal_in.name;
-  d.real_source = real.source;
-  d.fs_hz = real.fs_hz;
-  if (std::fabs(real.fs_hz - nominal_in.sensor.fs_hz) > 0.5) {
-    throw Error(real.source + ": sample rate " + fmt("%.0f", real.fs_hz) +
+  d.real_source = real_in.source;
+  d.fs_hz = real_in.fs_hz;
+  if (std::fabs(real_in.fs_hz - nominal_in.sensor.fs_hz) > 0.5) {
+    throw Error(real_in.source + ": sample rate " + fmt("%.0f", real_in.fs_hz) +
                 " Hz differs from the scenario's [sensor] fs_hz " + fmt("%.0f", nominal_in.sensor.fs_hz) +
                 " (" + nominal_in.source + ")");
   }
+  // 0. The speed frames' scale (step 1b), when the nominal says it is uncertain: read off the measured
+  // lines and applied to the frames, so that the model, the classes and every probe put the lines where
+  // the shaft really turned. Within the tolerance this is calibration, not an effect.
+  GapRecording rescaled;
+  const GapRecording* real_p = &real_in;
+  d.speed_scale_tolerance = nominal_in.can.speed_scale_tolerance;
+  if (d.speed_scale_tolerance > 0.0) {
+    Evaluator ev0(real_in, opt.sim_seed);
+    ev0.set_context(nominal_in);
+    const ProbeSet all = compute_probes(real_in, ev0.segments(), ev0.windows(), {}, ev0.context());
+    const SpeedScaleEstimate est = estimate_speed_scale(all, ev0.context(), d.speed_scale_tolerance);
+    d.speed_scale_ppm = est.ppm;
+    d.speed_scale_sd_ppm = est.sd_ppm;
+    d.speed_scale_lines = est.lines;
+    if (est.lines >= 2 && std::fabs(est.ppm) > std::max(kSpeedScaleMinPpm, 3.0 * est.sd_ppm)) {
+      const double tol_ppm = d.speed_scale_tolerance * 1e6;
+      d.speed_scale_applied_ppm = std::clamp(est.ppm, -tol_ppm, tol_ppm);
+      rescaled = real_in;
+      for (SpeedPoint& p : rescaled.speed) p.speed_rad_s *= 1.0 + d.speed_scale_applied_ppm * 1e-6;
+      real_p = &rescaled;
+    }
+    log("speed scale: the measured lines sit at " + fmt("%+.0f", est.ppm) + " ppm (+- " +
+        fmt("%.0f", est.sd_ppm) + ", " + std::to_string(est.lines) + " lines) against the speed frames; " +
+        (real_p == &rescaled ? "frames scaled by " + fmt("%+.0f", d.speed_scale_applied_ppm) + " ppm"
+                             : std::string("not applied")));
+  }
+  const GapRecording& real = *real_p;
   Evaluator ev(real, opt.sim_seed);
   const AnalysisPlan& plan = ev.plan();
   const double duration_s = static_cast<double>(real.accel_ms2.size()) / real.fs_hz;
@@ -946,6 +975,25 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real, co
   d.calibrated_noise_rms = model.vibration.noise_rms;
   d.calibrated_noise_tilt_db_per_decade = model.vibration.noise_tilt_db_per_decade;
   d.calibration = calibration_report(nominal_in, model, ev.noise_fit(), plan, ev.speed_spread_db2());
+  if (d.speed_scale_tolerance > 0.0) {
+    CalibratedParam c;
+    c.name = "speed_scale";
+    c.nominal = 1.0;
+    c.calibrated = 1.0 + d.speed_scale_applied_ppm * 1e-6;
+    c.offset_db = 20.0 * std::log10(c.calibrated);
+    c.sd_db = 20.0 * std::log10(1.0 + d.speed_scale_sd_ppm * 1e-6);
+    c.significant = d.speed_scale_applied_ppm != 0.0;
+    c.sentence = "the shaft turns " + fmt("%+.0f", d.speed_scale_applied_ppm) +
+                 " ppm against the speed frames (+- " + fmt("%.0f", d.speed_scale_sd_ppm) +
+                 " ppm, tolerance +- " + fmt("%.0f", d.speed_scale_tolerance * 1e6) +
+                 " ppm; slip or a sample-clock error, which a constant speed cannot tell apart)";
+    if (!c.significant)
+      c.sentence = "the speed frames' scale is right within " +
+                   fmt("%.0f", std::max(kSpeedScaleMinPpm, 3.0 * d.speed_scale_sd_ppm)) + " ppm (estimate " +
+                   fmt("%+.0f", d.speed_scale_ppm) + " ppm from " + std::to_string(d.speed_scale_lines) +
+                   " lines)";
+    d.calibration.insert(d.calibration.begin(), c);
+  }
   for (const CalibratedParam& c : d.calibration) {
     d.recalibrated = d.recalibrated || c.significant;
     if (c.significant) log("calibration: " + c.sentence);

@@ -643,6 +643,92 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
   return ps;
 }
 
+SpeedScaleEstimate estimate_speed_scale(const ProbeSet& ps, const ProbeContext& ctx, double tolerance) {
+  SpeedScaleEstimate out;
+  if (tolerance <= 0.0 || ps.fs_hz <= 0.0) return out;
+  // A line whose search range (twice the tolerance, so that a scale beyond it is seen and then clamped by
+  // the caller) stays within 0.4 x the distance to its nearest listed neighbour cannot be taken for that
+  // neighbour: those lines give a first estimate. Every line is then searched around where that estimate
+  // puts it, within 3 bins plus 3 sd of the first estimate (at shaft order 640 a 0.25 % slip is 1.6
+  // orders, so a wide search there would find a neighbour of the rig's clusters).
+  auto measure = [&](double centre, double sd_rel, bool second) {
+    std::vector<std::pair<double, double>> rw;  // (ratio - 1, weight)
+    for (const auto& [c, p] : ps.class_power) {
+      if (c < 0 || static_cast<std::size_t>(c) >= ctx.plan.speeds.size() || p.size() < 64) continue;
+      const double df = ps.fs_hz / (2.0 * static_cast<double>(p.size() - 1));
+      const double gmf = std::fabs(sim::gmf_hz(ctx.gearbox, ctx.plan.speeds[static_cast<std::size_t>(c)]));
+      if (gmf <= 0.0) continue;
+      const double f_in = gmf / static_cast<double>(ctx.gearbox.z_in);
+      std::vector<double> lines;
+      for (int k : ctx.nominal_orders) lines.push_back(k * gmf);
+      for (int j : ctx.nominal_shaft_orders) lines.push_back(j * f_in);
+      std::sort(lines.begin(), lines.end());
+      for (std::size_t i = 0; i < lines.size(); ++i) {
+        const double f0 = lines[i];
+        if (f0 >= 0.45 * ps.fs_hz || f0 < 8.0 * df) continue;
+        double d_min = f0;  // the spectrum's origin is a neighbour too
+        if (i > 0) d_min = std::min(d_min, f0 - lines[i - 1]);
+        if (i + 1 < lines.size()) d_min = std::min(d_min, lines[i + 1] - f0);
+        if (d_min < 4.0 * df) continue;  // two listed lines in one peak
+        double half = 2.0 * tolerance * f0;
+        if (second) {
+          half = std::min(0.4 * d_min, 3.0 * df + 3.0 * sd_rel * f0);
+        } else if (half > 0.4 * d_min) {
+          continue;
+        }
+        half = std::max(half, 1.5 * df);
+        const double fc = f0 * (1.0 + centre);
+        const std::size_t lo = static_cast<std::size_t>(std::max(1.0, std::floor((fc - half) / df)));
+        const std::size_t hi = std::min(p.size() - 2, static_cast<std::size_t>(std::ceil((fc + half) / df)));
+        if (hi <= lo) continue;
+        std::size_t b = lo;
+        for (std::size_t q = lo; q <= hi; ++q)
+          if (p[q] > p[b]) b = q;
+        // A maximum on the search range's edge is a slope, not a line.
+        if ((b == lo && p[b - 1] > p[b]) || (b == hi && p[b + 1] > p[b])) continue;
+        std::vector<double> around;
+        for (std::size_t q = b > 40 ? b - 40 : 1; q <= b + 40 && q + 1 < p.size(); ++q)
+          if (q + 3 < b || q > b + 3) around.push_back(p[q]);
+        if (around.size() < 20) continue;
+        std::nth_element(around.begin(), around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2),
+                         around.end());
+        if (db(p[b]) - db(around[around.size() / 2]) < 12.0) continue;
+        const double f = interp_peak(p, b) * df;
+        rw.push_back({f / f0 - 1.0, (f0 / df) * (f0 / df)});
+      }
+    }
+    return rw;
+  };
+  auto weighted_median = [](std::vector<std::pair<double, double>> v) {
+    std::sort(v.begin(), v.end());
+    double total = 0.0;
+    for (const auto& [x, w] : v) total += w;
+    double acc = 0.0;
+    for (const auto& [x, w] : v) {
+      acc += w;
+      if (acc >= 0.5 * total) return x;
+    }
+    return v.back().first;
+  };
+  auto median_and_sd = [&](const std::vector<std::pair<double, double>>& rw) {
+    const double med = weighted_median(rw);
+    std::vector<std::pair<double, double>> dev;
+    for (const auto& [x, w] : rw) dev.push_back({std::fabs(x - med), w});
+    return std::pair<double, double>{
+        med, 1.4826 * weighted_median(dev) / std::sqrt(static_cast<double>(rw.size()))};
+  };
+  std::vector<std::pair<double, double>> rw = measure(0.0, 0.0, false);
+  if (rw.size() < 2) return out;
+  const auto [first, first_sd] = median_and_sd(rw);
+  rw = measure(std::clamp(first, -2.0 * tolerance, 2.0 * tolerance), first_sd, true);
+  out.lines = static_cast<int>(rw.size());
+  if (rw.empty()) return out;
+  const auto [med, sd] = median_and_sd(rw);
+  out.ppm = med * 1e6;
+  out.sd_ppm = sd * 1e6;
+  return out;
+}
+
 ProbeSet average_probes(const ProbeSet& a, const ProbeSet& b) {
   ProbeSet out;
   std::map<std::string, const ProbeElement*> bk;

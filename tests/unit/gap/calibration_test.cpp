@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "gap_test_job.hpp"
 #include "ptda/gap/diagnose.hpp"
@@ -146,6 +147,83 @@ TEST(Calibration, ShaftOrderLineLevelsAreCalibration) {
   EXPECT_TRUE(s3->significant);
   EXPECT_TRUE(s7->significant);
   EXPECT_NE(d.verdict.find("shaft order 3 is"), std::string::npos) << d.verdict;
+}
+
+}  // namespace
+}  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+// The speed frames' scale (docs/gap.md step 1b): the machine's shaft turns 3000 ppm faster than its speed
+// frames say (a slipping drive seen the other way round, or a log written from a nominal speed).
+GapRecording frames_slow_by(const sim::Scenario& truth, double ppm, std::uint64_t seed) {
+  GapRecording real = recording_from_simulation(sim::simulate_signals(truth, seed), truth);
+  for (SpeedPoint& p : real.speed) p.speed_rad_s /= 1.0 + ppm * 1e-6;
+  return real;
+}
+
+TEST(SpeedScale, EstimateReadsTheLinesOffsetAndStaysInsideTheNeighbouringOrders) {
+  sim::Scenario truth = test::joint_rotation_job(4);
+  truth.vibration.shaft_orders = {3, 7};
+  truth.vibration.shaft_order_amplitudes = {0.5, 0.3};
+  const GapRecording real = frames_slow_by(truth, 3000.0, 91);
+  const std::vector<Segment> segs = segment_recording(real);
+  ProbeContext ctx;
+  ctx.gearbox = truth.gearbox;
+  ctx.plan = make_plan(real, segs);
+  for (std::size_t k = 0; k < truth.vibration.gmf_amplitudes.size(); ++k)
+    if (truth.vibration.gmf_amplitudes[k] > 0.0) ctx.nominal_orders.push_back(static_cast<int>(k + 1));
+  ctx.nominal_shaft_orders = {3, 7};
+  const ProbeSet ps = compute_probes(real, segs, cut_windows(real, segs, ctx.plan), {}, ctx);
+  const SpeedScaleEstimate e = estimate_speed_scale(ps, ctx, 0.01);
+  EXPECT_GE(e.lines, 4);
+  // Within 3 stated sd plus the parabolic interpolation's bias on a Hann window. Measured here: 2981.3 +- 0.6
+  // ppm for 3000, and -13.4 +- 2.6 for exact frames.
+  EXPECT_NEAR(e.ppm, 3000.0, 3.0 * e.sd_ppm + 60.0) << e.sd_ppm << " from " << e.lines;
+  EXPECT_GT(e.sd_ppm, 0.0);
+  // Without a tolerance nothing is estimated.
+  EXPECT_EQ(estimate_speed_scale(ps, ctx, 0.0).lines, 0);
+  // Exact frames read as exact, within the bias the diagnosis leaves alone (kSpeedScaleMinPpm = 100).
+  const GapRecording exact = frames_slow_by(truth, 0.0, 91);
+  const std::vector<Segment> segs0 = segment_recording(exact);
+  ProbeContext ctx0 = ctx;
+  ctx0.plan = make_plan(exact, segs0);
+  const ProbeSet ps0 = compute_probes(exact, segs0, cut_windows(exact, segs0, ctx0.plan), {}, ctx0);
+  const SpeedScaleEstimate e0 = estimate_speed_scale(ps0, ctx0, 0.01);
+  EXPECT_LT(std::fabs(e0.ppm), 100.0) << e0.sd_ppm;
+  std::printf("speed scale estimate: %.1f +- %.1f ppm (3000 true), %.1f +- %.1f (0 true), %d lines\n", e.ppm,
+              e.sd_ppm, e0.ppm, e0.sd_ppm, e.lines);
+}
+
+TEST(SpeedScale, WithinTheToleranceItIsCalibrationAndNamesNoEffect) {
+  sim::Scenario truth = test::joint_rotation_job(6);
+  const GapRecording real = frames_slow_by(truth, 3000.0, 92);
+  sim::Scenario nominal = truth;
+  nominal.can.speed_scale_tolerance = 0.01;
+  const Diagnosis d = diagnose(nominal, real, DiagnoseOptions{});
+  EXPECT_NEAR(d.speed_scale_applied_ppm, 3000.0, 3.0 * d.speed_scale_sd_ppm + 60.0);
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
+  const CalibratedParam* c = find(d, "speed_scale");
+  ASSERT_NE(c, nullptr);
+  EXPECT_TRUE(c->significant);
+  EXPECT_NE(d.verdict.find("ppm against the speed frames"), std::string::npos) << d.verdict;
+}
+
+TEST(SpeedScale, BeyondTheToleranceOnlyTheToleranceIsApplied) {
+  sim::Scenario truth = test::joint_rotation_job(4);
+  const GapRecording real = frames_slow_by(truth, 3000.0, 93);
+  sim::Scenario nominal = truth;
+  nominal.can.speed_scale_tolerance = 0.002;
+  DiagnoseOptions opt;
+  opt.max_effects = 0;  // the scale is what this test is about
+  const Diagnosis d = diagnose(nominal, real, opt);
+  EXPECT_DOUBLE_EQ(d.speed_scale_applied_ppm, 2000.0) << d.speed_scale_ppm;
+  // An exact speed (no tolerance): the frames are used as they are and no row is reported.
+  nominal.can.speed_scale_tolerance = 0.0;
+  const Diagnosis d0 = diagnose(nominal, real, opt);
+  EXPECT_EQ(d0.speed_scale_applied_ppm, 0.0);
+  EXPECT_EQ(find(d0, "speed_scale"), nullptr);
 }
 
 }  // namespace

@@ -66,6 +66,21 @@ struct ProbeContext {
                                       const std::vector<Window>& windows, const std::vector<char>& use_cycle,
                                       const ProbeContext& ctx, const ProbeSet* reference = nullptr);
 
+/// The speed frames' scale against the shaft's true speed, read off the measured lines (the nominal's
+/// GMF orders and shaft orders) in every constant-speed class: the weighted median of f_meas / f_expected - 1
+/// over lines >= 12 dB above their local floor. First from the lines whose search range (+-2 `tolerance`)
+/// stays within 0.4 x the distance to the nearest other listed line, then from every line, searched within
+/// 3 bins + 3 sd of where that first estimate puts it. Weights (f / df)^2: a high line tells the ratio
+/// more precisely. Fewer than 2 lines in the first pass: nothing. docs/gap.md, step 1b.
+struct SpeedScaleEstimate {
+  double ppm = 0.0;     ///< (true / frame speed - 1) * 1e6
+  double sd_ppm = 0.0;  ///< spread of the lines' ratios (1.4826 weighted MAD / sqrt(lines))
+  int lines = 0;        ///< lines used
+};
+/// `ps` is a probe set of the measured recording (its class_power). Any thread; allocates.
+[[nodiscard]] SpeedScaleEstimate estimate_speed_scale(const ProbeSet& ps, const ProbeContext& ctx,
+                                                      double tolerance);
+
 /// Element-wise mean of two probe sets of the same recording (e.g. its even and odd cycles): values of
 /// elements present in both, averaged spectra, the first set's class references. Any thread; allocates.
 [[nodiscard]] ProbeSet average_probes(const ProbeSet& a, const ProbeSet& b);

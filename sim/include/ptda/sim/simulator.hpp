@@ -143,6 +143,10 @@ struct CanSpec {
   double jitter_s = 0.0001;              ///< uniform [0, jitter) added to each timestamp
   std::uint32_t other_frames_per_s = 0;  ///< unrelated frames (ids 0x080..) on the bus
   std::string iface = "can0";
+  /// Nominal models only (`ptda gap`): relative uncertainty of the speed frames' scale against the shaft's
+  /// true speed (a drive that slips under load, a log whose speed was written from a nominal). 0: the
+  /// frames' speed is exact. The simulator ignores it.
+  double speed_scale_tolerance = 0.0;
 };
 
 struct Scenario {
