@@ -211,10 +211,11 @@ std::string diagnosis_json(const Diagnosis& d) {
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
     << ", \"noise_rms\": " << num(d.calibrated_noise_rms)
     << ", \"noise_tilt_db_per_decade\": " << num(d.calibrated_noise_tilt_db_per_decade)
-    << ", \"recalibrated\": " << (d.recalibrated ? "true" : "false") << ", \"speed_scale\": {\"tolerance\": "
-    << num(d.speed_scale_tolerance) << ", \"ppm\": " << num(d.speed_scale_ppm)
-    << ", \"sd_ppm\": " << num(d.speed_scale_sd_ppm) << ", \"lines\": " << d.speed_scale_lines
-    << ", \"applied_ppm\": " << num(d.speed_scale_applied_ppm) << "}, \"params\": [";
+    << ", \"recalibrated\": " << (d.recalibrated ? "true" : "false")
+    << ", \"speed_scale\": {\"tolerance\": " << num(d.speed_scale_tolerance)
+    << ", \"ppm\": " << num(d.speed_scale_ppm) << ", \"sd_ppm\": " << num(d.speed_scale_sd_ppm)
+    << ", \"lines\": " << d.speed_scale_lines << ", \"applied_ppm\": " << num(d.speed_scale_applied_ppm)
+    << "}, \"params\": [";
   for (std::size_t i = 0; i < d.calibration.size(); ++i) {
     const CalibratedParam& c = d.calibration[i];
     o << (i ? "," : "") << "\n    {\"name\": " << esc(c.name) << ", \"order\": " << c.order

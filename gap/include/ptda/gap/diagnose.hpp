@@ -91,18 +91,18 @@ struct Diagnosis {
   std::size_t windows_fit = 0;
   std::size_t windows_heldout = 0;
   std::vector<double> class_speeds_rad_s;
-  std::uint32_t period_units = 1;            ///< program period in units (moves or blocks)
-  double period_s = 0.0;                     ///< its mean duration
-  std::vector<std::string> split_missing;    ///< segment classes present in one part only
-  std::string motion_source;                 ///< "measured" or "scenario"
-  std::string motion_note;                   ///< why, in words
+  std::uint32_t period_units = 1;          ///< program period in units (moves or blocks)
+  double period_s = 0.0;                   ///< its mean duration
+  std::vector<std::string> split_missing;  ///< segment classes present in one part only
+  std::string motion_source;               ///< "measured" or "scenario"
+  std::string motion_note;                 ///< why, in words
   /// Speed scale (nominal [can] speed_scale_tolerance > 0 only): estimated from the measured lines
   /// before anything else; applied (within the tolerance) to the speed frames when significant.
   double speed_scale_tolerance = 0.0;
-  double speed_scale_ppm = 0.0;          ///< estimate, (true / frame speed - 1) * 1e6
-  double speed_scale_sd_ppm = 0.0;       ///< its spread over the lines
-  int speed_scale_lines = 0;             ///< lines used
-  double speed_scale_applied_ppm = 0.0;  ///< what the speed frames were scaled by (0: not applied)
+  double speed_scale_ppm = 0.0;              ///< estimate, (true / frame speed - 1) * 1e6
+  double speed_scale_sd_ppm = 0.0;           ///< its spread over the lines
+  int speed_scale_lines = 0;                 ///< lines used
+  double speed_scale_applied_ppm = 0.0;      ///< what the speed frames were scaled by (0: not applied)
   std::vector<CalibratedParam> calibration;  ///< per nominal GMF order, then the noise level
   bool recalibrated = false;                 ///< any calibration parameter significant
   std::vector<double> calibrated_gmf_amplitudes;
