@@ -208,6 +208,7 @@ std::string diagnosis_json(const Diagnosis& d) {
     << ", \"missing_classes\": " << strings_json(d.split_missing) << "},\n";
   o << "  \"motion\": {\"source\": " << esc(d.motion_source) << ", \"note\": " << esc(d.motion_note)
     << "},\n";
+  o << "  \"not_identifiable\": " << strings_json(d.not_identifiable) << ",\n";
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
     << ", \"noise_rms\": " << num(d.calibrated_noise_rms)
     << ", \"noise_tilt_db_per_decade\": " << num(d.calibrated_noise_tilt_db_per_decade)

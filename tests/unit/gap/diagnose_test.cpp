@@ -151,3 +151,49 @@ TEST(Diagnose, KnocksOnAConstantSpeedRigAreFittedAtAPoissonRate) {
 
 }  // namespace
 }  // namespace ptda::gap
+
+namespace ptda::gap {
+namespace {
+
+TEST(Diagnose, OtherAxisIsNotACandidateAtOneConstantSpeed) {
+  // A constant-speed rig with a steady line the nominal lacks (shaft order 47): at one speed, with no
+  // standstill and no speed change, another axis's mesh looks exactly like it, so `other_axis` is left
+  // out (and said so); the line may be named as a fixed-frequency line or stay unexplained.
+  sim::Scenario s;
+  s.source = "test";
+  s.name = "rig";
+  s.motion.kind = sim::MotionKind::kConstant;
+  s.motion.shaft_speed_hz = 30.0;
+  s.motion.duration_s = 2.4;
+  s.motion.cycles = 1;
+  s.gearbox.kind = sim::GearboxKind::kParallel;
+  s.gearbox.z_in = 30;
+  s.gearbox.z_spur = 75;
+  s.gearbox.z_pin = 0;
+  s.vibration.gmf_amplitudes = {0.9, 0.1, 0.1};
+  s.vibration.reference_speed_rad_s = 75.398;
+  s.vibration.noise_rms = 0.5;
+  s.sensor.range_ms2 = 200.0;
+  sim::Scenario truth = s;
+  truth.vibration.shaft_orders = {47};
+  truth.vibration.shaft_order_amplitudes = {1.0};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 8), truth);
+  DiagnoseOptions opt;
+  opt.candidates = {sim::EffectKind::kOtherAxis, sim::EffectKind::kElectricalInterference};
+  opt.max_effects = 1;
+  const Diagnosis d = diagnose(s, real, opt);
+  ASSERT_EQ(d.not_identifiable.size(), 1U);
+  EXPECT_EQ(d.not_identifiable[0].rfind("other_axis:", 0), 0U) << d.not_identifiable[0];
+  for (const CandidateResult& c : d.chosen)
+    EXPECT_NE(c.effect.kind, sim::EffectKind::kOtherAxis) << d.verdict;
+  for (const SelectionRound& r : d.rounds)
+    for (const CandidateResult& c : r.ranked) EXPECT_NE(c.effect.kind, sim::EffectKind::kOtherAxis);
+  // A robot job (two speed classes, rests) keeps it.
+  const sim::Scenario job = test::joint_rotation_job(4);
+  const GapRecording moving = recording_from_simulation(sim::simulate_signals(job, 9), job);
+  opt.max_effects = 0;
+  EXPECT_TRUE(diagnose(job, moving, opt).not_identifiable.empty());
+}
+
+}  // namespace
+}  // namespace ptda::gap

@@ -99,10 +99,12 @@ struct Diagnosis {
   /// Speed scale (nominal [can] speed_scale_tolerance > 0 only): estimated from the measured lines
   /// before anything else; applied (within the tolerance) to the speed frames when significant.
   double speed_scale_tolerance = 0.0;
-  double speed_scale_ppm = 0.0;              ///< estimate, (true / frame speed - 1) * 1e6
-  double speed_scale_sd_ppm = 0.0;           ///< its spread over the lines
-  int speed_scale_lines = 0;                 ///< lines used
-  double speed_scale_applied_ppm = 0.0;      ///< what the speed frames were scaled by (0: not applied)
+  double speed_scale_ppm = 0.0;          ///< estimate, (true / frame speed - 1) * 1e6
+  double speed_scale_sd_ppm = 0.0;       ///< its spread over the lines
+  int speed_scale_lines = 0;             ///< lines used
+  double speed_scale_applied_ppm = 0.0;  ///< what the speed frames were scaled by (0: not applied)
+  /// Effect kinds left out of the candidates because this recording cannot tell them apart, with why.
+  std::vector<std::string> not_identifiable;
   std::vector<CalibratedParam> calibration;  ///< per nominal GMF order, then the noise level
   bool recalibrated = false;                 ///< any calibration parameter significant
   std::vector<double> calibrated_gmf_amplitudes;
