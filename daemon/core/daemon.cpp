@@ -828,6 +828,15 @@ void Daemon::supervise(std::int64_t now) noexcept {
   fill_snapshot(now);
   // The windows first, then the level change they caused: the history stays in time order.
   if (history_ && pipeline_) drain_history(*pipeline_);
+  snapshot_.history_enabled = history_ != nullptr;
+  if (history_) {
+    const HistoryCounters& hk = history_->counters();
+    snapshot_.history_lines = hk.lines;
+    snapshot_.history_write_failures = hk.write_failures;
+    snapshot_.history_rotation_failures = hk.rotation_failures;
+    snapshot_.history_windows_dropped = hk.ring_dropped;
+    snapshot_.history_last_errno = hk.last_errno;
+  }
   if (pipeline_) log_alarm_changes(pipeline_->status());
   snapshot_.state_files[static_cast<std::size_t>(StateFile::kBaseline)] = baseline_health_;
   if (writer_) {

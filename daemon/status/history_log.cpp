@@ -95,17 +95,44 @@ void HistoryLog::rotate() noexcept {
     fd_ = -1;
   }
   // history.<n-2> -> history.<n-1> (replacing the oldest), ..., history -> history.1
+  bool current_moved = true;
   for (std::uint32_t k = cfg_.files - 1; k >= 1; --k) {
     if (::rename(rotated_[k - 1].c_str(), rotated_[k].c_str()) != 0 && errno != ENOENT) {
       counters_.last_errno = errno;
+      if (k == 1) current_moved = false;
     }
   }
-  ++counters_.rotations;
+  // The renames are durable before the new file takes lines (a power cut must not leave two files
+  // with one name's history).
+  const int dfd = ::open(cfg_.dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
+  }
+  if (!current_moved) {
+    // The full current file could not be moved aside: rotating again on the next line would shift the
+    // older files once more and lose them. The history stops at its size bound instead; every line
+    // from here on is counted as a write failure (the supervisor reports it) until a restart.
+    rotation_failed_ = true;
+    ++counters_.rotation_failures;
+  } else {
+    ++counters_.rotations;
+  }
   open_current();
 }
 
 void HistoryLog::write_line(std::size_t len) noexcept {
-  if (size_ > 0 && size_ + len > cfg_.max_file_bytes) rotate();
+  if (size_ > 0 && size_ + len > cfg_.max_file_bytes) {
+    if (rotation_failed_) {
+      ++counters_.write_failures;
+      return;
+    }
+    rotate();
+    if (rotation_failed_) {
+      ++counters_.write_failures;
+      return;
+    }
+  }
   if (fd_ < 0 && !open_current()) {
     ++counters_.write_failures;
     return;

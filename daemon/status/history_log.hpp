@@ -30,13 +30,14 @@ struct HistoryConfig {
 };
 
 struct HistoryCounters {
-  std::uint64_t lines = 0;           ///< lines written
-  std::uint64_t bytes = 0;           ///< bytes written (all files)
-  std::uint64_t rotations = 0;       ///< files rotated
-  std::uint64_t write_failures = 0;  ///< lines lost to a failed open/write/rename (dropped, counted)
-  int last_errno = 0;                ///< of the latest failure (0: none)
-  std::uint64_t ring_dropped = 0;    ///< windows the ring could not hold (filled in by the daemon)
-  std::uint64_t cut_bytes = 0;       ///< a partial last line (power loss) cut off when the file was opened
+  std::uint64_t lines = 0;              ///< lines written
+  std::uint64_t bytes = 0;              ///< bytes written (all files)
+  std::uint64_t rotations = 0;          ///< files rotated
+  std::uint64_t rotation_failures = 0;  ///< the current file could not be moved aside: history stopped
+  std::uint64_t write_failures = 0;     ///< lines lost to a failed open/write/rename (dropped, counted)
+  int last_errno = 0;                   ///< of the latest failure (0: none)
+  std::uint64_t ring_dropped = 0;       ///< windows the ring could not hold (filled in by the daemon)
+  std::uint64_t cut_bytes = 0;          ///< a partial last line (power loss) cut off when the file was opened
 };
 
 /// One window as a history line: the fields of `ptda monitor --jsonl` (cli window_json) plus
@@ -78,7 +79,8 @@ class HistoryLog {
   std::vector<std::string> rotated_;  ///< the rotation names, built once (rename() needs C strings)
   std::vector<char> line_;
   int fd_ = -1;
-  std::uint64_t size_ = 0;  ///< of the current file
+  std::uint64_t size_ = 0;        ///< of the current file
+  bool rotation_failed_ = false;  ///< no more lines past the size bound (see rotate())
   HistoryCounters counters_;
 };
 

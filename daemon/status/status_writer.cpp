@@ -397,6 +397,18 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     if (g.with_bus_state) j.str("bus_state", can_bus_state_name(s.can_bus_state));
     j.close('}');
   }
+  if (s.history_enabled) {
+    j.key("history");
+    j.open('{');
+    j.u64("lines", s.history_lines);
+    j.u64("write_failures", s.history_write_failures);
+    j.u64("rotation_failures", s.history_rotation_failures);
+    j.u64("windows_dropped", s.history_windows_dropped);
+    j.i64("last_errno", s.history_last_errno);
+    j.close('}');
+  } else {
+    j.null("history");
+  }
   render_state_files_json(j, files);
   j.close('}');
   b.append_char('\n');
@@ -651,6 +663,15 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
        {drivers::CanBusState::kErrorActive, drivers::CanBusState::kErrorWarning,
         drivers::CanBusState::kErrorPassive, drivers::CanBusState::kBusOff}) {
     p.sample("ptda_can_bus_state", {{"state", can_bus_state_name(st)}}, st == s.can_bus_state ? 1.0 : 0.0);
+  }
+  if (s.history_enabled) {
+    p.counter("ptda_history_lines_total", "Lines written to the event history.", s.history_lines);
+    p.counter("ptda_history_write_failures_total",
+              "Event history lines lost to a failed open, write or rotation (counted, not retried).",
+              s.history_write_failures);
+    p.counter("ptda_history_windows_dropped_total",
+              "Windows the history's hand-over ring could not hold (the supervisor was late).",
+              s.history_windows_dropped);
   }
   render_state_files_prom(p, files);
 }

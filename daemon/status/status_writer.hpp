@@ -215,6 +215,14 @@ struct StatusSnapshot {
   double coverage_timeout_s = 0.0;
   dsp::CoverageState coverage;
 
+  // Event history ([history], docs/fleet.md): false when off ("history" is null, no metrics).
+  bool history_enabled = false;
+  std::uint64_t history_lines = 0;              ///< lines written
+  std::uint64_t history_write_failures = 0;     ///< lines lost to failed opens/writes (counted)
+  std::uint64_t history_rotation_failures = 0;  ///< the current file could not be moved aside
+  std::uint64_t history_windows_dropped = 0;    ///< windows the hand-over ring could not hold
+  std::int32_t history_last_errno = 0;
+
   // Write failures of the state files, indexed by StateFile. The daemon fills the baseline entry;
   // StatusWriter::write() fills status and metrics from its own health (render_* print these).
   std::array<StateFileHealth, kStateFileCount> state_files{};

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cerrno>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -193,6 +194,37 @@ TEST(HistoryLog, ADirectoryThatCannotBeMadeIsAnErrorNamingIt) {
   c.dir = dir;
   c.files = 1;
   EXPECT_THROW(HistoryLog{c}, Error);
+}
+
+}  // namespace
+}  // namespace ptda::daemon
+
+namespace ptda::daemon {
+namespace {
+
+TEST(HistoryLog, ARotationThatCannotMoveTheCurrentFileStopsAtTheBoundInsteadOfShiftingAgain) {
+  // history.1.jsonl is a non-empty directory: renaming history.jsonl onto it fails (EISDIR). Shifting
+  // the older files again at every line would lose them; the history stops at its size bound and every
+  // line from then on is a counted failure.
+  const fs::path dir = scratch("rotation_fails");
+  fs::create_directories(dir / "history.1.jsonl");
+  std::ofstream(dir / "history.1.jsonl" / "keep") << "x\n";
+  HistoryConfig c;
+  c.dir = dir;
+  c.method = "ptda";
+  c.max_file_bytes = 4096;
+  c.files = 2;
+  HistoryLog h(c);
+  for (std::uint64_t n = 0; n < 60; ++n) h.window(scored_window(n), 1700000000000000000);
+  const HistoryCounters k = h.counters();
+  EXPECT_EQ(k.rotation_failures, 1U);
+  EXPECT_EQ(k.rotations, 0U);
+  EXPECT_EQ(k.last_errno, EISDIR);
+  EXPECT_GT(k.write_failures, 0U);
+  EXPECT_EQ(k.lines + k.write_failures, 60U);  // every window is written or counted
+  EXPECT_LE(fs::file_size(dir / "history.jsonl"), c.max_file_bytes);
+  EXPECT_TRUE(fs::exists(dir / "history.1.jsonl" / "keep"));
+  for (const std::string& l : lines_of(dir / "history.jsonl")) EXPECT_TRUE(test::JsonChecker(l).valid()) << l;
 }
 
 }  // namespace

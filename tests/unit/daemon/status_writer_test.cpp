@@ -154,6 +154,7 @@ constexpr std::string_view kKnownJson =
     R"("slicer":{"regions":24,"windows":108,"windows_invalid":0,"windows_lost":0},)"
     R"("pipeline":{"ring_overflows":0,"windows_scored":107,"windows_abnormal":4,"alarms_raised":1,)"
     R"("watchdog_pings":7200},)"
+    R"("history":null,)"
     R"("state_files":{"status":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
     R"("metrics":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
     R"("baseline":{"failing":true,"failures":3,"last_errno":28,)"
@@ -741,6 +742,41 @@ TEST(StatusWriter, FailuresAreCountedWithErrnoRetriedWithBackoffAndRecover) {
   { std::ofstream out(blocker); }
   EXPECT_EQ(w.write(known_snapshot()), StatusWriteResult::kIoError);
   EXPECT_EQ(w.health(StateFile::kStatus).failures, 7U);
+}
+
+}  // namespace
+}  // namespace ptda::daemon
+
+namespace ptda::daemon {
+namespace {
+
+TEST(StatusWriter, EventHistoryCountersInStatusAndMetricsWhenItIsOn) {
+  StatusWriterConfig c;
+  c.prom_path = scratch("history_prom") / "ptda.prom";
+  StatusWriter w(c);
+  StatusSnapshot s = known_snapshot();
+  std::string off(w.render_prometheus(s));
+  EXPECT_EQ(off.find("ptda_history_"), std::string::npos);  // off: no history families
+  s.history_enabled = true;
+  s.history_lines = 1234;
+  s.history_write_failures = 7;
+  s.history_rotation_failures = 1;
+  s.history_windows_dropped = 3;
+  s.history_last_errno = 21;
+  const std::string text(w.render_prometheus(s));
+  EXPECT_EQ(test::prom_samples(text, "ptda_history_lines_total"),
+            std::vector<std::string>{"ptda_history_lines_total 1234"});
+  EXPECT_EQ(test::prom_samples(text, "ptda_history_write_failures_total"),
+            std::vector<std::string>{"ptda_history_write_failures_total 7"});
+  EXPECT_EQ(test::prom_samples(text, "ptda_history_windows_dropped_total"),
+            std::vector<std::string>{"ptda_history_windows_dropped_total 3"});
+  StatusWriter j(json_only(scratch("history_json")));
+  const std::string json(j.render_json(s));
+  EXPECT_NE(json.find(R"("history":{"lines":1234,"write_failures":7,"rotation_failures":1,)"
+                      R"("windows_dropped":3,"last_errno":21})"),
+            std::string::npos)
+      << json;
+  EXPECT_TRUE(JsonChecker(json).valid());
 }
 
 }  // namespace
