@@ -13,7 +13,7 @@ namespace ptda::dsp {
 
 namespace {
 
-constexpr std::size_t kSelectSample = 256;  // select_nth()'s sample size
+constexpr std::size_t kSelectSample = 512;  // select_nth()'s sample size
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Level referral absorbs level changes up to this factor (6 dB) either way; beyond it the excess counts,
@@ -335,8 +335,8 @@ double select_nth(std::span<double> values, std::size_t rank, std::span<double> 
   if (m < 4 * kSelectSample || scratch.size() < m + kSelectSample || rank >= m) {
     return rank < m ? fallback() : kNaN;
   }
-  // Sample kSelectSample values at a fixed stride; pivots about 3 standard deviations of the sample
-  // rank either side of where `rank` falls in it (the rank of a sample quantile has sd <= 16 / 2).
+  // Sample kSelectSample values at a fixed stride; pivots about 2.8 standard deviations of the sample
+  // rank either side of where `rank` falls in it (the rank of the sample median has sd sqrt(512) / 2).
   double* const sample = scratch.data();
   double* const cand = scratch.data() + kSelectSample;
   const std::size_t stride = m / kSelectSample;
@@ -346,7 +346,7 @@ double select_nth(std::span<double> values, std::size_t rank, std::span<double> 
     nan = nan || std::isnan(sample[i]);
   }
   if (nan) return fallback();
-  constexpr std::size_t kMargin = 24;
+  constexpr std::size_t kMargin = 32;
   const std::size_t centre = rank * kSelectSample / m;
   const std::size_t lo_rank = centre > kMargin ? centre - kMargin : 0;
   const std::size_t hi_rank = std::min(kSelectSample - 1, centre + kMargin);

@@ -126,10 +126,10 @@ class WindowAnalyzer {
 /// The value of rank `rank` (0-based) in ascending order of `values`: what
 /// `std::nth_element(values.begin(), values.begin() + rank, values.end())` leaves at that position
 /// (the same value; only a zero may come back as -0.0 instead of +0.0 or the reverse). Floyd-Rivest: two
-/// pivots from a sample of 256 values bracket the rank, one branch-free pass counts the values below and
+/// pivots from a sample of 512 values bracket the rank, one branch-free pass counts the values below and
 /// gathers those between them into `scratch`, and only those are selected. A NaN (no order), a bracket that
-/// misses, or fewer than 1024 values fall back to std::nth_element on `values` itself. Needs rank <
-/// values.size() and scratch.size() >= values.size() + 256 (else the fallback). `values` may be reordered.
+/// misses, or fewer than 2048 values fall back to std::nth_element on `values` itself. Needs rank <
+/// values.size() and scratch.size() >= values.size() + 512 (else the fallback). `values` may be reordered.
 /// Thread: any. Never allocates.
 [[nodiscard]] double select_nth(std::span<double> values, std::size_t rank,
                                 std::span<double> scratch) noexcept;
