@@ -371,7 +371,7 @@ TEST(Candump, GarbledLinesOnlyThrowPtdaError) {
   EXPECT_GT(errors, 100);
 }
 
-// The reader reads the file in 64 KiB chunks and splits lines itself (issue 13). Reference: split the
+// The reader reads the file in 32 KiB chunks and splits lines itself (issue 13). Reference: split the
 // same bytes at '\n' and parse each line alone. A ~400 KB log of random lines (classic, FD, remote,
 // error frames, CRLF endings, blank and comment lines up to the 16384-character limit, no newline after
 // the last line) puts lines across every chunk boundary; records, line numbers and comment counts must
@@ -538,7 +538,7 @@ TEST(Candump, ReaderEdgeCasesNameFileAndLine) {
   EXPECT_EQ(reader_error(dir, "over_cr.log", ok + at_limit + "\r\n"),
             (dir / "over_cr.log").string() + too_long);
 
-  // Lines that fill most of a 64 KiB chunk, then the over-long line across the boundary.
+  // Lines that fill most of a 32 KiB chunk and more, then the over-long line across a boundary.
   std::string filler;
   long filler_lines = 0;
   while (filler.size() < 60000) {
