@@ -7,7 +7,9 @@
 #
 # Usage: scripts/bench.sh BEFORE_BUILD_DIR AFTER_BUILD_DIR [OUT_DIR]
 #   *_BUILD_DIR: release build trees holding cli/ptda and dsp/bench/dsp_bench (the KissFFT anchor is
-#   taken from AFTER's dsp_bench; KissFFT is the same library in both).
+#   taken from AFTER's dsp_bench; KissFFT is the same library in both). A "before" tree can also be
+#   just those two binaries copied from a build of the older commit (mkdir -p B/cli B/dsp/bench; cp).
+#   PTDA_BENCH_BEFORE_LABEL names the before build in the tables (default: f134bc3).
 # Needs /usr/bin/python3 with numpy (python3-numpy). Cost: ~2 min on the 2-core development host.
 set -euo pipefail
 before=${1:?before build dir}
@@ -105,16 +107,17 @@ mon_before=$(monitor_us "$before/cli/ptda" before)
 mon_after=$(monitor_us "$ptda_after" after)
 np_us=$(numpy_us)
 
-"$py" - "$out" "$mon_before" "$mon_after" "$np_us" <<'PY'
+"$py" - "$out" "$mon_before" "$mon_after" "$np_us" "${PTDA_BENCH_BEFORE_LABEL:-f134bc3}" <<'PY'
 import json, sys
 out, mon_b, mon_a, np_us = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
+label = sys.argv[5]
 def median(path, name_part):
     for b in json.load(open(f"{out}/{path}"))["benchmarks"]:
         if b.get("aggregate_name") == "median" and name_part in b["name"]:
             return b["cpu_time"]
     raise SystemExit(f"{name_part} not in {path}")
 fft = median("fft.json", "BM_RealFftForward/N:12800")
-print("| N = 12800 | before (f134bc3) | after | before / FFT | after / FFT |")
+print(f"| N = 12800 | before ({label}) | after | before / FFT | after / FFT |")
 print("|---|---|---|---|---|")
 print(f"| KissFFT forward alone | {fft:.1f} µs | {fft:.1f} µs | 1.00 | 1.00 |")
 for m, name in ((0, "raw"), (1, "tda"), (2, "ptda")):
@@ -122,7 +125,7 @@ for m, name in ((0, "raw"), (1, "tda"), (2, "ptda")):
     a = median("analyze_after.json", f"BM_Analyze/N:12800/method:{m}")
     print(f"| analyze() {name} | {b:.1f} µs | {a:.1f} µs | {b / fft:.2f} | {a / fft:.2f} |")
 print()
-print("| per window, N = 12800 | before (f134bc3) | after |")
+print(f"| per window, N = 12800 | before ({label}) | after |")
 print("|---|---|---|")
 print(f"| `ptda monitor --method ptda` (best of 3) | {mon_b:.1f} µs | {mon_a:.1f} µs |")
 print(f"| NumPy one-FFT PTDA | {np_us:.1f} µs | {np_us:.1f} µs |")

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "ptda/dsp/features.hpp"
@@ -12,6 +13,7 @@ namespace ptda::dsp {
 
 namespace {
 
+constexpr std::size_t kSelectSample = 512;  // select_nth()'s sample size
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Level referral absorbs level changes up to this factor (6 dB) either way; beyond it the excess counts,
@@ -71,6 +73,7 @@ WindowAnalyzer::WindowAnalyzer(std::size_t n)
       res_(n / 2 + 1, 0.0F),
       refer_(n / 2 + 1, 1.0F),
       ratio_(n / 2 + 1, 0.0),
+      select_scratch_(n / 2 + 1 + kSelectSample, 0.0),
       in_line_(n / 2 + 1, 0),
       e_(n / 2 + 1, 0.0F),
       scratch_(n / 2 + 1, 0.0F),
@@ -183,9 +186,8 @@ Features WindowAnalyzer::ptda_features(std::span<const float> mean_magnitude,
       ratio_[m++] = static_cast<double>(mag_[k]) / mean_magnitude[k];
   }
   if (m > 0) {
-    const auto mid = ratio_.begin() + static_cast<std::ptrdiff_t>(m / 2);
-    std::nth_element(ratio_.begin(), mid, ratio_.begin() + static_cast<std::ptrdiff_t>(m));
-    if (*mid > 0.0 && std::isfinite(*mid)) floor_gain_ = *mid;
+    const double mid = select_nth(std::span<double>(ratio_.data(), m), m / 2, select_scratch_);
+    if (mid > 0.0 && std::isfinite(mid)) floor_gain_ = mid;
   }
   const auto floor_refer = static_cast<float>(referral(floor_gain_));
   for (std::size_t k = 1; k < X_.size(); ++k) {
@@ -323,6 +325,54 @@ std::span<const std::complex<float>> WindowAnalyzer::residual_spectrum() const n
   return R_;
 }
 
+double select_nth(std::span<double> values, std::size_t rank, std::span<double> scratch) noexcept {
+  const std::size_t m = values.size();
+  double* const v = values.data();
+  const auto fallback = [&]() noexcept {
+    std::nth_element(v, v + rank, v + m);
+    return v[rank];
+  };
+  if (m < 4 * kSelectSample || scratch.size() < m + kSelectSample || rank >= m) {
+    return rank < m ? fallback() : kNaN;
+  }
+  // Sample kSelectSample values at a fixed stride; pivots about 2.8 standard deviations of the sample
+  // rank either side of where `rank` falls in it (the rank of the sample median has sd sqrt(512) / 2).
+  double* const sample = scratch.data();
+  double* const cand = scratch.data() + kSelectSample;
+  const std::size_t stride = m / kSelectSample;
+  bool nan = false;
+  for (std::size_t i = 0; i < kSelectSample; ++i) {
+    sample[i] = v[i * stride + stride / 2];
+    nan = nan || std::isnan(sample[i]);
+  }
+  if (nan) return fallback();
+  constexpr std::size_t kMargin = 32;
+  const std::size_t centre = rank * kSelectSample / m;
+  const std::size_t lo_rank = centre > kMargin ? centre - kMargin : 0;
+  const std::size_t hi_rank = std::min(kSelectSample - 1, centre + kMargin);
+  std::nth_element(sample, sample + lo_rank, sample + kSelectSample);
+  const double lo = sample[lo_rank];
+  std::nth_element(sample + lo_rank, sample + hi_rank, sample + kSelectSample);
+  const double hi = sample[hi_rank];
+  // One pass: count below lo, gather [lo, hi] (the store is unconditional, the index moves only for a
+  // candidate), and notice a NaN (all comparisons false).
+  std::size_t below = 0;
+  std::size_t c = 0;
+  std::size_t unordered = 0;
+  for (std::size_t i = 0; i < m; ++i) {
+    const double x = v[i];
+    cand[c] = x;
+    // Bitwise, not &&: a branch here mispredicts on about half of the values.
+    c += static_cast<std::size_t>(x >= lo) & static_cast<std::size_t>(x <= hi);
+    below += static_cast<std::size_t>(x < lo);
+    unordered += static_cast<std::size_t>(std::isnan(x));
+  }
+  if (unordered != 0 || rank < below || rank >= below + c) return fallback();
+  // Sorted, the values are: `below` values < lo, then the c candidates, then the values > hi.
+  std::nth_element(cand, cand + (rank - below), cand + c);
+  return cand[rank - below];
+}
+
 std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
   std::vector<LineGroup> out;
   const std::size_t bins = mean_magnitude.size();
@@ -357,8 +407,42 @@ std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
   return out;
 }
 
+namespace {
+
+// Fingerprint of the inputs of prepare_line_groups() for one class: a multiply-xorshift mix over the
+// bytes of both vectors (their sizes included) and the two flags; never 0.
+std::uint64_t prepare_key(const ClassBaseline& c, bool line_gain, bool floor_gain) noexcept {
+  std::uint64_t h = 0x9E3779B97F4A7C15ULL ^ (line_gain ? 1U : 0U) ^ (floor_gain ? 2U : 0U);
+  const auto mix = [&h](std::uint64_t w) noexcept {
+    h = (h ^ w) * 0xBF58476D1CE4E5B9ULL;
+    h ^= h >> 31;
+  };
+  for (const std::vector<float>* v : {&c.mean_magnitude, &c.tda_mean}) {
+    mix(v->size());
+    const auto* bytes = reinterpret_cast<const unsigned char*>(v->data());
+    const std::size_t n = v->size() * sizeof(float);
+    std::size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+      std::uint64_t w = 0;
+      std::memcpy(&w, bytes + i, 8);
+      mix(w);
+    }
+    if (i < n) {
+      std::uint64_t w = 0;
+      std::memcpy(&w, bytes + i, n - i);
+      mix(w);
+    }
+  }
+  return h == 0 ? 1 : h;
+}
+
+}  // namespace
+
 void prepare_line_groups(Baseline& baseline) {
   for (ClassBaseline& c : baseline.classes) {
+    const std::uint64_t key = prepare_key(c, baseline.policy.ptda_line_gain, baseline.policy.ptda_floor_gain);
+    if (c.prepared_key == key) continue;  // derived from these very inputs already
+    c.prepared_key = key;
     c.floor_gain = baseline.policy.ptda_floor_gain;
     if (baseline.policy.ptda_line_gain) {
       c.line_groups = find_line_groups(c.mean_magnitude);

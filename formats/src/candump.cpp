@@ -22,6 +22,9 @@ constexpr std::size_t kFdMaxLen = 64;
 constexpr std::size_t kXlMaxLen = 2048;
 // Longest sensible line: a CAN XL frame with 2048 bytes and separators is about 6200 characters.
 constexpr std::size_t kMaxLineChars = 16384;
+// Bytes read from the file at a time by CandumpReader (issue 13: one read per chunk, not a getc per
+// character). With the line limit the reader holds 48 KiB; the FILE itself is unbuffered.
+constexpr std::size_t kReadChunk = 32768;
 
 int hex_val(char c) noexcept {
   if (c >= '0' && c <= '9') return c - '0';
@@ -273,7 +276,11 @@ CandumpReader::CandumpReader(const std::filesystem::path& path) : path_(path), s
   require_regular_file(path, kNoSizeLimit, "candump log");  // a FIFO would block, /dev/zero never end
   f_ = std::fopen(source_.c_str(), "rb");
   if (f_ == nullptr) throw Error(source_ + ": cannot open candump log: " + std::strerror(errno));
-  line_.reserve(256);
+  // No stdio buffer: every fread() is a whole chunk, read straight into buf_ (if this fails, the FILE
+  // keeps its own buffer, which only costs memory).
+  (void)std::setvbuf(f_, nullptr, _IONBF, 0);
+  // Room for the longest accepted line, its newline and one more chunk: next() never reallocates.
+  buf_.resize(kReadChunk + kMaxLineChars + 1);
 }
 
 CandumpReader::~CandumpReader() {
@@ -282,35 +289,64 @@ CandumpReader::~CandumpReader() {
 
 void CandumpReader::rewind() noexcept {
   std::rewind(f_);
+  begin_ = 0;
+  end_ = 0;
+  eof_ = false;
   line_no_ = 0;
   comment_lines_ = 0;
   first_comment_line_ = 0;
 }
 
-bool CandumpReader::next(CandumpRecord& out) {
+bool CandumpReader::next_line(std::string_view& line) {
+  std::size_t scanned = 0;  // bytes after begin_ already known to hold no '\n'
   for (;;) {
-    line_.clear();
-    int c = 0;
-    bool any = false;
-    while ((c = std::getc(f_)) != EOF) {
-      any = true;
-      if (c == '\n') break;
-      if (line_.size() == kMaxLineChars)
-        throw Error(source_, line_no_ + 1, 0,
-                    "line longer than " + std::to_string(kMaxLineChars) + " characters");
-      line_.push_back(static_cast<char>(c));
+    const char* const start = buf_.data() + begin_;
+    const std::size_t avail = end_ - begin_;
+    const void* const nl = std::memchr(start + scanned, '\n', avail - scanned);
+    if (nl != nullptr) {
+      const auto len = static_cast<std::size_t>(static_cast<const char*>(nl) - start);
+      if (len > kMaxLineChars) break;
+      line = std::string_view(start, len);
+      begin_ += len + 1;
+      return true;
     }
-    if (std::ferror(f_) != 0)
-      throw Error(source_, line_no_ + 1, 0, std::string("read error: ") + std::strerror(errno));
-    if (!any) return false;
+    if (avail > kMaxLineChars) break;
+    if (eof_) {
+      if (avail == 0) return false;
+      line = std::string_view(start, avail);  // the last line has no newline
+      begin_ = end_;
+      return true;
+    }
+    // Keep the partial line at the front of the buffer, then append one more chunk after it.
+    if (begin_ != 0) {
+      std::memmove(buf_.data(), start, avail);
+      begin_ = 0;
+      end_ = avail;
+    }
+    scanned = avail;
+    const std::size_t got = std::fread(buf_.data() + end_, 1, buf_.size() - end_, f_);
+    end_ += got;
+    if (got == 0) {
+      if (std::ferror(f_) != 0)
+        throw Error(source_, line_no_ + 1, 0, std::string("read error: ") + std::strerror(errno));
+      eof_ = true;
+    }
+  }
+  throw Error(source_, line_no_ + 1, 0, "line longer than " + std::to_string(kMaxLineChars) + " characters");
+}
+
+bool CandumpReader::next(CandumpRecord& out) {
+  std::string_view line;
+  while (next_line(line)) {
     ++line_no_;
-    if (parse_candump_line_into(line_, source_, line_no_, out)) return true;
-    if (!line_.empty() && line_[0] != '(' &&
-        line_.find_first_not_of(" \t\r") != std::string::npos) {  // a comment, not a blank line
+    if (parse_candump_line_into(line, source_, line_no_, out)) return true;
+    if (!line.empty() && line[0] != '(' &&
+        line.find_first_not_of(" \t\r") != std::string_view::npos) {  // a comment, not a blank line
       if (comment_lines_ == 0) first_comment_line_ = line_no_;
       ++comment_lines_;
     }
   }
+  return false;
 }
 
 std::vector<CandumpRecord> read_candump(const std::filesystem::path& path) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -47,28 +48,50 @@ std::string errno_text() {
   return std::strerror(errno);
 }
 
-// Decodes one stored sample to its code (PCM) or value (float).
-float decode_sample(const std::uint8_t* p, WavSampleFormat format) noexcept {
+// Decodes n samples spaced `stride` bytes apart into out[0..n): one loop per format, so the compiler
+// keeps the format switch out of the per-sample path (issue 13). PCM gives the integer code, float32
+// the stored value bit for bit.
+void decode_block(const std::uint8_t* p, std::size_t stride, std::size_t n, WavSampleFormat format,
+                  float* out) noexcept {
   switch (format) {
     case WavSampleFormat::kPcm16:
-      return static_cast<float>(static_cast<std::int16_t>(le16(p)));
-    case WavSampleFormat::kPcm24: {
-      // Place the 24 bits at the top of a 32-bit word, then shift back arithmetically to sign-extend.
-      const std::uint32_t u = (static_cast<std::uint32_t>(p[0]) << 8) |
-                              (static_cast<std::uint32_t>(p[1]) << 16) |
-                              (static_cast<std::uint32_t>(p[2]) << 24);
-      return static_cast<float>(static_cast<std::int32_t>(u) >> 8);
-    }
+      for (std::size_t i = 0; i < n; ++i, p += stride)
+        out[i] = static_cast<float>(static_cast<std::int16_t>(le16(p)));
+      return;
+    case WavSampleFormat::kPcm24:
+      if constexpr (std::endian::native == std::endian::little) {
+        // One 4-byte load per sample (the top byte, from the next sample or channel, is shifted out);
+        // every sample but the last is followed by at least one more byte of the block.
+        for (; n > 1; --n, ++out, p += stride) {
+          std::uint32_t u = 0;
+          std::memcpy(&u, p, sizeof u);
+          *out = static_cast<float>(static_cast<std::int32_t>(u << 8) >> 8);
+        }
+      }
+      for (std::size_t i = 0; i < n; ++i, p += stride) {
+        const std::uint32_t u = (static_cast<std::uint32_t>(p[0]) << 8) |
+                                (static_cast<std::uint32_t>(p[1]) << 16) |
+                                (static_cast<std::uint32_t>(p[2]) << 24);
+        out[i] = static_cast<float>(static_cast<std::int32_t>(u) >> 8);
+      }
+      return;
     case WavSampleFormat::kPcm32:
-      return static_cast<float>(static_cast<std::int32_t>(le32(p)));
-    case WavSampleFormat::kFloat32: {
-      float f = 0.0F;
-      const std::uint32_t u = le32(p);
-      std::memcpy(&f, &u, sizeof f);
-      return f;
-    }
+      for (std::size_t i = 0; i < n; ++i, p += stride)
+        out[i] = static_cast<float>(static_cast<std::int32_t>(le32(p)));
+      return;
+    case WavSampleFormat::kFloat32:
+      if constexpr (std::endian::native == std::endian::little) {
+        if (stride == sizeof(float)) {  // one channel: the bytes already are the floats
+          std::memcpy(out, p, n * sizeof(float));
+          return;
+        }
+      }
+      for (std::size_t i = 0; i < n; ++i, p += stride) {
+        const std::uint32_t u = le32(p);
+        std::memcpy(out + i, &u, sizeof(float));
+      }
+      return;
   }
-  return 0.0F;
 }
 
 struct FileCloser {
@@ -241,8 +264,7 @@ std::size_t WavReader::read(std::uint16_t channel, std::span<float> out) {
     if (got != bytes)
       throw Error(path_.string() + ": unexpected end of file or read error at frame " +
                   std::to_string(pos_frames_ + got / block_align_) + " of " + std::to_string(info_.frames));
-    for (std::size_t i = 0; i < n; ++i)
-      out[done + i] = decode_sample(buf_.data() + i * block_align_ + ch_off, info_.format);
+    decode_block(buf_.data() + ch_off, block_align_, n, info_.format, out.data() + done);
     done += n;
     pos_frames_ += n;
   }

@@ -283,5 +283,71 @@ TEST(WindowAnalyzer, UnsupportedLengthThrows) {
   EXPECT_THROW(WindowAnalyzer a(14), Error);
 }
 
+// select_nth() (the floor gain's median, issue 13) must return what std::nth_element leaves at the
+// rank, for every rank class, distribution and size, including ties, infinities, NaN (fallback) and
+// inputs too short for the sample; and it must not allocate.
+TEST(SelectNth, EqualsNthElement) {
+  std::mt19937 rng(2026);
+  std::normal_distribution<double> normal(1.0, 0.3);
+  std::exponential_distribution<double> expo(2.0);
+  std::vector<double> scratch(20000 + 256);
+  int checked = 0;
+  for (int trial = 0; trial < 600; ++trial) {
+    const std::size_t m = trial % 7 == 0 ? 1 + rng() % 1100 : 1000 + rng() % 12000;
+    std::vector<double> v(m);
+    const int kind = trial % 6;
+    for (std::size_t i = 0; i < m; ++i) {
+      switch (kind) {
+        case 0:
+          v[i] = std::fabs(normal(rng));
+          break;
+        case 1:
+          v[i] = expo(rng);
+          break;
+        case 2:
+          v[i] = static_cast<double>(rng() % 5);  // heavy ties
+          break;
+        case 3:
+          v[i] = static_cast<double>(i);  // sorted
+          break;
+        case 4:
+          v[i] = static_cast<double>(m - i) * 1e-3;  // reversed
+          break;
+        default:
+          v[i] = rng() % 50 == 0 ? std::numeric_limits<double>::infinity() : normal(rng);
+          break;
+      }
+    }
+    if (trial % 25 == 0) v[rng() % m] = std::numeric_limits<double>::quiet_NaN();  // fallback path
+    const std::size_t rank = trial % 3 == 0 ? m / 2 : rng() % m;
+    std::vector<double> ref = v;
+    std::nth_element(ref.begin(), ref.begin() + static_cast<std::ptrdiff_t>(rank), ref.end());
+    std::vector<double> got = v;
+    const double x = select_nth(got, rank, scratch);
+    const double want = ref[rank];
+    if (std::isnan(want)) {
+      EXPECT_TRUE(std::isnan(x)) << "trial " << trial;
+    } else {
+      EXPECT_EQ(x, want) << "trial " << trial << " m " << m << " rank " << rank;
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 600);
+
+  // Too little scratch or an out-of-range rank: nth_element, or NaN for the rank.
+  std::vector<double> v(5000);
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] = static_cast<double>((i * 7919) % 5000);
+  std::vector<double> small(10);
+  std::vector<double> copy = v;
+  EXPECT_EQ(select_nth(copy, 2500, small), 2500.0);
+  EXPECT_TRUE(std::isnan(select_nth(copy, 5000, scratch)));
+
+  copy = v;
+  ptda::test::AllocScope scope;
+  const double med = select_nth(copy, 2500, scratch);
+  EXPECT_EQ(scope.count(), 0U);
+  EXPECT_EQ(med, 2500.0);
+}
+
 }  // namespace
 }  // namespace ptda::dsp

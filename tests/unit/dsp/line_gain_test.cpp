@@ -247,5 +247,45 @@ TEST(LineGain, PrepareFollowsThePolicy) {
   EXPECT_TRUE(b.classes[0].floor_gain);
 }
 
+// The baseline reader prepares the classes and the engine prepares its copy again: the second call
+// must skip an unchanged class (find_line_groups() once per `ptda monitor`, issue 13) and must still
+// recompute after any change of its inputs.
+TEST(LineGain, PrepareAgainSkipsOnlyUnchangedClasses) {
+  Baseline b;
+  ClassBaseline c;
+  c.mean_magnitude.assign(kBins, 1.0F);
+  c.mean_magnitude[60] = 50.0F;
+  c.tda_mean.assign(kN, 0.5F);
+  b.classes.push_back(c);
+  prepare_line_groups(b);
+  const ClassBaseline& p = b.classes[0];
+  ASSERT_EQ(p.line_groups.size(), 1U);
+  EXPECT_EQ(p.line_groups[0].begin, 59U);
+  EXPECT_NE(p.prepared_key, 0U);
+  ASSERT_EQ(p.tda_spectrum.size(), kBins);
+  EXPECT_FLOAT_EQ(p.tda_spectrum[0].real(), 0.5F * kN);
+
+  // Outputs overwritten by hand on an unchanged class stay: proof that the second call skipped.
+  b.classes[0].line_groups = {LineGroup{1, 2}};
+  prepare_line_groups(b);
+  ASSERT_EQ(b.classes[0].line_groups.size(), 1U);
+  EXPECT_EQ(b.classes[0].line_groups[0].begin, 1U);
+
+  // Any input change recomputes: the mean spectrum, the TDA mean, or a policy flag.
+  b.classes[0].mean_magnitude[60] = 1.0F;
+  b.classes[0].mean_magnitude[100] = 50.0F;
+  prepare_line_groups(b);
+  ASSERT_EQ(b.classes[0].line_groups.size(), 1U);
+  EXPECT_EQ(b.classes[0].line_groups[0].begin, 99U);
+  b.classes[0].tda_mean[0] = 1.5F;
+  prepare_line_groups(b);
+  EXPECT_FLOAT_EQ(b.classes[0].tda_spectrum[0].real(), 0.5F * kN + 1.0F);
+  b.classes[0].line_groups.clear();
+  b.policy.ptda_floor_gain = false;
+  prepare_line_groups(b);
+  EXPECT_EQ(b.classes[0].line_groups.size(), 1U);
+  EXPECT_FALSE(b.classes[0].floor_gain);
+}
+
 }  // namespace
 }  // namespace ptda::dsp

@@ -675,5 +675,62 @@ TEST(WindowSlicer, NoAllocationAfterConstruction) {
   EXPECT_EQ(windows, expect_windows);
 }
 
+// push_samples() copies whole blocks into the ring and classifies them branch-free (issue 13): every
+// kind of float must be counted as std::isfinite() and the clip test in double say, also in blocks
+// that wrap around the end of the history ring.
+TEST(WindowSlicer, SampleValidityCountsEveryFloatKindAcrossRingWrap) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  const float snan = std::numeric_limits<float>::signaling_NaN();
+  float neg_nan_payload = 0.0F;
+  const std::uint32_t bits = 0xFFC12345U;  // negative quiet NaN with a payload
+  std::memcpy(&neg_nan_payload, &bits, sizeof bits);
+  const std::vector<float> kinds = {0.0F,
+                                    -0.0F,
+                                    1.0F,
+                                    -2.5F,
+                                    std::numeric_limits<float>::denorm_min(),
+                                    std::numeric_limits<float>::min(),
+                                    std::numeric_limits<float>::max(),
+                                    -std::numeric_limits<float>::max(),
+                                    1e38F,
+                                    -1e38F,
+                                    9.99e37F,
+                                    kInf,
+                                    -kInf,
+                                    std::numeric_limits<float>::quiet_NaN(),
+                                    snan,
+                                    neg_nan_payload};
+  std::vector<float> x;
+  std::mt19937 rng(5);
+  for (int i = 0; i < 5000; ++i) x.push_back(kinds[rng() % kinds.size()]);
+
+  for (const double clip_abs : {0.0, 1e38}) {
+    std::uint64_t want_nonfinite = 0;
+    std::uint64_t want_clipped = 0;
+    for (const float v : x) {
+      if (!std::isfinite(v)) {
+        ++want_nonfinite;
+      } else if (clip_abs > 0.0 && std::fabs(static_cast<double>(v)) >= clip_abs) {
+        ++want_clipped;
+      }
+    }
+    ExtractionConfig cfg = base_config();
+    cfg.clip_abs = clip_abs;
+    WindowSlicer s(cfg, kFs, kT0, kN + 13);  // a ring of 213: the blocks below wrap around it often
+    for (std::size_t pos = 0; pos < x.size();) {
+      const std::size_t n = std::min<std::size_t>(1 + rng() % 300, x.size() - pos);
+      s.push_samples(std::span<const float>(x).subspan(pos, n));
+      pos += n;
+    }
+    EXPECT_EQ(s.counters().samples, x.size());
+    EXPECT_EQ(s.counters().samples_nonfinite, want_nonfinite) << "clip_abs " << clip_abs;
+    EXPECT_EQ(s.counters().samples_clipped, want_clipped) << "clip_abs " << clip_abs;
+    EXPECT_GT(want_nonfinite, 1000U);
+    if (clip_abs > 0.0) {
+      EXPECT_GT(want_clipped, 500U);  // at least +-FLT_MAX; 1e38F is 9.99999968e37, below
+    }
+  }
+}
+
 }  // namespace
 }  // namespace ptda::dsp

@@ -370,3 +370,204 @@ TEST(Candump, GarbledLinesOnlyThrowPtdaError) {
   EXPECT_GT(parsed, 100);
   EXPECT_GT(errors, 100);
 }
+
+// The reader reads the file in 32 KiB chunks and splits lines itself (issue 13). Reference: split the
+// same bytes at '\n' and parse each line alone. A ~400 KB log of random lines (classic, FD, remote,
+// error frames, CRLF endings, blank and comment lines up to the 16384-character limit, no newline after
+// the last line) puts lines across every chunk boundary; records, line numbers and comment counts must
+// match the reference exactly.
+TEST(Candump, ReaderMatchesLineByLineParsingAcrossChunkBoundaries) {
+  const fs::path dir = temp_dir("chunks");
+  std::mt19937 rng(77);
+  const auto hex_bytes = [&rng](std::size_t n) {
+    static constexpr char kHex[] = "0123456789ABCDEF";
+    std::string s;
+    for (std::size_t i = 0; i < 2 * n; ++i) s += kHex[rng() % 16];
+    return s;
+  };
+  std::string text;
+  int lines = 0;
+  while (text.size() < 400000) {
+    std::string line;
+    switch (rng() % 8) {
+      case 0:
+        line = "(1700000000." + std::to_string(100000 + lines) + ") can0 123#" + hex_bytes(rng() % 9);
+        break;
+      case 1:
+        line = "(1700000001.5) vcan1 12345678##1" + hex_bytes(rng() % 65) + " R";
+        break;
+      case 2:
+        line = "(2.000001) can0 7FF#R" + std::to_string(rng() % 9) + " T";
+        break;
+      case 3:
+        line = "(3.0) can0 20000080#" + hex_bytes(8);
+        break;
+      case 4:
+        line = "";  // blank
+        break;
+      case 5:
+        line =
+            "# comment " + std::string(rng() % 40 == 0 ? 16384 - 11 : rng() % 200, 'c');  // + CR: the limit
+        break;
+      case 6:
+        line = "  \t";  // blank (whitespace only)
+        break;
+      default:
+        line = "(4.25) can0 044#" + hex_bytes(rng() % 9);
+        break;
+    }
+    if (rng() % 5 == 0) line += '\r';
+    text += line;
+    text += '\n';
+    ++lines;
+  }
+  text += "(5.5) can0 001#0102";  // the last line has no newline
+  ++lines;
+  {
+    std::ofstream out(dir / "r.log", std::ios::binary);
+    out << text;
+  }
+
+  std::vector<CandumpRecord> want;
+  std::vector<long> want_line;
+  std::uint64_t want_comments = 0;
+  long want_first_comment = 0;
+  long line_no = 0;
+  for (std::size_t pos = 0; pos < text.size();) {
+    const std::size_t nl = text.find('\n', pos);
+    const std::size_t end = nl == std::string::npos ? text.size() : nl;
+    const std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
+    ++line_no;
+    if (auto r = parse_candump_line(line, "r", line_no)) {
+      want.push_back(*r);
+      want_line.push_back(line_no);
+    } else if (!line.empty() && line[0] != '(' && line.find_first_not_of(" \t\r") != std::string::npos) {
+      if (want_comments++ == 0) want_first_comment = line_no;
+    }
+  }
+  ASSERT_EQ(line_no, lines);
+  ASSERT_GT(want.size(), 2000U);
+  ASSERT_GT(want_comments, 100U);
+
+  ptda::formats::CandumpReader reader(dir / "r.log");
+  for (int pass = 0; pass < 2; ++pass) {  // the second pass after rewind() from the middle
+    CandumpRecord rec;
+    std::size_t i = 0;
+    while (reader.next(rec)) {
+      ASSERT_LT(i, want.size());
+      EXPECT_EQ(reader.line_no(), want_line[i]);
+      EXPECT_EQ(rec.frame.t_ns, want[i].frame.t_ns);
+      EXPECT_EQ(rec.frame.id, want[i].frame.id);
+      EXPECT_EQ(rec.frame.flags, want[i].frame.flags);
+      EXPECT_EQ(rec.frame.len, want[i].frame.len);
+      EXPECT_EQ(rec.frame.data, want[i].frame.data);
+      EXPECT_EQ(rec.iface, want[i].iface);
+      EXPECT_EQ(rec.direction, want[i].direction);
+      ++i;
+      if (pass == 0 && i == want.size() / 2) {
+        reader.rewind();
+        break;
+      }
+    }
+    if (pass == 0) continue;
+    EXPECT_EQ(i, want.size());
+    EXPECT_EQ(reader.line_no(), lines);
+    EXPECT_EQ(reader.comment_lines(), want_comments);
+    EXPECT_EQ(reader.first_comment_line(), want_first_comment);
+    EXPECT_FALSE(reader.next(rec));  // stays at the end
+  }
+  fs::remove_all(dir);
+}
+
+namespace {
+
+// Writes `text` to dir/name, reads it to the end and returns the error message ("" when none).
+std::string reader_error(const fs::path& dir, const std::string& name, const std::string& text,
+                         std::size_t* records = nullptr) {
+  {
+    std::ofstream out(dir / name, std::ios::binary);
+    out << text;
+  }
+  ptda::formats::CandumpReader reader(dir / name);
+  CandumpRecord rec;
+  std::size_t n = 0;
+  try {
+    while (reader.next(rec)) ++n;
+  } catch (const Error& e) {
+    if (records != nullptr) *records = n;
+    return e.what();
+  }
+  if (records != nullptr) *records = n;
+  return "";
+}
+
+}  // namespace
+
+// Edge cases of the chunked reader, each error naming file:line: CRLF, no final newline, a line at and
+// just over the length limit (also as the last line and across a chunk boundary), bad hex far into the
+// file.
+TEST(Candump, ReaderEdgeCasesNameFileAndLine) {
+  const fs::path dir = temp_dir("edges");
+  const std::string ok = "(1.5) can0 123#11\n";
+  std::size_t n = 0;
+
+  EXPECT_EQ(reader_error(dir, "crlf.log", "(1.5) can0 123#11\r\n(1.6) can0 124#2233\r\n", &n), "");
+  EXPECT_EQ(n, 2U);
+  EXPECT_EQ(reader_error(dir, "nonl.log", ok + "(1.6) can0 124#2233", &n), "");
+  EXPECT_EQ(n, 2U);
+  EXPECT_EQ(reader_error(dir, "nonl_cr.log", ok + "(1.6) can0 124#2233\r", &n), "");
+  EXPECT_EQ(n, 2U);
+  EXPECT_EQ(reader_error(dir, "empty.log", "", &n), "");
+  EXPECT_EQ(n, 0U);
+  EXPECT_EQ(reader_error(dir, "nl_only.log", "\n\n", &n), "");
+  EXPECT_EQ(n, 0U);
+
+  // 16384 characters (without the '\n') is the limit; one more is an error on that line.
+  const std::string at_limit = "#" + std::string(16383, 'x');
+  const std::string over = at_limit + "y";
+  EXPECT_EQ(reader_error(dir, "at_limit.log", ok + at_limit + "\n" + ok, &n), "");
+  EXPECT_EQ(n, 2U);
+  EXPECT_EQ(reader_error(dir, "at_limit_last.log", ok + at_limit, &n), "");
+  EXPECT_EQ(n, 1U);
+  const std::string too_long = ":2: line longer than 16384 characters";
+  EXPECT_EQ(reader_error(dir, "over.log", ok + over + "\n" + ok, &n), (dir / "over.log").string() + too_long);
+  EXPECT_EQ(n, 1U);
+  EXPECT_EQ(reader_error(dir, "over_last.log", ok + over), (dir / "over_last.log").string() + too_long);
+  // A CR counts as a character of the line, as before.
+  EXPECT_EQ(reader_error(dir, "over_cr.log", ok + at_limit + "\r\n"),
+            (dir / "over_cr.log").string() + too_long);
+
+  // Lines that fill most of a 32 KiB chunk and more, then the over-long line across a boundary.
+  std::string filler;
+  long filler_lines = 0;
+  while (filler.size() < 60000) {
+    filler += ok;
+    ++filler_lines;
+  }
+  EXPECT_EQ(reader_error(dir, "over_boundary.log", filler + over + "\n" + ok, &n),
+            (dir / "over_boundary.log").string() + ":" + std::to_string(filler_lines + 1) +
+                ": line longer than 16384 characters");
+  EXPECT_EQ(n, static_cast<std::size_t>(filler_lines));
+  EXPECT_EQ(reader_error(dir, "limit_boundary.log", filler + at_limit + "\n" + ok, &n), "");
+  EXPECT_EQ(n, static_cast<std::size_t>(filler_lines + 1));
+
+  // Bad hex on a line in the third chunk, with CRLF endings.
+  std::string crlf;
+  long crlf_lines = 0;
+  while (crlf.size() < 150000) {
+    crlf += "(1.5) can0 123#11\r\n";
+    ++crlf_lines;
+  }
+  EXPECT_EQ(reader_error(dir, "bad_hex.log", crlf + "(1.6) can0 124#1G\r\n" + ok, &n),
+            (dir / "bad_hex.log").string() + ":" + std::to_string(crlf_lines + 1) +
+                ": odd number of hex digits in classic CAN data");
+  EXPECT_EQ(n, static_cast<std::size_t>(crlf_lines));
+  EXPECT_EQ(reader_error(dir, "bad_char.log", crlf + "(1.6) can0 124#ZZ"),
+            (dir / "bad_char.log").string() + ":" + std::to_string(crlf_lines + 1) +
+                ": bad character 'Z' in classic CAN data");
+  // A NUL byte is an ordinary character of a line (here: bad data).
+  EXPECT_EQ(reader_error(dir, "nul.log", ok + std::string("(1.6) can0 124#1\0", 17) + "\n"),
+            (dir / "nul.log").string() + ":2: odd number of hex digits in classic CAN data");
+  fs::remove_all(dir);
+}

@@ -100,6 +100,7 @@ class WindowAnalyzer {
   std::vector<float> res_;              ///< PTDA: |R[k]| with sign, |X[k]| - |D[k]|
   std::vector<float> refer_;            ///< floor gain: 1 / the (clamped) gain of bin k's part
   std::vector<double> ratio_;           ///< floor gain scratch: |X[k]| / a[k] over the floor bins
+  std::vector<double> select_scratch_;  ///< select_nth()'s sample and candidates
   std::vector<unsigned char> in_line_;  ///< floor gain scratch: bin k lies in a line group
   double floor_gain_ = 1.0;
   std::vector<float> e_;        ///< |R[k]|^2
@@ -121,6 +122,17 @@ class WindowAnalyzer {
   Features features_from_energy() noexcept;
   void build_views() const noexcept;
 };
+
+/// The value of rank `rank` (0-based) in ascending order of `values`: what
+/// `std::nth_element(values.begin(), values.begin() + rank, values.end())` leaves at that position
+/// (the same value; only a zero may come back as -0.0 instead of +0.0 or the reverse). Floyd-Rivest: two
+/// pivots from a sample of 512 values bracket the rank, one branch-free pass counts the values below and
+/// gathers those between them into `scratch`, and only those are selected. A NaN (no order), a bracket that
+/// misses, or fewer than 2048 values fall back to std::nth_element on `values` itself. Needs rank <
+/// values.size() and scratch.size() >= values.size() + 512 (else the fallback). `values` may be reordered.
+/// Thread: any. Never allocates.
+[[nodiscard]] double select_nth(std::span<double> values, std::size_t rank,
+                                std::span<double> scratch) noexcept;
 
 /// The spectral lines of a healthy mean magnitude spectrum a[k], k = 0..N/2: bins above 4 times
 /// (12 dB) the local floor (the median of a over the 65 bins centred on k, clipped to 1..N/2), each

@@ -139,6 +139,11 @@ struct ClassBaseline {
   /// Runtime only (not stored): the policy's ptda_floor_gain, set by prepare_line_groups() and by
   /// training, so analyze() needs only the class.
   bool floor_gain = false;
+  /// Runtime only (not stored): a 64-bit fingerprint of what prepare_line_groups() derived the three
+  /// fields above from (mean_magnitude, tda_mean, the policy's line and floor gain flags); 0 = never
+  /// prepared. A second call on an unchanged class (the baseline reader's copy handed to the engine)
+  /// then skips find_line_groups() and the transform (issue 13).
+  std::uint64_t prepared_key = 0;
 };
 
 /// Gearbox description, kept in the baseline so a report can name the mesh frequencies.

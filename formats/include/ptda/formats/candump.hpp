@@ -61,7 +61,13 @@ class CandumpReader {
   long line_no_ = 0;
   std::uint64_t comment_lines_ = 0;
   long first_comment_line_ = 0;
-  std::string line_;
+  std::vector<char> buf_;  // file bytes: [begin_, end_) not yet consumed; sized once at construction
+  std::size_t begin_ = 0;
+  std::size_t end_ = 0;
+  bool eof_ = false;
+  // The next line without its '\n' (a view into buf_, valid until the next call); false at the end.
+  // Throws ptda::Error (at line_no_ + 1) on a read error or a line longer than the limit.
+  bool next_line(std::string_view& line);
 };
 
 /// Reads a whole log. Throws ptda::Error. Thread: any; blocks, allocates.
