@@ -525,8 +525,8 @@ ClassBaseline ClassBaselineBuilder::finish() {
                    ratio(day.entropy_between_sd, day.entropy_within_sd),
                    within(day.entropy_within_sd, feature_stats(entropy_values[mi]).stddev));
       if (policy.cover_recordings && ve.groups >= 2) {
-        cls.thresholds[mi].rms =
-            cover_recordings(cls.thresholds[mi].rms, rms_values[mi], value_recording, policy, FeatureScale::kLog);
+        cls.thresholds[mi].rms = cover_recordings(cls.thresholds[mi].rms, rms_values[mi], value_recording,
+                                                  policy, FeatureScale::kLog);
         cls.thresholds[mi].entropy = cover_recordings(cls.thresholds[mi].entropy, entropy_values[mi],
                                                       value_recording, policy, FeatureScale::kLinear);
       }
