@@ -41,8 +41,9 @@
 #              PTDA_SOAK_NO_DRIFT=1 (reference run: load cycle and warm-up off, pauses kept),
 #              PTDA_SOAK_SUMMARY_ONLY=WALL_S (only rewrite out_dir/summary.md from its pieces.tsv, e.g. of an
 #              interrupted run; WALL_S is the wall time to report).
-# Cost: about 14 s of simulation and 1.5 s of replay per 10-minute piece (~40 min per simulated day on the
-# shared 2-core build machine); peak RSS of the simulator ~650 MB, of ptdad ~32 MB.
+# Cost (session 9): about 10 s of simulation and 2 s of replay per 10-minute piece (~29 min per simulated
+# day on the shared 2-core machine under load); the day recipe's training adds 8 pieces and a train of
+# ~2 min. Peak RSS of the simulator (streaming) ~7 MB, of ptdad ~9.4 MB.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 hours=${1:-24}
