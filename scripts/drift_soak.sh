@@ -93,8 +93,8 @@ summarize() {
     } else {
       printf "| healthy part (severity 0): hours / abnormal windows / alarms | %.2f / %d of %d / %d |\n", h_hours, h_ab, h_sc, h_al
       printf "| fault: severity 0 until %s h, 1 at %s h (linear, per piece) | |\n", onset, full
-      printf "| first warning (abnormal window) after onset | %s h (severity %s) |\n", fw == "" ? "none" : fw, fw_sev
-      printf "| first alarm (k-of-n) after onset | %s h (severity %s) |\n", fa == "" ? "none" : fa, fa_sev
+      printf "| first warning (abnormal window) in a faulty piece, hours since the start | %s h (severity %s) |\n", fw == "" ? "none" : fw, fw_sev
+      printf "| first alarm (k-of-n or CUSUM) in a faulty piece, hours since the start | %s h (severity %s) |\n", fa == "" ? "none" : fa, fa_sev
       if (fw != "" && fa != "") printf "| warning ahead of the alarm | %.2f h |\n", fa - fw
     }
     printf "| peak RSS of ptdad: pieces without / with a 15-minute pause | %.1f MB / %.1f MB |\n", nrss / 1024, prss / 1024
