@@ -64,7 +64,9 @@ std::vector<Piece> run_soak(const std::string& name, const std::string& env, con
     long seed = 0;
     f >> idx >> drift_h >> load >> coldness >> pause >> seed;
     EXPECT_EQ(seed, 900001 + train_pieces) << line;
-    if (train_pieces == 0) EXPECT_EQ(coldness, "1.000000") << line;
+    if (train_pieces == 0) {
+      EXPECT_EQ(coldness, "1.000000") << line;
+    }
     ++train_pieces;
   }
   EXPECT_EQ(train_pieces, 8);
