@@ -11,8 +11,20 @@
 # tests/golden/daemon_replay_test.cpp), then deleted. So memory stays flat whatever HOURS is. The
 # alarm state (k-of-n, latch) starts afresh in each piece: an alarm counts once per piece at most.
 #
-# Baseline: as a user would, `ptda train` on a short healthy run of a warm machine (40 cycles, ~100 s,
-# drift time 0: nominal load, coldness 0.02), config/examples/joint_rotation.toml.
+# Baseline (PTDA_SOAK_TRAIN, config/examples/joint_rotation.toml):
+#   "day" (default since session 9): commissioning over a whole *other* simulated day (seeds from
+#        PTDA_SOAK_TRAIN_SEED, never the evaluation's): PTDA_SOAK_TRAIN_PIECES (default 8) healthy pieces of
+#        PTDA_SOAK_TRAIN_CYCLES (default PTDA_SOAK_CHUNK_CYCLES: 10 minutes) spread evenly over that day's 24 h (so over its
+#        three 8-hour load cycles: every load phase), the first right after the cold start and one with a
+#        program pause in its middle (the cooled restart). Each piece is the same scenario and drift law
+#        as the evaluation, at the drift time and coldness the day's schedule gives it (one pause per
+#        hour, cooling and warm-up as in the simulator's closed form). Each piece is its own
+#        `--recording`, so the between-recording spread sizes the bands and the CUSUM allowance
+#        (docs/method.md sections 5-6).
+#   "short" (the recipe up to session 6): a short healthy run of a warm machine (40 cycles, ~100 s,
+#        drift time 0: nominal load, coldness 0.02).
+#   PTDA_SOAK_BASELINE=FILE skips training and uses FILE (e.g. out/drift-soak-healthy/work/baseline.bin of
+#   an earlier run with the same recipe and drift setting).
 #
 # Usage: scripts/drift_soak.sh [hours] [mode] [build_dir] [out_dir]
 #   hours      simulated hours (default 24; fractions allowed, e.g. 0.05 = 3 minutes)
@@ -21,12 +33,17 @@
 #              3 hours/4), constant within a piece (the value at its middle)
 #   build_dir  default build/release (needs cli/ptda and daemon/ptdad)
 #   out_dir    default out/drift-soak-<mode>: pieces.tsv (one row per piece), summary.md
-# Environment: PTDA_SOAK_CHUNK_CYCLES (cycles per piece, default 240), PTDA_SOAK_SEED (default 1),
+# Environment: PTDA_SOAK_CHUNK_CYCLES (cycles per piece, default 240), PTDA_SOAK_SEED (default 1; piece i
+#              uses seed SEED + i), PTDA_SOAK_TRAIN ("day" or "short"), PTDA_SOAK_TRAIN_SEED (default
+#              900001; training piece j uses TRAIN_SEED + j), PTDA_SOAK_TRAIN_PIECES, PTDA_SOAK_TRAIN_CYCLES,
+#              PTDA_SOAK_BASELINE (see Baseline above), PTDA_SOAK_CONFIG (pipeline config for train and
+#              monitor; default config/examples/joint_rotation.toml),
 #              PTDA_SOAK_NO_DRIFT=1 (reference run: load cycle and warm-up off, pauses kept),
 #              PTDA_SOAK_SUMMARY_ONLY=WALL_S (only rewrite out_dir/summary.md from its pieces.tsv, e.g. of an
 #              interrupted run; WALL_S is the wall time to report).
-# Cost: about 14 s of simulation and 1.5 s of replay per 10-minute piece (~40 min per simulated day on the
-# shared 2-core build machine); peak RSS of the simulator ~650 MB, of ptdad ~32 MB.
+# Cost (session 9): about 10 s of simulation and 2 s of replay per 10-minute piece (~29 min per simulated
+# day on the shared 2-core machine under load); the day recipe's training adds 8 pieces and a train of
+# ~2 min. Peak RSS of the simulator (streaming) ~7 MB, of ptdad ~9.4 MB.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 hours=${1:-24}
@@ -36,7 +53,7 @@ out=${4:-$root/out/drift-soak-$mode}
 ptda=$build/cli/ptda
 ptdad=$build/daemon/ptdad
 template=$root/config/scenarios/drift_soak.toml
-pipeline=$root/config/examples/joint_rotation.toml
+pipeline=${PTDA_SOAK_CONFIG:-$root/config/examples/joint_rotation.toml}
 chunk_cycles=${PTDA_SOAK_CHUNK_CYCLES:-240}
 seed0=${PTDA_SOAK_SEED:-1}
 pause_every_chunks=6        # one program pause per hour (every 6th 10-minute piece)
@@ -76,8 +93,8 @@ summarize() {
     } else {
       printf "| healthy part (severity 0): hours / abnormal windows / alarms | %.2f / %d of %d / %d |\n", h_hours, h_ab, h_sc, h_al
       printf "| fault: severity 0 until %s h, 1 at %s h (linear, per piece) | |\n", onset, full
-      printf "| first warning (abnormal window) after onset | %s h (severity %s) |\n", fw == "" ? "none" : fw, fw_sev
-      printf "| first alarm (k-of-n) after onset | %s h (severity %s) |\n", fa == "" ? "none" : fa, fa_sev
+      printf "| first warning (abnormal window) in a faulty piece, hours since the start | %s h (severity %s) |\n", fw == "" ? "none" : fw, fw_sev
+      printf "| first alarm (k-of-n or CUSUM) in a faulty piece, hours since the start | %s h (severity %s) |\n", fa == "" ? "none" : fa, fa_sev
       if (fw != "" && fa != "") printf "| warning ahead of the alarm | %.2f h |\n", fa - fw
     }
     printf "| peak RSS of ptdad: pieces without / with a 15-minute pause | %.1f MB / %.1f MB |\n", nrss / 1024, prss / 1024
@@ -129,10 +146,67 @@ EOF
 }
 truth_value() { sed -n "s/^$2 = //p" "$1/truth.toml" | head -1; }
 
-# --- baseline: a short healthy run of a warm machine -------------------------------------------------
-make_scenario "$work/train.toml" 40 $((seed0 + 100000)) $((start_unix - 86400)) 0.0 0.02 0 0
-"$ptda" simulate --scenario "$work/train.toml" --out "$work/train" >/dev/null
-"$ptda" train --recording "$work/train" --config "$pipeline" --out "$work/baseline.bin" >"$out/train.txt"
+# --- baseline ----------------------------------------------------------------------------------------
+train_recipe=${PTDA_SOAK_TRAIN:-day}
+if [[ -n ${PTDA_SOAK_BASELINE:-} ]]; then
+  [[ -f $PTDA_SOAK_BASELINE ]] || { echo "drift_soak: PTDA_SOAK_BASELINE: no file $PTDA_SOAK_BASELINE" >&2; exit 2; }
+  cp "$PTDA_SOAK_BASELINE" "$work/baseline.bin"
+  echo "baseline: $PTDA_SOAK_BASELINE (not trained here)" >"$out/train.txt"
+elif [[ $train_recipe == short ]]; then  # a short healthy run of a warm machine
+  make_scenario "$work/train.toml" 40 $((seed0 + 100000)) $((start_unix - 86400)) 0.0 0.02 0 0
+  "$ptda" simulate --scenario "$work/train.toml" --out "$work/train" >/dev/null
+  "$ptda" train --recording "$work/train" --config "$pipeline" --out "$work/baseline.bin" >"$out/train.txt"
+elif [[ $train_recipe == day ]]; then  # pieces spread over another simulated day
+  train_seed=${PTDA_SOAK_TRAIN_SEED:-900001}
+  train_pieces=${PTDA_SOAK_TRAIN_PIECES:-8}
+  train_cycles=${PTDA_SOAK_TRAIN_CYCLES:-$chunk_cycles}
+  [[ $train_pieces =~ ^[0-9]+$ && $train_pieces -ge 3 && $train_cycles =~ ^[0-9]+$ && $train_cycles -ge 8 ]] ||
+    { echo "drift_soak: PTDA_SOAK_TRAIN_PIECES must be >= 3 and PTDA_SOAK_TRAIN_CYCLES >= 8" >&2; exit 2; }
+  # The evaluation uses seeds SEED .. SEED + (pieces of HOURS); training must not share any.
+  awk -v a="$train_seed" -v n="$train_pieces" -v s="$seed0" -v h="$hours" 'BEGIN {
+    e = s + int(h * 3600 / 600) + 10; exit !(a + n <= s || a > e) }' ||
+    { echo "drift_soak: PTDA_SOAK_TRAIN_SEED $train_seed overlaps the evaluation's seeds (from $seed0)" >&2; exit 2; }
+  # The training day's schedule, as the evaluation's: pieces of train_cycles, the 6th of each hour with a
+  # 15-minute pause in its middle; piece k's drift time and coldness from the drift law's closed form
+  # (warm-up e^{-t/900 s} while working, cooling 1 - (1 - c) e^{-t/3600 s} in a pause; drift_soak.toml).
+  # Pieces chosen: index round(j * P / N) for j = 0..N-1 of the P pieces of 24 h; if none is a pause
+  # piece, the middle one moves to the nearest pause piece.
+  awk -v n="$train_pieces" -v cyc="$train_cycles" -v every="$pause_every_chunks" -v ps="$pause_s" \
+    -v tw="$(sed -n 's/^warmup_tau_s = \([0-9.e+-]*\).*/\1/p' "$template")" \
+    -v tc="$(sed -n 's/^cooldown_tau_s = \([0-9.e+-]*\).*/\1/p' "$template")" '
+  BEGIN {
+    per = cyc * 2.525; t = 0; c = 1; P = 0
+    while (t < 86400 - 5) {
+      T[P] = t; C[P] = c; pz = ((P + 1) % every == 0)
+      if (pz) { w = per / 2; c *= exp(-w / tw); c = 1 - (1 - c) * exp(-ps / tc); c *= exp(-w / tw); t += per + ps }
+      else { c *= exp(-per / tw); t += per }
+      Z[P] = pz; ++P
+    }
+    any = 0
+    for (j = 0; j < n; ++j) { I[j] = int(j * P / n + 0.5); if (Z[I[j]]) any = 1 }
+    if (!any) { m = int(n / 2); k = I[m]; while (!Z[k]) ++k; I[m] = k }
+    for (j = 0; j < n; ++j) printf "%d %.3f %.6f %d\n", I[j], T[I[j]], C[I[j]], Z[I[j]]
+  }' >"$work/train_pieces.txt"
+  train_args=()
+  j=0
+  printf 'day_piece\tdrift_time_h\tload\tcoldness\tpause\tseed\n' >"$out/train_pieces.tsv"
+  while read -r idx t_s c_start pz; do
+    pe=0; [[ $pz -eq 1 ]] && pe=$((train_cycles / 2))
+    make_scenario "$work/train$j.toml" "$train_cycles" $((train_seed + j)) \
+      "$(awk -v s="$start_unix" -v t="$t_s" 'BEGIN { printf "%.6f", s - 86400 + t }')" "$t_s" "$c_start" "$pe" 0
+    rm -rf "$work/train$j"
+    "$ptda" simulate --scenario "$work/train$j.toml" --out "$work/train$j" >/dev/null
+    train_args+=(--recording "$work/train$j")
+    printf '%d\t%.3f\t%.3f\t%s\t%s\t%d\n' "$idx" "$(awk -v t="$t_s" 'BEGIN { print t / 3600 }')" \
+      "$(awk -v t="$t_s" 'BEGIN { print sin(2 * 3.141592653589793 * t / 28800) }')" "$c_start" \
+      "$([[ $pz -eq 1 ]] && echo yes || echo no)" $((train_seed + j)) >>"$out/train_pieces.tsv"
+    j=$((j + 1))
+  done <"$work/train_pieces.txt"
+  "$ptda" train "${train_args[@]}" --config "$pipeline" --out "$work/baseline.bin" >"$out/train.txt"
+  for ((i = 0; i < j; ++i)); do rm -rf "$work/train$i"; done
+else
+  echo "drift_soak: PTDA_SOAK_TRAIN must be day or short, not '$train_recipe'" >&2; exit 2
+fi
 
 # --- ptdad drop-in: replay the current piece at fast pace -------------------------------------------
 mkdir -p "$work/ptdad.d" "$work/status"

@@ -257,6 +257,8 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     get(r, "holdout_fraction", cfg_.thresholds.holdout_fraction, 0.0, 0.9);
     // Floor on the between-day sd of the features, relative to the within-day sd (docs/method.md §5).
     get(r, "day_sd_floor", cfg_.thresholds.day_sd_floor, 0.0, 10.0);
+    // Bands that cover each training recording's own band (docs/method.md §5, session 9).
+    get(r, "cover_recordings", cfg_.thresholds.cover_recordings);
     r.finish();
   }
 
@@ -481,6 +483,7 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "confidence = " << shortest(cfg.thresholds.confidence) << "\n"
      << "holdout_fraction = " << shortest(cfg.thresholds.holdout_fraction) << "\n"
      << "day_sd_floor = " << shortest(cfg.thresholds.day_sd_floor) << "\n"
+     << "cover_recordings = " << (cfg.thresholds.cover_recordings ? "true" : "false") << "\n"
      << "\n[decision]\nk = " << cfg.decision.k << "\nn = " << cfg.decision.n << "\n"
      << "sequential = \"" << (cfg.decision.sequential.enabled ? "cusum" : "off") << "\"\n"
      << "cusum_k = " << shortest(cfg.decision.sequential.k) << "\n"

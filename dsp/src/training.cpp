@@ -189,6 +189,35 @@ SeqScale sequential_scale(const ClassBaseline& c, Method method, const Threshold
   return s;
 }
 
+Band cover_recordings(const Band& pooled, std::span<const double> values,
+                      std::span<const std::uint32_t> recordings, const ThresholdPolicy& policy,
+                      FeatureScale scale) {
+  if (!recordings.empty() && recordings.size() != values.size()) {
+    throw Error("cover_recordings: " + std::to_string(recordings.size()) + " recording ids for " +
+                std::to_string(values.size()) + " values");
+  }
+  if (recordings.empty()) return pooled;
+  std::map<std::uint32_t, std::vector<double>> by_recording;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (scale == FeatureScale::kLog && !(values[i] > 0.0)) continue;  // as the pooled log model
+    by_recording[recordings[i]].push_back(values[i]);
+  }
+  if (by_recording.size() < 2) return pooled;
+  Band b = pooled;
+  for (const auto& [id, v] : by_recording) {
+    if (v.size() < 3) continue;
+    Band r;
+    try {
+      r = fit_band(v, policy, scale);
+    } catch (const Error& e) {
+      throw Error("cover_recordings: recording " + std::to_string(id) + ": " + e.what());
+    }
+    b.lo = std::min(b.lo, r.lo);
+    b.hi = std::max(b.hi, r.hi);
+  }
+  return b;
+}
+
 Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale,
               double day_ratio, double within_ratio) {
   if (values.size() < 2) {
@@ -495,6 +524,12 @@ ClassBaseline ClassBaselineBuilder::finish() {
           fit_band(entropy_values[mi], policy, FeatureScale::kLinear,
                    ratio(day.entropy_between_sd, day.entropy_within_sd),
                    within(day.entropy_within_sd, feature_stats(entropy_values[mi]).stddev));
+      if (policy.cover_recordings && ve.groups >= 2) {
+        cls.thresholds[mi].rms = cover_recordings(cls.thresholds[mi].rms, rms_values[mi], value_recording,
+                                                  policy, FeatureScale::kLog);
+        cls.thresholds[mi].entropy = cover_recordings(cls.thresholds[mi].entropy, entropy_values[mi],
+                                                      value_recording, policy, FeatureScale::kLinear);
+      }
     } catch (const Error& e) {
       throw Error(what + ": " + e.what());
     }

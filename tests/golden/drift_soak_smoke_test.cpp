@@ -53,6 +53,23 @@ std::vector<Piece> run_soak(const std::string& name, const std::string& env, con
     pieces.push_back(p);
   }
   EXPECT_TRUE(fs::exists(out / "summary.md"));
+  // The default baseline recipe (PTDA_SOAK_TRAIN=day): 8 pieces of another simulated day, seeds from
+  // 900001 (never the evaluation's 1, 2, ...), the first at the cold start.
+  std::istringstream train(read_file(out / "train_pieces.tsv"));
+  std::getline(train, line);  // header
+  int train_pieces = 0;
+  while (std::getline(train, line)) {
+    std::istringstream f(line);
+    std::string idx, drift_h, load, coldness, pause;
+    long seed = 0;
+    f >> idx >> drift_h >> load >> coldness >> pause >> seed;
+    EXPECT_EQ(seed, 900001 + train_pieces) << line;
+    if (train_pieces == 0) {
+      EXPECT_EQ(coldness, "1.000000") << line;
+    }
+    ++train_pieces;
+  }
+  EXPECT_EQ(train_pieces, 8);
   return pieces;
 }
 

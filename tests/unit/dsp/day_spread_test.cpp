@@ -6,6 +6,7 @@
 //    6.153846153846153; one group {1, 2, 3, 4, 6}: sample variance 3.7.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -213,6 +214,90 @@ TEST(BuildClassBaseline, DaySpreadFromSeveralRecordings) {
   EXPECT_NEAR(std::log(one.thresholds[raw].rms.hi) - m,
               std::sqrt(1.09) * (std::log(none.thresholds[raw].rms.hi) - m), 1e-9);
   EXPECT_THROW((void)build_class_baseline(SegmentClass{}, w, {}, p, std::vector<std::uint32_t>{0, 1}), Error);
+}
+
+// Bands that cover each training recording (ThresholdPolicy::cover_recordings, docs/method.md §5).
+// Reference numbers: python3 (Debian 12), statistics.NormalDist / mean / stdev:
+//  - Gaussian, alpha 0.05 (z = 1.959963984540054): {1, 2, 3, 4, 5} -> [-0.09897516152280739,
+//    6.098975161522807]; {3, 5, 7, 9, 11} -> [0.8020496769543852, 13.197950323045614];
+//  - Tolerance on ln, alpha 1e-3, confidence 0.9, n 6 (Natrella: k1 = 5.3015245165346805):
+//    {0.9, 1.0, 1.1, 1.2, 1.3, 0.95} -> [0.5029034856386652, 2.2594868615475074].
+TEST(CoverRecordings, UnionOfThePooledBandAndEachRecordingsOwnBand) {
+  ThresholdPolicy p;
+  p.kind = ThresholdPolicy::Kind::kGaussian;
+  p.false_alarm_rate = 0.05;
+  const std::vector<double> v = {1, 2, 3, 4, 5, 3, 5, 7, 9, 11, 100, 200};
+  const std::vector<std::uint32_t> r = {4, 4, 4, 4, 4, 9,
+                                        9, 9, 9, 9, 7, 7};  // recording 7: 2 values, skipped
+  const Band b = cover_recordings(Band{2.0, 6.0}, v, r, p);
+  EXPECT_NEAR(b.lo, -0.09897516152280739, 1e-12);  // recording 4's own lower end
+  EXPECT_NEAR(b.hi, 13.197950323045614, 1e-12);    // recording 9's own upper end
+  // A pooled band that already covers both stays as it is.
+  const Band wide = cover_recordings(Band{-1.0, 20.0}, v, r, p);
+  EXPECT_EQ(wide.lo, -1.0);
+  EXPECT_EQ(wide.hi, 20.0);
+  // One recording (no ids, or one distinct id) returns the pooled band unchanged.
+  const std::vector<double> a = {1, 2, 3, 4, 5};
+  const Band one = cover_recordings(Band{2.0, 6.0}, a, {}, p);
+  EXPECT_EQ(one.lo, 2.0);
+  EXPECT_EQ(one.hi, 6.0);
+  const Band same = cover_recordings(Band{2.0, 6.0}, a, std::vector<std::uint32_t>(5, 3), p);
+  EXPECT_EQ(same.hi, 6.0);
+  EXPECT_THROW((void)cover_recordings(Band{2.0, 6.0}, a, std::vector<std::uint32_t>{0, 1}, p), Error);
+}
+
+TEST(CoverRecordings, LogToleranceOfEachRecording) {
+  ThresholdPolicy p;  // tolerance, alpha 1e-3, confidence 0.9
+  const std::vector<double> v = {1.0, 1.01, 0.99, 1.0, 1.02, 0.98, 0.9, 1.0, 1.1, 1.2, 1.3, 0.95};
+  const std::vector<std::uint32_t> r = {0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1};
+  const Band b = cover_recordings(Band{0.8, 1.25}, v, r, p, FeatureScale::kLog);
+  EXPECT_NEAR(b.lo, 0.5029034856386652, 1e-6);  // the Phi^-1 of the code agrees with python to ~1e-15;
+  EXPECT_NEAR(b.hi, 2.2594868615475074, 1e-6);  // Natrella's k1 is the same closed form
+}
+
+TEST(BuildClassBaseline, CoverRecordingsWidensOnlyForARecordingOutsideThePooledBand) {
+  constexpr std::size_t kN = 256;
+  // Four days of 10 windows; the last one spreads far more within the day (levels alternate x/÷ 1.35:
+  // ln +-0.3 against ~0.044 for 256 noise samples), as the top of a load cycle did in the drift soak.
+  std::vector<double> level;
+  std::vector<std::uint32_t> rec;
+  const std::vector<double> day_level = {1.0, 1.02, 0.98, 1.0};
+  for (std::uint32_t d = 0; d < 4; ++d)
+    for (int i = 0; i < 10; ++i) {
+      level.push_back(d == 3 ? (i % 2 == 0 ? 1.35 : 1.0 / 1.35) : day_level[d]);
+      rec.push_back(d);
+    }
+  const auto w = noise_windows(level, kN, 7);
+  ThresholdPolicy p;
+  const ClassBaseline pooled = build_class_baseline(SegmentClass{}, w, {}, p, rec);
+  p.cover_recordings = true;
+  const ClassBaseline cover = build_class_baseline(SegmentClass{}, w, {}, p, rec);
+  const auto raw = static_cast<std::size_t>(Method::kRaw);
+  // The raw rms_res of the fourth day's windows (leave-one-out against the others' mean: ~ its level).
+  std::vector<double> day4;
+  for (std::size_t i = 30; i < 40; ++i) {
+    double s = 0.0;
+    for (const float x : w[i]) s += static_cast<double>(x) * x;
+    day4.push_back(std::sqrt(s / kN));
+  }
+  std::printf("raw rms hi: pooled %.4f, covering %.4f; day 4 max %.4f\n", pooled.thresholds[raw].rms.hi,
+              cover.thresholds[raw].rms.hi, *std::max_element(day4.begin(), day4.end()));
+  EXPECT_GT(cover.thresholds[raw].rms.hi, pooled.thresholds[raw].rms.hi);
+  // Measured by this test (session 9; noise seed 7): the pooled hi 1.8030, the covering one 4.0770 (day
+  // 4's own one-sided tolerance limit exp(m + k1(10) s) with s ~ 0.3).
+  EXPECT_NEAR(pooled.thresholds[raw].rms.hi, 1.8030, 5e-4);
+  EXPECT_NEAR(cover.thresholds[raw].rms.hi, 4.0770, 5e-4);
+  EXPECT_LT(cover.thresholds[raw].rms.lo, pooled.thresholds[raw].rms.lo);
+  EXPECT_GE(cover.thresholds[raw].entropy.hi, pooled.thresholds[raw].entropy.hi);
+  EXPECT_LE(cover.thresholds[raw].entropy.lo, pooled.thresholds[raw].entropy.lo);
+  // The day spread (and so the CUSUM) is the same: only the bands change.
+  EXPECT_EQ(cover.day_spread[raw].log_rms_between_sd, pooled.day_spread[raw].log_rms_between_sd);
+  // One recording: identical bands.
+  const ClassBaseline one_cover = build_class_baseline(SegmentClass{}, w, {}, p);
+  p.cover_recordings = false;
+  const ClassBaseline one = build_class_baseline(SegmentClass{}, w, {}, p);
+  EXPECT_EQ(one_cover.thresholds[raw].rms.hi, one.thresholds[raw].rms.hi);
+  EXPECT_EQ(one_cover.thresholds[raw].entropy.lo, one.thresholds[raw].entropy.lo);
 }
 
 }  // namespace

@@ -68,6 +68,15 @@ struct ThresholdPolicy {
   /// docs/method.md §5; default measured there). With several recordings the random-effects estimate
   /// is used instead. 0 = one recording is taken to show the whole spread (the session-6 bands).
   double day_sd_floor = 0.3;
+  /// Cover each training recording (`[thresholds] cover_recordings`, docs/method.md §5, session 9): with
+  /// two or more recordings, each band is the union of the pooled band (above) and, per recording, the
+  /// band fitted on that recording's leave-one-out values alone (same method, no between-day widening).
+  /// The pooled model assumes one within-day sd for every day and Gaussian day offsets; a healthy
+  /// recording whose spread is larger or whose level is further out (e.g. the top of a load cycle) then
+  /// lies partly outside the pooled band, i.e. the baseline would flag its own healthy training data.
+  /// Off by default (results on other corpora were measured without it). Not stored in the baseline
+  /// file; the bands it gives are.
+  bool cover_recordings = false;
 };
 
 /// Within- and between-day (between-recording) spread of one method's features in one class

@@ -88,6 +88,16 @@ enum class FeatureScale : std::uint8_t {
                             FeatureScale scale = FeatureScale::kLinear, double day_ratio = 0.0,
                             double within_ratio = 1.0);
 
+/// The band `pooled` widened to cover each recording's own band (ThresholdPolicy::cover_recordings,
+/// docs/method.md §5): for every recording id in `recordings` with at least 3 values (for kLog: 3 values
+/// > 0), fit_band(those values, policy, scale) with no between-day widening; the result is
+/// [min(lo), max(hi)] over `pooled` and these bands. `recordings` gives the recording of each value
+/// (same size as values; empty = one recording, which returns `pooled` unchanged, as does one distinct
+/// id). Throws ptda::Error on a size mismatch or as fit_band. Thread: any. Allocates.
+[[nodiscard]] Band cover_recordings(const Band& pooled, std::span<const double> values,
+                                    std::span<const std::uint32_t> recordings, const ThresholdPolicy& policy,
+                                    FeatureScale scale = FeatureScale::kLinear);
+
 /// Problems with the amount of training data for the policy's false-alarm rate, one sentence each,
 /// saying how many windows would be needed: kQuantile needs n >= 2 / alpha leave-one-out values per
 /// class (else the band is the sample range); kGaussian and kTolerance warn when the tolerance factor
