@@ -139,6 +139,20 @@ struct CounterDesc {
   std::string_view help;
   std::uint64_t StatusSnapshot::*field;
 };
+// The event history's counters ([history]; only while it is on, so not one of kCounterGroups).
+constexpr CounterDesc kHistoryCounters[] = {
+    {"lines", "ptda_history_lines_total", "Lines written to the event history.",
+     &StatusSnapshot::history_lines},
+    {"write_failures", "ptda_history_write_failures_total",
+     "Event history lines lost to a failed open, write or rotation (counted, not retried).",
+     &StatusSnapshot::history_write_failures},
+    {"rotation_failures", "ptda_history_rotation_failures_total",
+     "Rotations that could not move the current history file aside (the history stopped at its bound).",
+     &StatusSnapshot::history_rotation_failures},
+    {"windows_dropped", "ptda_history_windows_dropped_total",
+     "Windows the history's hand-over ring could not hold (the supervisor was late).",
+     &StatusSnapshot::history_windows_dropped},
+};
 struct CounterGroup {
   std::string_view json_key;
   std::span<const CounterDesc> counters;
@@ -400,10 +414,7 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
   if (s.history_enabled) {
     j.key("history");
     j.open('{');
-    j.u64("lines", s.history_lines);
-    j.u64("write_failures", s.history_write_failures);
-    j.u64("rotation_failures", s.history_rotation_failures);
-    j.u64("windows_dropped", s.history_windows_dropped);
+    for (const CounterDesc& c : kHistoryCounters) j.u64(c.json_key, s.*c.field);
     j.i64("last_errno", s.history_last_errno);
     j.close('}');
   } else {
@@ -665,13 +676,7 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     p.sample("ptda_can_bus_state", {{"state", can_bus_state_name(st)}}, st == s.can_bus_state ? 1.0 : 0.0);
   }
   if (s.history_enabled) {
-    p.counter("ptda_history_lines_total", "Lines written to the event history.", s.history_lines);
-    p.counter("ptda_history_write_failures_total",
-              "Event history lines lost to a failed open, write or rotation (counted, not retried).",
-              s.history_write_failures);
-    p.counter("ptda_history_windows_dropped_total",
-              "Windows the history's hand-over ring could not hold (the supervisor was late).",
-              s.history_windows_dropped);
+    for (const CounterDesc& c : kHistoryCounters) p.counter(c.prom_name, c.help, s.*c.field);
   }
   render_state_files_prom(p, files);
 }

@@ -690,9 +690,7 @@ SpeedScaleEstimate estimate_speed_scale(const ProbeSet& ps, const ProbeContext& 
         for (std::size_t q = b > 40 ? b - 40 : 1; q <= b + 40 && q + 1 < p.size(); ++q)
           if (q + 3 < b || q > b + 3) around.push_back(p[q]);
         if (around.size() < 20) continue;
-        std::nth_element(around.begin(), around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2),
-                         around.end());
-        if (db(p[b]) - db(around[around.size() / 2]) < 12.0) continue;
+        if (db(p[b]) - db(median_of(std::move(around))) < 12.0) continue;
         const double f = interp_peak(p, b) * df;
         rw.push_back({f / f0 - 1.0, (f0 / df) * (f0 / df)});
       }

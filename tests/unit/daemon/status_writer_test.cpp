@@ -770,6 +770,8 @@ TEST(StatusWriter, EventHistoryCountersInStatusAndMetricsWhenItIsOn) {
             std::vector<std::string>{"ptda_history_write_failures_total 7"});
   EXPECT_EQ(test::prom_samples(text, "ptda_history_windows_dropped_total"),
             std::vector<std::string>{"ptda_history_windows_dropped_total 3"});
+  EXPECT_EQ(test::prom_samples(text, "ptda_history_rotation_failures_total"),
+            std::vector<std::string>{"ptda_history_rotation_failures_total 1"});
   StatusWriter j(json_only(scratch("history_json")));
   const std::string json(j.render_json(s));
   EXPECT_NE(json.find(R"("history":{"lines":1234,"write_failures":7,"rotation_failures":1,)"
