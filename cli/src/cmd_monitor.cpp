@@ -35,6 +35,10 @@ std::string relation(double v, const dsp::Band& b) {
 }  // namespace
 
 std::string window_json(const dsp::WindowResult& w, dsp::Method method) {
+  return window_json(w, method, dsp::Domain::kTime);
+}
+
+std::string window_json(const dsp::WindowResult& w, dsp::Method method, dsp::Domain domain) {
   JsonObject o;
   o.add("n", static_cast<std::uint64_t>(w.ref.seq));
   o.add("t_start", ns_to_seconds(w.ref.t_start_ns));
@@ -45,6 +49,8 @@ std::string window_json(const dsp::WindowResult& w, dsp::Method method) {
   o.add("speed_rad_s", w.ref.speed_rad_s);
   o.add("status", scored ? "scored" : "no_class");
   o.add("method", dsp::method_name(method));
+  // The order domain is marked; time-domain lines stay as they were (no key).
+  if (domain == dsp::Domain::kOrder) o.add("domain", dsp::domain_name(domain));
   if (scored) {
     o.add("rms_res", w.features.rms_res);
     o.add("entropy_res", w.features.entropy_res);
@@ -380,10 +386,10 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   opts.progress_label = "monitor " + in.rec.dir.filename().string();
   opts.config_source = in.config_path;
   const auto print_table_head = [&](std::size_t selected) {
-    out << "monitor " << in.rec.dir.string() << " with " << dsp::method_name(method) << " against "
-        << in.baseline_path << " (" << in.baseline.classes.size()
-        << " classes, N = " << in.baseline.window_len << ", alarm " << in.cfg.decision.k << " of "
-        << in.cfg.decision.n << ")\n";
+    out << "monitor " << in.rec.dir.string() << " with " << dsp::method_name(method)
+        << (in.cfg.domain == dsp::Domain::kOrder ? " (order domain)" : "") << " against " << in.baseline_path
+        << " (" << in.baseline.classes.size() << " classes, N = " << in.baseline.window_len << ", alarm "
+        << in.cfg.decision.k << " of " << in.cfg.decision.n << ")\n";
     if (!range.whole()) out << "windows " << a.value("windows") << ": " << selected << " windows\n";
     out << window_table_header();
   };
@@ -395,7 +401,7 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   std::size_t judged = 0;
   const auto emit = [&](const dsp::WindowResult& w) {
     if (table) out << window_table_row(w, in.rec.t0_ns, in.cfg.decision.n);
-    if (jsonl != nullptr) *jsonl << window_json(w, method) << "\n";
+    if (jsonl != nullptr) *jsonl << window_json(w, method, in.cfg.domain) << "\n";
     summarize_add(summary, w);
     judged_span.add(w);
     judged += w.status == dsp::WindowStatus::kScored ? 1 : 0;
@@ -423,6 +429,15 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   }
   if (jsonl_path != "-") {
     print_summary(out, summary, r.slicer, r.can, method);
+    if (r.domain == dsp::Domain::kOrder) {
+      // The slicer line above is all zero in the order domain: the resampler's counters instead.
+      const dsp::AngleResamplerCounters& rc = r.resampler;
+      out << "  domain     order: " << r.order_windows_cut << " windows of " << in.cfg.order.revolutions
+          << " revolutions x " << in.cfg.order.samples_per_rev << " samples; resampler " << rc.frames
+          << " angle frames, " << rc.breaks << " breaks, " << rc.frames_no_angle << " frames without angle, "
+          << rc.angle_inconsistent << " inconsistent angle steps, " << rc.samples_overrun
+          << " samples overrun, " << rc.outputs_dropped << " outputs dropped\n";
+    }
     print_coverage(out, r.coverage, in.baseline, opts.coverage_timeout_s, in.rec.t0_ns);
   }
   // With the JSONL on stdout the warnings go to stderr, so the JSONL stays clean.

@@ -36,6 +36,213 @@ std::string stats_text(const dsp::FeatureStats& s) {
   return "mean " + general(s.mean, 5) + " sd " + general(s.stddev, 3) + " (n " + std::to_string(s.n) + ")";
 }
 
+// The summary of a written baseline (both domains).
+int print_trained(std::ostream& out, const std::string& out_path, const dsp::Baseline& baseline,
+                  const config::PipelineConfig& cfg, double fs_hz, const std::vector<std::string>& dropped) {
+  if (baseline.domain == dsp::Domain::kOrder) {
+    out << "baseline " << out_path << " (order domain): " << baseline.classes.size()
+        << " speed class(es), N = " << baseline.window_len << " angle samples (" << baseline.revolutions
+        << " input-shaft revolutions of " << baseline.samples_per_rev << " samples)\n";
+  } else {
+    out << "baseline " << out_path << ": " << baseline.classes.size()
+        << " segment class(es), N = " << baseline.window_len << " samples ("
+        << fixed(1000.0 * baseline.window_len / fs_hz, 1) << " ms) at " << general(fs_hz, 10) << " Hz\n";
+  }
+  out << "  threshold policy: " << config::threshold_kind_name(baseline.policy.kind) << ", false-alarm rate "
+      << general(baseline.policy.false_alarm_rate) << " per window and feature, margin "
+      << general(baseline.policy.margin);
+  if (baseline.policy.kind == dsp::ThresholdPolicy::Kind::kTolerance)
+    out << ", confidence " << general(baseline.policy.confidence) << " (rms_res on a log scale)";
+  out << ", hold-out " << general(baseline.policy.holdout_fraction) << " of each class's latest cycles\n";
+  if (baseline.policy.ptda_line_gain) {
+    out << "  PTDA line gain: on (a gain per window on each line group of the healthy spectrum; groups per "
+           "class:";
+    for (const auto& c : baseline.classes) out << " " << c.line_groups.size();
+    out << ")\n";
+  }
+  if (baseline.policy.ptda_floor_gain)
+    out << "  PTDA floor gain: on (the floor outside the line groups gets the window's median gain; rms_res "
+           "is referred to the training floor)\n";
+  const dsp::SequentialConfig& seq = cfg.decision.sequential;
+  out << "  decision: alarm when " << cfg.decision.k << " of the last " << cfg.decision.n
+      << " windows are abnormal";
+  if (seq.enabled) {
+    out << " or a class's CUSUM reaches " << general(seq.h_alarm) << " (warning " << general(seq.h_warn)
+        << ", k " << general(seq.k) << ")";
+  }
+  out << "\n";
+  for (const auto& c : baseline.classes) {
+    const auto& s = c.segment;
+    out << "class " << s.id << ": direction " << (s.direction < 0 ? "-" : "+") << ", speed "
+        << fixed(s.speed_rad_s, 4) << " +- " << fixed(s.speed_tol_rad_s, 4) << " rad/s, duration "
+        << fixed(s.duration_s, 3) << " s, " << s.regions << " regions, " << c.n_windows << " windows\n";
+    for (std::size_t m = 0; m < dsp::kMethodCount; ++m) {
+      const auto method = static_cast<dsp::Method>(m);
+      out << "  " << pad_right(std::string(dsp::method_name(method)), 4) << "  rms_res "
+          << pad_right(band_text(c.thresholds[m].rms), 22) << " " << stats_text(c.rms_stats[m])
+          << "\n        entropy " << pad_right(band_text(c.thresholds[m].entropy), 22) << " "
+          << stats_text(c.entropy_stats[m]) << "\n";
+      const dsp::DaySpread& d = c.day_spread[m];
+      out << "        between days (" << d.recordings << " recording" << (d.recordings == 1 ? "" : "s")
+          << "): ln(rms_res) sd within " << general(d.log_rms_within_sd, 3) << ", between "
+          << general(d.log_rms_between_sd, 3)
+          << (d.recordings > 1 ? " (estimate " + general(d.log_rms_between_est, 3) + " pooled with the prior)"
+                               : std::string(" (prior: day_sd_floor x within)"))
+          << "; entropy sd within " << general(d.entropy_within_sd, 3) << ", between "
+          << general(d.entropy_between_sd, 3)
+          << (d.recordings > 1 ? " (estimate " + general(d.entropy_between_est, 3) + " pooled with the prior)"
+                               : std::string(" (prior: day_sd_floor x within)"))
+          << "\n";
+      const dsp::SeqScale zs = dsp::sequential_scale(c, method, baseline.policy, seq.day_allowance);
+      const dsp::HoldoutStats& h = c.holdout[m];
+      if (h.windows > 0) {
+        const double frac = static_cast<double>(h.abnormal) / h.windows;
+        out << "        hold-out: " << h.abnormal << " of " << h.windows << " healthy windows abnormal ("
+            << general(100.0 * frac, 3) << " %, " << general(frac * c.windows_per_hour, 3) << " per hour at "
+            << general(c.windows_per_hour, 4) << " windows/h; rms high " << h.rms_high << ", entropy "
+            << h.entropy_out << "), low residual " << h.rms_low;
+        if (h.abnormal == 0) out << "; rate <= " << general(3.0 / h.windows, 3) << " per window (95 %)";
+        out << "\n";
+        if (seq.enabled && h.windows >= 3 && h.z_rms_sd > 0.0 && h.z_entropy_sd > 0.0) {
+          const double warn = dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean, h.z_entropy_sd,
+                                                   seq.k, seq.h_warn, zs.rms_allowance, zs.entropy_allowance);
+          const double alarm =
+              dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean, h.z_entropy_sd, seq.k,
+                                   seq.h_alarm, zs.rms_allowance, zs.entropy_allowance);
+          const double per_day = 24.0 * c.windows_per_hour;
+          out << "        CUSUM on the hold-out (z_rms mean " << general(h.z_rms_mean, 3) << " sd "
+              << general(h.z_rms_sd, 3) << ", z_entropy mean " << general(h.z_entropy_mean, 3) << " sd "
+              << general(h.z_entropy_sd, 3) << "): ARL " << general(warn, 3) << " / " << general(alarm, 3)
+              << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
+              << general(per_day / alarm, 3) << "\n";
+        }
+      }
+    }
+    if (seq.enabled) {
+      // Nominal: standardised healthy features ~ N(0, 1), no day offset.
+      const dsp::SeqScale zs = dsp::sequential_scale(c, method_of(cfg), baseline.policy, seq.day_allowance);
+      const double per_day = 24.0 * c.windows_per_hour;
+      const double warn =
+          dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_warn, zs.rms_allowance, zs.entropy_allowance);
+      const double alarm = dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_alarm, zs.rms_allowance,
+                                                zs.entropy_allowance);
+      out << "  CUSUM (" << dsp::method_name(method_of(cfg)) << "): allowance k " << general(seq.k)
+          << " + between days " << general(zs.rms_allowance, 3) << " (z_rms) / "
+          << general(zs.entropy_allowance, 3) << " (z_entropy) = " << general(seq.day_allowance)
+          << " between-day sd x sqrt(1 + 1/days) over the within-day sd\n";
+      out << "  CUSUM nominal (z ~ N(0, 1)): ARL " << general(warn, 3) << " / " << general(alarm, 3)
+          << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
+          << general(per_day / alarm, 3) << " at " << general(per_day, 4) << " windows/day\n";
+    }
+  }
+  for (const std::string& w : dsp::training_warnings(baseline)) out << "warning: " << w << "\n";
+  for (const std::string& d : dropped) out << "warning: no class for " << d << ": dropped, never judged\n";
+  return kExitOk;
+}
+
+// `ptda train` in the order domain (docs/method.md §9): every recording through the angle resampler and
+// the order window cutter (one pass, windows kept in memory: 4 R S bytes each), then
+// train_order_baseline (speed-band classes, the time domain's per-class training and thresholds).
+int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const std::string& config_path,
+                const FractionRange& range, std::ostream& out) {
+  dsp::OrderWindows all;
+  std::string source = "ptda train";
+  double fs_hz = 0.0;
+  std::string first_recording;
+  struct Span {
+    dsp::TrainingRecording rec;
+    std::size_t begin = 0, end = 0;
+  };
+  std::vector<Span> spans;
+  double recorded_s = 0.0;
+  for (const auto& dir : a.values("recording")) {
+    const RecordingInfo rec = open_recording(dir);
+    const double fs = pipeline_fs_hz(rec, cfg, config_path);
+    if (fs_hz == 0.0) {
+      fs_hz = fs;
+      first_recording = dir;
+    } else if (fs != fs_hz) {
+      throw Error(rec.wav_path.string() + ": sampled at " + general(fs, 10) + " Hz but " + first_recording +
+                  " at " + general(fs_hz, 10) + " Hz (all training recordings need one rate)");
+    }
+    recorded_s += rec.duration_s;
+    RunOptions opts;
+    opts.config_source = config_path;
+    opts.progress_label = "train " + rec.dir.filename().string() + " (order domain)";
+    OrderCollectResult c = collect_order_windows(rec, cfg, fs, opts);
+    const dsp::AngleResamplerCounters& rc = c.resampler;
+    out << "recording " << dir << ": " << fixed(rec.duration_s, 2) << " s at " << general(fs, 10) << " Hz, "
+        << c.data.refs.size() << " order windows (" << cfg.order.revolutions << " revolutions of "
+        << cfg.order.samples_per_rev << " samples)\n";
+    out << "  resampler: " << rc.frames << " angle frames, " << rc.breaks << " breaks, " << rc.frames_no_angle
+        << " frames without angle, " << rc.angle_inconsistent << " inconsistent angle steps, "
+        << rc.frames_out_of_order << " out of order; CAN: " << c.can.frames << " frames, "
+        << c.can.speed_frames << " speed\n";
+    source += " --recording " + dir;
+    Span span;
+    span.rec.id = recording_id(rec);
+    span.rec.path = dir;
+    span.begin = all.refs.size();
+    append_order_windows(all, std::move(c.data));
+    span.end = all.refs.size();
+    spans.push_back(span);
+  }
+  source += " --config " + config_path;
+  const std::size_t first = static_cast<std::size_t>(range.first(all.refs.size()));
+  const std::size_t last = static_cast<std::size_t>(range.last(all.refs.size()));
+  std::vector<dsp::TrainingRecording> training;
+  for (Span& sp : spans) {
+    const std::size_t b = std::max(sp.begin, first);
+    const std::size_t e = std::min(sp.end, last);
+    if (b >= e) continue;
+    sp.rec.from_unix_s = ns_to_seconds(all.refs[b].t_start_ns);
+    sp.rec.to_unix_s = ns_to_seconds(all.refs[b].t_end_ns);
+    for (std::size_t i = b; i < e; ++i) {
+      sp.rec.from_unix_s = std::min(sp.rec.from_unix_s, ns_to_seconds(all.refs[i].t_start_ns));
+      sp.rec.to_unix_s = std::max(sp.rec.to_unix_s, ns_to_seconds(all.refs[i].t_end_ns));
+    }
+    sp.rec.windows = static_cast<std::uint32_t>(e - b);
+    training.push_back(sp.rec);
+  }
+  if (!range.whole()) {
+    const std::size_t n = all.refs.size();
+    dsp::OrderWindows kept;
+    for (std::size_t i = first; i < last; ++i) {
+      kept.refs.push_back(all.refs[i]);
+      kept.windows.push_back(std::move(all.windows[i]));
+      kept.recording.push_back(all.recording[i]);
+    }
+    all = std::move(kept);
+    out << "windows " << a.value("windows") << ": kept " << all.refs.size() << " of " << n << " windows\n";
+    source += " --windows " + a.value("windows");
+  }
+  if (all.refs.empty()) {
+    out << "error: no order windows in the training recording(s) (" << cfg.order.revolutions
+        << " revolutions of " << cfg.order.samples_per_rev
+        << " samples): no unbroken run of motion that long; check the CAN angle and [extraction] "
+           "revolutions\n";
+    return kExitNotJudged;
+  }
+  dsp::AngleResamplerConfig rc = config::angle_resampler_config(cfg);
+  const dsp::OrderWindowConfig oc = config::order_window_config(cfg, dsp::AngleResampler::pass_order_of(rc));
+  std::vector<std::string> dropped;
+  dsp::Baseline baseline =
+      dsp::train_order_baseline(all, oc, cfg.order.speed_band_rel, cfg.thresholds, cfg.gearbox, &dropped);
+  // Windows per hour of recording, for the CUSUM's false-alarm rates per day (the time domain counts the
+  // same; with --windows the kept fraction of the recorded time).
+  const double kept_s = recorded_s * (range.whole() ? 1.0 : range.to - range.from);
+  if (kept_s > 0.0) {
+    for (dsp::ClassBaseline& c : baseline.classes) c.windows_per_hour = c.n_windows / (kept_s / 3600.0);
+  }
+  baseline.domain = dsp::Domain::kOrder;
+  baseline.samples_per_rev = cfg.order.samples_per_rev;
+  baseline.revolutions = cfg.order.revolutions;
+  baseline.source = source;
+  baseline.training = training;
+  formats::write_baseline(a.value("out"), baseline);
+  return print_trained(out, a.value("out"), baseline, cfg, fs_hz, dropped);
+}
+
 }  // namespace
 
 int cmd_train(std::span<const std::string> args, std::ostream& out) {
@@ -60,6 +267,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   const std::string config_path = a.value("config");
   const config::PipelineConfig cfg = config::load_pipeline_config(config_path);
   for (const std::string& w : cfg.warnings) std::cerr << "warning: " << w << "\n";
+  if (cfg.domain == dsp::Domain::kOrder) return train_order(a, cfg, config_path, range, out);
 
   dsp::CollectedWindows all;
   double fs_hz = 0.0;
@@ -206,99 +414,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   baseline.training = training;
   formats::write_baseline(a.value("out"), baseline);
 
-  out << "baseline " << a.value("out") << ": " << baseline.classes.size()
-      << " segment class(es), N = " << baseline.window_len << " samples ("
-      << fixed(1000.0 * baseline.window_len / fs_hz, 1) << " ms) at " << general(fs_hz, 10) << " Hz\n";
-  out << "  threshold policy: " << config::threshold_kind_name(baseline.policy.kind) << ", false-alarm rate "
-      << general(baseline.policy.false_alarm_rate) << " per window and feature, margin "
-      << general(baseline.policy.margin);
-  if (baseline.policy.kind == dsp::ThresholdPolicy::Kind::kTolerance)
-    out << ", confidence " << general(baseline.policy.confidence) << " (rms_res on a log scale)";
-  out << ", hold-out " << general(baseline.policy.holdout_fraction) << " of each class's latest cycles\n";
-  if (baseline.policy.ptda_line_gain) {
-    out << "  PTDA line gain: on (a gain per window on each line group of the healthy spectrum; groups per "
-           "class:";
-    for (const auto& c : baseline.classes) out << " " << c.line_groups.size();
-    out << ")\n";
-  }
-  if (baseline.policy.ptda_floor_gain)
-    out << "  PTDA floor gain: on (the floor outside the line groups gets the window's median gain; rms_res "
-           "is referred to the training floor)\n";
-  const dsp::SequentialConfig& seq = cfg.decision.sequential;
-  out << "  decision: alarm when " << cfg.decision.k << " of the last " << cfg.decision.n
-      << " windows are abnormal";
-  if (seq.enabled) {
-    out << " or a class's CUSUM reaches " << general(seq.h_alarm) << " (warning " << general(seq.h_warn)
-        << ", k " << general(seq.k) << ")";
-  }
-  out << "\n";
-  for (const auto& c : baseline.classes) {
-    const auto& s = c.segment;
-    out << "class " << s.id << ": direction " << (s.direction < 0 ? "-" : "+") << ", speed "
-        << fixed(s.speed_rad_s, 4) << " +- " << fixed(s.speed_tol_rad_s, 4) << " rad/s, duration "
-        << fixed(s.duration_s, 3) << " s, " << s.regions << " regions, " << c.n_windows << " windows\n";
-    for (std::size_t m = 0; m < dsp::kMethodCount; ++m) {
-      const auto method = static_cast<dsp::Method>(m);
-      out << "  " << pad_right(std::string(dsp::method_name(method)), 4) << "  rms_res "
-          << pad_right(band_text(c.thresholds[m].rms), 22) << " " << stats_text(c.rms_stats[m])
-          << "\n        entropy " << pad_right(band_text(c.thresholds[m].entropy), 22) << " "
-          << stats_text(c.entropy_stats[m]) << "\n";
-      const dsp::DaySpread& d = c.day_spread[m];
-      out << "        between days (" << d.recordings << " recording" << (d.recordings == 1 ? "" : "s")
-          << "): ln(rms_res) sd within " << general(d.log_rms_within_sd, 3) << ", between "
-          << general(d.log_rms_between_sd, 3)
-          << (d.recordings > 1 ? " (estimate " + general(d.log_rms_between_est, 3) + " pooled with the prior)"
-                               : std::string(" (prior: day_sd_floor x within)"))
-          << "; entropy sd within " << general(d.entropy_within_sd, 3) << ", between "
-          << general(d.entropy_between_sd, 3)
-          << (d.recordings > 1 ? " (estimate " + general(d.entropy_between_est, 3) + " pooled with the prior)"
-                               : std::string(" (prior: day_sd_floor x within)"))
-          << "\n";
-      const dsp::SeqScale zs = dsp::sequential_scale(c, method, baseline.policy, seq.day_allowance);
-      const dsp::HoldoutStats& h = c.holdout[m];
-      if (h.windows > 0) {
-        const double frac = static_cast<double>(h.abnormal) / h.windows;
-        out << "        hold-out: " << h.abnormal << " of " << h.windows << " healthy windows abnormal ("
-            << general(100.0 * frac, 3) << " %, " << general(frac * c.windows_per_hour, 3) << " per hour at "
-            << general(c.windows_per_hour, 4) << " windows/h; rms high " << h.rms_high << ", entropy "
-            << h.entropy_out << "), low residual " << h.rms_low;
-        if (h.abnormal == 0) out << "; rate <= " << general(3.0 / h.windows, 3) << " per window (95 %)";
-        out << "\n";
-        if (seq.enabled && h.windows >= 3 && h.z_rms_sd > 0.0 && h.z_entropy_sd > 0.0) {
-          const double warn = dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean, h.z_entropy_sd,
-                                                   seq.k, seq.h_warn, zs.rms_allowance, zs.entropy_allowance);
-          const double alarm =
-              dsp::class_cusum_arl(h.z_rms_mean, h.z_rms_sd, h.z_entropy_mean, h.z_entropy_sd, seq.k,
-                                   seq.h_alarm, zs.rms_allowance, zs.entropy_allowance);
-          const double per_day = 24.0 * c.windows_per_hour;
-          out << "        CUSUM on the hold-out (z_rms mean " << general(h.z_rms_mean, 3) << " sd "
-              << general(h.z_rms_sd, 3) << ", z_entropy mean " << general(h.z_entropy_mean, 3) << " sd "
-              << general(h.z_entropy_sd, 3) << "): ARL " << general(warn, 3) << " / " << general(alarm, 3)
-              << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
-              << general(per_day / alarm, 3) << "\n";
-        }
-      }
-    }
-    if (seq.enabled) {
-      // Nominal: standardised healthy features ~ N(0, 1), no day offset.
-      const dsp::SeqScale zs = dsp::sequential_scale(c, method_of(cfg), baseline.policy, seq.day_allowance);
-      const double per_day = 24.0 * c.windows_per_hour;
-      const double warn =
-          dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_warn, zs.rms_allowance, zs.entropy_allowance);
-      const double alarm = dsp::class_cusum_arl(0.0, 1.0, 0.0, 1.0, seq.k, seq.h_alarm, zs.rms_allowance,
-                                                zs.entropy_allowance);
-      out << "  CUSUM (" << dsp::method_name(method_of(cfg)) << "): allowance k " << general(seq.k)
-          << " + between days " << general(zs.rms_allowance, 3) << " (z_rms) / "
-          << general(zs.entropy_allowance, 3) << " (z_entropy) = " << general(seq.day_allowance)
-          << " between-day sd x sqrt(1 + 1/days) over the within-day sd\n";
-      out << "  CUSUM nominal (z ~ N(0, 1)): ARL " << general(warn, 3) << " / " << general(alarm, 3)
-          << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
-          << general(per_day / alarm, 3) << " at " << general(per_day, 4) << " windows/day\n";
-    }
-  }
-  for (const std::string& w : dsp::training_warnings(baseline)) out << "warning: " << w << "\n";
-  for (const std::string& d : dropped) out << "warning: no class for " << d << ": dropped, never judged\n";
-  return kExitOk;
+  return print_trained(out, a.value("out"), baseline, cfg, fs_hz, dropped);
 }
 
 }  // namespace ptda::cli

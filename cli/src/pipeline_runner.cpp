@@ -15,6 +15,7 @@
 #include "ptda/common/time.hpp"
 #include "ptda/config/speed_codec.hpp"
 #include "ptda/dsp/decision.hpp"
+#include "ptda/dsp/frame_clock.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 #include "ptda/formats/baseline_file.hpp"
 #include "ptda/formats/candump.hpp"
@@ -317,7 +318,140 @@ class MonitorSink final : public PipelineSink {
   const WindowObserver& observer_;
 };
 
+// The order domain's front end: resampler and window cutter, fed like the slicer.
+class OrderFront {
+ public:
+  OrderFront(const config::PipelineConfig& cfg, double fs_hz, std::int64_t t0_ns)
+      : res_(config::angle_resampler_config(cfg), fs_hz, t0_ns),
+        cut_(config::order_window_config(cfg, res_.pass_order())),
+        buf_(cut_.window_len()),
+        clock_(cfg.speed_frame.period_s, cfg.order.can_time_smoothing_frames),
+        smooth_(cfg.order.can_time_smoothing_frames > 0) {}
+  void push_speed(dsp::SpeedSample s) {
+    if (smooth_) s.t_ns = clock_.smooth(s.t_ns);
+    res_.push_speed(s);
+  }
+  void push_samples(std::span<const float> block) { res_.push_samples(block); }
+  template <typename F>
+  void drain(F&& f) {
+    dsp::OrderSample o;
+    dsp::OrderWindowRef ref;
+    while (res_.pop(o)) {
+      if (cut_.push(o, ref, buf_)) f(ref, std::span<const float>(buf_));
+    }
+  }
+  [[nodiscard]] const dsp::AngleResamplerCounters& counters() const noexcept { return res_.counters(); }
+  [[nodiscard]] std::uint64_t windows() const noexcept { return cut_.windows(); }
+
+ private:
+  dsp::AngleResampler res_;
+  dsp::OrderWindowCutter cut_;
+  std::vector<float> buf_;
+  dsp::FrameClock clock_;
+  bool smooth_;
+};
+
+class OrderCollectSink final : public PipelineSink {
+ public:
+  OrderCollectSink(const config::PipelineConfig& cfg, double fs_hz, std::int64_t t0_ns)
+      : front_(cfg, fs_hz, t0_ns) {}
+  void on_speed(const dsp::SpeedSample& s) override { front_.push_speed(s); }
+  void on_samples(std::span<const float> block) override { front_.push_samples(block); }
+  void on_block_end() override { drain(); }
+  void on_finish() override { drain(); }
+  dsp::OrderWindows data;
+  [[nodiscard]] const OrderFront& front() const noexcept { return front_; }
+
+ private:
+  void drain() {
+    front_.drain([this](const dsp::OrderWindowRef& ref, std::span<const float> x) {
+      data.refs.push_back(ref);
+      data.windows.emplace_back(x.begin(), x.end());
+    });
+  }
+  OrderFront front_;
+};
+
+class OrderMonitorSink final : public PipelineSink {
+ public:
+  OrderMonitorSink(const config::PipelineConfig& cfg, double fs_hz, std::int64_t t0_ns,
+                   dsp::MonitorEngine& engine, dsp::CoverageTracker& coverage,
+                   std::vector<dsp::WindowResult>* out, const WindowObserver& observer)
+      : front_(cfg, fs_hz, t0_ns), engine_(engine), coverage_(coverage), out_(out), observer_(observer) {}
+  void on_speed(const dsp::SpeedSample& s) override {
+    front_.push_speed(s);
+    coverage_.on_speed(s);
+  }
+  void on_samples(std::span<const float> block) override { front_.push_samples(block); }
+  void on_block_end() override { drain(); }
+  void on_finish() override {
+    drain();
+    coverage_.finish();
+  }
+  [[nodiscard]] const OrderFront& front() const noexcept { return front_; }
+
+ private:
+  void drain() {
+    front_.drain([this](const dsp::OrderWindowRef& ref, std::span<const float> x) {
+      dsp::WindowResult r;
+      engine_.judge_window(window_ref_of(ref, x.size()), x, r);
+      if (observer_) observer_(r, engine_);
+      coverage_.on_window(r);
+      if (out_ != nullptr) out_->push_back(r);
+    });
+  }
+  OrderFront front_;
+  dsp::MonitorEngine& engine_;
+  dsp::CoverageTracker& coverage_;
+  std::vector<dsp::WindowResult>* out_;
+  const WindowObserver& observer_;
+};
+
 }  // namespace
+
+dsp::WindowRef window_ref_of(const dsp::OrderWindowRef& ref, std::size_t window_len) noexcept {
+  dsp::WindowRef w;
+  w.seq = ref.seq;
+  w.region_seq = ref.segment;
+  w.index_in_region =
+      window_len == 0 ? 0U : static_cast<std::uint32_t>(ref.k_start / static_cast<std::int64_t>(window_len));
+  w.first_sample = ref.k_start;
+  w.t_start_ns = ref.t_start_ns;
+  w.t_end_ns = ref.t_end_ns;
+  w.speed_rad_s = ref.joint_speed_rad_s;
+  return w;
+}
+
+OrderCollectResult collect_order_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                                         double fs_hz, const RunOptions& options) {
+  OrderCollectSink sink(cfg, fs_hz, rec.t0_ns);
+  OrderCollectResult result;
+  result.can = run_recording(rec, cfg, sink, options);
+  result.resampler = sink.front().counters();
+  result.data = std::move(sink.data);
+  return result;
+}
+
+void append_order_windows(dsp::OrderWindows& all, dsp::OrderWindows more) {
+  std::uint32_t recording = 0;
+  std::uint64_t seq_offset = 0, segment_offset = 0;
+  if (!all.refs.empty()) {
+    if (all.recording.size() != all.refs.size()) all.recording.assign(all.refs.size(), 0U);
+    for (const std::uint32_t r : all.recording) recording = std::max(recording, r + 1U);
+    for (const auto& r : all.refs) {
+      seq_offset = std::max(seq_offset, r.seq + 1);
+      segment_offset = std::max(segment_offset, r.segment + 1);
+    }
+  }
+  for (std::size_t i = 0; i < more.refs.size(); ++i) {
+    dsp::OrderWindowRef ref = more.refs[i];
+    ref.seq += seq_offset;
+    ref.segment += segment_offset;
+    all.refs.push_back(ref);
+    all.windows.push_back(std::move(more.windows[i]));
+    all.recording.push_back(recording);
+  }
+}
 
 CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg, double fs_hz,
                               const RunOptions& options, const CollectVisitor& visitor) {
@@ -390,6 +524,26 @@ dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const Fra
 void check_baseline_matches(const dsp::Baseline& baseline, const std::string& baseline_source,
                             const config::PipelineConfig& cfg, const std::string& config_source, double fs_hz,
                             const std::string& recording_source) {
+  if (baseline.domain != cfg.domain) {
+    throw Error(baseline_source + ": baseline was trained in the " + dsp::domain_name(baseline.domain) +
+                " domain but " + config_source + " sets [extraction] domain = \"" +
+                dsp::domain_name(cfg.domain) + "\": use the configuration it was trained with, or retrain");
+  }
+  if (cfg.domain == dsp::Domain::kOrder) {
+    if (baseline.samples_per_rev != cfg.order.samples_per_rev ||
+        baseline.revolutions != cfg.order.revolutions) {
+      throw Error(baseline_source +
+                  ": order baseline has samples_per_rev = " + std::to_string(baseline.samples_per_rev) +
+                  ", revolutions = " + std::to_string(baseline.revolutions) + " but " + config_source +
+                  " sets [extraction] samples_per_rev = " + std::to_string(cfg.order.samples_per_rev) +
+                  ", revolutions = " + std::to_string(cfg.order.revolutions));
+    }
+    if (std::abs(baseline.gearbox.ratio - cfg.gearbox.ratio) > 1e-9 * cfg.gearbox.ratio) {
+      throw Error(baseline_source + ": order baseline was trained with gearbox ratio " +
+                  num(baseline.gearbox.ratio) + " but " + config_source + " gives " + num(cfg.gearbox.ratio));
+    }
+    return;  // the vibration's own rate only enters the resampler, not the windows
+  }
   if (std::abs(baseline.fs_hz - fs_hz) > 1e-9 * fs_hz) {
     throw Error(baseline_source + ": baseline was trained at " + num(baseline.fs_hz) + " Hz but recording " +
                 recording_source + " is sampled at " + num(fs_hz) + " Hz");
@@ -405,6 +559,26 @@ MonitorResult monitor_recording(const RecordingInfo& rec, const config::Pipeline
                                 const dsp::Baseline& baseline, dsp::Method method, double fs_hz,
                                 const WindowObserver& observer, const RunOptions& options,
                                 bool keep_windows) {
+  if (cfg.domain == dsp::Domain::kOrder) {
+    // The engine judges windows on the angle axis: its "sample rate" is S (the baseline's fs_hz) and its
+    // slicer is not used; decision, thresholds and outputs are the time domain's.
+    dsp::MonitorEngine engine(baseline, cfg.extraction, cfg.decision, method, baseline.fs_hz, rec.t0_ns);
+    dsp::CoverageConfig cc;
+    cc.timeout_s = options.coverage_timeout_s;
+    cc.moving_speed_rad_s = cfg.extraction.min_speed_rad_s;
+    cc.max_speed_gap_s = cfg.extraction.max_speed_gap_s;
+    dsp::CoverageTracker coverage(baseline, cc);
+    MonitorResult result;
+    result.domain = dsp::Domain::kOrder;
+    OrderMonitorSink sink(cfg, fs_hz, rec.t0_ns, engine, coverage, keep_windows ? &result.windows : nullptr,
+                          observer);
+    result.can = run_recording(rec, cfg, sink, options);
+    result.coverage = coverage.state();
+    result.resampler = sink.front().counters();
+    result.order_windows_cut = sink.front().windows();
+    result.fs_hz = fs_hz;
+    return result;
+  }
   dsp::MonitorEngine engine(baseline, cfg.extraction, cfg.decision, method, fs_hz, rec.t0_ns);
   dsp::CoverageConfig cc;
   cc.timeout_s = options.coverage_timeout_s;

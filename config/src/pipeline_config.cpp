@@ -9,6 +9,7 @@
 #include "ptda/common/error.hpp"
 #include "ptda/config/pipeline_config_builder.hpp"
 #include "ptda/config/toml_reader.hpp"
+#include "ptda/dsp/angle_resampler.hpp"
 #include "ptda/dsp/real_fft.hpp"
 
 namespace ptda::config {
@@ -221,6 +222,35 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "max_speed_gap_s", e.max_speed_gap_s, 3600.0)) note(r, "max_speed_gap_s");
     get(r, "max_windows_per_region", e.max_windows_per_region, std::uint32_t{0}, std::uint32_t{1000000000});
     get(r, "clip_abs", e.clip_abs, 0.0, 1e30);
+    // The order domain (docs/method.md §9): windows of R input-shaft revolutions resampled from the CAN
+    // angle to S samples per revolution.
+    choice(r, "domain", cfg_.domain,
+           std::initializer_list<std::pair<std::string_view, dsp::Domain>>{{"time", dsp::Domain::kTime},
+                                                                           {"order", dsp::Domain::kOrder}});
+    OrderDomainConfig& o = cfg_.order;
+    std::uint32_t spr = 0;
+    if (r.read("samples_per_rev", spr, std::uint32_t{16}, std::uint32_t{65536})) {
+      if (spr % 2 != 0) r.fail_value("samples_per_rev", "= " + std::to_string(spr) + " must be even");
+      o.samples_per_rev = spr;
+      note(r, "samples_per_rev");
+    }
+    get(r, "revolutions", o.revolutions, std::uint32_t{1}, std::uint32_t{4096});
+    double band = 0.0;
+    if (r.read("speed_band_rel", band, 0.0, 1.0)) {
+      if (band <= 0.0) r.fail_value("speed_band_rel", "must be > 0 (the relative width of a speed class)");
+      o.speed_band_rel = band;
+      note(r, "speed_band_rel");
+    }
+    get(r, "anti_alias_half_taps", o.anti_alias_half_taps, std::uint32_t{4}, std::uint32_t{256});
+    double cutoff = 0.0;
+    if (r.read("anti_alias_cutoff", cutoff, 0.0, 1.0)) {
+      if (cutoff <= 0.0 || cutoff >= 1.0)
+        r.fail_value("anti_alias_cutoff", "must be > 0 and < 1 (a fraction of the output Nyquist order S/2)");
+      o.anti_alias_cutoff = cutoff;
+      note(r, "anti_alias_cutoff");
+    }
+    if (read_positive(r, "min_shaft_hz", o.min_shaft_hz, 1000.0)) note(r, "min_shaft_hz");
+    get(r, "can_time_smoothing_frames", o.can_time_smoothing_frames, std::uint32_t{0}, std::uint32_t{4096});
     r.finish();
   }
 
@@ -321,7 +351,31 @@ PipelineConfig PipelineConfigBuilder::finish() const {
   PipelineConfig cfg = cfg_;
   const auto is_set = [this](const std::string& path) { return set_at_.count(path) != 0; };
 
-  const dsp::ExtractionConfig& e = cfg.extraction;
+  dsp::ExtractionConfig& e = cfg.extraction;
+  if (cfg.domain == dsp::Domain::kOrder) {
+    // A window is R revolutions of S samples: window_len follows (when given it must agree).
+    const std::uint64_t n = std::uint64_t{cfg.order.samples_per_rev} * cfg.order.revolutions;
+    const std::string rs = "revolutions (" + std::to_string(cfg.order.revolutions) + ") x samples_per_rev (" +
+                           std::to_string(cfg.order.samples_per_rev) + ") = " + std::to_string(n);
+    if (n > kMaxWindowLen || !dsp::RealFft::supported_length(static_cast<std::size_t>(n))) {
+      fail_key(is_set("extraction.revolutions") ? "extraction.revolutions" : "extraction.samples_per_rev",
+               "[extraction] " + rs +
+                   " is not an FFT length up to 2^24: it must have prime factors 2, 3 and 5 only "
+                   "(e.g. S = 1024, R = 8)");
+    }
+    if (e.window_len != 0 && e.window_len != n) {
+      fail_key("extraction.window_len", "[extraction] window_len = " + std::to_string(e.window_len) +
+                                            " disagrees with domain = \"order\": " + rs +
+                                            " (remove window_len; the order domain derives it)");
+    }
+    e.window_len = static_cast<std::uint32_t>(n);
+    if (!cfg.speed_frame.has_angle) {
+      fail_key(is_set("can.speed_frame.has_angle") ? "can.speed_frame.has_angle" : "extraction.domain",
+               "[extraction] domain = \"order\" resamples the vibration to the joint angle, but "
+               "[can.speed_frame] has_angle = false: the speed frame must carry the angle (set has_angle = "
+               "true and its [can.speed_frame.angle] signal)");
+    }
+  }
   if (e.window_len == 0) {
     fail_at(main_source_,
             "[extraction] window_len is required: the window length in samples (only factors 2, 3, 5; it "
@@ -418,7 +472,46 @@ PipelineConfig PipelineConfigBuilder::finish() const {
   } else {
     g.ratio = from_teeth;
   }
+  if (cfg.domain == dsp::Domain::kOrder) {
+    if (!(g.ratio > 0.0)) {
+      fail_key("extraction.domain",
+               "[extraction] domain = \"order\" needs the gearbox ratio (input-shaft angle = ratio x joint "
+               "angle): set [gearbox] kind and teeth, or ratio");
+    }
+    // The resampler passes orders up to 0.3608 S (default c and Q): the first mesh harmonic z_in must
+    // be inside, or the order windows hold no mesh at all.
+    const double pass = dsp::AngleResampler::pass_order_of(angle_resampler_config(cfg));
+    if (!(pass > 0.0)) {
+      fail_key("extraction.anti_alias_half_taps",
+               "[extraction] anti_alias_half_taps = " + std::to_string(cfg.order.anti_alias_half_taps) +
+                   " is too small for anti_alias_cutoff = " + shortest(cfg.order.anti_alias_cutoff) +
+                   ": the kernel's transition band leaves no pass band");
+    }
+    if (g.z_in > 0 && pass < static_cast<double>(g.z_in)) {
+      fail_key(is_set("extraction.samples_per_rev") ? "extraction.samples_per_rev" : "gearbox.z_in",
+               "[extraction] samples_per_rev = " + std::to_string(cfg.order.samples_per_rev) +
+                   " passes orders up to " + shortest(pass) + " only, below the gear mesh order z_in = " +
+                   std::to_string(g.z_in) + ": raise samples_per_rev");
+    }
+  }
   return cfg;
+}
+
+dsp::AngleResamplerConfig angle_resampler_config(const PipelineConfig& cfg) noexcept {
+  dsp::AngleResamplerConfig rc;
+  rc.samples_per_rev = cfg.order.samples_per_rev;
+  rc.ratio = cfg.gearbox.ratio;
+  rc.speed_latency_s = 0.0;  // applied when the frames are decoded
+  rc.half_taps = cfg.order.anti_alias_half_taps;
+  rc.cutoff = cfg.order.anti_alias_cutoff;
+  rc.min_shaft_hz = cfg.order.min_shaft_hz;
+  rc.max_speed_gap_s = cfg.extraction.max_speed_gap_s;
+  return rc;
+}
+
+dsp::OrderWindowConfig order_window_config(const PipelineConfig& cfg, double pass_order) noexcept {
+  return dsp::OrderWindowConfig{cfg.order.samples_per_rev, cfg.order.revolutions, cfg.gearbox.ratio,
+                                pass_order};
 }
 
 PipelineConfig parse_pipeline_config(std::string_view toml_text, const std::string& source) {
@@ -472,6 +565,14 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "max_speed_gap_s = " << shortest(e.max_speed_gap_s) << "\n"
      << "max_windows_per_region = " << e.max_windows_per_region << "\n"
      << "clip_abs = " << shortest(e.clip_abs) << "\n"
+     << "domain = \"" << dsp::domain_name(cfg.domain) << "\"\n"
+     << "samples_per_rev = " << cfg.order.samples_per_rev << "\n"
+     << "revolutions = " << cfg.order.revolutions << "\n"
+     << "speed_band_rel = " << shortest(cfg.order.speed_band_rel) << "\n"
+     << "anti_alias_half_taps = " << cfg.order.anti_alias_half_taps << "\n"
+     << "anti_alias_cutoff = " << shortest(cfg.order.anti_alias_cutoff) << "\n"
+     << "min_shaft_hz = " << shortest(cfg.order.min_shaft_hz) << "\n"
+     << "can_time_smoothing_frames = " << cfg.order.can_time_smoothing_frames << "\n"
      << "\n[classes]\n"
      << "speed_tol_rel = " << shortest(cfg.classes.speed_tol_rel) << "\n"
      << "speed_tol_abs_rad_s = " << shortest(cfg.classes.speed_tol_abs_rad_s) << "\n"

@@ -35,6 +35,11 @@ double bessel_i0(double x) noexcept {
 
 }  // namespace
 
+double AngleResampler::pass_order_of(const AngleResamplerConfig& cfg) noexcept {
+  const double half_width = kKaiserWidth / static_cast<double>(cfg.half_taps) / 2.0;
+  return (cfg.cutoff / 2.0 - half_width) * static_cast<double>(cfg.samples_per_rev);
+}
+
 AngleResampler::AngleResampler(const AngleResamplerConfig& cfg, double fs_hz, std::int64_t t0_ns)
     : cfg_(cfg), fs_hz_(fs_hz), t0_ns_(t0_ns), latency_ns_(std::llround(cfg.speed_latency_s * 1e9)) {
   const std::uint32_t s = cfg.samples_per_rev;

@@ -114,6 +114,24 @@ bool MonitorEngine::poll(WindowResult& out) noexcept {
   RegionInfo region;
   while (slicer_.pop_region(region)) {
   }
+  score(ref, out);
+  return true;
+}
+
+void MonitorEngine::judge_window(const WindowRef& ref, std::span<const float> window,
+                                 WindowResult& out) noexcept {
+  if (window.size() != window_.size()) {
+    out = WindowResult{};
+    out.ref = ref;
+    out.status = WindowStatus::kNoClass;
+    decision_.unscored(out);
+    return;
+  }
+  std::copy(window.begin(), window.end(), window_.begin());
+  score(ref, out);
+}
+
+void MonitorEngine::score(const WindowRef& ref, WindowResult& out) noexcept {
   out = WindowResult{};
   out.ref = ref;
   const ClassBaseline* cls = baseline_.match(ref.speed_rad_s);
@@ -121,7 +139,7 @@ bool MonitorEngine::poll(WindowResult& out) noexcept {
     // Not comparable with any healthy reference: reported, but neither judged nor debounced.
     out.status = WindowStatus::kNoClass;
     decision_.unscored(out);
-    return true;
+    return;
   }
   out.status = WindowStatus::kScored;
   out.class_id = static_cast<std::int32_t>(cls->segment.id);
@@ -135,7 +153,6 @@ bool MonitorEngine::poll(WindowResult& out) noexcept {
   out.seq_allowance_rms = z_scale_[ci].rms_allowance;
   out.seq_allowance_entropy = z_scale_[ci].entropy_allowance;
   decision_.scored(out, ci);
-  return true;
 }
 
 }  // namespace ptda::dsp

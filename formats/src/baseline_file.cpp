@@ -307,6 +307,22 @@ void validate_baseline(const dsp::Baseline& b, const std::string& where) {
   if (b.window_len > kMaxBaselineWindowLen)
     throw Error(w + "window_len " + std::to_string(b.window_len) + " is above " +
                 std::to_string(kMaxBaselineWindowLen));
+  if (b.domain == dsp::Domain::kOrder) {
+    // The angle axis: fs_hz is S, and a window is R revolutions of S samples.
+    if (b.samples_per_rev < 16 || b.samples_per_rev % 2 != 0 || b.revolutions == 0 ||
+        std::uint64_t{b.samples_per_rev} * b.revolutions != b.window_len ||
+        b.fs_hz != static_cast<double>(b.samples_per_rev))
+      throw Error(w + "order domain with samples_per_rev " + std::to_string(b.samples_per_rev) +
+                  ", revolutions " + std::to_string(b.revolutions) + ", window_len " +
+                  std::to_string(b.window_len) + " and fs_hz " + num(b.fs_hz) +
+                  ": needs S even >= 16, R >= 1, window_len = R S and fs_hz = S");
+    if (!(b.gearbox.ratio > 0.0))
+      throw Error(w + "order domain needs the gearbox ratio (the resampler's shaft/joint angle), got " +
+                  num(b.gearbox.ratio));
+  } else if (b.samples_per_rev != 0 || b.revolutions != 0) {
+    throw Error(w + "time domain with samples_per_rev " + std::to_string(b.samples_per_rev) +
+                " and revolutions " + std::to_string(b.revolutions) + ": both must be 0");
+  }
   if (!(std::isfinite(b.gearbox.ratio) && b.gearbox.ratio >= 0.0))
     throw Error(w + "gearbox ratio is " + num(b.gearbox.ratio) + ", must be finite and >= 0");
   const dsp::ThresholdPolicy& p = b.policy;
@@ -346,7 +362,10 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   validate_baseline(b, "baseline");
   Writer w;
   w.bytes(kMagic.data(), kMagic.size());
-  w.u32(kBaselineFormatVersion);
+  // A time-domain baseline is written as version 4, byte for byte as before version 5 existed; only an
+  // order-domain baseline needs (and gets) version 5.
+  const bool order = b.domain == dsp::Domain::kOrder;
+  w.u32(order ? kBaselineFormatVersion : kBaselineTimeDomainVersion);
   w.u64(0);  // total size, patched below
   w.f64(b.fs_hz);
   w.u32(b.window_len);
@@ -414,6 +433,12 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
       w.f64(d.entropy_between_est);
       w.f64(d.entropy_between_sd);
     }
+  }
+  // Version 5: the domain and the order windows' S and R.
+  if (order) {
+    w.u8(static_cast<std::uint8_t>(b.domain));
+    w.u32(b.samples_per_rev);
+    w.u32(b.revolutions);
   }
   w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
   w.u32(crc32(w.buf().data(), w.buf().size()));
@@ -582,6 +607,15 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
         d.entropy_between_sd = body.f64();
       }
     }
+  }
+  // Versions 1 to 4 are time domain.
+  if (version >= 5) {
+    const std::uint8_t d = body.u8();
+    if (d > static_cast<std::uint8_t>(dsp::Domain::kOrder))
+      body.fail("unknown domain " + std::to_string(d) + " (this build knows 0, time, and 1, order)");
+    b.domain = static_cast<dsp::Domain>(d);
+    b.samples_per_rev = body.u32();
+    b.revolutions = body.u32();
   }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
   // A CRC only proves the bytes are what some writer produced: a forged or buggy file with NaN,

@@ -412,10 +412,11 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
                                     std::to_string(good.size() + 1) + " (trailing bytes)");
   Bytes version = good;
-  version[8] = 5;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 5 (this build reads 1 to 4)");
+  // Version 5 (issue 16, the order domain) is the newest readable one.
+  version[8] = 6;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 6 (this build reads 1 to 5)");
   version[8] = 0;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 4)");
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 5)");
   Bytes flipped = good;
   flipped[good.size() / 2] ^= 0x01;
   const std::string crc_msg = message_of(flipped);

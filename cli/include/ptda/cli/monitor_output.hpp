@@ -19,6 +19,8 @@ namespace ptda::cli {
 /// speed_rad_s, status ("scored"|"no_class"), method, rms_res, entropy_res, rms_band [lo,hi],
 /// entropy_band [lo,hi] (null when not scored), rms_out, entropy_out, abnormal, alarm, abnormal_in_last_n.
 [[nodiscard]] std::string window_json(const dsp::WindowResult& w, dsp::Method method);
+/// As above; an order-domain window carries "domain": "order" after "method" (time: no key, as above).
+[[nodiscard]] std::string window_json(const dsp::WindowResult& w, dsp::Method method, dsp::Domain domain);
 
 [[nodiscard]] std::string window_table_header();
 /// One table row; times relative to t0_ns (the recording's sample 0); decision_n: the alarm's n.

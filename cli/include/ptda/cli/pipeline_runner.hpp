@@ -18,6 +18,7 @@
 #include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/coverage.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/order_windows.hpp"
 #include "ptda/dsp/types.hpp"
 #include "ptda/formats/recording.hpp"
 #include "ptda/formats/wav.hpp"
@@ -125,6 +126,25 @@ using CollectVisitor = std::function<void(const dsp::WindowRef&, std::span<const
                                             double fs_hz, const RunOptions& options = {},
                                             const CollectVisitor& visitor = {});
 
+/// The order domain's windows of a recording ([extraction] domain = "order", docs/method.md §9): the
+/// CAN angle frames and the vibration go through AngleResampler and OrderWindowCutter (configured by
+/// config::angle_resampler_config / order_window_config). Every window is kept (4 N bytes each).
+struct OrderCollectResult {
+  dsp::OrderWindows data;
+  dsp::AngleResamplerCounters resampler;
+  CanCounters can;
+};
+[[nodiscard]] OrderCollectResult collect_order_windows(const RecordingInfo& rec,
+                                                       const config::PipelineConfig& cfg, double fs_hz,
+                                                       const RunOptions& options = {});
+/// Appends `more` to `all` renumbering window seq and segment so they stay unique across recordings;
+/// the appended windows get the next recording index in all.recording.
+void append_order_windows(dsp::OrderWindows& all, dsp::OrderWindows more);
+/// The time-domain description of an order window, as MonitorEngine::judge_window and the outputs take
+/// it: seq, region_seq = resampler segment, index_in_region = k_start / N, first_sample = k_start (the
+/// grid index), times, speed_rad_s = the signed mean joint speed.
+[[nodiscard]] dsp::WindowRef window_ref_of(const dsp::OrderWindowRef& ref, std::size_t window_len) noexcept;
+
 /// Appends `more` to `all` (its windows when it holds them; refs only when its windows are empty),
 /// renumbering window and region sequence numbers so they stay unique
 /// (several training recordings: a region of one recording is never confused with another's). The
@@ -144,12 +164,16 @@ struct MonitorResult {
   dsp::SlicerCounters slicer;
   CanCounters can;
   double fs_hz = 0.0;
+  dsp::Domain domain = dsp::Domain::kTime;
+  dsp::AngleResamplerCounters resampler;  ///< order domain only (slicer is then all zero)
+  std::uint64_t order_windows_cut = 0;    ///< order domain only
 };
 /// Called for each polled window while the engine still holds its buffers (engine.last_window(),
 /// engine.analyzer().deterministic()/residual()).
 using WindowObserver = std::function<void(const dsp::WindowResult&, const dsp::MonitorEngine&)>;
 
-/// Checks that baseline and configuration/recording agree (sample rate, window length); throws
+/// Checks that baseline and configuration/recording agree (domain; time: sample rate, window length;
+/// order: samples per revolution and revolutions); throws
 /// ptda::Error naming the baseline file and the disagreeing values.
 void check_baseline_matches(const dsp::Baseline& baseline, const std::string& baseline_source,
                             const config::PipelineConfig& cfg, const std::string& config_source, double fs_hz,

@@ -11,15 +11,33 @@
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/order_windows.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 
 namespace ptda::config {
+
+/// The order domain's parameters (`[extraction] domain = "order"`, docs/method.md §9, docs/cli.md).
+struct OrderDomainConfig {
+  std::uint32_t samples_per_rev = 1024;  ///< S: angle samples per input-shaft revolution (even, >= 16)
+  std::uint32_t revolutions = 8;         ///< R: input-shaft revolutions per window (window N = R S)
+  /// Relative width of a speed class (learn_order_classes band_rel): windows whose |joint speed| is
+  /// within band_rel of a class's slowest window share it; a window matches a class within +-band/2.
+  double speed_band_rel = 0.1;
+  std::uint32_t anti_alias_half_taps = 32;  ///< Q of AngleResamplerConfig::half_taps (4..256)
+  double anti_alias_cutoff = 0.8;           ///< c of AngleResamplerConfig::cutoff, in (0, 1)
+  double min_shaft_hz = 0.5;                ///< |input-shaft speed| below this breaks the stream
+  /// CAN log times smoothed over about this many frames (dsp::FrameClock with [can.speed_frame]
+  /// period_s) before the angle law is built; 0 = the log times as they are.
+  std::uint32_t can_time_smoothing_frames = 32;
+};
 
 struct PipelineConfig {
   double fs_hz = 0.0;                       ///< [acquisition] fs_hz: 0 = take the recording's rate
   SpeedFrameSpec speed_frame;               ///< [can.speed_frame]
   double speed_latency_s = 0.0;             ///< [can] speed_latency_s: subtracted from CAN timestamps
   dsp::ExtractionConfig extraction;         ///< [extraction]
+  dsp::Domain domain = dsp::Domain::kTime;  ///< [extraction] domain: "time" (default) or "order"
+  OrderDomainConfig order;                  ///< [extraction] order keys (used when domain = "order")
   dsp::ClassLearningConfig classes;         ///< [classes]
   dsp::ThresholdPolicy thresholds;          ///< [thresholds]
   dsp::DecisionConfig decision;             ///< [decision]
@@ -59,6 +77,15 @@ struct PipelineConfig {
 /// The effective configuration as TOML text with every key (a valid cfg parses back to equal values).
 /// For `--check-config` style output and reports. Thread: any. Allocates.
 [[nodiscard]] std::string format_pipeline_config(const PipelineConfig& cfg);
+
+/// The resampler configuration of the order domain: S, Q, c and min_shaft_hz from cfg.order, the
+/// gearbox ratio, max_speed_gap_s from [extraction], speed_latency_s 0 (run_recording and the daemon
+/// apply [can] speed_latency_s when they decode the frames). Thread: any. Never allocates.
+[[nodiscard]] dsp::AngleResamplerConfig angle_resampler_config(const PipelineConfig& cfg) noexcept;
+/// The order window cutter's configuration; max_order = the resampler's pass_order() (pass it).
+/// Thread: any. Never allocates.
+[[nodiscard]] dsp::OrderWindowConfig order_window_config(const PipelineConfig& cfg,
+                                                         double pass_order) noexcept;
 
 /// eq. (1) of the paper: R = 1 + z_spur / z_in * z_pin (input shaft speed / output speed); 0 when
 /// z_in is 0. Thread: any. Never allocates.

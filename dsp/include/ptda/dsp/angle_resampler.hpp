@@ -95,6 +95,8 @@ class AngleResampler {
   [[nodiscard]] const AngleResamplerCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] const AngleResamplerConfig& config() const noexcept { return cfg_; }
   [[nodiscard]] double pass_order() const noexcept { return pass_order_; }
+  /// pass_order() of a resampler built from cfg (no check of cfg). Thread: any. Never allocates.
+  [[nodiscard]] static double pass_order_of(const AngleResamplerConfig& cfg) noexcept;
   [[nodiscard]] double stop_order() const noexcept { return stop_order_; }
   [[nodiscard]] double max_shaft_hz() const noexcept { return max_shaft_hz_; }
   /// Bound on the kernel's passband ripple and stopband leakage (Kaiser design value 10^(-80/20)).

@@ -175,9 +175,23 @@ struct TrainingRecording {
   std::uint32_t windows = 0;  ///< windows used from this recording
 };
 
+/// The axis the windows were cut on (`[extraction] domain`, docs/method.md §9).
+enum class Domain : std::uint8_t {
+  kTime = 0,   ///< constant-speed windows of N time samples (the paper's PTDA)
+  kOrder = 1,  ///< windows of R input-shaft revolutions resampled to S samples per revolution
+};
+[[nodiscard]] constexpr const char* domain_name(Domain d) noexcept {
+  return d == Domain::kOrder ? "order" : "time";
+}
+
 struct Baseline {
-  double fs_hz = 0.0;
-  std::uint32_t window_len = 0;  ///< N samples per window
+  double fs_hz = 0.0;            ///< time domain: sample rate; order domain: S (samples per revolution)
+  std::uint32_t window_len = 0;  ///< N samples per window (order domain: R S)
+  /// Format >= 5 stores the domain; older files are time domain. Order domain: samples_per_rev S and
+  /// revolutions R of the windows (0 in the time domain).
+  Domain domain = Domain::kTime;
+  std::uint32_t samples_per_rev = 0;
+  std::uint32_t revolutions = 0;
   GearboxInfo gearbox;
   ThresholdPolicy policy;
   std::vector<ClassBaseline> classes;

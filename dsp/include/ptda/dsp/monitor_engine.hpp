@@ -109,6 +109,11 @@ class MonitorEngine {
   /// A scored window updates k-of-n and its class's CUSUM; the alarm holds while either holds. The slicer's
   /// ended regions are drained and dropped here. Thread: the owner's. Never allocates or blocks.
   bool poll(WindowResult& out) noexcept;
+  /// Judges one window cut elsewhere (the order domain's OrderWindowCutter, docs/method.md §9) exactly
+  /// as poll() judges the slicer's: class match on ref.speed_rad_s, analysis, bands, k-of-n and CUSUM.
+  /// `window` must hold window_len samples (else the window is reported kNoClass). poll() uses it.
+  /// Thread: the owner's. Never allocates or blocks.
+  void judge_window(const WindowRef& ref, std::span<const float> window, WindowResult& out) noexcept;
 
   /// The last polled window's samples and the analyzer's buffers for it (reports).
   [[nodiscard]] std::span<const float> last_window() const noexcept { return window_; }
@@ -117,6 +122,8 @@ class MonitorEngine {
   [[nodiscard]] const Baseline& baseline() const noexcept { return baseline_; }
 
  private:
+  void score(const WindowRef& ref, WindowResult& out) noexcept;  ///< window_ holds the samples
+
   Baseline baseline_;
   Method method_;
   WindowSlicer slicer_;

@@ -21,7 +21,11 @@ namespace ptda::formats {
 /// option flags before the CRC (bit 0: PTDA line gain); versions 1 and 2 read with no options. Version 4
 /// appends the between-day floor and per class and method the day spread (dsp::DaySpread); versions
 /// 1 to 3 read with floor 0 and no day spread (the session-6 standardisation, same verdicts).
-inline constexpr std::uint32_t kBaselineFormatVersion = 4;
+/// Version 5 appends the domain (u8: 0 time, 1 order) and the order windows' samples per revolution S
+/// and revolutions R (u32 each); it is written for order-domain baselines only. A time-domain baseline
+/// is still written as version 4 (unchanged bytes), and versions 1 to 4 read as time domain.
+inline constexpr std::uint32_t kBaselineFormatVersion = 5;
+inline constexpr std::uint32_t kBaselineTimeDomainVersion = 4;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 
 /// Throws ptda::Error for an inconsistent baseline, ptda::WriteError (naming the path, the failed step
