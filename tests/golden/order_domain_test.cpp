@@ -1,0 +1,213 @@
+// `ptda train` and `ptda monitor` in the order domain ([extraction] domain = "order", issue 16), through
+// the built binary on the project simulator's joint-rotation job (CAN frames with the joint angle,
+// 0.5 ms transport delay + 0..0.1 ms log-time jitter):
+//   - trained on a healthy run (seed 101), a held-out healthy run (seed 201) stays quiet and the
+//     spur-tooth run (joint_rotation_faulty.toml, seed 102) alarms; the window counts, abnormal counts
+//     and mean rms_res are pinned from the run of session 10 (see the comments at each pin);
+//   - the baseline is format version 5, the JSONL lines carry "domain": "order";
+//   - an order baseline under the time configuration, and a time baseline under the order
+//     configuration, are refused with a message naming both.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <string>
+
+#include "golden_support.hpp"
+
+namespace ptda::golden {
+namespace {
+
+bool has(const std::string& text, const std::string& needle) {
+  return text.find(needle) != std::string::npos;
+}
+
+struct Prepared {
+  fs::path dir, train, healthy, faulty, order_baseline, time_baseline;
+  std::string order_config, time_config;
+};
+
+const Prepared& prepared() {
+  static const Prepared p = [] {
+    Prepared q;
+    q.dir = scratch_dir("order_domain_" + std::to_string(::getpid()));
+    const fs::path scen = source_dir() / "config" / "scenarios";
+    q.time_config = (source_dir() / "config" / "examples" / "joint_rotation.toml").string();
+    // The shipped joint-rotation configuration with the order domain instead of window_len: windows of
+    // 4 input-shaft revolutions (0.21 s at the 18.7 Hz plateau shaft speed) of S = 1024 samples, and
+    // the simulator's 0.5 ms transport delay corrected.
+    std::string text = read_file(q.time_config);
+    const std::string len = "window_len = 12800";
+    const std::size_t at = text.find(len);
+    EXPECT_NE(at, std::string::npos) << "the joint-rotation configuration changed";
+    if (at != std::string::npos) text.replace(at, len.size(), "domain = \"order\"\nrevolutions = 4");
+    const std::string lat = "speed_latency_s = 0.0";
+    const std::size_t lat_at = text.find(lat);
+    EXPECT_NE(lat_at, std::string::npos);
+    if (lat_at != std::string::npos) text.replace(lat_at, lat.size(), "speed_latency_s = 0.0005");
+    q.order_config = (q.dir / "order.toml").string();
+    std::ofstream(q.order_config) << text;
+    q.train = q.dir / "train";
+    q.healthy = q.dir / "healthy";
+    q.faulty = q.dir / "faulty";
+    q.order_baseline = q.dir / "order.bin";
+    q.time_baseline = q.dir / "time.bin";
+    EXPECT_EQ(run_ptda({"simulate", "--scenario", (scen / "joint_rotation_healthy.toml").string(), "--out",
+                        q.train.string()},
+                       q.dir, "sim_train")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run_ptda({"simulate", "--scenario", (scen / "joint_rotation_healthy.toml").string(), "--out",
+                        q.healthy.string(), "--seed", "201"},
+                       q.dir, "sim_healthy")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run_ptda({"simulate", "--scenario", (scen / "joint_rotation_faulty.toml").string(), "--out",
+                        q.faulty.string()},
+                       q.dir, "sim_faulty")
+                  .exit_code,
+              0);
+    return q;
+  }();
+  return p;
+}
+
+TEST(OrderDomain, TrainWritesAVersion5OrderBaseline) {
+  const Prepared& p = prepared();
+  const RunResult r = run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
+                                p.order_baseline.string()},
+                               p.dir, "train_order");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_TRUE(has(r.out, "(order domain)")) << r.out;
+  EXPECT_TRUE(has(r.out, "N = 4096 angle samples (4 input-shaft revolutions of 1024 samples)")) << r.out;
+  const std::string bytes = read_file(p.order_baseline);
+  ASSERT_GT(bytes.size(), 20U);
+  EXPECT_EQ(static_cast<int>(bytes[8]), 5);
+}
+
+struct Summary {
+  int windows = 0, scored = 0, abnormal = 0, alarm_windows = 0;
+  double rms_sum = 0.0;
+  bool order_marked = true;
+};
+
+Summary monitor(const Prepared& p, const fs::path& rec, const std::string& tag, RunResult& r) {
+  const fs::path jsonl = p.dir / (tag + ".jsonl");
+  r = run_ptda({"monitor", "--recording", rec.string(), "--config", p.order_config, "--baseline",
+                p.order_baseline.string(), "--jsonl", jsonl.string(), "--quiet"},
+               p.dir, tag);
+  Summary s;
+  for (const cli::JsonValue& w : read_jsonl(jsonl)) {
+    ++s.windows;
+    s.order_marked = s.order_marked && w.at("domain").as_string() == "order";
+    if (w.at("status").as_string() != "scored") continue;
+    ++s.scored;
+    s.rms_sum += w.at("rms_res").as_number();
+    s.abnormal += w.at("abnormal").as_bool() ? 1 : 0;
+    s.alarm_windows += w.at("alarm").as_bool() ? 1 : 0;
+  }
+  return s;
+}
+
+TEST(OrderDomain, HealthyQuietFaultyAlarms) {
+  const Prepared& p = prepared();
+  if (!fs::exists(p.order_baseline)) {
+    ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
+                        p.order_baseline.string()},
+                       p.dir, "train_order_2")
+                  .exit_code,
+              0);
+  }
+  RunResult rh, rf;
+  const Summary h = monitor(p, p.healthy, "monitor_healthy", rh);
+  const Summary f = monitor(p, p.faulty, "monitor_faulty", rf);
+  ASSERT_EQ(rh.exit_code, 0) << rh.out << rh.err;
+  ASSERT_EQ(rf.exit_code, 0) << rf.out << rf.err;
+  EXPECT_TRUE(h.order_marked);
+  EXPECT_TRUE(f.order_marked);
+  EXPECT_TRUE(has(rh.out, "alarm      never raised")) << rh.out;
+  EXPECT_TRUE(has(rf.out, "ALARM      first raised")) << rf.out;
+  EXPECT_TRUE(has(rh.out, "  domain     order: ")) << rh.out;
+  // Pinned from the run of session 10 (this build, x86-64; printed by the first run of this test):
+  // healthy 109 windows, 103 scored, 2 abnormal, no alarm, mean rms_res 0.199124; faulty 109 windows,
+  // 102 scored, 100 abnormal, alarm from the first window on, mean rms_res 0.362994. For scale: the time
+  // domain on the same recordings (joint_rotation.toml, 40 windows of 0.5 s) gives 0.268 / 0.458.
+  EXPECT_EQ(h.windows, 109);
+  EXPECT_EQ(h.scored, 103);
+  EXPECT_EQ(h.abnormal, 2);
+  EXPECT_EQ(h.alarm_windows, 0);
+  EXPECT_NEAR(h.rms_sum / h.scored, 0.199124, 2e-6);
+  EXPECT_EQ(f.windows, 109);
+  EXPECT_EQ(f.scored, 102);
+  EXPECT_EQ(f.abnormal, 100);
+  EXPECT_EQ(f.alarm_windows, 102);
+  EXPECT_NEAR(f.rms_sum / f.scored, 0.362994, 2e-6);
+}
+
+// Without the CAN log-time smoothing (can_time_smoothing_frames = 0) the simulator's 0..0.1 ms log
+// jitter is a phase error of about 1 rad at the 12th mesh harmonic (order 336): the mesh lines are no
+// longer coherent from window to window and end up in the residual. Pinned from the session-10 run
+// (printed by this test): healthy mean rms_res 0.539112 (0.199124 with smoothing), faulty 0.580861, and
+// not one faulty window is abnormal (100 of 102 with smoothing).
+TEST(OrderDomain, LogTimeJitterWithoutSmoothing) {
+  const Prepared& p = prepared();
+  const std::string raw_config = (p.dir / "order_raw_times.toml").string();
+  std::string text = read_file(p.order_config);
+  const std::string key = "domain = \"order\"";
+  const std::size_t at = text.find(key);
+  ASSERT_NE(at, std::string::npos);
+  text.insert(at + key.size(), "\ncan_time_smoothing_frames = 0");
+  std::ofstream(raw_config) << text;
+  Prepared q = p;
+  q.order_config = raw_config;
+  q.order_baseline = p.dir / "order_raw_times.bin";
+  ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", raw_config, "--out",
+                      q.order_baseline.string()},
+                     p.dir, "train_raw_times")
+                .exit_code,
+            0);
+  RunResult rh, rf;
+  const Summary h = monitor(q, p.healthy, "monitor_raw_healthy", rh);
+  const Summary f = monitor(q, p.faulty, "monitor_raw_faulty", rf);
+  std::printf(
+      "raw times: healthy %d scored, %d abnormal, mean rms %.6f; faulty %d scored, %d abnormal, mean rms "
+      "%.6f\n",
+      h.scored, h.abnormal, h.rms_sum / h.scored, f.scored, f.abnormal, f.rms_sum / f.scored);
+  EXPECT_NEAR(h.rms_sum / h.scored, 0.539112, 2e-6);
+  EXPECT_NEAR(f.rms_sum / f.scored, 0.580861, 2e-6);
+  EXPECT_EQ(h.abnormal, 0);
+  EXPECT_EQ(f.abnormal, 0);
+}
+
+TEST(OrderDomain, DomainMismatchIsRefused) {
+  const Prepared& p = prepared();
+  if (!fs::exists(p.order_baseline)) {
+    ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
+                        p.order_baseline.string()},
+                       p.dir, "train_order_3")
+                  .exit_code,
+              0);
+  }
+  ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.time_config, "--out",
+                      p.time_baseline.string()},
+                     p.dir, "train_time")
+                .exit_code,
+            0);
+  const RunResult a = run_ptda({"monitor", "--recording", p.healthy.string(), "--config", p.time_config,
+                                "--baseline", p.order_baseline.string(), "--quiet"},
+                               p.dir, "order_under_time");
+  EXPECT_NE(a.exit_code, 0);
+  EXPECT_TRUE(has(a.err, p.order_baseline.string() + ": baseline was trained in the order domain but " +
+                             p.time_config + " sets [extraction] domain = \"time\""))
+      << a.err;
+  const RunResult b = run_ptda({"monitor", "--recording", p.healthy.string(), "--config", p.order_config,
+                                "--baseline", p.time_baseline.string(), "--quiet"},
+                               p.dir, "time_under_order");
+  EXPECT_NE(b.exit_code, 0);
+  EXPECT_TRUE(has(b.err, p.time_baseline.string() + ": baseline was trained in the time domain but " +
+                             p.order_config + " sets [extraction] domain = \"order\""))
+      << b.err;
+}
+
+}  // namespace
+}  // namespace ptda::golden
