@@ -7,6 +7,7 @@
 #include "ptda/cli/doctor.hpp"
 #include "ptda/cli/pipeline_runner.hpp"
 #include "ptda/cli/text.hpp"
+#include "ptda/common/error.hpp"
 #include "ptda/config/pipeline_config.hpp"
 #include "ptda/formats/baseline_file.hpp"
 
@@ -31,6 +32,12 @@ int cmd_doctor(std::span<const std::string> args, std::ostream& out) {
   }
   const std::string config_path = a.value("config");
   const config::PipelineConfig cfg = config::load_pipeline_config(config_path);
+  if (cfg.domain == dsp::Domain::kOrder) {
+    // Its checks (plateaus against window_len, the speed scale) are the time domain's.
+    throw Error(config_path +
+                ": [extraction] domain = \"order\": ptda doctor checks the time domain only (docs/method.md "
+                "§9); set domain = \"time\" for the commissioning checks");
+  }
   const RecordingInfo rec = open_recording(a.value("recording"));
   std::optional<dsp::Baseline> baseline;
   if (a.has("baseline")) baseline = formats::read_baseline(a.value("baseline"));

@@ -443,8 +443,8 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
   // With the JSONL on stdout the warnings go to stderr, so the JSONL stays clean.
   std::ostream& warn = jsonl_path == "-" ? std::cerr : out;
   print_coverage_warnings(warn, r.coverage, in.baseline, opts.coverage_timeout_s);
-  if (r.coverage.judged == 0) {
-    // Why nothing was judged, in the words of `ptda doctor`.
+  if (r.coverage.judged == 0 && in.cfg.domain == dsp::Domain::kTime) {
+    // Why nothing was judged, in the words of `ptda doctor` (its checks are the time domain's).
     const DoctorReport d =
         diagnose_commissioning(in.rec, in.cfg, in.config_path, &in.baseline, in.baseline_path);
     for (const DoctorFinding& f : d.findings) {

@@ -159,6 +159,11 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
       labels.push_back(inputs.back().rec.dir.filename().string());
     }
   }
+  if (inputs.front().cfg.domain == dsp::Domain::kOrder) {
+    throw Error(config_path +
+                ": [extraction] domain = \"order\": ptda report does not support the order domain yet "
+                "(docs/method.md §9); ptda monitor --jsonl gives the windows");
+  }
   const dsp::Baseline& baseline = inputs.front().baseline;
   const double fs_hz = inputs.front().fs_hz;
   const dsp::Method verdict_method = inputs.front().cfg.method;

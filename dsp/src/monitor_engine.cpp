@@ -19,6 +19,13 @@ using detail::num;
 
 // Checked before anything is built from the baseline, so a mismatch names the real cause.
 const Baseline& checked(const Baseline& b, const ExtractionConfig& cfg, double fs_hz) {
+  if (b.domain == Domain::kOrder && !(fs_hz == b.fs_hz)) {
+    // An order baseline fed time samples (e.g. ptdad, which has no order domain yet): say so.
+    throw Error("monitor: the baseline is an order-domain baseline (" + std::to_string(b.revolutions) +
+                " revolutions of " + std::to_string(b.samples_per_rev) +
+                " samples) but this input is time samples at " + num(fs_hz) +
+                " Hz: the order domain runs in ptda train/monitor only ([extraction] domain = \"order\")");
+  }
   if (!(std::isfinite(fs_hz) && fs_hz > 0.0) || !(std::fabs(b.fs_hz - fs_hz) <= 1e-6 * fs_hz)) {
     throw Error("monitor: baseline was trained at fs_hz = " + num(b.fs_hz) + " Hz but the input runs at " +
                 num(fs_hz) + " Hz (must agree within 1e-6 relative)");

@@ -209,5 +209,30 @@ TEST(OrderDomain, DomainMismatchIsRefused) {
       << b.err;
 }
 
+// Not supported yet in the order domain: refused with a message, not run with time-domain assumptions.
+TEST(OrderDomain, ReportAndDoctorRefuseTheOrderDomain) {
+  const Prepared& p = prepared();
+  const RunResult d = run_ptda({"doctor", "--recording", p.healthy.string(), "--config", p.order_config},
+                               p.dir, "doctor_order");
+  EXPECT_NE(d.exit_code, 0);
+  EXPECT_TRUE(has(d.err, p.order_config + ": [extraction] domain = \"order\": ptda doctor checks the time "
+                                          "domain only"))
+      << d.err;
+  if (!fs::exists(p.order_baseline)) {
+    ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
+                        p.order_baseline.string()},
+                       p.dir, "train_order_4")
+                  .exit_code,
+              0);
+  }
+  const RunResult r =
+      run_ptda({"report", "--recording", p.healthy.string(), "--config", p.order_config, "--baseline",
+                p.order_baseline.string(), "--html", (p.dir / "r.html").string()},
+               p.dir, "report_order");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_TRUE(has(r.err, "ptda report does not support the order domain yet")) << r.err;
+  EXPECT_FALSE(fs::exists(p.dir / "r.html"));
+}
+
 }  // namespace
 }  // namespace ptda::golden
