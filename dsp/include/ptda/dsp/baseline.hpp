@@ -74,9 +74,10 @@ struct ThresholdPolicy {
   /// The pooled model assumes one within-day sd for every day and Gaussian day offsets; a healthy
   /// recording whose spread is larger or whose level is further out (e.g. the top of a load cycle) then
   /// lies partly outside the pooled band, i.e. the baseline would flag its own healthy training data.
-  /// Off by default (results on other corpora were measured without it). Not stored in the baseline
-  /// file; the bands it gives are.
-  bool cover_recordings = false;
+  /// On by default since session 10 (docs/method.md §5: on the second generator's fresh seeds it kept
+  /// every detection and removed the drift soak's false alarms). Not stored in the baseline file; the
+  /// bands it gives are.
+  bool cover_recordings = true;
 };
 
 /// Within- and between-day (between-recording) spread of one method's features in one class
