@@ -2,6 +2,7 @@
 
 #include <mosquitto.h>
 #include <spdlog/spdlog.h>
+#include <pthread.h>
 #include <time.h>
 
 #include <algorithm>
@@ -301,6 +302,8 @@ void MqttPublisher::set_error(std::string_view text, bool log_it) {
 }
 
 void MqttPublisher::run() noexcept {
+  // Named first (before anything allocates): tests/support/alloc_counter.cpp leaves this thread out.
+  pthread_setname_np(pthread_self(), "ptda-mqtt");
   std::int64_t now = steady_ns();
   next_connect_ns_ = now;
   while (!stop_.load(std::memory_order_acquire)) {

@@ -7,6 +7,8 @@
 
 #include <chrono>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <thread>
 
 #include "alloc_counter.hpp"
@@ -23,11 +25,16 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   write_text(
       dir / "ptdad.toml",
       sim_config(dir / "baseline.bin", dir / "status", "fast",
-                 "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\n",
+                 "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\njoint = \"j4\"\n",
                  "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\nperiod_s = 0.05\n"
                  // The event history, small files: the two passes below write and rotate it.
                  "[history]\ndir = \"" +
-                     (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n"));
+                     (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n"
+                 // MQTT on, towards a port nobody listens on: the supervisor hands every event and
+                 // summary to the publisher thread (which queues them on disk and is not counted: it is
+                 // no real-time thread, tests/support/alloc_counter.cpp).
+                 "[mqtt]\nenabled = true\nhost = \"127.0.0.1\"\nport = 9\ntopic_prefix = \"ptda/t/{joint}\"\n"
+                 "queue_dir = \"" + (dir / "mqtt").string() + "\"\nwindow_summary_interval_s = 0.5\n"));
   // A datagram socket for sd_notify (nobody reads it; a full queue is counted, not fatal).
   const fs::path sock = dir / "notify.sock";
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
@@ -81,6 +88,13 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   // a 50 KiB file holds ~70 of the ~200 windows).
   EXPECT_TRUE(fs::exists(dir / "history" / "history.2.jsonl"));
   EXPECT_FALSE(fs::exists(dir / "history" / "history.3.jsonl"));
+  // The publisher queued the events the supervisor handed over (no broker: none delivered).
+  std::uint64_t queued_bytes = 0;
+  for (const auto& e : fs::directory_iterator(dir / "mqtt")) queued_bytes += e.file_size();
+  EXPECT_GT(queued_bytes, 0U);
+  std::ifstream in(dir / "status" / "status.json");
+  const std::string status((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(status.find(R"("handoff":0,)"), std::string::npos) << status;
 }
 
 }  // namespace
