@@ -134,12 +134,12 @@ class Daemon {
   void update_state_and_reason(std::int64_t now) noexcept;
   void log_counter_changes() noexcept;
   void log_status_write_changes() noexcept;
-  void build_history();                      ///< history_ from cfg_ ([history])
+  void build_history();  ///< history_ from cfg_ ([history])
   void history_state(const PipelineStatus& ps, const char* reason) noexcept;  ///< a state line
   void log_alarm_changes(const PipelineStatus& ps) noexcept;
-  void build_mqtt();                                       ///< mqtt_ from cfg_ ([mqtt]); keeps an unchanged one
-  void drain_windows(Pipeline& p) noexcept;                ///< the window log into history and MQTT
-  void mqtt_state(const PipelineStatus& ps) noexcept;      ///< a state event when state/phase/level changed
+  void build_mqtt();                                   ///< mqtt_ from cfg_ ([mqtt]); keeps an unchanged one
+  void drain_windows(Pipeline& p) noexcept;            ///< the window log into history and MQTT
+  void mqtt_state(const PipelineStatus& ps) noexcept;  ///< a state event when state/phase/level changed
   void mqtt_alarm(const PipelineStatus& ps, const char* causes) noexcept;  ///< an alarm/fault event
   void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);
 

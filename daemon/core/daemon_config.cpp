@@ -120,14 +120,17 @@ class DaemonTablesBuilder {
     out.mqtt = mqtt_;
     if (mqtt_.enabled) {
       if (mqtt_.topic_prefix.empty())
-        fail_key("mqtt.enabled", "mqtt.enabled = true needs mqtt.topic_prefix (e.g. \"ptda/plant1/cell3/robot17/{joint}\")");
+        fail_key("mqtt.enabled",
+                 "mqtt.enabled = true needs mqtt.topic_prefix (e.g. \"ptda/plant1/cell3/robot17/{joint}\")");
       if (mqtt_.queue_dir.empty())
-        fail_key("mqtt.enabled", "mqtt.enabled = true needs mqtt.queue_dir (the store-and-forward queue's directory)");
+        fail_key("mqtt.enabled",
+                 "mqtt.enabled = true needs mqtt.queue_dir (the store-and-forward queue's directory)");
       if (mqtt_.tls_cert_file.empty() != mqtt_.tls_key_file.empty())
         fail_key(mqtt_.tls_cert_file.empty() ? "mqtt.tls_key_file" : "mqtt.tls_cert_file",
                  "mqtt.tls_cert_file and mqtt.tls_key_file go together (the client certificate and its key)");
       if (!mqtt_.tls_cert_file.empty() && mqtt_.tls_ca_file.empty())
-        fail_key("mqtt.tls_cert_file", "a client certificate (mqtt.tls_cert_file) needs TLS: set mqtt.tls_ca_file");
+        fail_key("mqtt.tls_cert_file",
+                 "a client certificate (mqtt.tls_cert_file) needs TLS: set mqtt.tls_ca_file");
       if (!mqtt_.password_file.empty() && mqtt_.username.empty())
         fail_key("mqtt.password_file", "mqtt.password_file needs mqtt.username");
       if (mqtt_.reconnect_max_s < mqtt_.reconnect_min_s)
@@ -375,14 +378,13 @@ class DaemonTablesBuilder {
     get(r, "port", mqtt_.port, std::uint32_t{1}, std::uint32_t{65535});
     if (r.read("client_id", mqtt_.client_id)) {
       note(r, "client_id");
-      if (mqtt_.client_id.size() > 23 * 4)
-        r.fail_value("client_id", "is longer than 92 bytes");
+      if (mqtt_.client_id.size() > 23 * 4) r.fail_value("client_id", "is longer than 92 bytes");
     }
     if (r.read("topic_prefix", mqtt_.topic_prefix)) {
       note(r, "topic_prefix");
       const std::string& tp = mqtt_.topic_prefix;
-      if (tp.empty() || tp.front() == '/' || tp.back() == '/' || tp.find_first_of("#+") != std::string::npos ||
-          tp.find('\0') != std::string::npos) {
+      if (tp.empty() || tp.front() == '/' || tp.back() == '/' ||
+          tp.find_first_of("#+") != std::string::npos || tp.find('\0') != std::string::npos) {
         r.fail_value("topic_prefix",
                      "must be a topic without wildcards (# +) and without a leading or trailing '/', not \"" +
                          tp + "\"");
@@ -398,7 +400,8 @@ class DaemonTablesBuilder {
     double max_bytes = static_cast<double>(mqtt_.queue_max_bytes);
     if (r.read("queue_max_bytes", max_bytes, 65536.0, 1099511627776.0)) {
       note(r, "queue_max_bytes");
-      if (max_bytes != std::floor(max_bytes)) r.fail_value("queue_max_bytes", "must be a whole number of bytes");
+      if (max_bytes != std::floor(max_bytes))
+        r.fail_value("queue_max_bytes", "must be a whole number of bytes");
       mqtt_.queue_max_bytes = static_cast<std::uint64_t>(max_bytes);
     }
     get(r, "window_summary_interval_s", mqtt_.window_summary_interval_s, 0.0, 86400.0);

@@ -1,8 +1,8 @@
 #include "mqtt/mqtt_publisher.hpp"
 
 #include <mosquitto.h>
-#include <spdlog/spdlog.h>
 #include <pthread.h>
+#include <spdlog/spdlog.h>
 #include <time.h>
 
 #include <algorithm>
@@ -42,7 +42,8 @@ std::string read_password(const fs::path& p, const std::string& key) {
 void check_readable(const fs::path& p, const char* key) {
   if (p.empty()) return;
   std::ifstream in(p);
-  if (!in) throw Error(std::string("[mqtt] ") + key + " " + p.string() + ": cannot read: " + std::strerror(errno));
+  if (!in)
+    throw Error(std::string("[mqtt] ") + key + " " + p.string() + ": cannot read: " + std::strerror(errno));
 }
 
 struct Json {
@@ -134,7 +135,8 @@ MqttSettings resolve_mqtt_settings(const MqttSection& cfg, const std::string& jo
     const fs::path cred = fs::path(credentials_directory) / "mqtt_password";
     std::error_code ec;
     if (fs::exists(cred, ec)) {
-      if (cfg.username.empty()) throw Error("[mqtt] the systemd credential mqtt_password needs mqtt.username");
+      if (cfg.username.empty())
+        throw Error("[mqtt] the systemd credential mqtt_password needs mqtt.username");
       s.password = read_password(cred, "systemd credential");
       s.password_source = "systemd credential mqtt_password";
     }
@@ -192,8 +194,8 @@ std::string mqtt_event_json(const MqttEvent& e, std::uint64_t seq, std::string_v
   return j.out;
 }
 
-std::string mqtt_status_json(const MqttEvent* last_state, bool online, std::uint64_t seq, std::string_view joint,
-                             std::string_view client_id) {
+std::string mqtt_status_json(const MqttEvent* last_state, bool online, std::uint64_t seq,
+                             std::string_view joint, std::string_view client_id) {
   Json j;
   j.out += '{';
   j.i64("schema", kSchema);
@@ -238,9 +240,10 @@ MqttPublisher::MqttPublisher(MqttSettings s) : s_(std::move(s)) {
     if (rc != MOSQ_ERR_SUCCESS) fail("username", rc);
   }
   if (!s_.cfg.tls_ca_file.empty()) {
-    const int rc = mosquitto_tls_set(mosq_, s_.cfg.tls_ca_file.c_str(), nullptr,
-                                     s_.cfg.tls_cert_file.empty() ? nullptr : s_.cfg.tls_cert_file.c_str(),
-                                     s_.cfg.tls_key_file.empty() ? nullptr : s_.cfg.tls_key_file.c_str(), nullptr);
+    const int rc =
+        mosquitto_tls_set(mosq_, s_.cfg.tls_ca_file.c_str(), nullptr,
+                          s_.cfg.tls_cert_file.empty() ? nullptr : s_.cfg.tls_cert_file.c_str(),
+                          s_.cfg.tls_key_file.empty() ? nullptr : s_.cfg.tls_key_file.c_str(), nullptr);
     if (rc != MOSQ_ERR_SUCCESS) fail("tls_ca_file/tls_cert_file/tls_key_file", rc);
   }
   const std::string will = mqtt_status_json(nullptr, false, 0, s_.joint, s_.client_id);
@@ -257,7 +260,8 @@ MqttPublisher::MqttPublisher(MqttSettings s) : s_(std::move(s)) {
                s_.cfg.port, s_.client_id, s_.topic_prefix, s_.cfg.tls_ca_file.empty() ? "no TLS" : "TLS",
                s_.cfg.username.empty()
                    ? std::string()
-                   : ", user " + s_.cfg.username + (s_.password.empty() ? "" : ", password from " + s_.password_source),
+                   : ", user " + s_.cfg.username +
+                         (s_.password.empty() ? "" : ", password from " + s_.password_source),
                s_.cfg.queue_dir.string(), queue_->pending());
   thread_ = std::thread([this] { run(); });
 }
@@ -333,10 +337,12 @@ void MqttPublisher::run() noexcept {
     if (inflight_mid_ < 0) send_front();
     if (mosquitto_loop(mosq_, 20, 1) != MOSQ_ERR_SUCCESS) break;
   }
-  if (queue_->pending() > 0) spdlog::info("mqtt: {} event(s) stay queued for the next start", queue_->pending());
+  if (queue_->pending() > 0)
+    spdlog::info("mqtt: {} event(s) stay queued for the next start", queue_->pending());
   // Graceful stop: the retained status says offline (a clean disconnect does not send the will).
   if (connected_) {
-    const std::string off = mqtt_status_json(have_state_ ? &last_state_ : nullptr, false, 0, s_.joint, s_.client_id);
+    const std::string off =
+        mqtt_status_json(have_state_ ? &last_state_ : nullptr, false, 0, s_.joint, s_.client_id);
     int mid = 0;
     if (mosquitto_publish(mosq_, &mid, topic("status").c_str(), static_cast<int>(off.size()), off.data(), 1,
                           true) == MOSQ_ERR_SUCCESS) {
@@ -365,7 +371,8 @@ void MqttPublisher::step(std::int64_t now_ns) {
     }
   }
   if (connected_ && s_.cfg.window_summary_interval_s > 0.0 && now_ns >= next_health_ns_) {
-    next_health_ns_ = now_ns + static_cast<std::int64_t>(std::max(10.0, s_.cfg.window_summary_interval_s) * 1e9);
+    next_health_ns_ =
+        now_ns + static_cast<std::int64_t>(std::max(10.0, s_.cfg.window_summary_interval_s) * 1e9);
     Json j;
     j.out += '{';
     j.i64("schema", kSchema);
@@ -379,8 +386,8 @@ void MqttPublisher::step(std::int64_t now_ns) {
     j.u64("dropped_summary", st.dropped_summary);
     j.u64("dropped_handoff", st.dropped_handoff);
     j.out += '}';
-    (void)mosquitto_publish(mosq_, nullptr, topic("health").c_str(), static_cast<int>(j.out.size()), j.out.data(), 0,
-                            false);
+    (void)mosquitto_publish(mosq_, nullptr, topic("health").c_str(), static_cast<int>(j.out.size()),
+                            j.out.data(), 0, false);
   }
 }
 
@@ -391,8 +398,8 @@ void MqttPublisher::handle(const MqttEvent& e, std::int64_t /*now_ns*/) {
       return;
     }
     const std::string payload = mqtt_event_json(e, 0, s_.joint);
-    if (mosquitto_publish(mosq_, nullptr, topic("window").c_str(), static_cast<int>(payload.size()), payload.data(),
-                          0, false) == MOSQ_ERR_SUCCESS) {
+    if (mosquitto_publish(mosq_, nullptr, topic("window").c_str(), static_cast<int>(payload.size()),
+                          payload.data(), 0, false) == MOSQ_ERR_SUCCESS) {
       published_.fetch_add(1, std::memory_order_relaxed);
     } else {
       dropped_summary_.fetch_add(1, std::memory_order_relaxed);
@@ -433,7 +440,8 @@ void MqttPublisher::try_connect(std::int64_t now_ns) {
   set_error(std::string("connect to ") + s_.cfg.host + ":" + std::to_string(s_.cfg.port) + ": " +
                 (rc == MOSQ_ERR_ERRNO ? std::strerror(errno) : mosquitto_strerror(rc)),
             true);
-  backoff_s_ = backoff_s_ <= 0.0 ? s_.cfg.reconnect_min_s : std::min(backoff_s_ * 2.0, s_.cfg.reconnect_max_s);
+  backoff_s_ =
+      backoff_s_ <= 0.0 ? s_.cfg.reconnect_min_s : std::min(backoff_s_ * 2.0, s_.cfg.reconnect_max_s);
   next_connect_ns_ = now_ns + static_cast<std::int64_t>(backoff_s_ * 1e9);
 }
 
@@ -470,16 +478,18 @@ void MqttPublisher::on_connect(int rc) {
                  queue_->pending());
     set_error("", false);
     // The retained status: online, with the last state known (a queued state event replaces it).
-    const std::string on = mqtt_status_json(have_state_ ? &last_state_ : nullptr, true, 0, s_.joint, s_.client_id);
+    const std::string on =
+        mqtt_status_json(have_state_ ? &last_state_ : nullptr, true, 0, s_.joint, s_.client_id);
     if (!(have_state_ && queue_->pending() > 0)) {
-      (void)mosquitto_publish(mosq_, nullptr, topic("status").c_str(), static_cast<int>(on.size()), on.data(), 1,
-                              true);
+      (void)mosquitto_publish(mosq_, nullptr, topic("status").c_str(), static_cast<int>(on.size()), on.data(),
+                              1, true);
     }
     return;
   }
   connect_failures_.fetch_add(1, std::memory_order_relaxed);
   set_error(std::string("broker refused the connection: ") + mosquitto_connack_string(rc), true);
-  backoff_s_ = backoff_s_ <= 0.0 ? s_.cfg.reconnect_min_s : std::min(backoff_s_ * 2.0, s_.cfg.reconnect_max_s);
+  backoff_s_ =
+      backoff_s_ <= 0.0 ? s_.cfg.reconnect_min_s : std::min(backoff_s_ * 2.0, s_.cfg.reconnect_max_s);
   next_connect_ns_ = steady_ns() + static_cast<std::int64_t>(backoff_s_ * 1e9);
   (void)mosquitto_disconnect(mosq_);
 }
@@ -495,9 +505,9 @@ void MqttPublisher::on_disconnect(int rc) {
   const std::int64_t now = steady_ns();
   if (was_connecting) {
     connect_failures_.fetch_add(1, std::memory_order_relaxed);
-    std::string why = last_log_error_.empty() ? std::string(rc == MOSQ_ERR_ERRNO ? std::strerror(errno)
-                                                                                : mosquitto_strerror(rc))
-                                              : last_log_error_;
+    std::string why = last_log_error_.empty()
+                          ? std::string(rc == MOSQ_ERR_ERRNO ? std::strerror(errno) : mosquitto_strerror(rc))
+                          : last_log_error_;
     // Keep a refusal's CONNACK text (set by on_connect) rather than the socket close that follows it.
     bool keep = false;
     {
@@ -511,7 +521,8 @@ void MqttPublisher::on_disconnect(int rc) {
     set_error(std::string("connection lost: ") + mosquitto_strerror(rc), false);
   }
   last_log_error_.clear();
-  backoff_s_ = backoff_s_ <= 0.0 ? s_.cfg.reconnect_min_s : std::min(backoff_s_ * 2.0, s_.cfg.reconnect_max_s);
+  backoff_s_ =
+      backoff_s_ <= 0.0 ? s_.cfg.reconnect_min_s : std::min(backoff_s_ * 2.0, s_.cfg.reconnect_max_s);
   next_connect_ns_ = now + static_cast<std::int64_t>(backoff_s_ * 1e9);
 }
 
@@ -537,12 +548,16 @@ void MqttPublisher::on_log(int level, const char* text) {
   }
 }
 
-void MqttPublisher::cb_connect(mosquitto*, void* self, int rc) { static_cast<MqttPublisher*>(self)->on_connect(rc); }
+void MqttPublisher::cb_connect(mosquitto*, void* self, int rc) {
+  static_cast<MqttPublisher*>(self)->on_connect(rc);
+}
 void MqttPublisher::cb_disconnect(mosquitto*, void* self, int rc) {
   auto* p = static_cast<MqttPublisher*>(self);
   if (p->connected_ || p->connecting_) p->on_disconnect(rc);
 }
-void MqttPublisher::cb_publish(mosquitto*, void* self, int mid) { static_cast<MqttPublisher*>(self)->on_publish(mid); }
+void MqttPublisher::cb_publish(mosquitto*, void* self, int mid) {
+  static_cast<MqttPublisher*>(self)->on_publish(mid);
+}
 void MqttPublisher::cb_log(mosquitto*, void* self, int level, const char* text) {
   static_cast<MqttPublisher*>(self)->on_log(level, text);
 }

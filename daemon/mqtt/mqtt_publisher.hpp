@@ -33,7 +33,8 @@ namespace ptda::daemon {
 /// One event for the broker, trivially copyable (it crosses the SpscRing by memcpy).
 struct MqttEvent {
   EventKind kind = EventKind::kState;
-  std::int64_t t_mono_ns = 0;  ///< the window's end (alarm, fault, summary) or the change (state), daemon clock
+  std::int64_t t_mono_ns =
+      0;  ///< the window's end (alarm, fault, summary) or the change (state), daemon clock
   std::int64_t t_unix_ns = 0;  ///< the same instant on the wall clock
   FixedString<12> level;       ///< normal, warning, alarm, fault
   FixedString<16> state;       ///< daemon state (running, paused, ...)
@@ -45,18 +46,18 @@ struct MqttEvent {
   std::uint32_t abnormal_in_last_n = 0;
   double rms_res = 0.0, entropy_res = 0.0;
   double rms_lo = 0.0, rms_hi = 0.0, entropy_lo = 0.0, entropy_hi = 0.0;
-  double speed_rad_s = 0.0;       ///< summary
-  std::uint64_t window_n = 0;     ///< summary: the window's number
-  bool abnormal = false;          ///< summary
+  double speed_rad_s = 0.0;    ///< summary
+  std::uint64_t window_n = 0;  ///< summary: the window's number
+  bool abnormal = false;       ///< summary
 };
 
 /// The [mqtt] table resolved for one daemon: the joint and the password filled in.
 struct MqttSettings {
   MqttSection cfg;
-  std::string joint;         ///< "" = none
-  std::string topic_prefix;  ///< cfg.topic_prefix with "{joint}" replaced
-  std::string client_id;     ///< cfg.client_id or "ptdad-<joint>" / "ptdad"
-  std::string password;      ///< from the credential or password_file ("" = none); never logged
+  std::string joint;            ///< "" = none
+  std::string topic_prefix;     ///< cfg.topic_prefix with "{joint}" replaced
+  std::string client_id;        ///< cfg.client_id or "ptdad-<joint>" / "ptdad"
+  std::string password;         ///< from the credential or password_file ("" = none); never logged
   std::string password_source;  ///< where it came from (for the log): a path or "systemd credential"
 };
 
@@ -105,7 +106,9 @@ class MqttPublisher {
   static void cb_disconnect(mosquitto*, void*, int);
   static void cb_publish(mosquitto*, void*, int);
   static void cb_log(mosquitto*, void*, int, const char*);
-  [[nodiscard]] std::string topic(std::string_view leaf) const { return s_.topic_prefix + "/" + std::string(leaf); }
+  [[nodiscard]] std::string topic(std::string_view leaf) const {
+    return s_.topic_prefix + "/" + std::string(leaf);
+  }
 
   MqttSettings s_;
   std::unique_ptr<DiskQueue> queue_;

@@ -705,22 +705,24 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
   }
   if (s.mqtt.enabled) {
     const MqttStats& m = s.mqtt;
-    p.gauge("ptda_mqtt_connected", "1 while the MQTT publisher is connected to its broker.", m.connected ? 1.0 : 0.0);
+    p.gauge("ptda_mqtt_connected", "1 while the MQTT publisher is connected to its broker.",
+            m.connected ? 1.0 : 0.0);
     p.gauge("ptda_mqtt_queue_bytes", "Bytes in the MQTT store-and-forward queue.",
             static_cast<double>(m.queue_bytes));
     p.gauge("ptda_mqtt_queue_pending", "Events in the MQTT queue not yet acknowledged by the broker.",
             static_cast<double>(m.queue_pending));
     p.family("ptda_mqtt_queue_dropped_total", "counter",
              "MQTT events dropped: event (alarm/fault/state removed from the full queue), summary (window "
-             "summary while offline or from the full queue), handoff (supervisor ring full), io (queue write failed).");
+             "summary while offline or from the full queue), handoff (supervisor ring full), io (queue write "
+             "failed).");
     p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "event"}}, static_cast<double>(m.dropped_event));
     p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "summary"}}, static_cast<double>(m.dropped_summary));
     p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "handoff"}}, static_cast<double>(m.dropped_handoff));
     p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "io"}}, static_cast<double>(m.dropped_io));
-    p.counter("ptda_mqtt_published_total", "MQTT messages the broker acknowledged (queued events) or took (summaries).",
-              m.published);
-    p.counter("ptda_mqtt_connect_failures_total", "Failed MQTT connection attempts (refused, unreachable, TLS).",
-              m.connect_failures);
+    p.counter("ptda_mqtt_published_total",
+              "MQTT messages the broker acknowledged (queued events) or took (summaries).", m.published);
+    p.counter("ptda_mqtt_connect_failures_total",
+              "Failed MQTT connection attempts (refused, unreachable, TLS).", m.connect_failures);
   }
   render_state_files_prom(p, files);
 }

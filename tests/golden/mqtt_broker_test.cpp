@@ -3,10 +3,11 @@
 //
 // Each test starts `mosquitto -c <conf>` on a free port of 127.0.0.1 (persistence on, so the
 // subscriber's QoS 1 session survives a broker restart) and `mosquitto_sub -c -i ID -q 1 -v` writing
-// every message to a file (-R: not the retained copies a (re)subscription replays), then replays the paper's joint-rotation faulty recording (seed 3003) at real
-// time through `ptdad` with a baseline trained on the healthy one (seed 1001). SIGHUP reloads restart
-// the pipeline, which makes new level and state changes (fault while starting, alarm at the first
-// faulty window) whenever the test wants events, e.g. during a broker outage.
+// every message to a file (-R: not the retained copies a (re)subscription replays), then replays the paper's
+// joint-rotation faulty recording (seed 3003) at real time through `ptdad` with a baseline trained on the
+// healthy one (seed 1001). SIGHUP reloads restart the pipeline, which makes new level and state changes
+// (fault while starting, alarm at the first faulty window) whenever the test wants events, e.g. during a
+// broker outage.
 //
 // What is checked: every queued event (alarm/fault on <prefix>/alarm, states on <prefix>/status)
 // arrives, with the sequence numbers 1..N in order, none missing; the alarm messages are exactly the
@@ -106,13 +107,14 @@ class Broker {
   Broker(fs::path dir, int port, const std::string& extra) : dir_(std::move(dir)), port_(port) {
     fs::create_directories(dir_ / "db");
     std::ofstream conf(dir_ / "mosquitto.conf");
-    conf << "listener " << port_ << " 127.0.0.1\npersistence true\npersistence_location " << (dir_ / "db").string()
-         << "/\nlog_dest file " << (dir_ / "mosquitto.log").string() << "\n"
+    conf << "listener " << port_ << " 127.0.0.1\npersistence true\npersistence_location "
+         << (dir_ / "db").string() << "/\nlog_dest file " << (dir_ / "mosquitto.log").string() << "\n"
          << (::geteuid() == 0 ? "user root\n" : "") << extra;
   }
   ~Broker() { stop(pid_, SIGTERM); }
   void start() {
-    pid_ = spawn({"mosquitto", "-c", (dir_ / "mosquitto.conf").string()}, dir_ / "broker.out", dir_ / "broker.err");
+    pid_ = spawn({"mosquitto", "-c", (dir_ / "mosquitto.conf").string()}, dir_ / "broker.out",
+                 dir_ / "broker.err");
     ASSERT_TRUE(wait_until([&] { return port_open(port_); }, 5s)) << read_file(dir_ / "broker.err");
   }
   void halt() { stop(pid_, SIGTERM); }
@@ -155,13 +157,13 @@ Fixture prepare(const std::string& tag, const std::string& mqtt_extra = "") {
   f.baseline = f.dir / "baseline.bin";
   f.queue = f.dir / "queue";
   f.status = f.dir / "status";
-  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_healthy.toml", "--out", (f.dir / "train").string(), "--seed",
-                      "1001"},
+  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_healthy.toml", "--out", (f.dir / "train").string(),
+                      "--seed", "1001"},
                      f.dir, "sim_train")
                 .exit_code,
             0);
-  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_faulty.toml", "--out", f.recording.string(), "--seed",
-                      "3003"},
+  EXPECT_EQ(run_ptda({"simulate", "--scenario", scen + "_faulty.toml", "--out", f.recording.string(),
+                      "--seed", "3003"},
                      f.dir, "sim_faulty")
                 .exit_code,
             0);
@@ -188,7 +190,8 @@ Fixture prepare(const std::string& tag, const std::string& mqtt_extra = "") {
       << "[mqtt]\nenabled = true\nhost = \"127.0.0.1\"\nport = " << f.port
       << "\ntopic_prefix = \"ptda/plant1/cell3/robot17/{joint}\"\nqueue_dir = \"" << f.queue.string()
       << "\"\nwindow_summary_interval_s = 1.0\nreconnect_min_s = 0.1\nreconnect_max_s = 0.5\n"
-      << mqtt_extra << "\n" << pipeline;
+      << mqtt_extra << "\n"
+      << pipeline;
   return f;
 }
 
@@ -262,12 +265,14 @@ std::vector<std::string> ptdad_args(const Fixture& f) {
 }
 
 pid_t start_subscriber(const Fixture& f) {
-  return spawn({"mosquitto_sub", "-h", "127.0.0.1", "-p", std::to_string(f.port), "-c", "-i", "ptda-test-sub", "-q", "1",
-                "-t", std::string(kPrefix) + "/#", "-v", "-R"},
+  return spawn({"mosquitto_sub", "-h", "127.0.0.1", "-p", std::to_string(f.port), "-c", "-i", "ptda-test-sub",
+                "-q", "1", "-t", std::string(kPrefix) + "/#", "-v", "-R"},
                f.dir / "sub.txt", f.dir / "sub.err");
 }
 
-bool has_level_alarm(const Fixture& f) { return alarm_level(f) == "alarm"; }
+bool has_level_alarm(const Fixture& f) {
+  return alarm_level(f) == "alarm";
+}
 
 TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
   const Fixture f = prepare("outage");
@@ -289,8 +294,8 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
   EXPECT_NE(during.at("mqtt").at("last_error").as_string().find("Connection refused"), std::string::npos);
 
   broker.start();
-  ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0; },
-                         10s));
+  ASSERT_TRUE(wait_until(
+      [&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0; }, 10s));
   EXPECT_EQ(stop(d, SIGTERM), 0);
   std::this_thread::sleep_for(500ms);
   stop(sub, SIGTERM);
@@ -329,8 +334,8 @@ TEST(MqttBroker, QueuedEventsSurviveKillDashNineDuringAnOutage) {
 
   broker.start();
   d = spawn(ptdad_args(f), f.dir / "d2.out", f.dir / "d2.err");
-  ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0; },
-                         10s));
+  ASSERT_TRUE(wait_until(
+      [&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0; }, 10s));
   ASSERT_TRUE(wait_until([&] { return has_level_alarm(f) && mqtt_number(f, "queue_pending") == 0.0; }, 15s));
   EXPECT_EQ(stop(d, SIGTERM), 0);
   std::this_thread::sleep_for(500ms);
@@ -351,7 +356,9 @@ TEST(MqttBroker, WrongCredentialsAreReportedAndTheLocalAlarmStillWorks) {
   const fs::path secret = pw.parent_path() / "mqtt_password";
   std::ofstream(secret) << "wrong-password\n";
   const Fixture f = prepare("auth", "username = \"joint4\"\npassword_file = \"" + secret.string() + "\"\n");
-  ASSERT_EQ(std::system(("mosquitto_passwd -b -c " + shell_quote(pw.string()) + " joint4 right-password").c_str()), 0);
+  ASSERT_EQ(
+      std::system(("mosquitto_passwd -b -c " + shell_quote(pw.string()) + " joint4 right-password").c_str()),
+      0);
   Broker broker(f.dir / "broker", f.port, "allow_anonymous false\npassword_file " + pw.string() + "\n");
   broker.start();
   pid_t d = spawn(ptdad_args(f), f.dir / "d.out", f.dir / "d.err");
@@ -370,7 +377,8 @@ TEST(MqttBroker, WrongCredentialsAreReportedAndTheLocalAlarmStillWorks) {
   EXPECT_EQ(s.at("alarm").at("level").as_string(), "alarm");  // the local alarm works without the broker
   EXPECT_EQ(stop(d, SIGTERM), 0);
   const std::string log = read_file(f.dir / "d.err");
-  EXPECT_NE(log.find("mqtt: broker refused the connection: Connection Refused: not authorised."), std::string::npos)
+  EXPECT_NE(log.find("mqtt: broker refused the connection: Connection Refused: not authorised."),
+            std::string::npos)
       << log;
   EXPECT_EQ(log.find("wrong-password"), std::string::npos);  // the password is never logged
   EXPECT_NE(log.find("password from " + secret.string()), std::string::npos);

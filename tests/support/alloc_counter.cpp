@@ -18,7 +18,9 @@ bool counted_thread() noexcept {
   thread_local int counted = -1;
   if (counted < 0) {
     char name[16] = {};
-    counted = pthread_getname_np(pthread_self(), name, sizeof name) == 0 && std::strcmp(name, "ptda-mqtt") == 0 ? 0 : 1;
+    counted =
+        pthread_getname_np(pthread_self(), name, sizeof name) == 0 && std::strcmp(name, "ptda-mqtt") == 0 ? 0
+                                                                                                          : 1;
   }
   return counted == 1;
 }

@@ -24,17 +24,20 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   // The simulator at fast pace, looping: ~60 s of job per pass, as fast as the engine goes.
   write_text(
       dir / "ptdad.toml",
-      sim_config(dir / "baseline.bin", dir / "status", "fast",
-                 "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\njoint = \"j4\"\n",
-                 "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\nperiod_s = 0.05\n"
-                 // The event history, small files: the two passes below write and rotate it.
-                 "[history]\ndir = \"" +
-                     (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n"
-                 // MQTT on, towards a port nobody listens on: the supervisor hands every event and
-                 // summary to the publisher thread (which queues them on disk and is not counted: it is
-                 // no real-time thread, tests/support/alloc_counter.cpp).
-                 "[mqtt]\nenabled = true\nhost = \"127.0.0.1\"\nport = 9\ntopic_prefix = \"ptda/t/{joint}\"\n"
-                 "queue_dir = \"" + (dir / "mqtt").string() + "\"\nwindow_summary_interval_s = 0.5\n"));
+      sim_config(
+          dir / "baseline.bin", dir / "status", "fast",
+          "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\njoint = \"j4\"\n",
+          "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\nperiod_s = 0.05\n"
+          // The event history, small files: the two passes below write and rotate it.
+          "[history]\ndir = \"" +
+              (dir / "history").string() +
+              "\"\nmax_file_mib = 0.05\nfiles = 3\n"
+              // MQTT on, towards a port nobody listens on: the supervisor hands every event and
+              // summary to the publisher thread (which queues them on disk and is not counted: it is
+              // no real-time thread, tests/support/alloc_counter.cpp).
+              "[mqtt]\nenabled = true\nhost = \"127.0.0.1\"\nport = 9\ntopic_prefix = \"ptda/t/{joint}\"\n"
+              "queue_dir = \"" +
+              (dir / "mqtt").string() + "\"\nwindow_summary_interval_s = 0.5\n"));
   // A datagram socket for sd_notify (nobody reads it; a full queue is counted, not fatal).
   const fs::path sock = dir / "notify.sock";
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);

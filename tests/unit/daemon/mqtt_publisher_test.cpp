@@ -1,14 +1,15 @@
 // [mqtt] configuration (located errors that name the key), the settings resolved for one joint (topic
 // prefix, client id, password from a file or the systemd credential) and the JSON payloads (schema 1).
 // The broker itself is tested in tests/golden/mqtt_broker_test.cpp (ctest -L mqtt).
+#include "mqtt/mqtt_publisher.hpp"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
 
 #include "daemon_test_support.hpp"
-#include "mqtt/mqtt_publisher.hpp"
-#include "status_text.hpp"
 #include "ptda/common/error.hpp"
+#include "status_text.hpp"
 
 namespace ptda::daemon::test {
 namespace {
@@ -29,14 +30,16 @@ TEST(MqttConfig, DefaultsAndKeys) {
   const DaemonConfig off = parse_daemon_config(kMinimal, "t.toml");
   EXPECT_FALSE(off.mqtt.enabled);
   EXPECT_EQ(off.mqtt.port, 1883U);
-  EXPECT_EQ(off.mqtt.queue_max_bytes, 16ULL << 20U);
+  EXPECT_EQ(off.mqtt.queue_max_bytes, 32ULL << 20U);
   EXPECT_EQ(off.mqtt.window_summary_interval_s, 10.0);
   const DaemonConfig c = parse_daemon_config(
-      kOn + "host = \"broker.plant\"\nport = 8883\nclient_id = \"cab17-j4\"\ntopic_prefix = \"ptda/p1/c3/r17/{joint}\"\n"
-            "keepalive_s = 20\ntls_ca_file = \"/etc/ptda/ca.pem\"\ntls_cert_file = \"/etc/ptda/c.pem\"\n"
-            "tls_key_file = \"/etc/ptda/c.key\"\nusername = \"j4\"\npassword_file = \"/etc/ptda/pw\"\n"
-            "queue_dir = \"/var/lib/ptda/mqtt\"\nqueue_max_bytes = 1048576\nwindow_summary_interval_s = 0\n"
-            "reconnect_min_s = 0.5\nreconnect_max_s = 30\n",
+      kOn +
+          "host = \"broker.plant\"\nport = 8883\nclient_id = \"cab17-j4\"\ntopic_prefix = "
+          "\"ptda/p1/c3/r17/{joint}\"\n"
+          "keepalive_s = 20\ntls_ca_file = \"/etc/ptda/ca.pem\"\ntls_cert_file = \"/etc/ptda/c.pem\"\n"
+          "tls_key_file = \"/etc/ptda/c.key\"\nusername = \"j4\"\npassword_file = \"/etc/ptda/pw\"\n"
+          "queue_dir = \"/var/lib/ptda/mqtt\"\nqueue_max_bytes = 1048576\nwindow_summary_interval_s = 0\n"
+          "reconnect_min_s = 0.5\nreconnect_max_s = 30\n",
       "t.toml");
   EXPECT_TRUE(c.mqtt.enabled);
   EXPECT_EQ(c.mqtt.host, "broker.plant");
@@ -54,9 +57,11 @@ TEST(MqttConfig, DefaultsAndKeys) {
 TEST(MqttConfig, ErrorsNameTheKeyAndThePlace) {
   // Enabled without the two keys it cannot work without.
   EXPECT_EQ(error_of(kOn + "queue_dir = \"/q\"\n"),
-            "t.toml:6:11: mqtt.enabled = true needs mqtt.topic_prefix (e.g. \"ptda/plant1/cell3/robot17/{joint}\")");
-  EXPECT_EQ(error_of(kOn + "topic_prefix = \"ptda/x\"\n"),
-            "t.toml:6:11: mqtt.enabled = true needs mqtt.queue_dir (the store-and-forward queue's directory)");
+            "t.toml:6:11: mqtt.enabled = true needs mqtt.topic_prefix (e.g. "
+            "\"ptda/plant1/cell3/robot17/{joint}\")");
+  EXPECT_EQ(
+      error_of(kOn + "topic_prefix = \"ptda/x\"\n"),
+      "t.toml:6:11: mqtt.enabled = true needs mqtt.queue_dir (the store-and-forward queue's directory)");
   const std::string ok = kOn + "topic_prefix = \"ptda/x\"\nqueue_dir = \"/q\"\n";
   EXPECT_EQ(error_of(ok), "(no error)");
   EXPECT_EQ(error_of(ok + "port = 0\n").rfind("t.toml:9:8: mqtt.port", 0), 0U) << error_of(ok + "port = 0\n");
@@ -69,17 +74,22 @@ TEST(MqttConfig, ErrorsNameTheKeyAndThePlace) {
                 .rfind("t.toml:7:16: mqtt.topic_prefix must be a topic without wildcards", 0),
             0U)
       << error_of(kOn + "topic_prefix = \"ptda/#\"\nqueue_dir = \"/q\"\n");
-  EXPECT_NE(error_of(kOn + "topic_prefix = \"ptda/x/\"\nqueue_dir = \"/q\"\n").find("trailing '/'"), std::string::npos);
+  EXPECT_NE(error_of(kOn + "topic_prefix = \"ptda/x/\"\nqueue_dir = \"/q\"\n").find("trailing '/'"),
+            std::string::npos);
   EXPECT_EQ(error_of(ok + "host = \"\"\n").rfind("t.toml:9:8: mqtt.host must not be empty", 0), 0U)
       << error_of(ok + "host = \"\"\n");
   EXPECT_EQ(error_of(ok + "tls_cert_file = \"/c.pem\"\n"),
-            "t.toml:9:17: mqtt.tls_cert_file and mqtt.tls_key_file go together (the client certificate and its key)");
+            "t.toml:9:17: mqtt.tls_cert_file and mqtt.tls_key_file go together (the client certificate and "
+            "its key)");
   EXPECT_EQ(error_of(ok + "tls_cert_file = \"/c.pem\"\ntls_key_file = \"/c.key\"\n"),
             "t.toml:9:17: a client certificate (mqtt.tls_cert_file) needs TLS: set mqtt.tls_ca_file");
-  EXPECT_EQ(error_of(ok + "password_file = \"/pw\"\n"), "t.toml:9:17: mqtt.password_file needs mqtt.username");
+  EXPECT_EQ(error_of(ok + "password_file = \"/pw\"\n"),
+            "t.toml:9:17: mqtt.password_file needs mqtt.username");
   EXPECT_EQ(error_of(ok + "reconnect_min_s = 10\nreconnect_max_s = 5\n"),
             "t.toml:10:19: mqtt.reconnect_max_s must be at least mqtt.reconnect_min_s");
-  EXPECT_EQ(error_of(ok + "pasword_file = \"/pw\"\n").rfind("t.toml:9:1: unknown key 'pasword_file' in [mqtt]", 0), 0U)
+  EXPECT_EQ(
+      error_of(ok + "pasword_file = \"/pw\"\n").rfind("t.toml:9:1: unknown key 'pasword_file' in [mqtt]", 0),
+      0U)
       << error_of(ok + "pasword_file = \"/pw\"\n");
 }
 
@@ -97,9 +107,10 @@ TEST(MqttSettings, TopicClientIdAndPasswordSources) {
     (void)resolve_mqtt_settings(c, "", nullptr);
     ADD_FAILURE() << "no error for {joint} without a joint";
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "[mqtt] topic_prefix \"ptda/p1/c3/r17/{joint}\" uses {joint} but no joint is set ([daemon] joint or "
-              "ptdad --joint)");
+    EXPECT_EQ(
+        std::string(e.what()),
+        "[mqtt] topic_prefix \"ptda/p1/c3/r17/{joint}\" uses {joint} but no joint is set ([daemon] joint or "
+        "ptdad --joint)");
   }
   c.username = "j4";
   c.password_file = dir / "pw";
@@ -120,8 +131,8 @@ TEST(MqttSettings, TopicClientIdAndPasswordSources) {
     (void)resolve_mqtt_settings(c, "joint4", nullptr);
     ADD_FAILURE() << "no error for an empty password";
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "[mqtt] password_file " + c.password_file.string() + ": the first line (the password) is empty");
+    EXPECT_EQ(std::string(e.what()), "[mqtt] password_file " + c.password_file.string() +
+                                         ": the first line (the password) is empty");
   }
   c.password_file.clear();
   c.tls_ca_file = dir / "missing-ca.pem";
@@ -129,7 +140,8 @@ TEST(MqttSettings, TopicClientIdAndPasswordSources) {
     (void)resolve_mqtt_settings(c, "joint4", nullptr);
     ADD_FAILURE() << "no error for a missing CA file";
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("[mqtt] tls_ca_file " + c.tls_ca_file.string() + ": cannot read", 0), 0U)
+    EXPECT_EQ(
+        std::string(e.what()).rfind("[mqtt] tls_ca_file " + c.tls_ca_file.string() + ": cannot read", 0), 0U)
         << e.what();
   }
 }
@@ -172,24 +184,27 @@ TEST(MqttPayload, AlarmFaultStateSummaryAndStatus) {
   st.kind = EventKind::kState;
   st.state.assign("paused");
   st.phase.assign("paused (speed)");
-  EXPECT_EQ(mqtt_event_json(st, 8, "joint4"),
-            R"({"schema":1,"type":"state","joint":"joint4","seq":8,"t_mono_s":1.500,"t_utc":"1970-01-01T00:00:00.000Z",)"
-            R"x("level":"fault","causes":"speed","state":"paused","phase":"paused (speed)"})x");
+  EXPECT_EQ(
+      mqtt_event_json(st, 8, "joint4"),
+      R"({"schema":1,"type":"state","joint":"joint4","seq":8,"t_mono_s":1.500,"t_utc":"1970-01-01T00:00:00.000Z",)"
+      R"x("level":"fault","causes":"speed","state":"paused","phase":"paused (speed)"})x");
   MqttEvent w = alarm_event();
   w.kind = EventKind::kSummary;
   w.window_n = 12;
   w.status.assign("scored");
   w.speed_rad_s = -3.5;
   w.abnormal = true;
-  EXPECT_EQ(mqtt_event_json(w, 0, "joint4"),
-            R"({"schema":1,"type":"summary","joint":"joint4","t_mono_s":669.573,"t_utc":"2026-11-27T13:17:26.847Z",)"
-            R"("n":12,"status":"scored","speed_rad_s":-3.5,"class":0,"rms_res":0.484238948,"entropy_res":0.662522068,)"
-            R"("rms_band":[0.25,0.2769],"entropy_band":[0.9024,0.9174],"abnormal":true})");
+  EXPECT_EQ(
+      mqtt_event_json(w, 0, "joint4"),
+      R"({"schema":1,"type":"summary","joint":"joint4","t_mono_s":669.573,"t_utc":"2026-11-27T13:17:26.847Z",)"
+      R"("n":12,"status":"scored","speed_rad_s":-3.5,"class":0,"rms_res":0.484238948,"entropy_res":0.662522068,)"
+      R"("rms_band":[0.25,0.2769],"entropy_band":[0.9024,0.9174],"abnormal":true})");
   EXPECT_EQ(mqtt_status_json(nullptr, false, 0, "joint4", "ptdad-joint4"),
             R"({"schema":1,"online":false,"joint":"joint4","client_id":"ptdad-joint4"})");
-  EXPECT_EQ(mqtt_status_json(&st, true, 0, "joint4", "ptdad-joint4"),
-            R"({"schema":1,"online":true,"joint":"joint4","client_id":"ptdad-joint4","t_mono_s":1.500,)"
-            R"x("t_utc":"1970-01-01T00:00:00.000Z","state":"paused","phase":"paused (speed)","level":"fault","causes":"speed"})x");
+  EXPECT_EQ(
+      mqtt_status_json(&st, true, 0, "joint4", "ptdad-joint4"),
+      R"({"schema":1,"online":true,"joint":"joint4","client_id":"ptdad-joint4","t_mono_s":1.500,)"
+      R"x("t_utc":"1970-01-01T00:00:00.000Z","state":"paused","phase":"paused (speed)","level":"fault","causes":"speed"})x");
   // Every payload parses as JSON; text is escaped.
   MqttEvent odd = st;
   odd.phase.assign("a \"quoted\"\nphase");

@@ -406,14 +406,17 @@ TEST(StatusWriter, MqttFieldsAndMetrics) {
   s.mqtt.last_error.assign("broker refused the connection: Connection Refused: not authorised.");
   const std::string json(w.render_json(s));
   EXPECT_TRUE(JsonChecker(json).valid());
-  EXPECT_NE(json.find(R"("mqtt":{"connected":false,"queue_bytes":2963,"queue_pending":5,)"
-                      R"("dropped":{"event":1,"summary":4,"handoff":0,"io":0},"published":13,"connect_failures":7,)"
-                      R"("last_error":"broker refused the connection: Connection Refused: not authorised."})"),
-            std::string::npos)
+  EXPECT_NE(
+      json.find(R"("mqtt":{"connected":false,"queue_bytes":2963,"queue_pending":5,)"
+                R"("dropped":{"event":1,"summary":4,"handoff":0,"io":0},"published":13,"connect_failures":7,)"
+                R"("last_error":"broker refused the connection: Connection Refused: not authorised."})"),
+      std::string::npos)
       << json;
   const std::string prom(w.render_prometheus(s));
-  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_connected"), std::vector<std::string>{"ptda_mqtt_connected 0"});
-  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_bytes"), std::vector<std::string>{"ptda_mqtt_queue_bytes 2963"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_connected"),
+            std::vector<std::string>{"ptda_mqtt_connected 0"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_bytes"),
+            std::vector<std::string>{"ptda_mqtt_queue_bytes 2963"});
   EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_dropped_total"),
             (std::vector<std::string>{R"(ptda_mqtt_queue_dropped_total{kind="event"} 1)",
                                       R"(ptda_mqtt_queue_dropped_total{kind="summary"} 4)",
