@@ -66,8 +66,15 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   {
     ptda::test::AllocScope scope;
     // Two more passes: every class, the loop seam twice, status writes and watchdog pings.
-    wait_for([&] { return d.view().pipeline.samples > before.pipeline.samples + 2 * pass; },
-             std::chrono::seconds(120));
+    // (and at least two status writes and a watchdog ping: at fast pace two passes take ~0.1 s, less
+    // than two status periods on a loaded machine)
+    wait_for(
+        [&] {
+          const DaemonView v = d.view();
+          return v.pipeline.samples > before.pipeline.samples + 2 * pass &&
+                 v.status_writes > before.status_writes + 1 && v.watchdog_pings > before.watchdog_pings;
+        },
+        std::chrono::seconds(120));
     allocations = scope.count();
   }
   const DaemonView after = d.view();
