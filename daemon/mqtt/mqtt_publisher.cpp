@@ -513,6 +513,9 @@ void MqttPublisher::on_disconnect(int rc) {
     {
       std::lock_guard lock(error_mutex_);
       keep = last_error_.view().rfind("broker refused", 0) == 0;
+      // libmosquitto logs the OpenSSL reason only on some attempts: keep it over the bare "A TLS error".
+      if (last_log_error_.empty() && rc == MOSQ_ERR_TLS)
+        keep = keep || last_error_.view().find("TLS: ") != std::string_view::npos;
     }
     if (!keep) set_error("connect to " + s_.cfg.host + ":" + std::to_string(s_.cfg.port) + ": " + why, true);
   } else if (was_connected) {
