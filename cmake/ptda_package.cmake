@@ -181,7 +181,7 @@ set(_ptda_common_dep "ptda-common (= ${_ptda_deb_version})")
 set(_ptda_libs_base "libc6 (>= 2.34), libgcc-s1 (>= 3.0), libstdc++6 (>= 12), libkissfft-float131 (>= 131.1.0-4.1~deb12u1), libtomlplusplus3 (>= 3.2.0)")
 set(CPACK_DEBIAN_DAEMON_PACKAGE_NAME "ptdad")
 set(CPACK_DEBIAN_DAEMON_PACKAGE_DEPENDS
-    "${_ptda_libs_base}, libfmt9 (>= 9.1.0+ds1), libspdlog1.10 (>= 1:1.10.0), libspdlog1.10-fmt9, libgpiod2 (>= 1.6), libsystemd0, ${_ptda_common_dep}, init-system-helpers (>= 1.54~), systemd | systemd-standalone-sysusers | adduser")
+    "${_ptda_libs_base}, libfmt9 (>= 9.1.0+ds1), libspdlog1.10 (>= 1:1.10.0), libspdlog1.10-fmt9, libgpiod2 (>= 1.6), libsystemd0, libmosquitto1 (>= 2.0.11), ${_ptda_common_dep}, init-system-helpers (>= 1.54~), systemd | systemd-standalone-sysusers | adduser")
 set(CPACK_DEBIAN_DAEMON_PACKAGE_SUGGESTS "ptda-tools")
 set(CPACK_DEBIAN_DAEMON_DESCRIPTION
     "gearbox condition-monitoring daemon (PTDA)

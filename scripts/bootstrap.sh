@@ -16,6 +16,7 @@ BASE=(
   libeigen3-dev libkissfft-dev libspdlog-dev libfmt-dev libtomlplusplus-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libgpiod-dev libsystemd-dev can-utils systemd
+  libmosquitto-dev mosquitto mosquitto-clients openssl
   python3-numpy
   chromium
   prometheus

@@ -153,6 +153,7 @@ soname_pkg() { # DT_NEEDED soname -> Debian 12 package
     libtomlplusplus.so.3) echo libtomlplusplus3 ;;
     libgpiod.so.2) echo libgpiod2 ;;
     libsystemd.so.0) echo libsystemd0 ;;
+    libmosquitto.so.1) echo libmosquitto1 ;;
     libz.so.1) echo zlib1g ;;
     *) echo "" ;;
   esac

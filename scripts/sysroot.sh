@@ -34,7 +34,7 @@ requested_extra=("$@")
 # The project's build and test dependencies for the target (the cross compiler brings its own
 # libstdc++ headers and libgcc; libstdc++6 is the runtime the test binaries load under qemu-user).
 BASE=(libspdlog-dev libfmt-dev libkissfft-dev libgpiod-dev libsystemd-dev libtomlplusplus-dev
-  libgtest-dev libgmock-dev zlib1g-dev libc6-dev libstdc++6 libeigen3-dev)
+  libgtest-dev libgmock-dev zlib1g-dev libc6-dev libstdc++6 libeigen3-dev libmosquitto-dev)
 
 root="$(cd "$(dirname "$0")/.." && pwd)"
 top="${PTDA_SYSROOTS_DIR:-$root/build/sysroots}"

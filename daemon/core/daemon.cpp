@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <system_error>
 
@@ -144,21 +145,113 @@ void Daemon::build_history() {
   history_ = std::make_unique<HistoryLog>(hc);
 }
 
-// The windows the processing thread handed over since the last call, as history lines. The wall time
-// of a window's end: its daemon-clock time plus the clock's offset to UTC now.
-void Daemon::drain_history(Pipeline& p) noexcept {
-  const std::int64_t offset = drivers::realtime_offset_ns(clock_);
-  while (p.pop_window_log(history_window_))
-    history_->window(history_window_, history_window_.ref.t_end_ns + offset);
-  history_->counters().ring_dropped = p.status().window_log_dropped;
-}
-
 void Daemon::history_state(const PipelineStatus& ps, const char* reason) noexcept {
   char causes[64];
   cause_text(ps.report.causes, causes, sizeof causes);
   const DaemonState st = state_.load(std::memory_order_relaxed);
   history_->state(clock_.now_ns() + drivers::realtime_offset_ns(clock_), daemon_state_name(st),
                   phase_name(ps.phase), drivers::alarm_level_name(ps.alarm.level), causes, reason);
+}
+
+void Daemon::build_mqtt() {
+  if (!cfg_.mqtt.enabled) {
+    if (mqtt_) spdlog::info("mqtt: disabled");
+    mqtt_.reset();
+    return;
+  }
+  MqttSettings s = resolve_mqtt_settings(cfg_.mqtt, cfg_.daemon.joint, std::getenv("CREDENTIALS_DIRECTORY"));
+  if (mqtt_) {
+    const MqttSettings& old = mqtt_->settings();
+    if (old.cfg == s.cfg && old.joint == s.joint && old.password == s.password) return;  // unchanged
+    mqtt_.reset();  // disconnects and closes the queue before the new one opens it
+  }
+  mqtt_ = std::make_unique<MqttPublisher>(std::move(s));
+  mqtt_state_sent_ = false;
+  mqtt_next_summary_ns_ = INT64_MIN;
+}
+
+// The windows the processing thread handed over: history lines, and (rate-limited by the window's end
+// time) MQTT window summaries. Never allocates.
+void Daemon::drain_windows(Pipeline& p) noexcept {
+  const std::int64_t offset = drivers::realtime_offset_ns(clock_);
+  const double every_s = mqtt_ ? cfg_.mqtt.window_summary_interval_s : 0.0;
+  while (p.pop_window_log(history_window_)) {
+    const dsp::WindowResult& w = history_window_;
+    if (history_) history_->window(w, w.ref.t_end_ns + offset);
+    if (every_s > 0.0 && w.ref.t_end_ns >= mqtt_next_summary_ns_) {
+      mqtt_next_summary_ns_ = w.ref.t_end_ns + seconds_to_ns(every_s);
+      MqttEvent& e = mqtt_event_;
+      e = MqttEvent{};
+      e.kind = EventKind::kSummary;
+      e.t_mono_ns = w.ref.t_end_ns;
+      e.t_unix_ns = w.ref.t_end_ns + offset;
+      e.window_n = w.ref.seq;
+      e.speed_rad_s = w.ref.speed_rad_s;
+      const bool scored = w.status == dsp::WindowStatus::kScored;
+      e.status.assign(scored ? "scored" : "no_class");
+      e.have_features = scored;
+      e.class_id = w.class_id;
+      e.rms_res = w.features.rms_res;
+      e.entropy_res = w.features.entropy_res;
+      e.rms_lo = w.thresholds.rms.lo;
+      e.rms_hi = w.thresholds.rms.hi;
+      e.entropy_lo = w.thresholds.entropy.lo;
+      e.entropy_hi = w.thresholds.entropy.hi;
+      e.abnormal = w.verdict.abnormal();
+      (void)mqtt_->post(e);
+    }
+  }
+  if (history_) history_->counters().ring_dropped = p.status().window_log_dropped;
+}
+
+void Daemon::mqtt_state(const PipelineStatus& ps) noexcept {
+  const DaemonState st = state_.load(std::memory_order_relaxed);
+  if (mqtt_state_sent_ && st == mqtt_last_state_ && ps.phase == mqtt_last_phase_ &&
+      ps.alarm.level == mqtt_last_level_)
+    return;
+  mqtt_state_sent_ = true;
+  mqtt_last_state_ = st;
+  mqtt_last_phase_ = ps.phase;
+  mqtt_last_level_ = ps.alarm.level;
+  MqttEvent& e = mqtt_event_;
+  e = MqttEvent{};
+  e.kind = EventKind::kState;
+  e.t_mono_ns = clock_.now_ns();
+  e.t_unix_ns = e.t_mono_ns + drivers::realtime_offset_ns(clock_);
+  e.state.assign(daemon_state_name(st));
+  e.phase.assign(phase_name(ps.phase));
+  e.level.assign(drivers::alarm_level_name(ps.alarm.level));
+  char causes[64];
+  cause_text(ps.report.causes, causes, sizeof causes);
+  e.causes.assign(causes);
+  (void)mqtt_->post(e);
+}
+
+void Daemon::mqtt_alarm(const PipelineStatus& ps, const char* causes) noexcept {
+  const drivers::AlarmLevel level = ps.alarm.level;
+  MqttEvent& e = mqtt_event_;
+  e = MqttEvent{};
+  e.kind = level == drivers::AlarmLevel::kFault ? EventKind::kFault : EventKind::kAlarm;
+  e.level.assign(drivers::alarm_level_name(level));
+  e.causes.assign(causes);
+  const bool episode = level == drivers::AlarmLevel::kAlarm || level == drivers::AlarmLevel::kWarning;
+  if (episode || (level == drivers::AlarmLevel::kNormal && ps.have_window)) {
+    e.have_features = true;
+    e.t_mono_ns = episode ? ps.alarm.trip.t_ns : ps.last_window.ref.t_end_ns;
+    e.class_id = episode ? ps.alarm.trip.class_id : ps.last_window.class_id;
+    e.rms_res = episode ? ps.alarm.trip.rms_res : ps.last_window.features.rms_res;
+    e.entropy_res = episode ? ps.alarm.trip.entropy_res : ps.last_window.features.entropy_res;
+    const dsp::FeatureThresholds& th = episode ? ps.alarm.trip.thresholds : ps.last_window.thresholds;
+    e.rms_lo = th.rms.lo;
+    e.rms_hi = th.rms.hi;
+    e.entropy_lo = th.entropy.lo;
+    e.entropy_hi = th.entropy.hi;
+    e.abnormal_in_last_n = episode ? ps.alarm.trip.abnormal_in_last_n : ps.last_window.abnormal_in_last_n;
+  } else {
+    e.t_mono_ns = ps.alarm.since_ns;
+  }
+  e.t_unix_ns = e.t_mono_ns + drivers::realtime_offset_ns(clock_);
+  (void)mqtt_->post(e);
 }
 
 void Daemon::build_status_writer() {
@@ -211,10 +304,11 @@ void Daemon::configure() {
   if (mode_ == PipelineMode::kTrain) remove_stale_temp_files_of(cfg_.training.output);
   build_status_writer();
   build_history();
+  build_mqtt();
 
   auto p = std::make_unique<Pipeline>(cfg_, mode_, clock_);
   p->set_window_sink(sink_);
-  p->enable_window_log(history_ != nullptr);
+  p->enable_window_log(history_ != nullptr || mqtt_ != nullptr);
   p->set_device_factory(factory_);
   p->set_probe(probe_);
   p->configure();
@@ -319,7 +413,7 @@ DaemonView Daemon::view() const noexcept {
 void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   auto fresh = std::make_unique<Pipeline>(cfg, mode, clock_);
   fresh->set_window_sink(sink_);
-  fresh->enable_window_log(history_ != nullptr);
+  fresh->enable_window_log(history_ != nullptr || mqtt_ != nullptr);
   fresh->set_device_factory(factory_);
   fresh->set_probe(probe_);
   {
@@ -327,7 +421,7 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
     std::lock_guard lock(pipeline_mutex_);
     if (pipeline_) {
       pipeline_->deactivate();
-      if (history_) drain_history(*pipeline_);  // its last windows, before it goes
+      if (history_ || mqtt_) drain_windows(*pipeline_);  // its last windows, before it goes
       // Field training goes on: keep the collected windows for the new pipeline (held here until it
       // started, so a reload that fails keeps them for the restart with the previous configuration).
       if (mode == PipelineMode::kTrain && pipeline_->mode() == PipelineMode::kTrain) {
@@ -400,7 +494,13 @@ void Daemon::reload() {
       spdlog::error("reload: event history disabled: {}", e.what());
       history_.reset();
     }
-    pipeline_->enable_window_log(history_ != nullptr);
+    try {
+      build_mqtt();
+    } catch (const Error& e) {
+      spdlog::error("reload: mqtt disabled: {}", e.what());
+      mqtt_.reset();
+    }
+    pipeline_->enable_window_log(history_ != nullptr || mqtt_ != nullptr);
     reloads_.fetch_add(1);
     spdlog::info("reload: new configuration active ({})", pipeline_->inputs_text());
   } catch (const Error& e) {
@@ -736,6 +836,7 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
     std::snprintf(evidence, sizeof evidence, "no verdict (%s); cause %s", phase_name(ps.phase), causes);
   }
   if (history_) history_state(ps, evidence);
+  if (mqtt_) mqtt_alarm(ps, causes);
   if (level == drivers::AlarmLevel::kNormal) {
     spdlog::info("{}{}) at {}: {}", head, extra, since, evidence);
   } else {
@@ -827,7 +928,7 @@ void Daemon::supervise(std::int64_t now) noexcept {
   }
   fill_snapshot(now);
   // The windows first, then the level change they caused: the history stays in time order.
-  if (history_ && pipeline_) drain_history(*pipeline_);
+  if ((history_ || mqtt_) && pipeline_) drain_windows(*pipeline_);
   snapshot_.history_enabled = history_ != nullptr;
   if (history_) {
     const HistoryCounters& hk = history_->counters();
@@ -838,6 +939,8 @@ void Daemon::supervise(std::int64_t now) noexcept {
     snapshot_.history_last_errno = hk.last_errno;
   }
   if (pipeline_) log_alarm_changes(pipeline_->status());
+  if (mqtt_ && pipeline_) mqtt_state(pipeline_->status());
+  snapshot_.mqtt = mqtt_ ? mqtt_->stats() : MqttStats{};
   snapshot_.state_files[static_cast<std::size_t>(StateFile::kBaseline)] = baseline_health_;
   if (writer_) {
     if (writer_->write(snapshot_) == StatusWriteResult::kOk)
@@ -926,7 +1029,8 @@ int Daemon::run() {
   deactivate();
   now = clock_.now_ns();
   update_state_and_reason(now);
-  if (history_ && pipeline_) drain_history(*pipeline_);
+  if ((history_ || mqtt_) && pipeline_) drain_windows(*pipeline_);
+  if (mqtt_ && pipeline_) mqtt_state(pipeline_->status());
   state_.store(DaemonState::kStopping);
   fill_snapshot(now);
   if (writer_) writer_->write(snapshot_);

@@ -28,6 +28,7 @@
 
 #include "core/daemon_config.hpp"
 #include "core/pipeline.hpp"
+#include "mqtt/mqtt_publisher.hpp"
 #include "ptda/drivers/clock.hpp"
 #include "rt/sd_notify.hpp"
 #include "status/history_log.hpp"
@@ -133,10 +134,13 @@ class Daemon {
   void update_state_and_reason(std::int64_t now) noexcept;
   void log_counter_changes() noexcept;
   void log_status_write_changes() noexcept;
-  void build_history();                      ///< history_ from cfg_ ([history])
-  void drain_history(Pipeline& p) noexcept;  ///< the window log into the history
+  void build_history();  ///< history_ from cfg_ ([history])
   void history_state(const PipelineStatus& ps, const char* reason) noexcept;  ///< a state line
   void log_alarm_changes(const PipelineStatus& ps) noexcept;
+  void build_mqtt();                                   ///< mqtt_ from cfg_ ([mqtt]); keeps an unchanged one
+  void drain_windows(Pipeline& p) noexcept;            ///< the window log into history and MQTT
+  void mqtt_state(const PipelineStatus& ps) noexcept;  ///< a state event when state/phase/level changed
+  void mqtt_alarm(const PipelineStatus& ps, const char* causes) noexcept;  ///< an alarm/fault event
   void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);
 
   DaemonOptions options_;
@@ -154,7 +158,14 @@ class Daemon {
   std::unique_ptr<Pipeline> pipeline_;
   std::unique_ptr<StatusWriter> writer_;
   std::unique_ptr<HistoryLog> history_;  ///< [history] dir set; written by the supervisor
-  dsp::WindowResult history_window_;     ///< drain_history()'s buffer (not on the stack: ~300 bytes)
+  dsp::WindowResult history_window_;     ///< drain_windows()'s buffer (not on the stack: ~300 bytes)
+  std::unique_ptr<MqttPublisher> mqtt_;  ///< [mqtt] enabled; events posted by the supervisor
+  MqttEvent mqtt_event_;                 ///< the supervisor's event buffer (not on the stack)
+  std::int64_t mqtt_next_summary_ns_ = INT64_MIN;  ///< window end (daemon clock) of the next summary
+  DaemonState mqtt_last_state_ = DaemonState::kConfigured;
+  Phase mqtt_last_phase_ = Phase::kStarting;
+  drivers::AlarmLevel mqtt_last_level_ = drivers::AlarmLevel::kFault;
+  bool mqtt_state_sent_ = false;
   SdNotifier notifier_;
   int signal_fd_ = -1;
   int event_fd_ = -1;

@@ -61,6 +61,7 @@ std::vector<std::string> daemon_owned_tables() {
           "alarm",
           "training",
           "history",
+          "mqtt",
           "can.backend",
           "can.interface",
           "can.replay_file",
@@ -106,6 +107,7 @@ class DaemonTablesBuilder {
     if (const toml::table* t = top.table("alarm")) apply_alarm(*t, source);
     if (const toml::table* t = top.table("training")) apply_training(*t, source);
     if (const toml::table* t = top.table("history")) apply_history(*t, source);
+    if (const toml::table* t = top.table("mqtt")) apply_mqtt(*t, source);
   }
 
   void finish(DaemonConfig& out) const {
@@ -115,6 +117,25 @@ class DaemonTablesBuilder {
     out.alarm = alarm_;
     out.training = training_;
     out.history = history_;
+    out.mqtt = mqtt_;
+    if (mqtt_.enabled) {
+      if (mqtt_.topic_prefix.empty())
+        fail_key("mqtt.enabled",
+                 "mqtt.enabled = true needs mqtt.topic_prefix (e.g. \"ptda/plant1/cell3/robot17/{joint}\")");
+      if (mqtt_.queue_dir.empty())
+        fail_key("mqtt.enabled",
+                 "mqtt.enabled = true needs mqtt.queue_dir (the store-and-forward queue's directory)");
+      if (mqtt_.tls_cert_file.empty() != mqtt_.tls_key_file.empty())
+        fail_key(mqtt_.tls_cert_file.empty() ? "mqtt.tls_key_file" : "mqtt.tls_cert_file",
+                 "mqtt.tls_cert_file and mqtt.tls_key_file go together (the client certificate and its key)");
+      if (!mqtt_.tls_cert_file.empty() && mqtt_.tls_ca_file.empty())
+        fail_key("mqtt.tls_cert_file",
+                 "a client certificate (mqtt.tls_cert_file) needs TLS: set mqtt.tls_ca_file");
+      if (!mqtt_.password_file.empty() && mqtt_.username.empty())
+        fail_key("mqtt.password_file", "mqtt.password_file needs mqtt.username");
+      if (mqtt_.reconnect_max_s < mqtt_.reconnect_min_s)
+        fail_key("mqtt.reconnect_max_s", "mqtt.reconnect_max_s must be at least mqtt.reconnect_min_s");
+    }
     const double fs = out.pipeline.fs_hz;
     if (adc_.backend == AdcBackend::kIio && fs == 0.0) {
       fail_key("adc.backend", "adc.backend = \"iio\" needs [acquisition] fs_hz (the ADC's sample rate)");
@@ -346,6 +367,49 @@ class DaemonTablesBuilder {
     r.finish();
   }
 
+  void apply_mqtt(const toml::table& t, const std::string& source) {
+    remember_source(source);
+    TableReader r(t, "mqtt", source);
+    get(r, "enabled", mqtt_.enabled);
+    if (r.read("host", mqtt_.host)) {
+      note(r, "host");
+      if (mqtt_.host.empty()) r.fail_value("host", "must not be empty (the broker's host name or address)");
+    }
+    get(r, "port", mqtt_.port, std::uint32_t{1}, std::uint32_t{65535});
+    if (r.read("client_id", mqtt_.client_id)) {
+      note(r, "client_id");
+      if (mqtt_.client_id.size() > 23 * 4) r.fail_value("client_id", "is longer than 92 bytes");
+    }
+    if (r.read("topic_prefix", mqtt_.topic_prefix)) {
+      note(r, "topic_prefix");
+      const std::string& tp = mqtt_.topic_prefix;
+      if (tp.empty() || tp.front() == '/' || tp.back() == '/' ||
+          tp.find_first_of("#+") != std::string::npos || tp.find('\0') != std::string::npos) {
+        r.fail_value("topic_prefix",
+                     "must be a topic without wildcards (# +) and without a leading or trailing '/', not \"" +
+                         tp + "\"");
+      }
+    }
+    get(r, "keepalive_s", mqtt_.keepalive_s, std::uint32_t{5}, std::uint32_t{3600});
+    get_path(r, "tls_ca_file", mqtt_.tls_ca_file);
+    get_path(r, "tls_cert_file", mqtt_.tls_cert_file);
+    get_path(r, "tls_key_file", mqtt_.tls_key_file);
+    get(r, "username", mqtt_.username);
+    get_path(r, "password_file", mqtt_.password_file);
+    get_path(r, "queue_dir", mqtt_.queue_dir);
+    double max_bytes = static_cast<double>(mqtt_.queue_max_bytes);
+    if (r.read("queue_max_bytes", max_bytes, 65536.0, 1099511627776.0)) {
+      note(r, "queue_max_bytes");
+      if (max_bytes != std::floor(max_bytes))
+        r.fail_value("queue_max_bytes", "must be a whole number of bytes");
+      mqtt_.queue_max_bytes = static_cast<std::uint64_t>(max_bytes);
+    }
+    get(r, "window_summary_interval_s", mqtt_.window_summary_interval_s, 0.0, 86400.0);
+    get(r, "reconnect_min_s", mqtt_.reconnect_min_s, 0.1, 3600.0);
+    get(r, "reconnect_max_s", mqtt_.reconnect_max_s, 0.1, 86400.0);
+    r.finish();
+  }
+
   void remember_source(const std::string& source) {
     if (first_source_.empty()) first_source_ = source;
   }
@@ -356,6 +420,7 @@ class DaemonTablesBuilder {
   AlarmSection alarm_;
   TrainingSection training_;
   HistorySection history_;
+  MqttSection mqtt_;
   fs::path base_dir_;
   std::string first_source_;
   std::map<std::string, SourceLocation, std::less<>> set_at_;

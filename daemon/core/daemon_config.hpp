@@ -123,6 +123,28 @@ struct HistorySection {
   std::uint32_t files = 8;     ///< history.jsonl + files - 1 rotations: the bound is files x size
 };
 
+/// [mqtt]: publishing to a broker with store-and-forward (docs/fleet.md, "MQTT").
+struct MqttSection {
+  bool enabled = false;
+  std::string host = "localhost";
+  std::uint32_t port = 1883;
+  std::string client_id;     ///< "" = "ptdad-<joint>" or "ptdad"
+  std::string topic_prefix;  ///< required when enabled; "{joint}" is replaced by the joint name
+  std::uint32_t keepalive_s = 30;
+  std::filesystem::path tls_ca_file;    ///< set: TLS, the broker's certificate checked against this CA
+  std::filesystem::path tls_cert_file;  ///< client certificate (with tls_key_file)
+  std::filesystem::path tls_key_file;
+  std::string username;
+  std::filesystem::path password_file;  ///< first line; $CREDENTIALS_DIRECTORY/mqtt_password wins
+  std::filesystem::path queue_dir;      ///< store-and-forward queue (required when enabled)
+  std::uint64_t queue_max_bytes =
+      32ULL << 20U;  ///< 32 MiB: 24 h of a level and a state change every 1.5 s (docs/fleet.md)
+  double window_summary_interval_s = 10.0;  ///< at most one window summary per this (0 = none)
+  double reconnect_min_s = 1.0;
+  double reconnect_max_s = 60.0;
+  bool operator==(const MqttSection&) const = default;
+};
+
 struct DaemonConfig {
   config::PipelineConfig pipeline;
   DaemonSection daemon;
@@ -131,6 +153,7 @@ struct DaemonConfig {
   AlarmSection alarm;
   TrainingSection training;
   HistorySection history;
+  MqttSection mqtt;
   std::vector<std::filesystem::path> files;  ///< the files read, in order (main first)
 };
 

@@ -420,6 +420,31 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
   } else {
     j.null("history");
   }
+  if (s.mqtt.enabled) {
+    const MqttStats& m = s.mqtt;
+    j.key("mqtt");
+    j.open('{');
+    j.boolean("connected", m.connected);
+    j.u64("queue_bytes", m.queue_bytes);
+    j.u64("queue_pending", m.queue_pending);
+    j.key("dropped");
+    j.open('{');
+    j.u64("event", m.dropped_event);
+    j.u64("summary", m.dropped_summary);
+    j.u64("handoff", m.dropped_handoff);
+    j.u64("io", m.dropped_io);
+    j.close('}');
+    j.u64("published", m.published);
+    j.u64("connect_failures", m.connect_failures);
+    if (m.last_error.len > 0) {
+      j.str("last_error", m.last_error.view());
+    } else {
+      j.null("last_error");
+    }
+    j.close('}');
+  } else {
+    j.null("mqtt");
+  }
   render_state_files_json(j, files);
   j.close('}');
   b.append_char('\n');
@@ -677,6 +702,27 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
   }
   if (s.history_enabled) {
     for (const CounterDesc& c : kHistoryCounters) p.counter(c.prom_name, c.help, s.*c.field);
+  }
+  if (s.mqtt.enabled) {
+    const MqttStats& m = s.mqtt;
+    p.gauge("ptda_mqtt_connected", "1 while the MQTT publisher is connected to its broker.",
+            m.connected ? 1.0 : 0.0);
+    p.gauge("ptda_mqtt_queue_bytes", "Bytes in the MQTT store-and-forward queue.",
+            static_cast<double>(m.queue_bytes));
+    p.gauge("ptda_mqtt_queue_pending", "Events in the MQTT queue not yet acknowledged by the broker.",
+            static_cast<double>(m.queue_pending));
+    p.family("ptda_mqtt_queue_dropped_total", "counter",
+             "MQTT events dropped: event (alarm/fault/state removed from the full queue), summary (window "
+             "summary while offline or from the full queue), handoff (supervisor ring full), io (queue write "
+             "failed).");
+    p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "event"}}, static_cast<double>(m.dropped_event));
+    p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "summary"}}, static_cast<double>(m.dropped_summary));
+    p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "handoff"}}, static_cast<double>(m.dropped_handoff));
+    p.sample("ptda_mqtt_queue_dropped_total", {{"kind", "io"}}, static_cast<double>(m.dropped_io));
+    p.counter("ptda_mqtt_published_total",
+              "MQTT messages the broker acknowledged (queued events) or took (summaries).", m.published);
+    p.counter("ptda_mqtt_connect_failures_total",
+              "Failed MQTT connection attempts (refused, unreachable, TLS).", m.connect_failures);
   }
   render_state_files_prom(p, files);
 }

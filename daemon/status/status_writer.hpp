@@ -53,6 +53,21 @@ struct FixedString {
   [[nodiscard]] std::string_view view() const noexcept { return {text.data(), len}; }
 };
 
+/// The MQTT publisher's state for status.json and the metrics (mqtt/mqtt_publisher.hpp). Trivially copyable.
+struct MqttStats {
+  bool enabled = false;
+  bool connected = false;
+  std::uint64_t queue_bytes = 0;
+  std::uint64_t queue_pending = 0;
+  std::uint64_t dropped_event = 0;    ///< undelivered alarms, faults, states removed from the full queue
+  std::uint64_t dropped_summary = 0;  ///< window summaries not sent (broker offline)
+  std::uint64_t dropped_handoff = 0;  ///< events the hand-over ring could not hold
+  std::uint64_t dropped_io = 0;       ///< events the queue could not append (I/O error)
+  std::uint64_t published = 0;        ///< PUBACKed queued events plus sent summaries
+  std::uint64_t connect_failures = 0;
+  FixedString<160> last_error;
+};
+
 enum class DaemonState : std::uint8_t {
   kConfigured = 0,  ///< configured, not yet running
   kRunning = 1,     ///< monitoring
@@ -222,6 +237,8 @@ struct StatusSnapshot {
   std::uint64_t history_rotation_failures = 0;  ///< the current file could not be moved aside
   std::uint64_t history_windows_dropped = 0;    ///< windows the hand-over ring could not hold
   std::int32_t history_last_errno = 0;
+  // MQTT ([mqtt] enabled): "mqtt" is null and no ptda_mqtt_* metrics when off.
+  MqttStats mqtt;
 
   // Write failures of the state files, indexed by StateFile. The daemon fills the baseline entry;
   // StatusWriter::write() fills status and metrics from its own health (render_* print these).

@@ -154,7 +154,7 @@ constexpr std::string_view kKnownJson =
     R"("slicer":{"regions":24,"windows":108,"windows_invalid":0,"windows_lost":0},)"
     R"("pipeline":{"ring_overflows":0,"windows_scored":107,"windows_abnormal":4,"alarms_raised":1,)"
     R"("watchdog_pings":7200},)"
-    R"("history":null,)"
+    R"("history":null,"mqtt":null,)"
     R"("state_files":{"status":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
     R"("metrics":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
     R"("baseline":{"failing":true,"failures":3,"last_errno":28,)"
@@ -342,7 +342,8 @@ TEST(FleetFiles, RulesAndDashboardUseOnlyMetricsTheDaemonWrites) {
   c.joint = "joint4";
   StatusWriter w(c);
   // Monitoring with a window, an alarm and partial coverage; then field training (its own families).
-  const StatusSnapshot monitoring = known_snapshot();
+  StatusSnapshot monitoring = known_snapshot();
+  monitoring.mqtt.enabled = true;  // [mqtt] on: the ptda_mqtt_* families (PtdaMqttQueueDropping)
   StatusSnapshot training = known_snapshot();
   training.state = DaemonState::kTraining;
   training.training_windows = 120;
@@ -384,6 +385,47 @@ TEST(FleetFiles, RulesAndDashboardUseOnlyMetricsTheDaemonWrites) {
     EXPECT_GE(used.size(), 8U) << rules;
     EXPECT_EQ(missing(used), std::vector<std::string>{}) << rules << " uses metrics ptdad never writes";
   }
+}
+
+TEST(StatusWriter, MqttFieldsAndMetrics) {
+  StatusWriterConfig c = json_only(scratch("mqtt"));
+  c.prom_path = c.json_path.parent_path() / "ptda.prom";
+  StatusWriter w(c);
+  StatusSnapshot s = known_snapshot();
+  // Off: null in status.json, no ptda_mqtt_* family.
+  EXPECT_NE(std::string(w.render_json(s)).find(R"("mqtt":null)"), std::string::npos);
+  EXPECT_EQ(std::string(w.render_prometheus(s)).find("ptda_mqtt_"), std::string::npos);
+  s.mqtt.enabled = true;
+  s.mqtt.connected = false;
+  s.mqtt.queue_bytes = 2963;
+  s.mqtt.queue_pending = 5;
+  s.mqtt.dropped_event = 1;
+  s.mqtt.dropped_summary = 4;
+  s.mqtt.published = 13;
+  s.mqtt.connect_failures = 7;
+  s.mqtt.last_error.assign("broker refused the connection: Connection Refused: not authorised.");
+  const std::string json(w.render_json(s));
+  EXPECT_TRUE(JsonChecker(json).valid());
+  EXPECT_NE(
+      json.find(R"("mqtt":{"connected":false,"queue_bytes":2963,"queue_pending":5,)"
+                R"("dropped":{"event":1,"summary":4,"handoff":0,"io":0},"published":13,"connect_failures":7,)"
+                R"("last_error":"broker refused the connection: Connection Refused: not authorised."})"),
+      std::string::npos)
+      << json;
+  const std::string prom(w.render_prometheus(s));
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_connected"),
+            std::vector<std::string>{"ptda_mqtt_connected 0"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_bytes"),
+            std::vector<std::string>{"ptda_mqtt_queue_bytes 2963"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_dropped_total"),
+            (std::vector<std::string>{R"(ptda_mqtt_queue_dropped_total{kind="event"} 1)",
+                                      R"(ptda_mqtt_queue_dropped_total{kind="summary"} 4)",
+                                      R"(ptda_mqtt_queue_dropped_total{kind="handoff"} 0)",
+                                      R"(ptda_mqtt_queue_dropped_total{kind="io"} 0)"}));
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_published_total"),
+            std::vector<std::string>{"ptda_mqtt_published_total 13"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_connect_failures_total"),
+            std::vector<std::string>{"ptda_mqtt_connect_failures_total 7"});
 }
 
 TEST(StatusWriter, FixedStringTruncates) {
