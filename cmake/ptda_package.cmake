@@ -198,7 +198,7 @@ set(CPACK_DEBIAN_DAEMON_PACKAGE_CONTROL_EXTRA
     "${_ptda_pkg_src}/ptdad/conffiles;${_ptda_pkg_src}/ptdad/postinst;${_ptda_pkg_src}/ptdad/prerm;${_ptda_pkg_src}/ptdad/postrm")
 
 set(CPACK_DEBIAN_TOOLS_PACKAGE_NAME "ptda-tools")
-set(CPACK_DEBIAN_TOOLS_PACKAGE_DEPENDS "${_ptda_libs_base}, zlib1g (>= 1:1.1.4), ${_ptda_common_dep}")
+set(CPACK_DEBIAN_TOOLS_PACKAGE_DEPENDS "${_ptda_libs_base}, zlib1g (>= 1:1.1.4), libmosquitto1 (>= 2.0.11), ${_ptda_common_dep}")
 set(CPACK_DEBIAN_TOOLS_DESCRIPTION
     "gearbox condition-monitoring offline tool (PTDA)
 ptda simulates robot joints and their gearbox vibration, imports

@@ -28,6 +28,7 @@ constexpr Command kCommands[] = {
     {"evaluate", "separation of healthy and faulty windows: ratios and ROC AUC per feature", &cmd_evaluate},
     {"gap", "diagnose where and why a simulator departs from a measured recording", &cmd_gap},
     {"gap-bench", "score the gap diagnosis on simulated cases with withheld effects", &cmd_gap_bench},
+    {"fleet", "live table of every joint publishing to an MQTT broker (ptdad [mqtt])", &cmd_fleet},
 };
 
 }  // namespace

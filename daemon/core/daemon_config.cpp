@@ -426,6 +426,16 @@ class DaemonTablesBuilder {
   std::map<std::string, SourceLocation, std::less<>> set_at_;
 };
 
+// ptdad judges time-domain windows only (docs/method.md §9: the order domain runs in `ptda train` and
+// `ptda monitor`). Without this check an order config with a time baseline of R S samples would run as
+// time domain without a word.
+void refuse_order_domain(const DaemonConfig& cfg, const std::string& source) {
+  if (cfg.pipeline.domain == dsp::Domain::kOrder) {
+    throw Error(source + ": [extraction] domain = \"order\": ptdad does not judge the order domain yet " +
+                "(ptda train and ptda monitor do; docs/method.md §9); use domain = \"time\" for the daemon");
+  }
+}
+
 }  // namespace
 
 DaemonConfig load_daemon_config(const fs::path& main_file, const std::vector<fs::path>& dropins) {
@@ -442,6 +452,7 @@ DaemonConfig load_daemon_config(const fs::path& main_file, const std::vector<fs:
   }
   out.pipeline = pipeline.finish();
   tables.finish(out);
+  refuse_order_domain(out, main_file.string());
   return out;
 }
 
@@ -454,6 +465,7 @@ DaemonConfig parse_daemon_config(std::string_view toml_text, const std::string& 
   tables.apply(root, source, fs::path());
   out.pipeline = pipeline.finish();
   tables.finish(out);
+  refuse_order_domain(out, source);
   return out;
 }
 

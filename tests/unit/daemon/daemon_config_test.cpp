@@ -113,6 +113,19 @@ TEST(DaemonConfig, ErrorsAreLocated) {
 }
 
 // Issue 14 item 8: a NUL inside a path (TOML "\u0000") and absurdly long strings are located errors.
+// ptdad judges the time domain only; an order configuration is refused instead of running as time
+// domain (ptda train/monitor take it: tests/unit/config/order_config_test.cpp).
+TEST(DaemonConfig, OrderDomainIsRefusedByTheDaemon) {
+  const std::string order =
+      "[extraction]\ndomain = \"order\"\n[adc]\nscenario = \"s.toml\"\n[gearbox]\nkind = \"cycloidal\"\n"
+      "z_in = 28\nz_spur = 23\nz_pin = 40\n";
+  const std::string e = error_of(order);
+  EXPECT_EQ(e.rfind("t.toml: [extraction] domain = \"order\": ptdad does not judge the order domain yet", 0),
+            0U)
+      << e;
+  EXPECT_EQ(parse_daemon_config(kMinimal + "", "t.toml").pipeline.domain, dsp::Domain::kTime);
+}
+
 TEST(DaemonConfig, NulInPathsAndOverlongNamesAreLocatedErrors) {
   const std::string nul = kMinimal + "[daemon]\nbaseline = \"/var/lib/ptda/a\\u0000.bin\"\n";
   EXPECT_EQ(error_of(nul),

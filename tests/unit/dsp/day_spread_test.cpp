@@ -269,6 +269,8 @@ TEST(BuildClassBaseline, CoverRecordingsWidensOnlyForARecordingOutsideThePooledB
     }
   const auto w = noise_windows(level, kN, 7);
   ThresholdPolicy p;
+  EXPECT_TRUE(p.cover_recordings);  // the default since session 10 (docs/method.md §5)
+  p.cover_recordings = false;
   const ClassBaseline pooled = build_class_baseline(SegmentClass{}, w, {}, p, rec);
   p.cover_recordings = true;
   const ClassBaseline cover = build_class_baseline(SegmentClass{}, w, {}, p, rec);

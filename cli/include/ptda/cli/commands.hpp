@@ -27,6 +27,7 @@ int cmd_doctor(std::span<const std::string> args, std::ostream& out);
 int cmd_evaluate(std::span<const std::string> args, std::ostream& out);
 int cmd_gap(std::span<const std::string> args, std::ostream& out);
 int cmd_gap_bench(std::span<const std::string> args, std::ostream& out);
+int cmd_fleet(std::span<const std::string> args, std::ostream& out);
 
 /// Dispatches args[0] as the subcommand ("--help"/"-h"/"help" or nothing: overview). Catches every
 /// exception and returns the exit code; error text goes to err.
