@@ -196,7 +196,8 @@ double abnormal(const ClassBaseline& c, const std::vector<Features>& f) {
 // ---- Programs without a 0.2 s plateau (issue 16 item 4; --program short|accel) ----------------------
 // A cycle is a list of speed segments (shaft speed as a fraction of f0). short: cosine ramps of 0.2 s
 // between plateaus of 0.15 s at f0, 0.7 f0, f0, then down and 0.3 s standstill. accel: triangular,
-// linear 0 -> f0 in 0.8 s and back to 0 in 0.8 s, 0.3 s standstill (no plateau at all). The ripple
+// linear 0 -> f0 in 0.8 s and back to 0 in 0.8 s, 0.3 s standstill (no plateau at all). long: a
+// control with one 1.0 s plateau at f0 between 0.2 s ramps, where the time-domain slicer can cut. The ripple
 // multiplies the whole motion profile: v (1 + ripple sin(2 pi 3 Hz t + psi_cycle)). Vibration, CAN
 // frames and fault are those of make_job(); `severity` scales both fault terms.
 struct Segment {
@@ -208,8 +209,10 @@ std::vector<Segment> program_cycle(const std::string& program) {
   if (program == "short")
     return {{0.2, 0.0, 1.0, false}, {0.15, 1.0, 1.0, false}, {0.2, 1.0, 0.7, false}, {0.15, 0.7, 0.7, false},
             {0.2, 0.7, 1.0, false}, {0.15, 1.0, 1.0, false}, {0.2, 1.0, 0.0, false}, {0.3, 0.0, 0.0, false}};
+  if (program == "long")  // control: same ramps, one plateau of 1.0 s at f0 (the slicer must cut here)
+    return {{0.2, 0.0, 1.0, false}, {1.0, 1.0, 1.0, false}, {0.2, 1.0, 0.0, false}, {0.3, 0.0, 0.0, false}};
   if (program == "accel") return {{0.8, 0.0, 1.0, true}, {0.8, 1.0, 0.0, true}, {0.3, 0.0, 0.0, true}};
-  throw ptda::Error("order_bench: --program must be plateau, short or accel, not " + program);
+  throw ptda::Error("order_bench: --program must be plateau, short, accel or long, not " + program);
 }
 
 struct ProgJob {
