@@ -23,29 +23,20 @@
 #include <string>
 #include <vector>
 
+#include "order_program.hpp"
+#include "ptda/common/error.hpp"
 #include "ptda/dsp/analyzer.hpp"
 #include "ptda/dsp/angle_resampler.hpp"
+#include "ptda/dsp/decision.hpp"
+#include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/order_windows.hpp"
 #include "ptda/dsp/training.hpp"
+#include "ptda/dsp/window_slicer.hpp"
 
 namespace {
 
 using namespace ptda::dsp;
-
-constexpr double kPi = std::numbers::pi;
-constexpr double kFs = 25600.0;
-constexpr std::int64_t kT0 = 1'700'000'000'000'000'000;
-constexpr double kRatio = 1.0 + 23.0 / 28.0 * 40.0;
-constexpr std::uint32_t kS = 1024;
-constexpr std::uint32_t kR = 8;
-constexpr std::size_t kN = kS * kR;
-constexpr double kF0 = 25.0;
-constexpr std::size_t kFramePeriod = 100;
-
-struct Fault {
-  double impulse = 0.0;
-  double am = 0.0;
-};
+using namespace ptda::order_bench;
 
 struct Job {
   std::vector<float> x;
@@ -189,6 +180,93 @@ double abnormal(const ClassBaseline& c, const std::vector<Features>& f) {
   return static_cast<double>(n) / static_cast<double>(f.size());
 }
 
+/// --program short|accel: per seed, domain and severity one CSV line (header in main()).
+void run_program(const std::string& program, std::uint64_t seed_lo, std::uint64_t seed_hi,
+                 const std::vector<double>& ripples, const std::vector<double>& severities,
+                 const Fault& full) {
+  std::printf(
+      "program,ripple,severity,seed,domain,train_windows,healthy_windows,faulty_windows,healthy_coverage,"
+      "faulty_coverage,auc_rms,auc_entropy,healthy_abnormal,faulty_abnormal,healthy_alarm,first_abnormal_s,"
+      "first_abnormal_window,first_alarm_s,first_alarm_window\n");
+  const DecisionConfig dc;  // the product's default k-of-n (3 of 5)
+  for (const double ripple : ripples) {
+    for (std::uint64_t seed = seed_lo; seed <= seed_hi; ++seed) {
+      const ProgJob tr = make_program_job(seed * 1000 + 1, 24, program, ripple, Fault{});
+      const ProgJob he = make_program_job(seed * 1000 + 2, 16, program, ripple, Fault{});
+      std::vector<ProgJob> fa;
+      for (const double sev : severities)
+        fa.push_back(
+            make_program_job(seed * 1000 + 3, 16, program, ripple, Fault{full.impulse * sev, full.am * sev}));
+      for (int d = 0; d < 2; ++d) {
+        const char* dom = d == 0 ? "time" : "order";
+        const auto get = [&](const ProgJob& j) { return d == 0 ? time_cut(j) : order_cut(j); };
+        const Cut trc = get(tr), hec = get(he);
+        bool trained = trc.w.size() >= 3;
+        ClassBaseline c;
+        if (trained) {
+          try {
+            c = train(trc.w);
+          } catch (const ptda::Error&) {
+            trained = false;
+          }
+        }
+        const auto& th = c.thresholds[static_cast<std::size_t>(Method::kPtda)];
+        const auto judged = [&](const std::vector<Features>& f, std::vector<bool>& ab) {
+          std::size_t n = 0;
+          for (const Features& x : f) {
+            ab.push_back(judge(x, th).abnormal());
+            n += ab.back() ? 1 : 0;
+          }
+          return f.empty() ? std::nan("") : static_cast<double>(n) / static_cast<double>(f.size());
+        };
+        std::vector<Features> fh;
+        std::vector<bool> abh;
+        double h_ab = std::nan("");
+        int h_alarm = -1;
+        if (trained) {
+          fh = score(c, hec.w);
+          h_ab = judged(fh, abh);
+          KOfNDebouncer deb(dc.k, dc.n);
+          h_alarm = 0;
+          for (const bool a : abh) h_alarm |= deb.push(a) ? 1 : 0;
+        }
+        for (std::size_t si = 0; si < severities.size(); ++si) {
+          const Cut fac = get(fa[si]);
+          double auc_r = std::nan(""), auc_e = std::nan(""), f_ab = std::nan("");
+          double first_ab_s = std::nan(""), first_al_s = std::nan("");
+          long first_ab_w = -1, first_al_w = -1;
+          if (trained) {
+            const auto ff = score(c, fac.w);
+            std::vector<bool> abf;
+            f_ab = judged(ff, abf);
+            if (!fh.empty() && !ff.empty()) {
+              auc_r = auc(fh, ff, [](const Features& f) { return f.rms_res; });
+              auc_e = auc(fh, ff, [](const Features& f) { return -f.entropy_res; });
+            }
+            KOfNDebouncer deb(dc.k, dc.n);
+            for (std::size_t i = 0; i < abf.size(); ++i) {
+              if (abf[i] && first_ab_w < 0) {
+                first_ab_w = static_cast<long>(i);
+                first_ab_s = fac.t_end_s[i];
+              }
+              if (deb.push(abf[i]) && first_al_w < 0) {
+                first_al_w = static_cast<long>(i);
+                first_al_s = fac.t_end_s[i];
+              }
+            }
+          }
+          std::printf("%s,%g,%g,%llu,%s,%zu,%zu,%zu,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%.3f,%ld,%.3f,%ld\n",
+                      program.c_str(), ripple, severities[si], static_cast<unsigned long long>(seed), dom,
+                      trc.w.size(), hec.w.size(), fac.w.size(), hec.judged_s / he.motion_s,
+                      fac.judged_s / fa[si].motion_s, auc_r, auc_e, h_ab, f_ab, h_alarm, first_ab_s,
+                      first_ab_w, first_al_s, first_al_w);
+          std::fflush(stdout);
+        }
+      }
+    }
+  }
+}
+
 std::vector<double> parse_list(const std::string& s) {
   std::vector<double> v;
   std::size_t p = 0;
@@ -207,6 +285,8 @@ int main(int argc, char** argv) {
   std::uint64_t seed_lo = 101, seed_hi = 110;
   std::vector<double> ripples{0.0, 0.01, 0.02, 0.03, 0.04, 0.05};
   Fault fault{0.3, 0.1};
+  std::string program = "plateau";
+  std::vector<double> severities{1.0};
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i], v = argv[i + 1];
     if (k == "--seeds") {
@@ -217,12 +297,25 @@ int main(int argc, char** argv) {
       ripples = parse_list(v);
     } else if (k == "--impulse") {
       fault.impulse = std::stod(v);
+    } else if (k == "--program") {
+      program = v;
+    } else if (k == "--severities") {
+      severities = parse_list(v);
     } else if (k == "--am") {
       fault.am = std::stod(v);
     } else {
       std::fprintf(stderr, "order_bench: unknown option %s\n", k.c_str());
       return 2;
     }
+  }
+  if (program != "plateau") {
+    try {
+      run_program(program, seed_lo, seed_hi, ripples, severities, fault);
+    } catch (const ptda::Error& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      return 2;
+    }
+    return 0;
   }
   std::printf(
       "ripple,seed,domain,train_windows,healthy_windows,faulty_windows,auc_rms,auc_entropy,"
