@@ -143,6 +143,18 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
 // `ptda train` in the order domain (docs/method.md §9): every recording through the angle resampler and
 // the order window cutter (one pass, windows kept in memory: 4 R S bytes each), then
 // train_order_baseline (speed-band classes, the time domain's per-class training and thresholds).
+/// All training recordings share one sample rate: the first one's (kept in fs_hz / first_recording).
+void take_rate(const RecordingInfo& rec, double fs, const std::string& dir, double& fs_hz,
+               std::string& first_recording) {
+  if (fs_hz == 0.0) {
+    fs_hz = fs;
+    first_recording = dir;
+  } else if (fs != fs_hz) {
+    throw Error(rec.wav_path.string() + ": sampled at " + general(fs, 10) + " Hz but " + first_recording +
+                " at " + general(fs_hz, 10) + " Hz (all training recordings need one rate)");
+  }
+}
+
 int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const std::string& config_path,
                 const FractionRange& range, std::ostream& out) {
   dsp::OrderWindows all;
@@ -158,13 +170,7 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
   for (const auto& dir : a.values("recording")) {
     const RecordingInfo rec = open_recording(dir);
     const double fs = pipeline_fs_hz(rec, cfg, config_path);
-    if (fs_hz == 0.0) {
-      fs_hz = fs;
-      first_recording = dir;
-    } else if (fs != fs_hz) {
-      throw Error(rec.wav_path.string() + ": sampled at " + general(fs, 10) + " Hz but " + first_recording +
-                  " at " + general(fs_hz, 10) + " Hz (all training recordings need one rate)");
-    }
+    take_rate(rec, fs, dir, fs_hz, first_recording);
     recorded_s += rec.duration_s;
     RunOptions opts;
     opts.config_source = config_path;
@@ -284,13 +290,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   for (const auto& dir : a.values("recording")) {
     const RecordingInfo rec = open_recording(dir);
     const double fs = pipeline_fs_hz(rec, cfg, config_path);
-    if (fs_hz == 0.0) {
-      fs_hz = fs;
-      first_recording = dir;
-    } else if (fs != fs_hz) {
-      throw Error(rec.wav_path.string() + ": sampled at " + general(fs, 10) + " Hz but " + first_recording +
-                  " at " + general(fs_hz, 10) + " Hz (all training recordings need one rate)");
-    }
+    take_rate(rec, fs, dir, fs_hz, first_recording);
     RunOptions opts;
     opts.config_source = config_path;
     // Pass 0: the windows' places and the regions only; the samples come in the training's two passes.

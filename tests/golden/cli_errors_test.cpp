@@ -291,6 +291,16 @@ TEST_F(CliEnd2End, MismatchesAreExitOneNamingBothSides) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "ptda monitor: " + baseline() + ": baseline was trained at 10000 Hz but recording " +
                        (dir_ / "rec20k" / "vibration.wav").string() + " is sampled at 20000 Hz\n");
+
+  // Training recordings of two rates (cmd_train's take_rate(), shared by the time and order domains).
+  r = run_ptda({"train", "--recording", rec(), "--recording", (dir_ / "rec20k").string(), "--config",
+                config(), "--out", (dir_ / "never.bin").string()},
+               dir_, "mixed_rates");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "ptda train: " + (dir_ / "rec20k" / "vibration.wav").string() +
+                       ": sampled at 20000 Hz but " + rec() +
+                       " at 10000 Hz (all training recordings need one rate)\n");
+  EXPECT_FALSE(fs::exists(dir_ / "never.bin"));
 }
 
 TEST_F(CliEnd2End, MalformedCsvIsExitOneWithLineAndColumnAndUsageErrorsExitTwo) {
