@@ -47,7 +47,6 @@ struct Job {
 Job make_job(std::uint64_t seed, std::uint32_t cycles, double ripple, const Fault& fault) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> uni(0.0, 2.0 * kPi);
-  std::normal_distribution<double> gauss(0.0, 1.0);
   const double ramp_s = 0.2, plateau_s = 2.6, stand_s = 0.3;
   const double cycle_s = 2.0 * ramp_s + plateau_s + stand_s;
   const auto n_total = static_cast<std::size_t>(cycles * cycle_s * kFs);
@@ -69,43 +68,10 @@ Job make_job(std::uint64_t seed, std::uint32_t cycles, double ripple, const Faul
       return w0 * 0.5 * (1.0 + std::cos(kPi * (tc - ramp_s - plateau_s) / ramp_s));
     return 0.0;
   };
+  ProgJob synth = synthesize_job(speed, n_total, cycles, cycle_s, ph1, ph2, ph3, fault, rng);
   Job job;
-  job.x.resize(n_total);
-  double phi = 0.0;
-  double w_prev = speed(0.0);
-  const double spur_per_shaft = 28.0 / 23.0;
-  double next_impact = 2.0 * kPi;  // spur angle of the next impact
-  double ring_t = -1.0;            // time of the last impact
-  double ring_amp = 0.0;
-  const double zeta = 0.05, f_res = 3000.0;
-  const double wn = 2.0 * kPi * f_res;
-  const double wd = wn * std::sqrt(1.0 - zeta * zeta);
-  for (std::size_t n = 0; n < n_total; ++n) {
-    const double t = static_cast<double>(n) / kFs;
-    const double w = speed(t);
-    if (n > 0) phi += 0.5 * (w + w_prev) / kFs;
-    w_prev = w;
-    const auto cyc = std::min<std::uint32_t>(cycles - 1, static_cast<std::uint32_t>(t / cycle_s));
-    if (n % kFramePeriod == 0)
-      job.frames.push_back(SpeedSample{kT0 + std::llround(t * 1e9), w / kRatio, phi / kRatio, true});
-    const double spur = phi * spur_per_shaft;
-    const double am = 1.0 + fault.am * std::cos(spur);
-    double v = am * (std::cos(28.0 * phi + ph1[cyc]) + 0.5 * std::cos(56.0 * phi + ph2[cyc]) +
-                     0.25 * std::cos(84.0 * phi + ph3[cyc])) +
-               0.1 * std::cos(phi) + 0.2 * gauss(rng);
-    if (fault.impulse > 0.0) {
-      if (spur >= next_impact) {
-        ring_t = t;
-        ring_amp = fault.impulse * (w / w0);  // impact strength grows with speed
-        next_impact += 2.0 * kPi;
-      }
-      if (ring_t >= 0.0) {
-        const double tau = t - ring_t;
-        v += ring_amp * std::exp(-zeta * wn * tau) * std::sin(wd * tau);
-      }
-    }
-    job.x[n] = static_cast<float>(v);
-  }
+  job.x = std::move(synth.x);
+  job.frames = std::move(synth.frames);
   for (std::uint32_t c = 0; c < cycles; ++c) {
     const auto b = static_cast<std::size_t>(std::ceil((c * cycle_s + ramp_s + 0.05) * kFs));
     const auto e = std::min(n_total, static_cast<std::size_t>((c * cycle_s + ramp_s + plateau_s) * kFs));

@@ -64,37 +64,15 @@ struct ProgJob {
   double motion_s = 0.0;  ///< time with the shaft turning
 };
 
-inline ProgJob make_program_job(std::uint64_t seed, std::uint32_t cycles, const std::string& program,
-                                double ripple, const Fault& fault) {
-  const std::vector<Segment> seg = program_cycle(program);
-  double cycle_s = 0.0;
-  for (const Segment& s : seg) cycle_s += s.dur_s;
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> uni(0.0, 2.0 * kPi);
+/// The vibration and CAN frames along a shaft speed law `speed(t)` [rad/s] (shared by every program of
+/// order_bench): GMF orders 28/56/84 with the per-cycle phases ph1..ph3, shaft order 1, white noise from
+/// `rng`, and the fault's mesh AM and spur-rate ring. Draws from `rng` only inside the sample loop.
+template <class Speed>
+ProgJob synthesize_job(const Speed& speed, std::size_t n_total, std::uint32_t cycles, double cycle_s,
+                       const std::vector<double>& ph1, const std::vector<double>& ph2,
+                       const std::vector<double>& ph3, const Fault& fault, std::mt19937_64& rng) {
   std::normal_distribution<double> gauss(0.0, 1.0);
-  const auto n_total = static_cast<std::size_t>(cycles * cycle_s * kFs);
   const double w0 = 2.0 * kPi * kF0;
-  std::vector<double> psi(cycles), ph1(cycles), ph2(cycles), ph3(cycles);
-  for (std::uint32_t c = 0; c < cycles; ++c) {
-    psi[c] = uni(rng);
-    ph1[c] = uni(rng);
-    ph2[c] = uni(rng);
-    ph3[c] = uni(rng);
-  }
-  const auto speed = [&](double t) {
-    const auto cyc = std::min<std::uint32_t>(cycles - 1, static_cast<std::uint32_t>(t / cycle_s));
-    double tc = t - cyc * cycle_s;
-    for (const Segment& s : seg) {
-      if (tc < s.dur_s) {
-        const double u = tc / s.dur_s;
-        const double a = s.linear ? u : 0.5 * (1.0 - std::cos(kPi * u));
-        const double v = s.v0 + (s.v1 - s.v0) * a;
-        return w0 * v * (1.0 + ripple * std::sin(2.0 * kPi * 3.0 * (t - cyc * cycle_s) + psi[cyc]));
-      }
-      tc -= s.dur_s;
-    }
-    return 0.0;
-  };
   ProgJob job;
   job.x.resize(n_total);
   double phi = 0.0;
@@ -134,6 +112,39 @@ inline ProgJob make_program_job(std::uint64_t seed, std::uint32_t cycles, const 
     job.x[n] = static_cast<float>(v);
   }
   return job;
+}
+
+inline ProgJob make_program_job(std::uint64_t seed, std::uint32_t cycles, const std::string& program,
+                                double ripple, const Fault& fault) {
+  const std::vector<Segment> seg = program_cycle(program);
+  double cycle_s = 0.0;
+  for (const Segment& s : seg) cycle_s += s.dur_s;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uni(0.0, 2.0 * kPi);
+  const auto n_total = static_cast<std::size_t>(cycles * cycle_s * kFs);
+  const double w0 = 2.0 * kPi * kF0;
+  std::vector<double> psi(cycles), ph1(cycles), ph2(cycles), ph3(cycles);
+  for (std::uint32_t c = 0; c < cycles; ++c) {
+    psi[c] = uni(rng);
+    ph1[c] = uni(rng);
+    ph2[c] = uni(rng);
+    ph3[c] = uni(rng);
+  }
+  const auto speed = [&](double t) {
+    const auto cyc = std::min<std::uint32_t>(cycles - 1, static_cast<std::uint32_t>(t / cycle_s));
+    double tc = t - cyc * cycle_s;
+    for (const Segment& s : seg) {
+      if (tc < s.dur_s) {
+        const double u = tc / s.dur_s;
+        const double a = s.linear ? u : 0.5 * (1.0 - std::cos(kPi * u));
+        const double v = s.v0 + (s.v1 - s.v0) * a;
+        return w0 * v * (1.0 + ripple * std::sin(2.0 * kPi * 3.0 * (t - cyc * cycle_s) + psi[cyc]));
+      }
+      tc -= s.dur_s;
+    }
+    return 0.0;
+  };
+  return synthesize_job(speed, n_total, cycles, cycle_s, ph1, ph2, ph3, fault, rng);
 }
 
 /// Judged windows of one job with their end time (s from the job start) and span (s).
