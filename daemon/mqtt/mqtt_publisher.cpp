@@ -428,6 +428,22 @@ void MqttPublisher::handle(const MqttEvent& e, std::int64_t /*now_ns*/) {
   queue_dropped_summaries_.store(qc.dropped_summaries, std::memory_order_relaxed);
 }
 
+std::string MqttPublisher::tls_hint(int rc, int err, const std::string& why) const {
+  if (s_.cfg.tls_ca_file.empty()) return {};
+  // With TLS 1.3 the broker judges the client certificate after the client's side of the handshake is
+  // done, so a missing or untrusted one shows only as the broker's alert ("tlsv13 alert certificate
+  // required", "unknown ca") when OpenSSL logs it, or else as a bare "Protocol error" (EPROTO from the
+  // socket, or libmosquitto's own code).
+  const bool alert = why.find(" alert ") != std::string::npos;
+  const bool closed = rc == MOSQ_ERR_PROTOCOL || (rc == MOSQ_ERR_ERRNO && err == EPROTO) ||
+                      why.find("Protocol error") != std::string::npos;
+  if (!alert && !closed) return {};
+  return s_.cfg.tls_cert_file.empty()
+             ? " (broker closed TLS: if it requires a client certificate, set mqtt.tls_cert_file and "
+               "mqtt.tls_key_file)"
+             : " (broker closed TLS: does it trust the CA that signed mqtt.tls_cert_file?)";
+}
+
 void MqttPublisher::try_connect(std::int64_t now_ns) {
   const int rc = mosquitto_connect_async(mosq_, s_.cfg.host.c_str(), static_cast<int>(s_.cfg.port),
                                          static_cast<int>(s_.cfg.keepalive_s));
@@ -436,10 +452,14 @@ void MqttPublisher::try_connect(std::int64_t now_ns) {
     next_connect_ns_ = now_ns + static_cast<std::int64_t>(s_.cfg.reconnect_max_s * 1e9);  // connect timeout
     return;
   }
+  const int err = errno;
   connect_failures_.fetch_add(1, std::memory_order_relaxed);
-  set_error(std::string("connect to ") + s_.cfg.host + ":" + std::to_string(s_.cfg.port) + ": " +
-                (rc == MOSQ_ERR_ERRNO ? std::strerror(errno) : mosquitto_strerror(rc)),
-            true);
+  std::string why = last_log_error_.empty()
+                        ? std::string(rc == MOSQ_ERR_ERRNO ? std::strerror(err) : mosquitto_strerror(rc))
+                        : last_log_error_;
+  last_log_error_.clear();
+  why += tls_hint(rc, err, why);
+  set_error(std::string("connect to ") + s_.cfg.host + ":" + std::to_string(s_.cfg.port) + ": " + why, true);
   backoff_s_ =
       backoff_s_ <= 0.0 ? s_.cfg.reconnect_min_s : std::min(backoff_s_ * 2.0, s_.cfg.reconnect_max_s);
   next_connect_ns_ = now_ns + static_cast<std::int64_t>(backoff_s_ * 1e9);
@@ -505,9 +525,11 @@ void MqttPublisher::on_disconnect(int rc) {
   const std::int64_t now = steady_ns();
   if (was_connecting) {
     connect_failures_.fetch_add(1, std::memory_order_relaxed);
+    const int err = errno;
     std::string why = last_log_error_.empty()
-                          ? std::string(rc == MOSQ_ERR_ERRNO ? std::strerror(errno) : mosquitto_strerror(rc))
+                          ? std::string(rc == MOSQ_ERR_ERRNO ? std::strerror(err) : mosquitto_strerror(rc))
                           : last_log_error_;
+    why += tls_hint(rc, err, why);
     // Keep a refusal's CONNACK text (set by on_connect) rather than the socket close that follows it.
     bool keep = false;
     {

@@ -96,6 +96,8 @@ class MqttPublisher {
   void step(std::int64_t now_ns);
   void handle(const MqttEvent& e, std::int64_t now_ns);
   void try_connect(std::int64_t now_ns);
+  /// A hint for a TLS connection the broker closed (client certificate missing or untrusted), or "".
+  std::string tls_hint(int rc, int err, const std::string& why) const;
   void send_front();
   void set_error(std::string_view text, bool log_it);
   void on_connect(int rc);
@@ -136,7 +138,7 @@ class MqttPublisher {
       connect_failures_{0}, queue_bytes_{0}, queue_pending_{0}, queue_dropped_summaries_{0},
       queue_dropped_events_{0};
   mutable std::mutex error_mutex_;
-  FixedString<160> last_error_;
+  FixedString<256> last_error_;
 };
 
 }  // namespace ptda::daemon

@@ -65,7 +65,7 @@ struct MqttStats {
   std::uint64_t dropped_io = 0;       ///< events the queue could not append (I/O error)
   std::uint64_t published = 0;        ///< PUBACKed queued events plus sent summaries
   std::uint64_t connect_failures = 0;
-  FixedString<160> last_error;
+  FixedString<256> last_error;
 };
 
 enum class DaemonState : std::uint8_t {
