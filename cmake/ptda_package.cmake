@@ -119,10 +119,11 @@ list(REMOVE_ITEM _ptda_job_examples "${PROJECT_SOURCE_DIR}/config/examples/ptdad
 install(FILES ${_ptda_job_examples} "${_ptda_pkg_gen}/ptdad.toml" DESTINATION "${PTDA_DATA_DIR}/examples"
         COMPONENT common)
 install(FILES ${_ptda_gen_dropins} DESTINATION "${PTDA_DATA_DIR}/examples/ptdad.d" COMPONENT common)
-# Not active: the can0 binding, the real-time relaxation and the networkd file are examples (the
+# Not active: the can0 binding, the real-time relaxation, the MQTT network opening and the networkd file are examples (the
 # shipped configuration runs the simulator, which needs no can0; docs/packaging.md: how to activate).
 install(FILES "${PROJECT_SOURCE_DIR}/systemd/ptdad.service.d/10-can0.conf"
               "${PROJECT_SOURCE_DIR}/systemd/ptdad.service.d/20-realtime.conf.example"
+              "${PROJECT_SOURCE_DIR}/systemd/ptdad.service.d/30-mqtt.conf.example"
               "${PROJECT_SOURCE_DIR}/systemd/80-can0.network"
         DESTINATION "${PTDA_DATA_DIR}/examples/systemd" COMPONENT common)
 # Fleet view (docs/fleet.md): Prometheus alerting rules with their unit tests, the Grafana dashboard.

@@ -398,6 +398,7 @@ for f in /lib/systemd/system/ptdad.service /usr/lib/sysusers.d/ptda.conf /usr/li
   /lib/udev/rules.d/60-ptda.rules /etc/ptda/ptda.toml /usr/share/ptda/scenarios/joint_rotation_healthy.toml \
   /usr/share/ptda/examples/ptdad.toml /usr/share/ptda/examples/ptdad.d/10-joint_rotation.toml \
   /usr/share/ptda/examples/systemd/10-can0.conf /usr/share/ptda/examples/systemd/80-can0.network \
+  /usr/share/ptda/examples/systemd/30-mqtt.conf.example \
   /usr/share/doc/ptda-common/docs/systemd.md; do
   check "$f: root:root 0644" test "$(perms "$f")" = "root:root 644"
 done
