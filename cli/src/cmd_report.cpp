@@ -1,5 +1,7 @@
 // ptda report --recording DIR [...] --config FILE --baseline BASELINE --html OUT [--label NAME ...]
+#include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <optional>
 #include <ostream>
 #include <string_view>
@@ -15,6 +17,7 @@
 #include "ptda/common/time.hpp"
 #include "ptda/config/pipeline_config.hpp"
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/angle_resampler.hpp"
 #include "ptda/formats/baseline_file.hpp"
 
 namespace ptda::cli {
@@ -44,6 +47,12 @@ const dsp::ClassBaseline* find_class(const dsp::Baseline& baseline, std::int32_t
   return nullptr;
 }
 
+/// The joint speed at which the input shaft turns once per second: gear_orders() at it gives the gearbox's
+/// frequencies in input-shaft orders (order domain).
+double shaft_order_speed_rad_s(const dsp::Baseline& baseline) {
+  return baseline.gearbox.ratio > 0.0 ? 2.0 * std::numbers::pi / baseline.gearbox.ratio : 0.0;
+}
+
 std::string feature_text(const dsp::WindowResult& w) {
   const auto& t = w.thresholds;
   return "rms_res " + general(w.features.rms_res, 5) + " (band " + general(t.rms.lo, 5) + ".." +
@@ -52,12 +61,13 @@ std::string feature_text(const dsp::WindowResult& w) {
 }
 
 WindowExample make_example(const CapturedWindow& c, const std::string& title, const dsp::Baseline& baseline,
-                           double fs_hz, dsp::WindowAnalyzer& analyzer) {
+                           double fs_hz, bool order, dsp::WindowAnalyzer& analyzer) {
   WindowExample ex;
   ex.title = title;
   ex.fs_hz = fs_hz;
   ex.raw = c.raw;
-  ex.orders = gear_orders(baseline.gearbox, c.result.ref.speed_rad_s);
+  ex.orders =
+      gear_orders(baseline.gearbox, order ? shaft_order_speed_rad_s(baseline) : c.result.ref.speed_rad_s);
   const dsp::ClassBaseline* cls = find_class(baseline, c.result.class_id);
   if (cls == nullptr) return ex;
   (void)analyzer.analyze(c.raw, *cls, dsp::Method::kTda);
@@ -69,17 +79,22 @@ WindowExample make_example(const CapturedWindow& c, const std::string& title, co
   return ex;
 }
 
-EnvelopeBand parse_envelope_band(const std::string& text, double fs_hz) {
+EnvelopeBand parse_envelope_band(const std::string& text, double fs_hz, bool order) {
+  const char* unit = order ? " orders" : " Hz";
   const auto colon = text.find(':');
   if (colon == std::string::npos) {
-    throw UsageError("--envelope-band: expected LO:HI in Hz such as 2000:4000, got '" + text + "'");
+    throw UsageError(order ? "--envelope-band: expected LO:HI in input-shaft orders (order domain) such as "
+                             "40:120, got '" +
+                                 text + "'"
+                           : "--envelope-band: expected LO:HI in Hz such as 2000:4000, got '" + text + "'");
   }
   EnvelopeBand b;
   b.lo_hz = parse_double_arg(std::string_view(text).substr(0, colon), "envelope-band");
   b.hi_hz = parse_double_arg(std::string_view(text).substr(colon + 1), "envelope-band");
   if (!(b.lo_hz >= 0.0) || !(b.lo_hz < b.hi_hz) || !(b.hi_hz <= fs_hz / 2.0)) {
-    throw UsageError("--envelope-band: need 0 <= LO < HI <= fs/2 = " + general(fs_hz / 2.0, 10) +
-                     " Hz, got '" + text + "'");
+    throw UsageError(std::string("--envelope-band: need 0 <= LO < HI <= ") +
+                     (order ? "samples_per_rev/2 = " : "fs/2 = ") + general(fs_hz / 2.0, 10) + unit +
+                     ", got '" + text + "'");
   }
   b.reason = "given by --envelope-band";
   return b;
@@ -159,17 +174,16 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
       labels.push_back(inputs.back().rec.dir.filename().string());
     }
   }
-  if (inputs.front().cfg.domain == dsp::Domain::kOrder) {
-    throw Error(config_path +
-                ": [extraction] domain = \"order\": ptda report does not support the order domain yet "
-                "(docs/method.md §9); ptda monitor --jsonl gives the windows");
-  }
   const dsp::Baseline& baseline = inputs.front().baseline;
   const double fs_hz = inputs.front().fs_hz;
+  // Order domain: the windows are on the input shaft's angle axis, S samples per revolution (the
+  // baseline's fs_hz), so the examples' "rate" is S and their spectra are over input-shaft orders.
+  const bool order = inputs.front().cfg.domain == dsp::Domain::kOrder;
+  const double example_rate = order ? baseline.fs_hz : fs_hz;
   const dsp::Method verdict_method = inputs.front().cfg.method;
   const std::string verdict_name(dsp::method_name(verdict_method));
   std::optional<EnvelopeBand> given_band;
-  if (a.has("envelope-band")) given_band = parse_envelope_band(a.value("envelope-band"), fs_hz);
+  if (a.has("envelope-band")) given_band = parse_envelope_band(a.value("envelope-band"), example_rate, order);
 
   ReportData data;
   data.title = "PTDA condition monitoring report";
@@ -182,9 +196,23 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   data.summary.emplace_back("baseline", baseline_path);
   data.summary.emplace_back("trained on", baseline.source);
   data.summary.emplace_back("configuration", config_path);
+  data.order_domain = order;
+  // The windows hold nothing above the resampler's pass band (their bins there are set to 0).
+  if (order)
+    data.spectrum_max_hz =
+        dsp::AngleResampler::pass_order_of(config::angle_resampler_config(inputs.front().cfg));
   data.summary.emplace_back("sample rate", general(fs_hz, 10) + " Hz");
-  data.summary.emplace_back("window length", std::to_string(baseline.window_len) + " samples (" +
-                                                 fixed(1000.0 * baseline.window_len / fs_hz, 1) + " ms)");
+  if (order) {
+    data.summary.emplace_back("domain", "order: resampled to " + std::to_string(baseline.samples_per_rev) +
+                                            " samples per input-shaft revolution from the CAN angle "
+                                            "(docs/method.md §9)");
+    data.summary.emplace_back("window length", std::to_string(baseline.window_len) + " samples (" +
+                                                   std::to_string(baseline.revolutions) +
+                                                   " input-shaft revolutions)");
+  } else {
+    data.summary.emplace_back("window length", std::to_string(baseline.window_len) + " samples (" +
+                                                   fixed(1000.0 * baseline.window_len / fs_hz, 1) + " ms)");
+  }
   data.summary.emplace_back("segment classes", std::to_string(baseline.classes.size()));
   data.summary.emplace_back("alarm rule",
                             std::to_string(inputs.front().cfg.decision.k) + " abnormal of the last " +
@@ -205,7 +233,8 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   for (const dsp::Method method : kMethods) {
     MethodTrend trend;
     trend.method = std::string(dsp::method_name(method));
-    trend.window_s = static_cast<double>(baseline.window_len) / fs_hz;
+    // Order domain: a window's duration depends on the speed; the shading uses the longest one seen.
+    trend.window_s = order ? 0.0 : static_cast<double>(baseline.window_len) / fs_hz;
     for (const auto& c : baseline.classes) {
       trend.class_thresholds.emplace_back(static_cast<std::int32_t>(c.segment.id),
                                           c.thresholds[static_cast<std::size_t>(method)]);
@@ -242,6 +271,8 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
         p.alarm = w.alarm;
         p.recording = labels[i];
         trend.points.push_back(std::move(p));
+        if (order)
+          trend.window_s = std::max(trend.window_s, ns_to_seconds(w.ref.t_end_ns - w.ref.t_start_ns));
       }
       const auto rel_s = [&](const dsp::WindowResult& w) {
         return ns_to_seconds(w.ref.t_start_ns - in.rec.t0_ns);
@@ -290,6 +321,9 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
   // Example windows by evidence: per recording its most abnormal window and its normal window closest
   // to the band.
   dsp::WindowAnalyzer analyzer(baseline.window_len);
+  const auto at_speed = [&](const dsp::WindowResult& w) {
+    return order ? shaft_order_speed_rad_s(baseline) : w.ref.speed_rad_s;
+  };
   const auto title_of = [&](std::size_t i, const CapturedWindow& c, const char* what) {
     const dsp::WindowResult& w = c.result;
     return labels[i] + ": " + what + ", window " + std::to_string(w.ref.seq) + " at " +
@@ -316,7 +350,7 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
     const auto& ev = evidence[i];
     if (ev.most_abnormal.valid) {
       WindowExample ex = make_example(ev.most_abnormal, title_of(i, ev.most_abnormal, "most abnormal window"),
-                                      baseline, fs_hz, analyzer);
+                                      baseline, example_rate, order, analyzer);
       ex.evidence = "Chosen as the window furthest outside its band (" + fixed(ev.most_abnormal.excess, 2) +
                     " band widths): " + feature_text(ev.most_abnormal.result) + ".";
       if (!data.recordings[i].alarm) {
@@ -330,7 +364,7 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
     if (ev.closest_normal.valid) {
       WindowExample ex =
           make_example(ev.closest_normal, title_of(i, ev.closest_normal, "normal window closest to the band"),
-                       baseline, fs_hz, analyzer);
+                       baseline, example_rate, order, analyzer);
       ex.evidence = "Chosen as the judged-normal window closest to its band (" +
                     fixed(-ev.closest_normal.excess, 2) +
                     " band widths inside): " + feature_text(ev.closest_normal.result) + ".";
@@ -344,7 +378,7 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
     const CapturedWindow& w = band_window != nullptr ? *band_window : *band_reference;
     const CapturedWindow* ref = band_window != nullptr ? band_reference : nullptr;
     const dsp::ClassBaseline* cls = find_class(baseline, w.result.class_id);
-    const double gmf = gear_orders(baseline.gearbox, w.result.ref.speed_rad_s).gmf_hz;
+    const double gmf = gear_orders(baseline.gearbox, at_speed(w.result)).gmf_hz;
     if (cls != nullptr) {
       (void)analyzer.analyze(w.raw, *cls, dsp::Method::kPtda);
       const std::vector<float> res(analyzer.residual().begin(), analyzer.residual().end());
@@ -354,7 +388,7 @@ int cmd_report(std::span<const std::string> args, std::ostream& out) {
         (void)analyzer.analyze(ref->raw, *rcls, dsp::Method::kPtda);
         ref_res.assign(analyzer.residual().begin(), analyzer.residual().end());
       }
-      data.envelope_band = choose_envelope_band(res, ref_res, fs_hz, gmf);
+      data.envelope_band = choose_envelope_band(res, ref_res, example_rate, gmf);
       data.envelope_band.reason += band_window != nullptr
                                        ? "; PTDA residuals: the most abnormal window against the normal "
                                          "window closest to the band"

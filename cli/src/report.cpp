@@ -77,11 +77,31 @@ double db_top(double max_amplitude) {
   return std::ceil(20.0 * std::log10(max_amplitude) / 10.0 - 1e-9) * 10.0;
 }
 
+/// The example panels' axes: seconds and Hz, or (order domain) input-shaft revolutions and orders.
+struct Axes {
+  bool order = false;
+  [[nodiscard]] const char* freq_label() const {
+    return order ? "order [per input-shaft revolution]" : "frequency [Hz]";
+  }
+  [[nodiscard]] const char* time_label() const {
+    return order ? "angle [input-shaft revolutions]" : "time [s]";
+  }
+  /// "12.5 Hz" / "order 12.50".
+  [[nodiscard]] std::string freq(double f) const {
+    return order ? "order " + svg::format_fixed(f, 2) : svg::format_fixed(f, f < 100.0 ? 2 : 1) + " Hz";
+  }
+  /// A band "2000-4000 Hz" / "orders 26.0-78.0".
+  [[nodiscard]] std::string band(double lo, double hi) const {
+    return order ? "orders " + svg::format_fixed(lo, 1) + "-" + svg::format_fixed(hi, 1)
+                 : svg::format_fixed(lo, 0) + "-" + svg::format_fixed(hi, 0) + " Hz";
+  }
+};
+
 svg::Plot db_plot(const std::string& title, const std::string& unit, const svg::Spectrum& sp,
-                  const char* color, double f_lo, double f_hi, double top_db) {
+                  const char* color, double f_lo, double f_hi, double top_db, const Axes& axes) {
   svg::Plot fp;
   fp.title = title;
-  fp.x_label = "frequency [Hz]";
+  fp.x_label = axes.freq_label();
   fp.y_label = "level [dB re 1 " + unit + "]";
   fp.empty_message = "no data: signal not provided";
   if (sp.amplitude.empty()) return fp;
@@ -97,12 +117,9 @@ svg::Plot db_plot(const std::string& title, const std::string& unit, const svg::
   return fp;
 }
 
-std::string hz_text(double f) {
-  return svg::format_fixed(f, f < 100.0 ? 2 : 1) + " Hz";
-}
-
 std::string example_section(const WindowExample& ex, const ReportData& data, std::size_t index) {
   const std::string& unit = data.signal_unit;
+  const Axes axes{data.order_domain};
   const std::array<Panel, 5> panels = {{
       {"raw x[n]", kRawColor, &ex.raw, 0},
       {"TDA deterministic", kDetColor, &ex.det_tda, 0},
@@ -177,18 +194,28 @@ std::string example_section(const WindowExample& ex, const ReportData& data, std
   if (!ex.evidence.empty()) o += "<p class=\"evidence\">" + svg::escape_xml(ex.evidence) + "</p>\n";
   if (!ex.note.empty()) o += "<p class=\"note\">" + svg::escape_xml(ex.note) + "</p>\n";
   if (any) {
-    o += "<p class=\"meta\">fs = " + svg::format_fixed(ex.fs_hz, 1) + " Hz, " +
-         std::to_string(ex.raw.size()) + " samples (" +
-         svg::format_fixed(static_cast<double>(ex.raw.size()) / ex.fs_hz, 3) + " s), resolution " +
-         svg::format_fixed(ex.fs_hz / static_cast<double>(std::max<std::size_t>(1, ex.raw.size())), 3) +
-         " Hz. Left: time domain; right: one-sided amplitude spectrum in dB re 1 " + svg::escape_xml(unit) +
-         " (" + svg::format_fixed(kSpectrumRangeDb, 0) +
+    const double span = static_cast<double>(ex.raw.size()) / ex.fs_hz;
+    const double resolution = ex.fs_hz / static_cast<double>(std::max<std::size_t>(1, ex.raw.size()));
+    o += axes.order
+             ? "<p class=\"meta\">Order domain: resampled to " + svg::format_fixed(ex.fs_hz, 0) +
+                   " samples per input-shaft revolution, " + std::to_string(ex.raw.size()) + " samples (" +
+                   svg::format_fixed(span, 3) + " revolutions), resolution " +
+                   svg::format_fixed(resolution, 3) +
+                   " orders. Left: on the shaft's angle axis; right: one-sided amplitude spectrum over "
+                   "input-shaft orders in dB re 1 " +
+                   svg::escape_xml(unit)
+             : "<p class=\"meta\">fs = " + svg::format_fixed(ex.fs_hz, 1) + " Hz, " +
+                   std::to_string(ex.raw.size()) + " samples (" + svg::format_fixed(span, 3) +
+                   " s), resolution " + svg::format_fixed(resolution, 3) +
+                   " Hz. Left: time domain; right: one-sided amplitude spectrum in dB re 1 " +
+                   svg::escape_xml(unit);
+    o += " (" + svg::format_fixed(kSpectrumRangeDb, 0) +
          " dB shown; lower levels sit on the floor). Raw and deterministic panels share one y scale; each "
          "residual has its own, so a small PTDA residual stays visible.";
     if (gmf > 0.0) {
-      o += " Orange: GMF " + hz_text(gmf) + " and its harmonics; grey: input shaft " +
-           hz_text(ex.orders.f_in_hz) + "; green: spur shaft " + hz_text(ex.orders.f_spur_hz) +
-           (ex.orders.dmf_hz > 0.0 ? "; purple: DMF " + hz_text(ex.orders.dmf_hz) : std::string()) + ".";
+      o += " Orange: GMF " + axes.freq(gmf) + " and its harmonics; grey: input shaft " +
+           axes.freq(ex.orders.f_in_hz) + "; green: spur shaft " + axes.freq(ex.orders.f_spur_hz) +
+           (ex.orders.dmf_hz > 0.0 ? "; purple: DMF " + axes.freq(ex.orders.dmf_hz) : std::string()) + ".";
     }
     o += "</p>\n";
   }
@@ -204,7 +231,7 @@ std::string example_section(const WindowExample& ex, const ReportData& data, std
     svg::Plot tp;
     tp.title = std::string(panels[i].name) +
                (x.empty() ? "" : " (RMS " + svg::format_fixed(rms_of(x), 4) + " " + unit + ")");
-    tp.x_label = "time [s]";
+    tp.x_label = axes.time_label();
     tp.y_label = "amplitude [" + unit + "]";
     tp.empty_message = "no data: signal not provided";
     if (!x.empty()) {
@@ -225,16 +252,16 @@ std::string example_section(const WindowExample& ex, const ReportData& data, std
       }
     }
     svg::Plot fp = db_plot(std::string(panels[i].name) + ": spectrum", unit, spectra[i], panels[i].color, 0.0,
-                           f_top_hz, top_db[panels[i].scale_group]);
+                           f_top_hz, top_db[panels[i].scale_group], axes);
     if (!x.empty()) fp.vlines = full_markers;
     o += "<div class=\"cell\">" + svg::render_svg(tp, kExamplePlotStyle) + "</div>\n";
     o += "<div class=\"cell\">" + svg::render_svg(fp, kExamplePlotStyle) + "</div>\n";
   }
   // Zoom on the low GMF harmonics (the shaft orders are marked on the envelope spectra).
   for (const std::size_t i : {std::size_t{0}, std::size_t{4}}) {
-    svg::Plot zp = db_plot(std::string(panels[i].name) + ": zoom on the GMF harmonics, 0-" +
-                               svg::format_fixed(zoom_hz, 0) + " Hz",
-                           unit, spectra[i], panels[i].color, 0.0, zoom_hz, top_db[panels[i].scale_group]);
+    svg::Plot zp =
+        db_plot(std::string(panels[i].name) + ": zoom on the GMF harmonics, " + axes.band(0.0, zoom_hz), unit,
+                spectra[i], panels[i].color, 0.0, zoom_hz, top_db[panels[i].scale_group], axes);
     if (!panels[i].x->empty()) zp.vlines = zoom_markers;
     o += "<div class=\"cell zoom\">" + svg::render_svg(zp, kExamplePlotStyle) + "</div>\n";
   }
@@ -242,8 +269,8 @@ std::string example_section(const WindowExample& ex, const ReportData& data, std
   for (std::size_t i = 0; i < envelopes.size(); ++i) {
     svg::Plot ep;
     ep.title = std::string(i == 0 ? "raw x[n]" : "PTDA residual") + ": envelope spectrum, band " +
-               svg::format_fixed(band.lo_hz, 0) + "-" + svg::format_fixed(band.hi_hz, 0) + " Hz";
-    ep.x_label = "frequency [Hz]";
+               axes.band(band.lo_hz, band.hi_hz);
+    ep.x_label = axes.freq_label();
     ep.y_label = "envelope amplitude [" + unit + "]";
     ep.empty_message = "no data: signal not provided";
     if (!envelopes[i].amplitude.empty()) {
@@ -266,8 +293,8 @@ std::string example_section(const WindowExample& ex, const ReportData& data, std
   }
   o += "</div>\n";
   if (any) {
-    o += "<p class=\"meta\">Envelope: band-pass " + svg::format_fixed(band.lo_hz, 0) + "-" +
-         svg::format_fixed(band.hi_hz, 0) + " Hz (" + svg::escape_xml(band.reason) +
+    o += "<p class=\"meta\">Envelope: band-pass " + axes.band(band.lo_hz, band.hi_hz) + " (" +
+         svg::escape_xml(band.reason) +
          "), Hilbert envelope via the FFT, mean removed, amplitude spectrum. A localised defect that "
          "strikes once per revolution shows as a line at that shaft's rate and its harmonics.</p>\n";
   }
@@ -614,6 +641,15 @@ std::string render_html_report(const ReportData& data) {
          "daemon judged, placed at the wall time of its end (hours since the history's first line), against "
          "the band it was judged with. The history keeps features, not samples, so there are no example "
          "windows. The notes list the state and alarm-level changes.</p>\n";
+  }
+  if (data.order_domain) {
+    o += "<p class=\"howto\"><b>Order domain.</b> Unlike the time-domain description below, this baseline "
+         "judges windows on the input shaft's angle, "
+         "not on time: the vibration was resampled to equal steps of shaft angle from the joint angle the "
+         "controller sends over CAN, so a window is a fixed number of shaft revolutions and the gear mesh "
+         "stays at the same <em>order</em> (lines per revolution) whatever the speed. The speed need not be "
+         "constant: classes are a direction and a speed band. In the example windows the horizontal axis is "
+         "shaft revolutions and the spectra are over input-shaft orders (GMF = z_in).</p>\n";
   }
   o += kHowToRead;
 

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include "golden_support.hpp"
@@ -210,7 +211,7 @@ TEST(OrderDomain, DomainMismatchIsRefused) {
 }
 
 // Not supported yet in the order domain: refused with a message, not run with time-domain assumptions.
-TEST(OrderDomain, ReportAndDoctorRefuseTheOrderDomain) {
+TEST(OrderDomain, DoctorRefusesTheOrderDomain) {
   const Prepared& p = prepared();
   const RunResult d = run_ptda({"doctor", "--recording", p.healthy.string(), "--config", p.order_config},
                                p.dir, "doctor_order");
@@ -218,6 +219,12 @@ TEST(OrderDomain, ReportAndDoctorRefuseTheOrderDomain) {
   EXPECT_TRUE(has(d.err, p.order_config + ": [extraction] domain = \"order\": ptda doctor checks the time "
                                           "domain only"))
       << d.err;
+}
+
+// ptda report in the order domain: the same windows and verdicts as ptda monitor (its PTDA row equals the
+// monitor's counts), and example windows drawn on the angle axis with spectra over input-shaft orders.
+TEST(OrderDomain, ReportJudgesLikeMonitorAndDrawsOrders) {
+  const Prepared& p = prepared();
   if (!fs::exists(p.order_baseline)) {
     ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
                         p.order_baseline.string()},
@@ -225,13 +232,52 @@ TEST(OrderDomain, ReportAndDoctorRefuseTheOrderDomain) {
                   .exit_code,
               0);
   }
+  const fs::path html = p.dir / "order_report.html";
   const RunResult r =
-      run_ptda({"report", "--recording", p.healthy.string(), "--config", p.order_config, "--baseline",
-                p.order_baseline.string(), "--html", (p.dir / "r.html").string()},
+      run_ptda({"report", "--recording", p.healthy.string(), "--recording", p.faulty.string(), "--config",
+                p.order_config, "--baseline", p.order_baseline.string(), "--html", html.string()},
                p.dir, "report_order");
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_TRUE(has(r.err, "ptda report does not support the order domain yet")) << r.err;
-  EXPECT_FALSE(fs::exists(p.dir / "r.html"));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  RunResult rh, rf;
+  const Summary h = monitor(p, p.healthy, "monitor_healthy_for_report", rh);
+  const Summary f = monitor(p, p.faulty, "monitor_faulty_for_report", rf);
+  // The report's table row "LABEL ptda SCORED ABNORMAL ...": the same counts as the monitor's JSONL.
+  const auto row = [&](const std::string& label) {
+    std::istringstream in(r.out);
+    for (std::string line; std::getline(in, line);) {
+      std::istringstream ls(line);
+      std::string l, m;
+      int scored = -1, abnormal = -1;
+      if (ls >> l >> m >> scored >> abnormal && l == label && m == "ptda")
+        return std::make_pair(scored, abnormal);
+    }
+    return std::make_pair(-1, -1);
+  };
+  EXPECT_EQ(row("healthy"), std::make_pair(h.scored, h.abnormal)) << r.out;
+  EXPECT_EQ(row("faulty"), std::make_pair(f.scored, f.abnormal)) << r.out;
+  const std::string page = read_file(html);
+  EXPECT_TRUE(has(page, "healthy</b>: no alarm (ptda)")) << "verdicts";
+  EXPECT_TRUE(has(page, "faulty</b>: ALARM (ptda) first raised at"));
+  // joint_rotation: z_in = 28, so the GMF is input-shaft order 28; 1024 samples per revolution, 4
+  // revolutions.
+  EXPECT_TRUE(has(page,
+                  "Order domain: resampled to 1024 samples per input-shaft revolution, 4096 samples "
+                  "(4.000 revolutions), resolution 0.250 orders."));
+  EXPECT_TRUE(has(page, "Orange: GMF order 28.00 and its harmonics; grey: input shaft order 1.00"));
+  EXPECT_TRUE(has(page, "order [per input-shaft revolution]"));
+  EXPECT_TRUE(has(page, "angle [input-shaft revolutions]"));
+  EXPECT_FALSE(has(page, "frequency [Hz]"));  // no example axis left in Hz
+  EXPECT_TRUE(has(page, "<b>Order domain.</b>"));
+  // --envelope-band is in orders here, bounded by samples_per_rev / 2.
+  const RunResult bad = run_ptda(
+      {"report", "--recording", p.healthy.string(), "--config", p.order_config, "--baseline",
+       p.order_baseline.string(), "--html", (p.dir / "bad.html").string(), "--envelope-band", "100:600"},
+      p.dir, "report_order_band");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_TRUE(
+      has(bad.err, "--envelope-band: need 0 <= LO < HI <= samples_per_rev/2 = 512 orders, got '100:600'"))
+      << bad.err;
+  EXPECT_FALSE(fs::exists(p.dir / "bad.html"));
 }
 
 }  // namespace

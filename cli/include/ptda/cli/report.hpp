@@ -115,6 +115,10 @@ struct ReportData {
   /// A daemon's event history (ptda report --history): no gearbox header, no example windows; times
   /// in hours since the history's first line.
   bool from_history = false;
+  /// Order domain (docs/method.md §9): the example windows are on the input shaft's angle axis, so
+  /// WindowExample::fs_hz is samples per input-shaft revolution, the spectra's axis is input-shaft
+  /// orders, the time panels' axis is revolutions, and EnvelopeBand and GearOrders are in orders.
+  bool order_domain = false;
 };
 
 /// Dynamic range of the dB spectra: the floor is this far below the top of each plot's scale.
