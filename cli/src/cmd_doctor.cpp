@@ -20,7 +20,11 @@ int cmd_doctor(std::span<const std::string> args, std::ostream& out) {
       "CAN frames per id and the ones decoded as speed (and the likely speed id when it is another one),\n"
       "the speed range against [gearbox] and against the vibration's own GMF comb (a wrong speed scale\n"
       "shows as a factor), the plateau lengths per speed against the window, and the baseline's classes\n"
-      "against the recording's speeds. Each problem is one sentence with its fix. Exit 0 when nothing is\n"
+      "against the recording's speeds. In the order domain ([extraction] domain = \"order\"): the CAN angle\n"
+      "against the integrated speed (a unit or scale mistake shows as a factor), the shaft speeds against "
+      "the\n"
+      "resampler's band, the windows of R revolutions cut and the share of the motion they cover.\n"
+      "Each problem is one sentence with its fix. Exit 0 when nothing is\n"
       "wrong, 4 when a problem was found.");
   parser.option("recording", "DIR", "a recording of the joint doing its job", true)
       .option("config", "FILE", "pipeline configuration TOML", true)
@@ -32,12 +36,6 @@ int cmd_doctor(std::span<const std::string> args, std::ostream& out) {
   }
   const std::string config_path = a.value("config");
   const config::PipelineConfig cfg = config::load_pipeline_config(config_path);
-  if (cfg.domain == dsp::Domain::kOrder) {
-    // Its checks (plateaus against window_len, the speed scale) are the time domain's.
-    throw Error(config_path +
-                ": [extraction] domain = \"order\": ptda doctor checks the time domain only (docs/method.md "
-                "§9); set domain = \"time\" for the commissioning checks");
-  }
   const RecordingInfo rec = open_recording(a.value("recording"));
   std::optional<dsp::Baseline> baseline;
   if (a.has("baseline")) baseline = formats::read_baseline(a.value("baseline"));

@@ -1,6 +1,7 @@
 #include "ptda/cli/doctor.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -12,6 +13,7 @@
 #include "ptda/common/can_frame.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/config/speed_codec.hpp"
+#include "ptda/dsp/angle_resampler.hpp"
 #include "ptda/dsp/real_fft.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 #include "ptda/formats/candump.hpp"
@@ -120,6 +122,50 @@ std::vector<std::vector<Region>> group_regions(std::vector<Region> regions,
 std::string signed_speed(std::int8_t direction, double speed_rad_s) {
   return std::string(direction < 0 ? "-" : "+") + general(speed_rad_s, 4);
 }
+
+// The CAN angle against the integral of the CAN speed (order domain), over stretches of 25 frames of
+// motion in one direction: a unit or scale mistake in the angle shows as a ratio far from 1.
+struct AngleCheck {
+  static constexpr int kFramesPerStretch = 25;
+  std::uint64_t frames = 0, with_angle = 0;
+  double moving_s = 0.0;  // time between consecutive frames both above min_speed_rad_s
+  std::vector<double> ratios;
+  bool have_prev = false;
+  double prev_v = 0.0, prev_a = 0.0;
+  std::int64_t prev_t = 0;
+  double d_angle = 0.0, d_integral = 0.0;
+  int n = 0;
+
+  void add(std::int64_t t_ns, double v, bool has_angle, double a, double min_speed) {
+    ++frames;
+    if (!has_angle) {
+      have_prev = false;
+      n = 0;
+      return;
+    }
+    ++with_angle;
+    const bool moving = std::fabs(v) >= min_speed;
+    if (have_prev && moving && std::fabs(prev_v) >= min_speed && (v > 0.0) == (prev_v > 0.0) &&
+        t_ns > prev_t) {
+      const double dt = static_cast<double>(t_ns - prev_t) * 1e-9;
+      moving_s += dt;
+      d_angle += a - prev_a;
+      d_integral += 0.5 * (v + prev_v) * dt;
+      if (++n == kFramesPerStretch) {
+        if (std::fabs(d_integral) > 1e-4) ratios.push_back(d_angle / d_integral);
+        d_angle = d_integral = 0.0;
+        n = 0;
+      }
+    } else {
+      d_angle = d_integral = 0.0;
+      n = 0;
+    }
+    have_prev = true;
+    prev_v = v;
+    prev_a = a;
+    prev_t = t_ns;
+  }
+};
 
 // Streams the recording: the speed samples, the regions of a relaxed slicer (any plateau of 0.12 s
 // or more), the windows the configured slicer cuts, and the relaxed window at the highest speed.
@@ -289,6 +335,214 @@ std::string scale_mismatch_text(const ScaleCheck& s, const config::PipelineConfi
          " (if the scale is right, check the [gearbox] teeth instead)";
 }
 
+namespace {
+
+/// Unit and scale mistakes an angle signal is likely to have, as factors of the integrated speed.
+struct AngleHypothesis {
+  double factor;
+  const char* why;
+};
+
+// The order domain's checks (docs/method.md §9): the CAN angle against the speed, the shaft speeds
+// against the resampler's band, the windows of R revolutions the recording gives, the baseline's classes.
+void diagnose_order(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                    const std::string& config_source, const dsp::Baseline* baseline,
+                    const std::string& baseline_source, const AngleCheck& angle, DoctorReport& rep) {
+  const auto add = [&](Kind k, const char* topic, std::string text) {
+    rep.findings.push_back(DoctorFinding{k, topic, std::move(text)});
+  };
+  const double fs_hz = static_cast<double>(rec.wav.sample_rate_hz);
+  const dsp::GearboxInfo& g = cfg.gearbox;
+  // ---- the angle against the integrated speed ----
+  if (angle.with_angle == 0) {
+    add(Kind::kProblem, "angle",
+        "none of the " + std::to_string(angle.frames) +
+            " speed frames carries an angle, and the order domain resamples by it. Fix: describe the angle "
+            "signal in [can.speed_frame.angle] of " +
+            config_source + " (or use domain = \"time\")");
+    return;
+  }
+  if (angle.ratios.size() < 3) {
+    add(Kind::kNote, "angle",
+        "the joint never moved long enough in one direction (" +
+            std::to_string(AngleCheck::kFramesPerStretch) +
+            " frames) to compare the CAN angle with the integrated speed");
+  } else {
+    std::vector<double> r = angle.ratios;
+    std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2), r.end());
+    const double m = r[r.size() / 2];
+    const std::string measured =
+        "the CAN angle moves " + (std::fabs(m) < 100.0 ? fixed(m, 4) : general(m, 5)) +
+        " times the integral of the CAN speed (median over " + std::to_string(r.size()) + " stretches of " +
+        std::to_string(AngleCheck::kFramesPerStretch) + " frames)";
+    const double scale = cfg.speed_frame.angle.scale;
+    if (std::fabs(m - 1.0) <= 0.03) {
+      add(Kind::kOk, "angle", "the CAN angle follows the integrated CAN speed: " + measured);
+    } else {
+      const double pi = std::numbers::pi;
+      const std::array<AngleHypothesis, 13> hyps = {
+          {{-1.0, "the angle counts the other way than the speed"},
+           {180.0 / pi, "the angle is in degrees"},
+           {pi / 180.0, "the speed is in degrees per second"},
+           {g.ratio > 0.0 ? g.ratio : 1.0, "the angle is the motor's (input shaft's), not the joint's"},
+           {g.ratio > 0.0 ? 1.0 / g.ratio : 1.0, "the speed is the motor's (input shaft's), not the joint's"},
+           {2.0 * pi, "the angle is in revolutions"},
+           {1.0 / (2.0 * pi), "the speed is in revolutions per second"},
+           {10.0, "the angle scale is 10 times too large"},
+           {0.1, "the angle scale is 10 times too small"},
+           {100.0, "the angle scale is 100 times too large"},
+           {0.01, "the angle scale is 100 times too small"},
+           {1000.0, "the angle scale is 1000 times too large"},
+           {0.001, "the angle scale is 1000 times too small"}}};
+      const AngleHypothesis* best = nullptr;
+      for (const AngleHypothesis& h : hyps) {
+        if (h.factor == 1.0 || !(m / h.factor > 0.0)) continue;
+        if (std::fabs(std::log(m / h.factor)) <= std::log(1.03) &&
+            (best == nullptr || std::fabs(std::log(m / h.factor)) < std::fabs(std::log(m / best->factor))))
+          best = &h;
+      }
+      if (best != nullptr) {
+        add(Kind::kProblem, "angle",
+            measured + ": " + best->why + ". Fix: set [can.speed_frame.angle] scale = " +
+                general(scale / best->factor, 6) + " (now " + general(scale, 6) + ") in " + config_source +
+                (best->factor == 1.0 / (2.0 * pi) || best->factor == pi / 180.0 ||
+                         (g.ratio > 0.0 && best->factor == 1.0 / g.ratio)
+                     ? " if the speed is right; else fix [can.speed_frame.speed] scale (ptda doctor's speed "
+                       "and "
+                       "GMF findings say which)"
+                     : std::string()));
+      } else {
+        add(Kind::kProblem, "angle",
+            measured +
+                ", which is no unit mistake this check knows: the order domain needs the two to agree. "
+                "Check [can.speed_frame.angle] (start_byte, length, signedness, scale) in " +
+                config_source);
+      }
+    }
+  }
+  // ---- the shaft speeds against the resampler's band ----
+  const dsp::AngleResamplerConfig rc = config::angle_resampler_config(cfg);
+  const dsp::AngleResampler probe(rc, fs_hz, rec.t0_ns);
+  const double peak = std::max(std::fabs(rep.speed_min_rad_s), std::fabs(rep.speed_max_rad_s));
+  const double peak_shaft_hz = g.ratio * peak / (2.0 * std::numbers::pi);
+  const std::string band =
+      "[" + general(rc.min_shaft_hz, 4) + ", " + general(probe.max_shaft_hz(), 4) + "] Hz";
+  if (peak_shaft_hz > probe.max_shaft_hz()) {
+    // S such that the stop band stays below fs/2 at the peak, rounded down to an even number.
+    const double s_fit =
+        static_cast<double>(cfg.order.samples_per_rev) * probe.max_shaft_hz() / peak_shaft_hz;
+    add(Kind::kNote, "shaft",
+        "the input shaft reaches " + general(peak_shaft_hz, 4) + " Hz, above the " +
+            general(probe.max_shaft_hz(), 4) +
+            " Hz that samples_per_rev = " + std::to_string(cfg.order.samples_per_rev) + " allows at " +
+            general(fs_hz, 6) + " Hz (fs / (2 x " + general(probe.stop_order(), 4) +
+            ")): the stretches above it are not judged. To judge them, lower samples_per_rev to " +
+            std::to_string(2 * static_cast<std::uint32_t>(s_fit / 2.0)) + " or less in " + config_source +
+            " (its pass band, " + general(probe.pass_order() * s_fit / cfg.order.samples_per_rev, 4) +
+            " orders, must still cover the mesh order z_in = " + std::to_string(g.z_in) + ")");
+  } else {
+    add(Kind::kOk, "shaft",
+        "the input shaft turns at up to " + general(peak_shaft_hz, 4) + " Hz, inside the resampler's band " +
+            band + " (pass band " + general(probe.pass_order(), 4) + " orders, GMF order " +
+            std::to_string(g.z_in) + ")");
+  }
+  // ---- the windows of R revolutions ----
+  RunOptions opts;
+  opts.progress = false;
+  opts.config_source = config_source;
+  std::uint64_t windows = 0, matched = 0;
+  double judged_s = 0.0;
+  std::map<std::pair<int, long>, std::uint64_t> unmatched;  // (direction, speed in 0.01 rad/s) -> windows
+  const OrderCollectResult c = collect_order_windows(
+      rec, cfg, fs_hz, opts, [&](const dsp::OrderWindowRef& ref, std::span<const float>) {
+        ++windows;
+        judged_s += static_cast<double>(ref.t_end_ns - ref.t_start_ns) * 1e-9;
+        if (baseline == nullptr) return;
+        if (baseline->match(ref.joint_speed_rad_s) != nullptr) {
+          ++matched;
+        } else {
+          ++unmatched[{ref.direction, std::lround(std::fabs(ref.joint_speed_rad_s) * 100.0)}];
+        }
+      });
+  const dsp::AngleResamplerCounters& rs = c.resampler;
+  if (rs.frames > 0 && rs.angle_inconsistent * 100 > rs.frames) {
+    add(Kind::kProblem, "angle",
+        std::to_string(rs.angle_inconsistent) + " of " + std::to_string(rs.frames) +
+            " angle steps disagree with the speed by more than half of it (the resampler used the speed's "
+            "integral instead): a wrong angle scale (above), lost frames or a corrupt angle signal");
+  } else if (rs.angle_inconsistent > 0) {
+    add(Kind::kNote, "angle",
+        std::to_string(rs.angle_inconsistent) + " of " + std::to_string(rs.frames) +
+            " angle steps disagree with the speed (an angle wrap or a bad frame; the speed's integral was "
+            "used)");
+  }
+  const double revs = static_cast<double>(rs.outputs) / static_cast<double>(cfg.order.samples_per_rev);
+  const std::string cov = angle.moving_s > 0.0
+                              ? " (" + general(100.0 * std::min(1.0, judged_s / angle.moving_s), 3) +
+                                    " % of the " + fixed(angle.moving_s, 2) + " s the joint moved)"
+                              : std::string();
+  const std::string win = "[extraction] revolutions = " + std::to_string(cfg.order.revolutions) +
+                          " x samples_per_rev = " + std::to_string(cfg.order.samples_per_rev);
+  if (windows == 0) {
+    add(Kind::kProblem, "windows",
+        win + ": no window is cut from " + general(revs, 4) + " resampled input-shaft revolutions in " +
+            std::to_string(rs.breaks + (rs.outputs > 0 ? 1 : 0)) + " unbroken stretch(es) of motion (" +
+            general(
+                revs / static_cast<double>(std::max<std::uint64_t>(1, rs.breaks + (rs.outputs > 0 ? 1 : 0))),
+                3) +
+            " revolutions on average; broken at standstill, reversal, a CAN gap or a shaft speed outside " +
+            band + "). Fix: fewer revolutions per window (R x S must be an FFT length) in " + config_source);
+  } else {
+    add(Kind::kOk, "windows",
+        win + ": " + std::to_string(windows) + " windows, " + fixed(judged_s, 2) + " s judged" + cov +
+            ", from " + general(revs, 4) + " resampled revolutions");
+  }
+  // ---- the baseline ----
+  if (baseline == nullptr) return;
+  if (baseline->domain != dsp::Domain::kOrder || baseline->samples_per_rev != cfg.order.samples_per_rev ||
+      baseline->revolutions != cfg.order.revolutions) {
+    add(Kind::kProblem, "baseline",
+        baseline_source +
+            (baseline->domain != dsp::Domain::kOrder
+                 ? std::string(" was trained in the time domain")
+                 : " was trained with samples_per_rev = " + std::to_string(baseline->samples_per_rev) +
+                       ", revolutions = " + std::to_string(baseline->revolutions)) +
+            ", but " + config_source +
+            " sets the order domain with samples_per_rev = " + std::to_string(cfg.order.samples_per_rev) +
+            ", revolutions = " + std::to_string(cfg.order.revolutions) +
+            ". Fix: use the configuration the baseline was trained with, or retrain");
+    return;
+  }
+  std::string classes;
+  for (const dsp::ClassBaseline& k : baseline->classes)
+    classes += (classes.empty() ? "" : ", ") + signed_speed(k.segment.direction, k.segment.speed_rad_s);
+  std::string missed;
+  for (const auto& [key, n] : unmatched)
+    missed += (missed.empty() ? "" : ", ") +
+              signed_speed(static_cast<std::int8_t>(key.first), key.second / 100.0) + " x " +
+              std::to_string(n);
+  if (windows == 0) {
+    // Nothing to compare: the window finding says why.
+  } else if (matched == 0) {
+    add(Kind::kProblem, "baseline",
+        "none of the " + std::to_string(windows) + " windows' speeds (" + missed + ") matches a class of " +
+            baseline_source + " (" + classes +
+            " rad/s): nothing would be judged. Fix: train a baseline on this job (ptda train --recording "
+            "<healthy recording of this job> --config " +
+            config_source + " --out <baseline>)");
+  } else if (matched < windows) {
+    add(Kind::kNote, "baseline",
+        std::to_string(windows - matched) + " of " + std::to_string(windows) + " windows match no class of " +
+            baseline_source + " (" + classes + " rad/s; unmatched, rad/s x windows: " + missed +
+            "): they are not judged; retrain on recordings that include those speeds to cover them");
+  } else {
+    add(Kind::kOk, "baseline",
+        "every window's speed matches a class of " + baseline_source + " (" + classes + " rad/s)");
+  }
+}
+
+}  // namespace
+
 DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::PipelineConfig& cfg,
                                     const std::string& config_source, const dsp::Baseline* baseline,
                                     const std::string& baseline_source) {
@@ -309,6 +563,7 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
   const config::SpeedFrameSpec& spec = cfg.speed_frame;
   const std::uint32_t configured_key = spec.id | (spec.extended ? CanCounters::kExtendedIdKey : 0U);
   std::map<std::uint32_t, IdTrial> trials;
+  AngleCheck angle;
   {
     formats::CandumpReader can(rec.can_path);
     formats::CandumpRecord record;
@@ -327,7 +582,11 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
       config::DecodedSpeed d;
       if (config::decode_speed(record.frame, s, d) == config::DecodeResult::kOk) {
         t.add(d.speed_rad_s);
-        if (key == configured_key) ++rep.speed_frames;
+        if (key == configured_key) {
+          ++rep.speed_frames;
+          angle.add(record.frame.t_ns, d.speed_rad_s, d.has_angle, d.angle_rad,
+                    cfg.extraction.min_speed_rad_s);
+        }
       }
     }
   }
@@ -436,6 +695,11 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
               speed_text(rep.scale.can_speed_rad_s) +
               " (nor at 10, 100 or 2 pi times it): check the [gearbox] teeth in " + config_source);
     }
+  }
+
+  if (cfg.domain == dsp::Domain::kOrder) {
+    diagnose_order(rec, cfg, config_source, baseline, baseline_source, angle, rep);
+    return rep;
   }
 
   // ---- plateaus per speed against the window ----

@@ -353,8 +353,9 @@ class OrderFront {
 
 class OrderCollectSink final : public PipelineSink {
  public:
-  OrderCollectSink(const config::PipelineConfig& cfg, double fs_hz, std::int64_t t0_ns)
-      : front_(cfg, fs_hz, t0_ns) {}
+  OrderCollectSink(const config::PipelineConfig& cfg, double fs_hz, std::int64_t t0_ns,
+                   const OrderVisitor& visitor)
+      : front_(cfg, fs_hz, t0_ns), visitor_(visitor) {}
   void on_speed(const dsp::SpeedSample& s) override { front_.push_speed(s); }
   void on_samples(std::span<const float> block) override { front_.push_samples(block); }
   void on_block_end() override { drain(); }
@@ -366,10 +367,15 @@ class OrderCollectSink final : public PipelineSink {
   void drain() {
     front_.drain([this](const dsp::OrderWindowRef& ref, std::span<const float> x) {
       data.refs.push_back(ref);
-      data.windows.emplace_back(x.begin(), x.end());
+      if (visitor_) {
+        visitor_(ref, x);
+      } else {
+        data.windows.emplace_back(x.begin(), x.end());
+      }
     });
   }
   OrderFront front_;
+  const OrderVisitor& visitor_;
 };
 
 class OrderMonitorSink final : public PipelineSink {
@@ -423,8 +429,9 @@ dsp::WindowRef window_ref_of(const dsp::OrderWindowRef& ref, std::size_t window_
 }
 
 OrderCollectResult collect_order_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg,
-                                         double fs_hz, const RunOptions& options) {
-  OrderCollectSink sink(cfg, fs_hz, rec.t0_ns);
+                                         double fs_hz, const RunOptions& options,
+                                         const OrderVisitor& visitor) {
+  OrderCollectSink sink(cfg, fs_hz, rec.t0_ns, visitor);
   OrderCollectResult result;
   result.can = run_recording(rec, cfg, sink, options);
   result.resampler = sink.front().counters();

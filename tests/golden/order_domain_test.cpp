@@ -210,15 +210,87 @@ TEST(OrderDomain, DomainMismatchIsRefused) {
       << b.err;
 }
 
-// Not supported yet in the order domain: refused with a message, not run with time-domain assumptions.
-TEST(OrderDomain, DoctorRefusesTheOrderDomain) {
+/// The order configuration with `from` replaced by `to` (once), written as DIR/NAME.
+std::string order_config_with(const Prepared& p, const std::string& name, const std::string& from,
+                              const std::string& to) {
+  std::string text = read_file(p.order_config);
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  const std::string path = (p.dir / name).string();
+  std::ofstream(path) << text;
+  return path;
+}
+
+// ptda doctor in the order domain: the CAN angle against the integrated speed (unit mistakes named with
+// the fix), the shaft speed against the resampler's band, the windows cut, the baseline's classes.
+TEST(OrderDomain, DoctorChecksTheAngleTheWindowsAndTheBaseline) {
   const Prepared& p = prepared();
-  const RunResult d = run_ptda({"doctor", "--recording", p.healthy.string(), "--config", p.order_config},
-                               p.dir, "doctor_order");
-  EXPECT_NE(d.exit_code, 0);
-  EXPECT_TRUE(has(d.err, p.order_config + ": [extraction] domain = \"order\": ptda doctor checks the time "
-                                          "domain only"))
-      << d.err;
+  if (!fs::exists(p.order_baseline)) {
+    ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
+                        p.order_baseline.string()},
+                       p.dir, "train_order_5")
+                  .exit_code,
+              0);
+  }
+  const RunResult ok = run_ptda({"doctor", "--recording", p.healthy.string(), "--config", p.order_config,
+                                 "--baseline", p.order_baseline.string()},
+                                p.dir, "doctor_order");
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
+  EXPECT_TRUE(
+      has(ok.out, "ok (angle): the CAN angle follows the integrated CAN speed: the CAN angle moves 1.0"))
+      << ok.out;
+  EXPECT_TRUE(has(ok.out,
+                  "ok (shaft): the input shaft turns at up to 18.81 Hz, inside the resampler's band [0.5, "
+                  "28.46] Hz"))
+      << ok.out;
+  // The windows the doctor counts are the ones ptda monitor judges (109 on this recording, see above).
+  RunResult rm;
+  const Summary m = monitor(p, p.healthy, "monitor_healthy_for_doctor", rm);
+  EXPECT_TRUE(has(ok.out, "ok (windows): [extraction] revolutions = 4 x samples_per_rev = 1024: " +
+                              std::to_string(m.windows) + " windows"))
+      << ok.out;
+  EXPECT_TRUE(has(ok.out, std::to_string(m.windows - m.scored) + " of " + std::to_string(m.windows) +
+                              " windows match no class of " + p.order_baseline.string()))
+      << ok.out;
+
+  // The angle in degrees (its scale 180/pi too large): named, with the scale that fixes it.
+  const std::string deg = order_config_with(p, "order_deg.toml", "scale = 1e-5", "scale = 5.729578e-4");
+  const RunResult d =
+      run_ptda({"doctor", "--recording", p.healthy.string(), "--config", deg}, p.dir, "doctor_deg");
+  EXPECT_EQ(d.exit_code, 4) << d.out << d.err;
+  EXPECT_TRUE(has(d.out, "PROBLEM (angle): the CAN angle moves 57.2")) << d.out;
+  EXPECT_TRUE(has(d.out,
+                  ": the angle is in degrees. Fix: set [can.speed_frame.angle] scale = 1e-05 (now "
+                  "0.000572958) in " +
+                      deg))
+      << d.out;
+  // The motor's angle instead of the joint's (ratio 33.857 too large).
+  const std::string motor = order_config_with(p, "order_motor.toml", "scale = 1e-5", "scale = 3.3857143e-4");
+  const RunResult mo =
+      run_ptda({"doctor", "--recording", p.healthy.string(), "--config", motor}, p.dir, "doctor_motor");
+  EXPECT_EQ(mo.exit_code, 4) << mo.out << mo.err;
+  EXPECT_TRUE(has(mo.out,
+                  ": the angle is the motor's (input shaft's), not the joint's. Fix: set "
+                  "[can.speed_frame.angle] scale = 1e-05"))
+      << mo.out;
+  // Windows longer than any unbroken move (a move is about 17 input-shaft revolutions): none cut.
+  const std::string longw = order_config_with(p, "order_long.toml", "revolutions = 4", "revolutions = 32");
+  const RunResult lw =
+      run_ptda({"doctor", "--recording", p.healthy.string(), "--config", longw}, p.dir, "doctor_long");
+  EXPECT_EQ(lw.exit_code, 4) << lw.out << lw.err;
+  EXPECT_TRUE(has(lw.out,
+                  "PROBLEM (windows): [extraction] revolutions = 32 x samples_per_rev = 1024: no window is "
+                  "cut from "))
+      << lw.out;
+  // The order baseline under a time configuration's doctor: its classes are still compared, the domain is
+  // named.
+  const RunResult tb = run_ptda({"doctor", "--recording", p.healthy.string(), "--config", longw, "--baseline",
+                                 p.order_baseline.string()},
+                                p.dir, "doctor_long_baseline");
+  EXPECT_TRUE(has(tb.out, "PROBLEM (baseline): " + p.order_baseline.string() +
+                              " was trained with samples_per_rev = 1024, revolutions = 4, but " + longw))
+      << tb.out;
 }
 
 // ptda report in the order domain: the same windows and verdicts as ptda monitor (its PTDA row equals the

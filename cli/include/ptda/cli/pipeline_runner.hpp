@@ -134,9 +134,13 @@ struct OrderCollectResult {
   dsp::AngleResamplerCounters resampler;
   CanCounters can;
 };
+/// Receives each order window as it is cut (its samples live for the call only).
+using OrderVisitor = std::function<void(const dsp::OrderWindowRef&, std::span<const float>)>;
+/// With a visitor, each window goes to it and only data.refs is kept (memory stays flat).
 [[nodiscard]] OrderCollectResult collect_order_windows(const RecordingInfo& rec,
                                                        const config::PipelineConfig& cfg, double fs_hz,
-                                                       const RunOptions& options = {});
+                                                       const RunOptions& options = {},
+                                                       const OrderVisitor& visitor = {});
 /// Appends `more` to `all` renumbering window seq and segment so they stay unique across recordings;
 /// the appended windows get the next recording index in all.recording.
 void append_order_windows(dsp::OrderWindows& all, dsp::OrderWindows more);
