@@ -43,6 +43,16 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
     out << "baseline " << out_path << " (order domain): " << baseline.classes.size()
         << " speed class(es), N = " << baseline.window_len << " angle samples (" << baseline.revolutions
         << " input-shaft revolutions of " << baseline.samples_per_rev << " samples)\n";
+    if (!cfg.order.speed_law) {
+      out << "  speed law: off ([extraction] speed_law = false)\n";
+    } else if (baseline.speed_law_se == 0.0 && baseline.speed_law_fit == 0.0) {
+      out << "  speed law: not fitted (too few windows or one speed per class)\n";
+    } else {
+      out << "  speed law: window RMS ~ |speed|^p, p = " << fixed(baseline.speed_law_fit, 3) << " +- "
+          << fixed(baseline.speed_law_se, 3)
+          << (baseline.speed_law_exponent != 0.0 ? " (applied: every window is scaled to its class's speed)\n"
+                                                 : " (not significant, |p| <= 2 se: not applied)\n");
+    }
   } else {
     out << "baseline " << out_path << ": " << baseline.classes.size()
         << " segment class(es), N = " << baseline.window_len << " samples ("
@@ -232,8 +242,8 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
   dsp::AngleResamplerConfig rc = config::angle_resampler_config(cfg);
   const dsp::OrderWindowConfig oc = config::order_window_config(cfg, dsp::AngleResampler::pass_order_of(rc));
   std::vector<std::string> dropped;
-  dsp::Baseline baseline =
-      dsp::train_order_baseline(all, oc, cfg.order.speed_band_rel, cfg.thresholds, cfg.gearbox, &dropped);
+  dsp::Baseline baseline = dsp::train_order_baseline(all, oc, cfg.order.speed_band_rel, cfg.thresholds,
+                                                     cfg.gearbox, &dropped, cfg.order.speed_law);
   // Windows per hour of recording, for the CUSUM's false-alarm rates per day (the time domain counts the
   // same; with --windows the kept fraction of the recorded time).
   const double kept_s = recorded_s * (range.whole() ? 1.0 : range.to - range.from);

@@ -251,6 +251,7 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     }
     if (read_positive(r, "min_shaft_hz", o.min_shaft_hz, 1000.0)) note(r, "min_shaft_hz");
     get(r, "can_time_smoothing_frames", o.can_time_smoothing_frames, std::uint32_t{0}, std::uint32_t{4096});
+    get(r, "speed_law", o.speed_law);
     r.finish();
   }
 
@@ -573,6 +574,7 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "anti_alias_cutoff = " << shortest(cfg.order.anti_alias_cutoff) << "\n"
      << "min_shaft_hz = " << shortest(cfg.order.min_shaft_hz) << "\n"
      << "can_time_smoothing_frames = " << cfg.order.can_time_smoothing_frames << "\n"
+     << "speed_law = " << (cfg.order.speed_law ? "true" : "false") << "\n"
      << "\n[classes]\n"
      << "speed_tol_rel = " << shortest(cfg.classes.speed_tol_rel) << "\n"
      << "speed_tol_abs_rad_s = " << shortest(cfg.classes.speed_tol_abs_rad_s) << "\n"

@@ -5,6 +5,9 @@
 // entropy_res (faulty below healthy) is computed per machine. Output: one CSV line per (ripple, seed).
 //
 //   order_bench --seeds 101-110 --ripples 0,0.01,0.02,0.03,0.04,0.05 [--impulse 0.3] [--am 0.1]
+//   order_bench --program short|accel|long ... [--amp-law P] [--speed-law on]
+// (--amp-law: the mesh amplitude grows as (speed/f0)^P; --speed-law on: a third arm, "order_law", with the
+// trained speed law of dsp::fit_speed_law normalising every window to its class's speed)
 //
 // Model (all in one place, below): shaft at 25 Hz nominal (joint 4.64 rad/s through a 33.86:1
 // cycloidal reduction), plateaus of 2.6 s with speed f0 (1 + ripple sin(2 pi 3 Hz t + psi_c)), 0.2 s
@@ -147,9 +150,12 @@ double abnormal(const ClassBaseline& c, const std::vector<Features>& f) {
 }
 
 /// --program short|accel: per seed, domain and severity one CSV line (header in main()).
+/// With speed_law, a third arm "order_law": the order domain with the speed law fitted on the
+/// training windows (fit_speed_law, one class) and every window normalised with it (stderr: the fit).
+/// amp_law: the mesh amplitude's speed exponent of the generator.
 void run_program(const std::string& program, std::uint64_t seed_lo, std::uint64_t seed_hi,
-                 const std::vector<double>& ripples, const std::vector<double>& severities,
-                 const Fault& full) {
+                 const std::vector<double>& ripples, const std::vector<double>& severities, const Fault& full,
+                 double amp_law, bool speed_law) {
   std::printf(
       "program,ripple,severity,seed,domain,train_windows,healthy_windows,faulty_windows,healthy_coverage,"
       "faulty_coverage,auc_rms,auc_entropy,healthy_abnormal,faulty_abnormal,healthy_alarm,first_abnormal_s,"
@@ -157,16 +163,26 @@ void run_program(const std::string& program, std::uint64_t seed_lo, std::uint64_
   const DecisionConfig dc;  // the product's default k-of-n (3 of 5)
   for (const double ripple : ripples) {
     for (std::uint64_t seed = seed_lo; seed <= seed_hi; ++seed) {
-      const ProgJob tr = make_program_job(seed * 1000 + 1, 24, program, ripple, Fault{});
-      const ProgJob he = make_program_job(seed * 1000 + 2, 16, program, ripple, Fault{});
+      const ProgJob tr = make_program_job(seed * 1000 + 1, 24, program, ripple, Fault{}, amp_law);
+      const ProgJob he = make_program_job(seed * 1000 + 2, 16, program, ripple, Fault{}, amp_law);
       std::vector<ProgJob> fa;
       for (const double sev : severities)
-        fa.push_back(
-            make_program_job(seed * 1000 + 3, 16, program, ripple, Fault{full.impulse * sev, full.am * sev}));
-      for (int d = 0; d < 2; ++d) {
-        const char* dom = d == 0 ? "time" : "order";
+        fa.push_back(make_program_job(seed * 1000 + 3, 16, program, ripple,
+                                      Fault{full.impulse * sev, full.am * sev}, amp_law));
+      for (int d = 0; d < (speed_law ? 3 : 2); ++d) {
+        const char* dom = d == 0 ? "time" : d == 1 ? "order" : "order_law";
         const auto get = [&](const ProgJob& j) { return d == 0 ? time_cut(j) : order_cut(j); };
-        const Cut trc = get(tr), hec = get(he);
+        Cut trc = get(tr), hec = get(he);
+        std::vector<Cut> facs;
+        for (const ProgJob& j : fa) facs.push_back(get(j));
+        if (d == 2 && !trc.w.empty()) {
+          std::vector<Cut*> others{&hec};
+          for (Cut& c : facs) others.push_back(&c);
+          const SpeedLawFit f = normalise_speed_law(trc, others);
+          std::fprintf(stderr,
+                       "seed %llu ripple %g: speed law p = %.3f +- %.3f, applied %.3f (%zu windows)\n",
+                       static_cast<unsigned long long>(seed), ripple, f.exponent, f.se, f.applied, f.windows);
+        }
         bool trained = trc.w.size() >= 3;
         ClassBaseline c;
         if (trained) {
@@ -197,7 +213,7 @@ void run_program(const std::string& program, std::uint64_t seed_lo, std::uint64_
           for (const bool a : abh) h_alarm |= deb.push(a) ? 1 : 0;
         }
         for (std::size_t si = 0; si < severities.size(); ++si) {
-          const Cut fac = get(fa[si]);
+          const Cut& fac = facs[si];
           double auc_r = std::nan(""), auc_e = std::nan(""), f_ab = std::nan("");
           double first_ab_s = std::nan(""), first_al_s = std::nan("");
           long first_ab_w = -1, first_al_w = -1;
@@ -253,6 +269,8 @@ int main(int argc, char** argv) {
   Fault fault{0.3, 0.1};
   std::string program = "plateau";
   std::vector<double> severities{1.0};
+  double amp_law = 0.0;
+  bool speed_law = false;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i], v = argv[i + 1];
     if (k == "--seeds") {
@@ -269,6 +287,10 @@ int main(int argc, char** argv) {
       severities = parse_list(v);
     } else if (k == "--am") {
       fault.am = std::stod(v);
+    } else if (k == "--amp-law") {
+      amp_law = std::stod(v);
+    } else if (k == "--speed-law") {
+      speed_law = v == "1" || v == "on";
     } else {
       std::fprintf(stderr, "order_bench: unknown option %s\n", k.c_str());
       return 2;
@@ -276,7 +298,7 @@ int main(int argc, char** argv) {
   }
   if (program != "plateau") {
     try {
-      run_program(program, seed_lo, seed_hi, ripples, severities, fault);
+      run_program(program, seed_lo, seed_hi, ripples, severities, fault, amp_law, speed_law);
     } catch (const ptda::Error& e) {
       std::fprintf(stderr, "%s\n", e.what());
       return 2;

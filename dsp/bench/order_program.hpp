@@ -67,10 +67,12 @@ struct ProgJob {
 /// The vibration and CAN frames along a shaft speed law `speed(t)` [rad/s] (shared by every program of
 /// order_bench): GMF orders 28/56/84 with the per-cycle phases ph1..ph3, shaft order 1, white noise from
 /// `rng`, and the fault's mesh AM and spur-rate ring. Draws from `rng` only inside the sample loop.
+/// amp_law P: the mesh lines' amplitude grows as (shaft speed / f0)^P (0: independent of speed).
 template <class Speed>
 ProgJob synthesize_job(const Speed& speed, std::size_t n_total, std::uint32_t cycles, double cycle_s,
                        const std::vector<double>& ph1, const std::vector<double>& ph2,
-                       const std::vector<double>& ph3, const Fault& fault, std::mt19937_64& rng) {
+                       const std::vector<double>& ph3, const Fault& fault, std::mt19937_64& rng,
+                       double amp_law = 0.0) {
   std::normal_distribution<double> gauss(0.0, 1.0);
   const double w0 = 2.0 * kPi * kF0;
   ProgJob job;
@@ -94,7 +96,8 @@ ProgJob synthesize_job(const Speed& speed, std::size_t n_total, std::uint32_t cy
     if (n % kFramePeriod == 0)
       job.frames.push_back(SpeedSample{kT0 + std::llround(t * 1e9), w / kRatio, phi / kRatio, true});
     const double spur = phi * spur_per_shaft;
-    const double am = 1.0 + fault.am * std::cos(spur);
+    const double am =
+        (1.0 + fault.am * std::cos(spur)) * (amp_law != 0.0 && w > 0.0 ? std::pow(w / w0, amp_law) : 1.0);
     double v = am * (std::cos(28.0 * phi + ph1[cyc]) + 0.5 * std::cos(56.0 * phi + ph2[cyc]) +
                      0.25 * std::cos(84.0 * phi + ph3[cyc])) +
                0.1 * std::cos(phi) + 0.2 * gauss(rng);
@@ -115,7 +118,7 @@ ProgJob synthesize_job(const Speed& speed, std::size_t n_total, std::uint32_t cy
 }
 
 inline ProgJob make_program_job(std::uint64_t seed, std::uint32_t cycles, const std::string& program,
-                                double ripple, const Fault& fault) {
+                                double ripple, const Fault& fault, double amp_law = 0.0) {
   const std::vector<Segment> seg = program_cycle(program);
   double cycle_s = 0.0;
   for (const Segment& s : seg) cycle_s += s.dur_s;
@@ -144,13 +147,14 @@ inline ProgJob make_program_job(std::uint64_t seed, std::uint32_t cycles, const 
     }
     return 0.0;
   };
-  return synthesize_job(speed, n_total, cycles, cycle_s, ph1, ph2, ph3, fault, rng);
+  return synthesize_job(speed, n_total, cycles, cycle_s, ph1, ph2, ph3, fault, rng, amp_law);
 }
 
 /// Judged windows of one job with their end time (s from the job start) and span (s).
 struct Cut {
   std::vector<std::vector<float>> w;
   std::vector<double> t_end_s;
+  std::vector<double> speed_rad_s;  ///< order domain: each window's mean joint speed
   double judged_s = 0.0;
 };
 
@@ -207,11 +211,32 @@ inline Cut order_cut(const ProgJob& job) {
           ref.max_shaft_speed_rad_s <= 1.07 * 2.0 * kPi * kF0) {
         c.w.push_back(buf);
         c.t_end_s.push_back(static_cast<double>(ref.t_end_ns - kT0) * 1e-9);
+        c.speed_rad_s.push_back(ref.joint_speed_rad_s);
         c.judged_s += static_cast<double>(ref.t_end_ns - ref.t_start_ns) * 1e-9;
       }
     }
   }
   return c;
+}
+
+/// The speed law of train_order_baseline on one cut (one class: the bench's band), and the windows of
+/// `cuts` normalised with it to the class's mean training speed. Returns the fit.
+inline SpeedLawFit normalise_speed_law(Cut& train, std::vector<Cut*> others) {
+  SegmentClass c;
+  c.direction = 1;
+  for (const double v : train.speed_rad_s) c.speed_rad_s += v / static_cast<double>(train.speed_rad_s.size());
+  c.speed_tol_rad_s = 1e9;  // every window of the band
+  std::vector<OrderWindowRef> refs(train.w.size());
+  for (std::size_t i = 0; i < refs.size(); ++i) refs[i].joint_speed_rad_s = train.speed_rad_s[i];
+  const SpeedLawFit f = fit_speed_law(refs, train.w, {c});
+  others.push_back(&train);
+  for (Cut* cut : others) {
+    for (std::size_t i = 0; i < cut->w.size(); ++i) {
+      const auto g = static_cast<float>(speed_law_gain(c.speed_rad_s, cut->speed_rad_s[i], f.applied));
+      for (float& x : cut->w[i]) x *= g;
+    }
+  }
+  return f;
 }
 
 }  // namespace ptda::order_bench

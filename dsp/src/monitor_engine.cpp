@@ -10,6 +10,7 @@
 
 #include "number_text.hpp"
 #include "ptda/common/error.hpp"
+#include "ptda/dsp/order_windows.hpp"
 #include "ptda/dsp/training.hpp"
 
 namespace ptda::dsp {
@@ -150,6 +151,12 @@ void MonitorEngine::score(const WindowRef& ref, WindowResult& out) noexcept {
   }
   out.status = WindowStatus::kScored;
   out.class_id = static_cast<std::int32_t>(cls->segment.id);
+  // Order domain: the window taken to its class's speed by the trained speed law (0 in the time domain).
+  if (baseline_.speed_law_exponent != 0.0) {
+    const auto g = static_cast<float>(
+        speed_law_gain(cls->segment.speed_rad_s, ref.speed_rad_s, baseline_.speed_law_exponent));
+    for (float& x : window_) x *= g;
+  }
   out.features = analyzer_.analyze(window_, *cls, method_);
   out.thresholds = cls->thresholds[static_cast<std::size_t>(method_)];
   out.verdict = judge(out.features, out.thresholds);

@@ -120,9 +120,74 @@ std::vector<SegmentClass> learn_order_classes(const std::vector<OrderWindowRef>&
   return out;
 }
 
+double speed_law_gain(double class_speed_rad_s, double speed_rad_s, double exponent) noexcept {
+  const double v = std::fabs(speed_rad_s);
+  if (exponent == 0.0 || !(v > 0.0) || !(class_speed_rad_s > 0.0)) return 1.0;
+  return std::pow(class_speed_rad_s / v, exponent);
+}
+
+namespace {
+/// The class a window belongs to in training (direction, within the class's band), or -1.
+int class_of(const OrderWindowRef& r, const std::vector<SegmentClass>& classes) {
+  for (std::size_t k = 0; k < classes.size(); ++k) {
+    const SegmentClass& c = classes[k];
+    if ((r.direction < 0 ? -1 : 1) != c.direction) continue;
+    if (std::fabs(std::fabs(r.joint_speed_rad_s) - c.speed_rad_s) > c.speed_tol_rad_s) continue;
+    return static_cast<int>(k);
+  }
+  return -1;
+}
+}  // namespace
+
+SpeedLawFit fit_speed_law(const std::vector<OrderWindowRef>& refs,
+                          const std::vector<std::vector<float>>& windows,
+                          const std::vector<SegmentClass>& classes) {
+  // y = ln RMS, x = ln |v|; per class the means are removed (each class has its own level), one slope.
+  struct Acc {
+    double n = 0.0, sx = 0.0, sy = 0.0, sxx = 0.0, sxy = 0.0, syy = 0.0;
+  };
+  std::vector<Acc> acc(classes.size());
+  SpeedLawFit f;
+  for (std::size_t i = 0; i < refs.size() && i < windows.size(); ++i) {
+    const int k = class_of(refs[i], classes);
+    const double v = std::fabs(refs[i].joint_speed_rad_s);
+    if (k < 0 || !(v > 0.0) || windows[i].empty()) continue;
+    double ss = 0.0;
+    for (const float x : windows[i]) ss += static_cast<double>(x) * x;
+    const double ms = ss / static_cast<double>(windows[i].size());
+    if (!(ms > 0.0) || !std::isfinite(ms)) continue;
+    const double x = std::log(v), y = 0.5 * std::log(ms);
+    Acc& a = acc[static_cast<std::size_t>(k)];
+    a.n += 1.0;
+    a.sx += x;
+    a.sy += y;
+    a.sxx += x * x;
+    a.sxy += x * y;
+    a.syy += y * y;
+    ++f.windows;
+  }
+  double sxx = 0.0, sxy = 0.0, syy = 0.0, groups = 0.0, n = 0.0;
+  for (const Acc& a : acc) {
+    if (a.n < 1.0) continue;
+    groups += 1.0;
+    n += a.n;
+    sxx += a.sxx - a.sx * a.sx / a.n;
+    sxy += a.sxy - a.sx * a.sy / a.n;
+    syy += a.syy - a.sy * a.sy / a.n;
+  }
+  const double dof = n - groups - 1.0;
+  if (!(sxx > 1e-12) || dof < 3.0) return f;
+  f.exponent = sxy / sxx;
+  const double rss = std::max(0.0, syy - f.exponent * sxy);
+  f.se = std::sqrt(rss / dof / sxx);
+  // Applied when significant; an exponent beyond 8 is no physical speed law (the file format's bound).
+  f.applied = std::fabs(f.exponent) > 2.0 * f.se && std::fabs(f.exponent) <= 8.0 ? f.exponent : 0.0;
+  return f;
+}
+
 Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig& cfg, double band_rel,
                               const ThresholdPolicy& policy, const GearboxInfo& gearbox,
-                              std::vector<std::string>* dropped) {
+                              std::vector<std::string>* dropped, bool learn_speed_law) {
   if (data.refs.size() != data.windows.size())
     throw Error("train_order_baseline: " + std::to_string(data.refs.size()) + " refs but " +
                 std::to_string(data.windows.size()) + " windows");
@@ -132,7 +197,14 @@ Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig&
   b.window_len = cfg.samples_per_rev * cfg.revolutions;
   b.gearbox = gearbox;
   b.policy = policy;
-  for (const SegmentClass& c : learn_order_classes(data.refs, band_rel, 3, &why)) {
+  const std::vector<SegmentClass> classes = learn_order_classes(data.refs, band_rel, 3, &why);
+  if (learn_speed_law) {
+    const SpeedLawFit law = fit_speed_law(data.refs, data.windows, classes);
+    b.speed_law_fit = law.exponent;
+    b.speed_law_se = law.se;
+    b.speed_law_exponent = law.applied;
+  }
+  for (const SegmentClass& c : classes) {
     std::vector<std::vector<float>> windows;
     std::vector<std::uint64_t> groups;
     std::vector<std::uint32_t> recordings;
@@ -141,6 +213,11 @@ Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig&
       if ((r.direction < 0 ? -1 : 1) != c.direction) continue;
       if (std::fabs(std::fabs(r.joint_speed_rad_s) - c.speed_rad_s) > c.speed_tol_rad_s) continue;
       windows.push_back(data.windows[i]);
+      if (b.speed_law_exponent != 0.0) {
+        const auto g =
+            static_cast<float>(speed_law_gain(c.speed_rad_s, r.joint_speed_rad_s, b.speed_law_exponent));
+        for (float& x : windows.back()) x *= g;
+      }
       groups.push_back(r.seq);  // non-overlapping windows: each its own leave-out group
       if (!data.recording.empty()) recordings.push_back(data.recording[i]);
     }

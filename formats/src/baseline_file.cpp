@@ -319,9 +319,15 @@ void validate_baseline(const dsp::Baseline& b, const std::string& where) {
     if (!(b.gearbox.ratio > 0.0))
       throw Error(w + "order domain needs the gearbox ratio (the resampler's shaft/joint angle), got " +
                   num(b.gearbox.ratio));
-  } else if (b.samples_per_rev != 0 || b.revolutions != 0) {
+    // A speed law beyond |p| = 8 would scale a window by 2^8 for a factor-2 speed change: not physical.
+    if (!(std::isfinite(b.speed_law_exponent) && std::fabs(b.speed_law_exponent) <= 8.0 &&
+          std::isfinite(b.speed_law_fit) && std::isfinite(b.speed_law_se) && b.speed_law_se >= 0.0))
+      throw Error(w + "speed law exponent " + num(b.speed_law_exponent) + " (fit " + num(b.speed_law_fit) +
+                  " +- " + num(b.speed_law_se) + "): needs finite values, |exponent| <= 8, se >= 0");
+  } else if (b.samples_per_rev != 0 || b.revolutions != 0 || b.speed_law_exponent != 0.0) {
     throw Error(w + "time domain with samples_per_rev " + std::to_string(b.samples_per_rev) +
-                " and revolutions " + std::to_string(b.revolutions) + ": both must be 0");
+                ", revolutions " + std::to_string(b.revolutions) + " and speed law exponent " +
+                num(b.speed_law_exponent) + ": all must be 0");
   }
   if (!(std::isfinite(b.gearbox.ratio) && b.gearbox.ratio >= 0.0))
     throw Error(w + "gearbox ratio is " + num(b.gearbox.ratio) + ", must be finite and >= 0");
@@ -434,11 +440,14 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
       w.f64(d.entropy_between_sd);
     }
   }
-  // Version 5: the domain and the order windows' S and R.
+  // Version 5: the domain and the order windows' S and R; version 6: the speed law.
   if (order) {
     w.u8(static_cast<std::uint8_t>(b.domain));
     w.u32(b.samples_per_rev);
     w.u32(b.revolutions);
+    w.f64(b.speed_law_exponent);
+    w.f64(b.speed_law_fit);
+    w.f64(b.speed_law_se);
   }
   w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
   w.u32(crc32(w.buf().data(), w.buf().size()));
@@ -616,6 +625,11 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
     b.domain = static_cast<dsp::Domain>(d);
     b.samples_per_rev = body.u32();
     b.revolutions = body.u32();
+  }
+  if (version >= 6 && b.domain == dsp::Domain::kOrder) {
+    b.speed_law_exponent = body.f64();
+    b.speed_law_fit = body.f64();
+    b.speed_law_se = body.f64();
   }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
   // A CRC only proves the bytes are what some writer produced: a forged or buggy file with NaN,

@@ -283,7 +283,7 @@ TEST(PipelineConfigErrors, UnknownKeysAndTables) {
       "cfg.toml:3:1: unknown key 'windwo' in [extraction] (known: window_len, hop, speed_tol_rel, "
       "speed_tol_abs_rad_s, min_speed_rad_s, max_speed_rad_s, min_duration_s, guard_s, max_speed_gap_s, "
       "max_windows_per_region, clip_abs, domain, samples_per_rev, revolutions, speed_band_rel, "
-      "anti_alias_half_taps, anti_alias_cutoff, min_shaft_hz, can_time_smoothing_frames)");
+      "anti_alias_half_taps, anti_alias_cutoff, min_shaft_hz, can_time_smoothing_frames, speed_law)");
   EXPECT_EQ(error_of("[extration]\nwindow_len = 4096\n"),
             "cfg.toml:1:2: unknown table 'extration' at the top level (known: acquisition, can, extraction, "
             "classes, thresholds, decision, monitor, gearbox)");

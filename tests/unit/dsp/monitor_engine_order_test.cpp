@@ -9,6 +9,7 @@
 
 #include "ptda/common/error.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/order_windows.hpp"
 
 namespace ptda::dsp {
 namespace {
@@ -68,6 +69,37 @@ TEST(MonitorEngineOrder, JudgeWindowScoresLikePoll) {
   EXPECT_EQ(r.status, WindowStatus::kNoClass);
   // The slicer is not fed: nothing to poll.
   EXPECT_FALSE(engine.poll(r));
+}
+
+// The speed law (Baseline::speed_law_exponent p): a window at speed v is scaled by (v_c / |v|)^p before
+// it is analysed. A window at 3.3 rad/s whose line is (3.3 / 3.46)^2 of the class's level is, with p = 2,
+// the class's own line again (rms_res ~ 0); without the law the level difference stays in the residual.
+TEST(MonitorEngineOrder, SpeedLawScalesTheWindowToItsClassSpeed) {
+  ExtractionConfig e;
+  e.window_len = 128;
+  const double v = 3.3, vc = 3.46, p = 2.0;
+  std::vector<float> x(128);
+  const double level = std::pow(v / vc, p);
+  for (std::size_t n = 0; n < x.size(); ++n)
+    x[n] = static_cast<float>(level * std::cos(2.0 * 3.14159265358979 * 8.0 * n / 128.0));
+  WindowRef ref;
+  ref.speed_rad_s = v;
+  WindowResult with, without;
+  Baseline b = order_baseline();
+  b.speed_law_exponent = p;
+  MonitorEngine law(b, e, DecisionConfig{}, Method::kPtda, 64.0, 0);
+  law.judge_window(ref, x, with);
+  MonitorEngine plain(order_baseline(), e, DecisionConfig{}, Method::kPtda, 64.0, 0);
+  plain.judge_window(ref, x, without);
+  ASSERT_EQ(with.status, WindowStatus::kScored);
+  EXPECT_LT(with.features.rms_res, 1e-5);
+  // Without the law: |1 - 0.9097| of the line's RMS (1/sqrt 2) remains, 0.0639 (computed, not fitted).
+  EXPECT_NEAR(without.features.rms_res, (1.0 - level) / std::sqrt(2.0), 1e-4);
+  // The judged (scaled) window is what last_window() shows (the report draws it).
+  EXPECT_NEAR(law.last_window()[0], 1.0, 1e-5);
+  EXPECT_NEAR(speed_law_gain(vc, -v, p), 1.0 / level, 1e-12);  // the direction does not enter
+  EXPECT_EQ(speed_law_gain(vc, 0.0, p), 1.0);
+  EXPECT_EQ(speed_law_gain(vc, v, 0.0), 1.0);
 }
 
 TEST(MonitorEngineOrder, OrderBaselineWithTimeSamplesIsRefused) {

@@ -387,5 +387,68 @@ TEST(OrderPtda, CutterBandLimitsTheWindowToMaxOrder) {
     EXPECT_NEAR(out[static_cast<std::size_t>(k)], std::cos(2.0 * kPi * static_cast<double>(k) / 16.0), 1e-5);
 }
 
+// The speed law's fit (fit_speed_law): three classes at 1, 2 and 3 rad/s with windows spread +-5 % in
+// speed, each a line of amplitude c_k |v|^1.5 (its own level per class) plus white noise. The pooled
+// within-class slope recovers 1.5; with amplitude independent of speed nothing significant is applied.
+TEST(SpeedLaw, FitRecoversAKnownExponentAndAppliesOnlyASignificantOne) {
+  std::mt19937_64 rng(2026);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> spread(-0.05, 0.05), phase(0.0, 2.0 * kPi);
+  std::vector<SegmentClass> classes;
+  for (int k = 0; k < 3; ++k) {
+    SegmentClass c;
+    c.id = static_cast<std::uint32_t>(k);
+    c.direction = 1;
+    c.speed_rad_s = 1.0 + k;
+    c.speed_tol_rad_s = 0.06 * c.speed_rad_s;
+    classes.push_back(c);
+  }
+  const auto make = [&](double exponent, std::vector<OrderWindowRef>& refs,
+                        std::vector<std::vector<float>>& w) {
+    for (int k = 0; k < 3; ++k) {
+      for (int i = 0; i < 40; ++i) {
+        OrderWindowRef r;
+        r.direction = 1;
+        r.joint_speed_rad_s = (1.0 + k) * (1.0 + spread(rng));
+        const double a = (1.0 + 0.5 * k) * std::pow(r.joint_speed_rad_s, exponent);
+        const double ph = phase(rng);
+        std::vector<float> x(256);
+        for (std::size_t n = 0; n < x.size(); ++n)
+          x[n] = static_cast<float>(a * std::cos(2.0 * kPi * 8.0 * n / 256.0 + ph) + 0.02 * gauss(rng));
+        refs.push_back(r);
+        w.push_back(std::move(x));
+      }
+    }
+  };
+  std::vector<OrderWindowRef> refs;
+  std::vector<std::vector<float>> w;
+  make(1.5, refs, w);
+  // A window of no class (-2 rad/s) is left out of the fit.
+  OrderWindowRef stray;
+  stray.direction = -1;
+  stray.joint_speed_rad_s = -2.0;
+  refs.push_back(stray);
+  w.emplace_back(256, 5.0F);
+  const SpeedLawFit f = fit_speed_law(refs, w, classes);
+  EXPECT_EQ(f.windows, 120U);
+  EXPECT_NEAR(f.exponent, 1.5, 0.05);
+  EXPECT_GT(f.se, 0.0);
+  EXPECT_LT(f.se, 0.05);
+  EXPECT_EQ(f.applied, f.exponent);
+
+  std::vector<OrderWindowRef> refs0;
+  std::vector<std::vector<float>> w0;
+  make(0.0, refs0, w0);
+  const SpeedLawFit f0 = fit_speed_law(refs0, w0, classes);
+  EXPECT_LT(std::fabs(f0.exponent), 2.0 * f0.se) << f0.exponent << " +- " << f0.se;
+  EXPECT_EQ(f0.applied, 0.0);
+  // Too few windows for a slope with 3 residual degrees of freedom: nothing fitted.
+  const std::vector<OrderWindowRef> few(refs.begin(), refs.begin() + 4);
+  const std::vector<std::vector<float>> few_w(w.begin(), w.begin() + 4);
+  const SpeedLawFit none = fit_speed_law(few, few_w, classes);
+  EXPECT_EQ(none.exponent, 0.0);
+  EXPECT_EQ(none.applied, 0.0);
+}
+
 }  // namespace
 }  // namespace ptda::dsp

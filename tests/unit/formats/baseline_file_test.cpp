@@ -412,11 +412,11 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
                                     std::to_string(good.size() + 1) + " (trailing bytes)");
   Bytes version = good;
-  // Version 5 (issue 16, the order domain) is the newest readable one.
-  version[8] = 6;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 6 (this build reads 1 to 5)");
+  // Version 6 (issue 16, the order domain's speed law) is the newest readable one.
+  version[8] = 7;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 7 (this build reads 1 to 6)");
   version[8] = 0;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 5)");
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 6)");
   Bytes flipped = good;
   flipped[good.size() / 2] ^= 0x01;
   const std::string crc_msg = message_of(flipped);

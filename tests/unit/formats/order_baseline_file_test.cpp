@@ -77,15 +77,24 @@ std::string error_of(const Bytes& b) {
   return "(no error)";
 }
 
-TEST(OrderBaselineFile, OrderBaselineIsVersion5AndRoundTrips) {
-  const Baseline b = make_order_baseline();
+/// Offset of the order section (domain u8, S u32, R u32, 3 x f64 speed law) from the end of the file.
+constexpr std::size_t kOrderTail = 4 + 9 + 24;
+
+TEST(OrderBaselineFile, OrderBaselineIsVersion6AndRoundTrips) {
+  Baseline b = make_order_baseline();
+  b.speed_law_exponent = 1.5;
+  b.speed_law_fit = 1.5;
+  b.speed_law_se = 0.25;
   const Bytes bytes = serialize_baseline(b);
-  EXPECT_EQ(bytes[8], 5);  // version 5, little-endian
-  // The last 9 bytes before the CRC: domain 1, S 1024, R 4 (little-endian).
-  const std::size_t at = bytes.size() - 4 - 9;
+  EXPECT_EQ(bytes[8], 6);  // version 6, little-endian
+  // The last 33 bytes before the CRC: domain 1, S 1024, R 4 (little-endian), then the speed law.
+  const std::size_t at = bytes.size() - kOrderTail;
   EXPECT_EQ(bytes[at], 1);
   EXPECT_EQ(bytes[at + 1] | (bytes[at + 2] << 8), 1024);
   EXPECT_EQ(bytes[at + 5], 4);
+  double p = 0.0;
+  std::memcpy(&p, bytes.data() + at + 9, sizeof p);  // IEEE-754 little-endian on every target we build
+  EXPECT_EQ(p, 1.5);
   const Baseline back = parse_baseline(bytes, "o.bin");
   EXPECT_EQ(back.domain, Domain::kOrder);
   EXPECT_EQ(back.samples_per_rev, 1024U);
@@ -93,16 +102,36 @@ TEST(OrderBaselineFile, OrderBaselineIsVersion5AndRoundTrips) {
   EXPECT_EQ(back.fs_hz, 1024.0);
   EXPECT_EQ(back.window_len, 4096U);
   EXPECT_EQ(back.classes.size(), 2U);
+  EXPECT_EQ(back.speed_law_exponent, 1.5);
+  EXPECT_EQ(back.speed_law_fit, 1.5);
+  EXPECT_EQ(back.speed_law_se, 0.25);
   EXPECT_EQ(serialize_baseline(back), bytes);  // written back: the same bytes
+
+  // A version 5 file (no speed law: the bytes before it, version 5, its CRC) reads with p = 0.
+  Bytes v5(bytes.begin(), bytes.end() - 4 - 24);
+  v5.insert(v5.end(), 4, 0);
+  v5[8] = 5;
+  const std::uint64_t size = v5.size();
+  for (int i = 0; i < 8; ++i)
+    v5[12 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(size >> (8 * i));
+  fix_crc(v5);
+  const Baseline old = parse_baseline(v5, "v5.bin");
+  EXPECT_EQ(old.domain, Domain::kOrder);
+  EXPECT_EQ(old.speed_law_exponent, 0.0);
+  EXPECT_EQ(old.revolutions, 4U);
+
+  // An implausible exponent is refused on write and on read.
+  b.speed_law_exponent = 9.0;
+  EXPECT_THROW((void)serialize_baseline(b), Error);
 }
 
 TEST(OrderBaselineFile, TimeBaselineStaysVersion4AndReadsAsTime) {
   const Baseline t = make_baseline(4096, 25600.0);
   const Bytes bytes = serialize_baseline(t);
   EXPECT_EQ(bytes[8], 4);  // unchanged format for the time domain
-  // The same baseline as an order baseline is exactly 9 bytes longer (domain, S, R).
+  // The same baseline as an order baseline is exactly 33 bytes longer (domain, S, R, speed law).
   Baseline o = make_order_baseline();
-  EXPECT_EQ(serialize_baseline(o).size(), bytes.size() + 9);
+  EXPECT_EQ(serialize_baseline(o).size(), bytes.size() + 33);
   const Baseline back = parse_baseline(bytes, "t.bin");
   EXPECT_EQ(back.domain, Domain::kTime);
   EXPECT_EQ(back.samples_per_rev, 0U);
@@ -134,17 +163,17 @@ TEST(OrderBaselineFile, InconsistentOrderFieldsAreRefused) {
   r.gearbox.ratio = 0.0;
   EXPECT_THROW((void)serialize_baseline(r), Error);
 
-  // An unknown domain byte in a version 5 file.
+  // An unknown domain byte.
   Bytes bytes = serialize_baseline(make_order_baseline());
-  bytes[bytes.size() - 4 - 9] = 7;
+  bytes[bytes.size() - kOrderTail] = 7;
   fix_crc(bytes);
   const std::string unknown = error_of(bytes);
   EXPECT_NE(unknown.find("unknown domain 7 (this build knows 0, time, and 1, order)"), std::string::npos)
       << unknown;
   // S changed in the file: caught by the semantic check.
   bytes = serialize_baseline(make_order_baseline());
-  bytes[bytes.size() - 4 - 8] = 0;  // S 1024 -> 1024 & ~0xFF = 1024 (low byte already 0): use the high byte
-  bytes[bytes.size() - 4 - 7] = 2;  // S = 512
+  bytes[bytes.size() - kOrderTail + 1] = 0;  // S low byte (already 0 for 1024)
+  bytes[bytes.size() - kOrderTail + 2] = 2;  // S high byte: S = 512
   fix_crc(bytes);
   const std::string s512 = error_of(bytes);
   EXPECT_NE(s512.find("order domain with samples_per_rev 512"), std::string::npos) << s512;

@@ -29,6 +29,10 @@ struct OrderDomainConfig {
   /// CAN log times smoothed over about this many frames (dsp::FrameClock with [can.speed_frame]
   /// period_s) before the angle law is built; 0 = the log times as they are.
   std::uint32_t can_time_smoothing_frames = 32;
+  /// Learn the amplitude's speed law in training (|x| proportional to |speed|^p within a class, p fitted
+  /// on the healthy windows and applied only when significant; docs/method.md §9) and normalise every
+  /// window to its class's speed with it. false: p = 0.
+  bool speed_law = true;
 };
 
 struct PipelineConfig {

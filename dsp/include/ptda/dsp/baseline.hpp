@@ -193,6 +193,14 @@ struct Baseline {
   Domain domain = Domain::kTime;
   std::uint32_t samples_per_rev = 0;
   std::uint32_t revolutions = 0;
+  /// Order domain, format >= 6 (docs/method.md §9 "Speed law"): the window RMS grows as |speed|^p
+  /// within a class. speed_law_fit / speed_law_se: the pooled within-class fit on the healthy windows;
+  /// speed_law_exponent: the p applied (the fit when significant, |fit| > 2 se, else 0). A window at
+  /// joint speed v judged against class c is multiplied by (v_c / |v|)^p first, in training and in
+  /// MonitorEngine. Always 0 in the time domain.
+  double speed_law_exponent = 0.0;
+  double speed_law_fit = 0.0;
+  double speed_law_se = 0.0;
   GearboxInfo gearbox;
   ThresholdPolicy policy;
   std::vector<ClassBaseline> classes;

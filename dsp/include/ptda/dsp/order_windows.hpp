@@ -96,9 +96,29 @@ struct OrderWindows {
 /// resampler segment as leave-out group. fs_hz of the result is S (samples per revolution: the
 /// "sample rate" of the angle axis) and window_len N = R S. Throws ptda::Error when no class has
 /// enough windows (the message names every dropped class). Thread: any (offline). Allocates.
+/// With learn_speed_law, the amplitude's speed law is fitted first (Baseline::speed_law_*: pooled
+/// within-class least squares of log window RMS on log |joint speed|) and, when significant, each
+/// window is normalised to its class's speed before the class is trained.
 [[nodiscard]] Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig& cfg,
                                             double band_rel, const ThresholdPolicy& policy,
                                             const GearboxInfo& gearbox,
-                                            std::vector<std::string>* dropped = nullptr);
+                                            std::vector<std::string>* dropped = nullptr,
+                                            bool learn_speed_law = false);
+
+/// The speed law's fit (see train_order_baseline): exponent p, its standard error, and the p applied
+/// (p when |p| > 2 se and the fit has >= 3 residual degrees of freedom, else 0). Windows of no class are
+/// left out. Thread: any. Allocates.
+struct SpeedLawFit {
+  double exponent = 0.0;
+  double se = 0.0;
+  double applied = 0.0;
+  std::size_t windows = 0;
+};
+[[nodiscard]] SpeedLawFit fit_speed_law(const std::vector<OrderWindowRef>& refs,
+                                        const std::vector<std::vector<float>>& windows,
+                                        const std::vector<SegmentClass>& classes);
+/// (v_c / |v|)^p, the factor that takes a window at joint speed v to its class's speed v_c; 1 when p = 0
+/// or a speed is not positive. Thread: any. Never allocates.
+[[nodiscard]] double speed_law_gain(double class_speed_rad_s, double speed_rad_s, double exponent) noexcept;
 
 }  // namespace ptda::dsp

@@ -24,7 +24,9 @@ namespace ptda::formats {
 /// Version 5 appends the domain (u8: 0 time, 1 order) and the order windows' samples per revolution S
 /// and revolutions R (u32 each); it is written for order-domain baselines only. A time-domain baseline
 /// is still written as version 4 (unchanged bytes), and versions 1 to 4 read as time domain.
-inline constexpr std::uint32_t kBaselineFormatVersion = 5;
+/// Version 6 appends the order domain's speed law (f64 applied exponent, f64 fit, f64 its standard
+/// error; dsp::Baseline::speed_law_*); version 5 reads with no speed law.
+inline constexpr std::uint32_t kBaselineFormatVersion = 6;
 inline constexpr std::uint32_t kBaselineTimeDomainVersion = 4;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 
