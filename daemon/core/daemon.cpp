@@ -807,8 +807,7 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
                 drivers::alarm_level_name(was).data());
   char extra[64] = "";
   if (missed > 0) {
-    std::snprintf(extra, sizeof extra, "; %llu more level change%s between status checks",
-                  static_cast<unsigned long long>(missed), missed == 1 ? "" : "s");
+    std::snprintf(extra, sizeof extra, "; %llu more between checks", static_cast<unsigned long long>(missed));
   }
   const dsp::DecisionConfig& dc = cfg_.pipeline.decision;
   char evidence[320] = "";
@@ -837,10 +836,29 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
   }
   if (history_) history_state(ps, evidence);
   if (mqtt_) mqtt_alarm(ps, causes);
-  if (level == drivers::AlarmLevel::kNormal) {
-    spdlog::info("{}{}) at {}: {}", head, extra, since, evidence);
-  } else {
-    spdlog::warn("{}{}) at {}: {}", head, extra, since, evidence);
+  // spdlog formats the message, then the sink's pattern ("[2026-11-27 16:53:47.995] [warning] ", 36
+  // bytes, and the newline) around it, each in a 250-byte inline buffer: a longer line would allocate
+  // on the supervisor. A line longer than kMaxLine is logged as two: the level change, then its
+  // evidence (each well under the limit: evidence < 320 bytes only with absurd causes, then cut).
+  constexpr std::size_t kMaxLine = 250 - 36 - 2;
+  char line[kMaxLine + 1];
+  const int len = std::snprintf(line, sizeof line, "%s%s) at %s: %s", head, extra, since, evidence);
+  const bool split = len > static_cast<int>(kMaxLine);
+  if (split) {
+    std::snprintf(line, sizeof line, "%s%s) at %s (evidence on the next line)", head, extra, since);
+  }
+  const auto emit = [&](const char* text) {
+    if (level == drivers::AlarmLevel::kNormal) {
+      spdlog::info("{}", text);
+    } else {
+      spdlog::warn("{}", text);
+    }
+  };
+  emit(line);
+  if (split) {
+    std::snprintf(line, sizeof line, "alarm level %s evidence: %s", drivers::alarm_level_name(level).data(),
+                  evidence);
+    emit(line);
   }
 }
 

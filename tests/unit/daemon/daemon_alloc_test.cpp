@@ -14,6 +14,11 @@
 
 #include "alloc_counter.hpp"
 #include "daemon_test_support.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/angle_resampler.hpp"
+#include "ptda/dsp/frame_clock.hpp"
+#include "ptda/dsp/order_windows.hpp"
 
 namespace ptda::daemon::test {
 namespace {
@@ -110,6 +115,147 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   std::ifstream in(dir / "status" / "status.json");
   const std::string status((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_NE(status.find(R"("handoff":0,)"), std::string::npos) << status;
+}
+
+// ---- order domain (issue 16) ----------------------------------------------------------------------
+
+fs::path joint_scenario() {
+  return source_dir() / "config" / "scenarios" / "joint_rotation_healthy.toml";
+}
+
+/// The joint-rotation job's pipeline (config/examples/joint_rotation.toml) without its [can] tables, in
+/// the order domain with windows of R = 4 revolutions (as tests/golden/order_domain_test.cpp).
+std::string order_pipeline() {
+  std::ifstream in(source_dir() / "config" / "examples" / "joint_rotation.toml");
+  std::string line, out;
+  bool skip = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] == '[') skip = line.rfind("[can", 0) == 0;
+    if (skip) continue;
+    if (line.rfind("window_len = 12800", 0) == 0) line = "domain = \"order\"\nrevolutions = 4";
+    out += line + "\n";
+  }
+  return out;
+}
+
+/// The simulator backends on the joint-rotation job at fast pace, looping, order domain; the simulator's
+/// 0.5 ms CAN transport delay corrected as in order_domain_test.cpp.
+std::string order_sim_config(const fs::path& dir, const std::string& extra) {
+  return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
+         (dir / "status").string() + "\"\nstatus_period_s = 0.05\nmetrics_path = \"" +
+         (dir / "metrics" / "ptda.prom").string() +
+         "\"\njoint = \"j4\"\n\n[adc]\nbackend = \"sim\"\nscenario = \"" + joint_scenario().string() +
+         "\"\nseed = 101\npace = \"fast\"\n\n[can]\nbackend = \"sim\"\npace = \"fast\"\n" +
+         "speed_latency_s = 0.0005\n\n" + extra + "\n" + order_pipeline();
+}
+
+/// Trains the order baseline in-process on one pass of the simulated healthy joint rotation (seed 101):
+/// the front end `ptda train` runs in the order domain (FrameClock, AngleResampler, OrderWindowCutter)
+/// and dsp::train_order_baseline. Allocates.
+void write_sim_order_baseline(const fs::path& path, const std::string& config_text) {
+  const DaemonConfig cfg = parse_daemon_config(config_text, "order.toml");
+  const config::PipelineConfig& pc = cfg.pipeline;
+  const auto rec = make_sim_recording(joint_scenario(), 101);
+  dsp::AngleResampler res(config::angle_resampler_config(pc), rec->fs_hz, 0);
+  const dsp::OrderWindowConfig oc = config::order_window_config(pc, res.pass_order());
+  dsp::OrderWindowCutter cut(oc);
+  dsp::FrameClock frame_clock(pc.speed_frame.period_s, pc.order.can_time_smoothing_frames);
+  const std::int64_t latency_ns = seconds_to_ns(pc.speed_latency_s);
+  dsp::OrderWindows data;
+  std::vector<float> buf(cut.window_len());
+  std::size_t f = 0;
+  const std::size_t n = rec->samples.size();
+  for (std::size_t pos = 0; pos < n; pos += 4096) {
+    const std::size_t count = std::min<std::size_t>(4096, n - pos);
+    const std::int64_t t_end = rec->sample_offset_ns(pos + count);
+    for (; f < rec->frames.size() && rec->frames[f].t_ns - latency_ns < t_end; ++f) {
+      config::DecodedSpeed d;
+      if (config::decode_speed(rec->frames[f], pc.speed_frame, d) == config::DecodeResult::kOk) {
+        res.push_speed(
+            {frame_clock.smooth(rec->frames[f].t_ns - latency_ns), d.speed_rad_s, d.angle_rad, d.has_angle});
+      }
+    }
+    res.push_samples(std::span<const float>(rec->samples.data() + pos, count));
+    dsp::OrderSample o;
+    dsp::OrderWindowRef ref;
+    while (res.pop(o)) {
+      if (!cut.push(o, ref, buf)) continue;
+      data.refs.push_back(ref);
+      data.windows.push_back(buf);
+    }
+  }
+  dsp::Baseline b = dsp::train_order_baseline(data, oc, pc.order.speed_band_rel, pc.thresholds, pc.gearbox);
+  b.domain = dsp::Domain::kOrder;
+  b.samples_per_rev = pc.order.samples_per_rev;
+  b.revolutions = pc.order.revolutions;
+  b.source = "daemon tests: simulated joint rotation, seed 101, order domain";
+  formats::write_baseline(path, b);
+}
+
+// The order domain's run state (FrameClock, AngleResampler, OrderWindowCutter, MonitorEngine::
+// judge_window on the processing thread) makes no heap allocation either: everything is sized in
+// configure(). The loop seam of the simulator (the joint angle jumps back) breaks the resampler's
+// segment, as a real restart of the job would.
+TEST(DaemonAlloc, OrderDomainSteadyStateMakesNoAllocations) {
+  block_daemon_signals();
+  const fs::path dir = scratch("alloc_order");
+  const std::string text =
+      order_sim_config(dir,
+                       "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\n"
+                       "period_s = 0.05\n[history]\ndir = \"" +
+                           (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n");
+  write_text(dir / "ptdad.toml", text);
+  write_sim_order_baseline(dir / "baseline.bin", text);
+  const std::uint64_t pass = make_sim_recording(joint_scenario(), 101)->samples.size();
+
+  drivers::MonotonicClock clock;
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  auto daemon = std::make_unique<Daemon>(opt, clock);
+  Daemon& d = *daemon;
+  d.configure();
+  d.activate();
+  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+
+  // Warm-up: a full pass (the loop seam included) and a few windows.
+  ASSERT_TRUE(
+      wait_for([&] { return d.view().pipeline.samples > pass + 200'000; }, std::chrono::seconds(120)));
+  const DaemonView before = d.view();
+  std::uint64_t allocations = 0;
+  const auto t_start = std::chrono::steady_clock::now();
+  {
+    ptda::test::AllocScope scope;
+    wait_for(
+        [&] {
+          const DaemonView v = d.view();
+          return v.pipeline.samples > before.pipeline.samples + 2 * pass &&
+                 v.status_writes > before.status_writes + 1;
+        },
+        std::chrono::seconds(240));
+    allocations = scope.count();
+  }
+  const DaemonView after = d.view();
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  std::printf(
+      "order steady state: %.1f s of data (%llu windows, %llu scored) in %.2f s wall, %llu allocations\n",
+      static_cast<double>(after.pipeline.samples - before.pipeline.samples) / 25600.0,
+      static_cast<unsigned long long>(after.pipeline.windows - before.pipeline.windows),
+      static_cast<unsigned long long>(after.pipeline.scored - before.pipeline.scored), wall_s,
+      static_cast<unsigned long long>(allocations));
+  d.request_stop();
+  runner.join();
+  daemon.reset();
+
+  EXPECT_EQ(allocations, 0U);
+  EXPECT_TRUE(after.pipeline.order_domain);
+  EXPECT_GT(after.pipeline.samples, before.pipeline.samples + 2 * pass);
+  EXPECT_GE(after.pipeline.scored - before.pipeline.scored, 2U * 90U);
+  EXPECT_GT(after.status_writes, before.status_writes);
+  EXPECT_EQ(after.counters.acq_ring_full_blocks, 0U);
+  EXPECT_EQ(after.pipeline.resampler.outputs_dropped, 0U);
+  EXPECT_EQ(after.pipeline.resampler.samples_overrun, 0U);
+  EXPECT_TRUE(fs::exists(dir / "history" / "history.1.jsonl"));
 }
 
 }  // namespace
