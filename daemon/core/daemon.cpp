@@ -807,7 +807,7 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
                 drivers::alarm_level_name(was).data());
   char extra[64] = "";
   if (missed > 0) {
-    std::snprintf(extra, sizeof extra, "; %llu more between checks", static_cast<unsigned long long>(missed));
+    std::snprintf(extra, sizeof extra, "; %llu more", static_cast<unsigned long long>(missed));
   }
   const dsp::DecisionConfig& dc = cfg_.pipeline.decision;
   char evidence[320] = "";
