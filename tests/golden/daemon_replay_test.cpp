@@ -317,6 +317,13 @@ TEST_P(DaemonReplayOrder, ThreadsReproduceOrderMonitorJsonlExactly) {
       << v.pipeline.alarm_counters.alarms_raised;
   EXPECT_EQ(v.pipeline.alarm_counters.windows_scored, pin.scored);
 
+  // status.json: the same pipeline counters as in the time domain, and the order front end's.
+  const cli::JsonValue status = cli::parse_json(read_file(dir / "status" / "status.json"), "status.json");
+  EXPECT_EQ(status.at("pipeline").at("windows_scored").as_number(), static_cast<double>(pin.scored));
+  EXPECT_EQ(status.at("order").at("windows").as_number(), static_cast<double>(lines.size()));
+  EXPECT_EQ(status.at("order").at("frames").as_number(), static_cast<double>(v.pipeline.resampler.frames));
+  EXPECT_EQ(status.at("slicer").at("windows").as_number(), 0.0);
+
   // Coverage as `ptda monitor`'s in the order domain.
   const cli::MonitorInputs in =
       cli::load_monitor_inputs(rec.string(), p.config.string(), p.baseline.string());
