@@ -495,7 +495,8 @@ std::vector<std::string> check_config_paths(const DaemonConfig& cfg, bool train)
             std::to_string(cfg.pipeline.extraction.window_len) + ": use the job's configuration or retrain");
       }
       // Order domain: the baseline's fs_hz is S (samples per revolution), not the ADC rate.
-      if (!order && cfg.pipeline.fs_hz != 0.0 && std::fabs(b.fs_hz - cfg.pipeline.fs_hz) > 1e-9 * b.fs_hz) {
+      if (!order && b.domain == cfg.pipeline.domain && cfg.pipeline.fs_hz != 0.0 &&
+          std::fabs(b.fs_hz - cfg.pipeline.fs_hz) > 1e-9 * b.fs_hz) {
         problems.push_back("[daemon] baseline " + cfg.daemon.baseline.string() + " was trained at " +
                            std::to_string(b.fs_hz) + " Hz but [acquisition] fs_hz is " +
                            std::to_string(cfg.pipeline.fs_hz));

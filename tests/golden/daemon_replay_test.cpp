@@ -18,6 +18,8 @@
 #include <vector>
 
 #include "core/daemon.hpp"
+#include "core/daemon_config.hpp"
+#include "core/pipeline.hpp"
 #include "golden_support.hpp"
 #include "ptda/cli/monitor_output.hpp"
 #include "ptda/cli/pipeline_runner.hpp"
@@ -350,6 +352,51 @@ TEST_P(DaemonReplayOrder, ThreadsReproduceOrderMonitorJsonlExactly) {
 
 INSTANTIATE_TEST_SUITE_P(JointRotation, DaemonReplayOrder, ::testing::ValuesIn(kOrderRuns),
                          [](const auto& param_info) { return std::string(param_info.param.name); });
+
+// A baseline of the other domain is refused at configure (fault, cause baseline), naming both.
+TEST(DaemonReplayOrderRefusal, BaselineOfTheOtherDomainIsRefused) {
+  const OrderPrepared& p = order_prepared();
+  ASSERT_TRUE(fs::exists(p.baseline));
+  const fs::path dir = p.dir / "refusal";
+  fs::create_directories(dir);
+  const fs::path time_baseline = dir / "time.bin";
+  const std::string time_cfg = (source_dir() / "config" / "examples" / "joint_rotation.toml").string();
+  ASSERT_EQ(run_ptda({"train", "--recording", (p.dir / "train").string(), "--config", time_cfg, "--out",
+                      time_baseline.string()},
+                     dir, "train_time")
+                .exit_code,
+            0);
+  const auto refusal = [&](const fs::path& baseline, const std::string& pipeline) {
+    const std::string text =
+        "[daemon]\nbaseline = \"" + baseline.string() + "\"\n[adc]\nbackend = \"wav\"\n" + "recording = \"" +
+        (p.dir / "train").string() +
+        "\"\npace = \"fast\"\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n" + pipeline;
+    const daemon::DaemonConfig cfg = daemon::parse_daemon_config(text, "ptdad.toml");
+    drivers::MonotonicClock clock;
+    daemon::Pipeline pl(cfg, daemon::PipelineMode::kMonitor, clock);
+    pl.configure();
+    EXPECT_TRUE(pl.refused());
+    // --check-config reports it too (one problem: the recording and its CAN log are fine).
+    const std::vector<std::string> problems = daemon::check_config_paths(cfg, false);
+    EXPECT_EQ(problems.size(), 1U) << (problems.empty() ? std::string() : problems.front());
+    return pl.refusal();
+  };
+  EXPECT_EQ(refusal(time_baseline, order_pipeline()),
+            time_baseline.string() +
+                ": baseline was trained in the time domain but the configuration sets [extraction] domain = "
+                "\"order\": use the configuration it was trained with, or retrain");
+  EXPECT_EQ(refusal(p.baseline, job_pipeline("joint_rotation")),
+            p.baseline.string() +
+                ": baseline was trained in the order domain but the configuration sets [extraction] domain = "
+                "\"time\": use the configuration it was trained with, or retrain");
+  // Same domain, other revolutions: named with both values.
+  std::string r8 = order_pipeline();
+  r8.replace(r8.find("revolutions = 4"), 15, "revolutions = 8");
+  EXPECT_EQ(refusal(p.baseline, r8),
+            p.baseline.string() +
+                ": order baseline has samples_per_rev = 1024, revolutions = 4 but the "
+                "configuration sets [extraction] samples_per_rev = 1024, revolutions = 8");
+}
 
 RunResult run_ptdad(const std::vector<std::string>& args, const fs::path& dir, const std::string& tag) {
   std::string cmd = shell_quote(PTDAD_BINARY);

@@ -128,6 +128,12 @@ TEST(DaemonConfig, OrderDomainIsAcceptedAndItsKeysChecked) {
   EXPECT_EQ(c.pipeline.order.can_time_smoothing_frames, 16U);
   EXPECT_EQ(c.pipeline.extraction.window_len, 4096U);  // R S, derived
   EXPECT_EQ(parse_daemon_config(kMinimal + "", "t.toml").pipeline.domain, dsp::Domain::kTime);
+  // Field training collects time-domain windows only: --check-config --train says so.
+  bool training_refused = false;
+  for (const std::string& problem : check_config_paths(c, true))
+    training_refused =
+        training_refused || problem.rfind("[extraction] domain = \"order\": field training", 0) == 0;
+  EXPECT_TRUE(training_refused);
   // Bad order keys: located, naming the key.
   EXPECT_EQ(error_of(head + "samples_per_rev = 1023\n"),
             "t.toml:10:19: extraction.samples_per_rev = 1023 must be even");
