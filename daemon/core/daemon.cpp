@@ -318,6 +318,12 @@ void Daemon::configure() {
                dsp::method_name(cfg_.pipeline.method));
   if (p->refused()) {
     spdlog::error("monitoring refused: {}", p->refusal());
+  } else if (p->baseline() != nullptr && p->baseline()->domain == dsp::Domain::kOrder) {
+    const dsp::Baseline& b = *p->baseline();
+    spdlog::info(
+        "baseline {}: {} segment class(es), order domain: windows of {} input-shaft revolutions of {} "
+        "samples",
+        cfg_.daemon.baseline.string(), b.classes.size(), b.revolutions, b.samples_per_rev);
   } else if (p->baseline() != nullptr) {
     spdlog::info("baseline {}: {} segment class(es), trained at {} Hz", cfg_.daemon.baseline.string(),
                  p->baseline()->classes.size(), p->baseline()->fs_hz);
