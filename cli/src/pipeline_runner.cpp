@@ -415,19 +415,6 @@ class OrderMonitorSink final : public PipelineSink {
 
 }  // namespace
 
-dsp::WindowRef window_ref_of(const dsp::OrderWindowRef& ref, std::size_t window_len) noexcept {
-  dsp::WindowRef w;
-  w.seq = ref.seq;
-  w.region_seq = ref.segment;
-  w.index_in_region =
-      window_len == 0 ? 0U : static_cast<std::uint32_t>(ref.k_start / static_cast<std::int64_t>(window_len));
-  w.first_sample = ref.k_start;
-  w.t_start_ns = ref.t_start_ns;
-  w.t_end_ns = ref.t_end_ns;
-  w.speed_rad_s = ref.joint_speed_rad_s;
-  return w;
-}
-
 OrderCollectResult collect_order_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg,
                                          double fs_hz, const RunOptions& options,
                                          const OrderVisitor& visitor) {

@@ -23,6 +23,8 @@
 //   by the seconds of signal processed.
 // BM_PtdadProcess/<job>/<method>: the real `ptdad` binary (--exit-at-end) on the fast replay; wait4()
 //   gives its CPU time (user + system, start-up included), /proc/<pid>/status VmHWM its peak RSS.
+// BM_PtdadDomain/<order>: `ptdad` on the joint-rotation faulty replay in the time domain (0) and the
+//   order domain (1: [extraction] domain = "order", R = 4; its baseline trained by `ptda train`).
 // BM_PtdadSim/<job>: `ptdad` on the simulator backend (faulty scenario synthesised in memory, fast,
 //   looping) until 2 passes of windows; peak RSS and CPU time.
 // Before the benchmarks, main() prints the fixed allocations of the pipeline for each job's
@@ -190,23 +192,50 @@ std::string job_pipeline(const std::string& job) {
   return out;
 }
 
+/// The job's pipeline in the order domain (issue 16, docs/method.md §9): its window_len line replaced by
+/// domain = "order" with R = 4 revolutions of S = 1024 samples (tests/golden/order_domain_test.cpp).
+std::string order_pipeline(const std::string& job) {
+  std::istringstream in(job_pipeline(job));
+  std::string line, out;
+  while (std::getline(in, line)) {
+    if (line.rfind("window_len = ", 0) == 0) line = "domain = \"order\"\nrevolutions = 4";
+    out += line + "\n";
+  }
+  return out;
+}
+
+/// Trains the order-domain baseline of the job on its healthy recording (cached on disk).
+fs::path prepare_order_baseline(const Prepared& p, const std::string& job) {
+  const fs::path baseline = p.dir / "baseline-order.bin";
+  if (fs::exists(baseline)) return baseline;
+  const fs::path cfg = p.dir / "order.toml";
+  std::ofstream(cfg) << "[can]\nspeed_latency_s = 0.0005\n\n" << order_pipeline(job);
+  const ProcessResult r = run_process({PTDA_BINARY, "train", "--recording", (p.dir / "train").string(),
+                                       "--config", cfg.string(), "--out", baseline.string()},
+                                      p.dir / "prepare.log");
+  if (r.exit_code != 0)
+    throw Error("ptda train (order domain) failed; see " + (p.dir / "prepare.log").string());
+  return baseline;
+}
+
 /// A ptdad configuration for the replay of the job's faulty recording. Fast replays use a 50 ms status
 /// period (as the daemon tests do): the supervisor notices the end of the replay within one period, and
 /// the idle tail would otherwise add up to 1 s of idle threads to the measured CPU time.
 fs::path write_replay_config(const Prepared& p, const std::string& job, const std::string& tag,
-                             const std::string& pace, const std::string& method) {
+                             const std::string& pace, const std::string& method, bool order = false) {
   const fs::path dir = p.dir / tag;
   fs::create_directories(dir);
   const fs::path path = dir / "ptdad.toml";
   std::ofstream out(path);
-  out << "[daemon]\nbaseline = \"" << p.baseline.string() << "\"\nstatus_dir = \""
-      << (dir / "status").string()
+  const fs::path baseline = order ? prepare_order_baseline(p, job) : p.baseline;
+  out << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << (dir / "status").string()
       << "\"\nlog_level = \"warn\"\nstatus_period_s = " << (pace == "fast" ? "0.05" : "1.0")
       << "\n\n[adc]\nbackend = \"wav\"\nrecording = \"" << p.faulty.string() << "\"\npace = \"" << pace
       << "\"\nblock_len = " << kBlockLen << "\n\n[can]\nbackend = \"candump\"\npace = \"" << pace
-      << "\"\nspeed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n"
+      << "\"\nspeed_latency_s = " << (order ? "0.0005" : "0.0")
+      << "\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n"
       << "[alarm.can]\nenabled = true\nperiod_s = 0.1\n\n[monitor]\nmethod = \"" << method << "\"\n\n"
-      << job_pipeline(job);
+      << (order ? order_pipeline(job) : job_pipeline(job));
   return path;
 }
 
@@ -427,6 +456,40 @@ BENCHMARK(BM_PtdadProcess)
     ->ArgNames({"job", "method"})
     ->ArgsProduct({{0, 1, 2}, {0, 1, 2}})
     ->Iterations(1)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+
+// BM_PtdadDomain/<domain>: `ptdad` (PTDA) on the joint-rotation job's faulty replay in the time domain
+// (windows of 12800 samples) and in the order domain (CAN angle -> AngleResampler, windows of 4
+// input-shaft revolutions of 1024 samples); CPU time per second of signal, start-up included.
+void BM_PtdadDomain(benchmark::State& state) {
+  const bool order = state.range(0) == 1;
+  const std::string job = "joint_rotation";
+  const Prepared& p = prepare(job);
+  const fs::path config =
+      write_replay_config(p, job, order ? "domain-order" : "domain-time", "fast", "ptda", order);
+  double cpu_s = 0.0, rss = 0.0;
+  std::int64_t runs = 0;
+  for (auto _ : state) {
+    const ProcessResult r = run_process(
+        {PTDAD_BINARY, "--config", config.string(), "--config-dir", "", "--exit-at-end", "--foreground"},
+        config.parent_path() / "ptdad.log");
+    if (r.exit_code != 0) state.SkipWithError("ptdad failed; see ptdad.log next to the configuration");
+    state.SetIterationTime(r.wall_s);
+    cpu_s += r.user_s + r.sys_s;
+    rss = std::max(rss, r.hwm_mib);
+    ++runs;
+  }
+  state.SetLabel(job + (order ? " order domain" : " time domain"));
+  state.counters["cpu_s_per_signal_s"] = cpu_s / (p.signal_s * static_cast<double>(runs));
+  state.counters["signal_s"] = p.signal_s;
+  state.counters["peak_rss_MiB"] = rss;
+}
+
+BENCHMARK(BM_PtdadDomain)
+    ->ArgNames({"order"})
+    ->DenseRange(0, 1)
+    ->Iterations(5)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
 

@@ -318,6 +318,12 @@ void Daemon::configure() {
                dsp::method_name(cfg_.pipeline.method));
   if (p->refused()) {
     spdlog::error("monitoring refused: {}", p->refusal());
+  } else if (p->baseline() != nullptr && p->baseline()->domain == dsp::Domain::kOrder) {
+    const dsp::Baseline& b = *p->baseline();
+    spdlog::info(
+        "baseline {}: {} segment class(es), order domain: windows of {} input-shaft revolutions of {} "
+        "samples",
+        cfg_.daemon.baseline.string(), b.classes.size(), b.revolutions, b.samples_per_rev);
   } else if (p->baseline() != nullptr) {
     spdlog::info("baseline {}: {} segment class(es), trained at {} Hz", cfg_.daemon.baseline.string(),
                  p->baseline()->classes.size(), p->baseline()->fs_hz);
@@ -746,6 +752,18 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.slicer_windows = ps.slicer.windows;
   s.slicer_windows_invalid = ps.slicer.windows_invalid;
   s.slicer_windows_lost = ps.slicer.windows_lost;
+  s.order_domain = ps.order_domain;
+  s.order_frames = ps.resampler.frames;
+  s.order_frames_no_angle = ps.resampler.frames_no_angle;
+  s.order_frames_out_of_order = ps.resampler.frames_out_of_order;
+  s.order_frames_overflow = ps.resampler.frames_overflow;
+  s.order_angle_inconsistent = ps.resampler.angle_inconsistent;
+  s.order_breaks = ps.resampler.breaks;
+  s.order_samples_unused = ps.resampler.samples_unused;
+  s.order_samples_overrun = ps.resampler.samples_overrun;
+  s.order_outputs = ps.resampler.outputs;
+  s.order_outputs_dropped = ps.resampler.outputs_dropped;
+  s.order_windows = ps.order_windows_cut;
   s.ring_overflows = c.acq_ring_full_blocks + c.can_ring_full;
   s.windows_scored = ps.scored;
   s.windows_abnormal = ps.abnormal;
@@ -807,8 +825,7 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
                 drivers::alarm_level_name(was).data());
   char extra[64] = "";
   if (missed > 0) {
-    std::snprintf(extra, sizeof extra, "; %llu more level change%s between status checks",
-                  static_cast<unsigned long long>(missed), missed == 1 ? "" : "s");
+    std::snprintf(extra, sizeof extra, "; %llu more", static_cast<unsigned long long>(missed));
   }
   const dsp::DecisionConfig& dc = cfg_.pipeline.decision;
   char evidence[320] = "";
@@ -837,10 +854,29 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
   }
   if (history_) history_state(ps, evidence);
   if (mqtt_) mqtt_alarm(ps, causes);
-  if (level == drivers::AlarmLevel::kNormal) {
-    spdlog::info("{}{}) at {}: {}", head, extra, since, evidence);
-  } else {
-    spdlog::warn("{}{}) at {}: {}", head, extra, since, evidence);
+  // spdlog formats the message, then the sink's pattern ("[2026-11-27 16:53:47.995] [warning] ", 36
+  // bytes, and the newline) around it, each in a 250-byte inline buffer: a longer line would allocate
+  // on the supervisor. A line longer than kMaxLine is logged as two: the level change, then its
+  // evidence (each well under the limit: evidence < 320 bytes only with absurd causes, then cut).
+  constexpr std::size_t kMaxLine = 250 - 36 - 2;
+  char line[kMaxLine + 1];
+  const int len = std::snprintf(line, sizeof line, "%s%s) at %s: %s", head, extra, since, evidence);
+  const bool split = len > static_cast<int>(kMaxLine);
+  if (split) {
+    std::snprintf(line, sizeof line, "%s%s) at %s (evidence on the next line)", head, extra, since);
+  }
+  const auto emit = [&](const char* text) {
+    if (level == drivers::AlarmLevel::kNormal) {
+      spdlog::info("{}", text);
+    } else {
+      spdlog::warn("{}", text);
+    }
+  };
+  emit(line);
+  if (split) {
+    std::snprintf(line, sizeof line, "alarm level %s evidence: %s", drivers::alarm_level_name(level).data(),
+                  evidence);
+    emit(line);
   }
 }
 

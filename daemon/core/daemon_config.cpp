@@ -426,16 +426,6 @@ class DaemonTablesBuilder {
   std::map<std::string, SourceLocation, std::less<>> set_at_;
 };
 
-// ptdad judges time-domain windows only (docs/method.md §9: the order domain runs in `ptda train` and
-// `ptda monitor`). Without this check an order config with a time baseline of R S samples would run as
-// time domain without a word.
-void refuse_order_domain(const DaemonConfig& cfg, const std::string& source) {
-  if (cfg.pipeline.domain == dsp::Domain::kOrder) {
-    throw Error(source + ": [extraction] domain = \"order\": ptdad does not judge the order domain yet " +
-                "(ptda train and ptda monitor do; docs/method.md §9); use domain = \"time\" for the daemon");
-  }
-}
-
 }  // namespace
 
 DaemonConfig load_daemon_config(const fs::path& main_file, const std::vector<fs::path>& dropins) {
@@ -452,7 +442,6 @@ DaemonConfig load_daemon_config(const fs::path& main_file, const std::vector<fs:
   }
   out.pipeline = pipeline.finish();
   tables.finish(out);
-  refuse_order_domain(out, main_file.string());
   return out;
 }
 
@@ -465,7 +454,6 @@ DaemonConfig parse_daemon_config(std::string_view toml_text, const std::string& 
   tables.apply(root, source, fs::path());
   out.pipeline = pipeline.finish();
   tables.finish(out);
-  refuse_order_domain(out, source);
   return out;
 }
 
@@ -473,6 +461,11 @@ std::vector<std::string> check_config_paths(const DaemonConfig& cfg, bool train)
   std::vector<std::string> problems;
   std::error_code ec;
   if (train) {
+    if (cfg.pipeline.domain == dsp::Domain::kOrder) {
+      problems.push_back(
+          "[extraction] domain = \"order\": field training (ptdad --train) collects "
+          "time-domain windows only; train an order baseline with `ptda train`");
+    }
     const fs::path out = cfg.training.output.empty() ? cfg.daemon.baseline : cfg.training.output;
     const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
     if (!fs::is_directory(dir, ec)) {
@@ -482,13 +475,28 @@ std::vector<std::string> check_config_paths(const DaemonConfig& cfg, bool train)
   } else {
     try {
       const dsp::Baseline b = formats::read_baseline(cfg.daemon.baseline);
-      if (b.window_len != cfg.pipeline.extraction.window_len) {
+      const bool order = cfg.pipeline.domain == dsp::Domain::kOrder;
+      if (b.domain != cfg.pipeline.domain) {
+        problems.push_back("[daemon] baseline " + cfg.daemon.baseline.string() + " was trained in the " +
+                           dsp::domain_name(b.domain) + " domain but [extraction] domain is \"" +
+                           dsp::domain_name(cfg.pipeline.domain) +
+                           "\": use the job's configuration or retrain");
+      } else if (order && (b.samples_per_rev != cfg.pipeline.order.samples_per_rev ||
+                           b.revolutions != cfg.pipeline.order.revolutions)) {
+        problems.push_back(
+            "[daemon] baseline " + cfg.daemon.baseline.string() + " has samples_per_rev = " +
+            std::to_string(b.samples_per_rev) + ", revolutions = " + std::to_string(b.revolutions) +
+            " but [extraction] sets samples_per_rev = " + std::to_string(cfg.pipeline.order.samples_per_rev) +
+            ", revolutions = " + std::to_string(cfg.pipeline.order.revolutions));
+      } else if (b.window_len != cfg.pipeline.extraction.window_len) {
         problems.push_back(
             "[daemon] baseline " + cfg.daemon.baseline.string() + " was trained with window_len " +
             std::to_string(b.window_len) + " but [extraction] window_len is " +
             std::to_string(cfg.pipeline.extraction.window_len) + ": use the job's configuration or retrain");
       }
-      if (cfg.pipeline.fs_hz != 0.0 && std::fabs(b.fs_hz - cfg.pipeline.fs_hz) > 1e-9 * b.fs_hz) {
+      // Order domain: the baseline's fs_hz is S (samples per revolution), not the ADC rate.
+      if (!order && b.domain == cfg.pipeline.domain && cfg.pipeline.fs_hz != 0.0 &&
+          std::fabs(b.fs_hz - cfg.pipeline.fs_hz) > 1e-9 * b.fs_hz) {
         problems.push_back("[daemon] baseline " + cfg.daemon.baseline.string() + " was trained at " +
                            std::to_string(b.fs_hz) + " Hz but [acquisition] fs_hz is " +
                            std::to_string(cfg.pipeline.fs_hz));

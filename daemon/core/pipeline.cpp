@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <span>
 
 #include "adc/iio_sample_source.hpp"
@@ -15,6 +16,7 @@
 #include "can/socketcan_channel.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
+#include "ptda/config/pipeline_config.hpp"
 #include "ptda/config/speed_codec.hpp"
 #include "ptda/formats/baseline_file.hpp"
 #include "ptda/formats/recording.hpp"
@@ -243,9 +245,32 @@ void Pipeline::configure_monitoring() {
   const config::PipelineConfig& pc = cfg_.pipeline;
   const std::uint32_t window_len = pc.extraction.window_len;
   const fs::path& path = cfg_.daemon.baseline;
+  const bool order = pc.domain == dsp::Domain::kOrder;
   try {
     auto baseline = std::make_unique<dsp::Baseline>(formats::read_baseline(path));
-    if (!same_rate(baseline->fs_hz, fs_hz_)) {
+    if (baseline->domain != pc.domain) {
+      throw Error(path.string() + ": baseline was trained in the " + dsp::domain_name(baseline->domain) +
+                  " domain but the configuration sets [extraction] domain = \"" +
+                  dsp::domain_name(pc.domain) + "\": use the configuration it was trained with, or retrain");
+    }
+    if (order) {
+      // As `ptda monitor` (cli::check_baseline_matches): the windows are R revolutions of S samples of
+      // the input shaft, so S, R and the gearbox ratio must be the trained ones; the vibration's own
+      // rate only enters the resampler.
+      if (baseline->samples_per_rev != pc.order.samples_per_rev ||
+          baseline->revolutions != pc.order.revolutions) {
+        throw Error(path.string() +
+                    ": order baseline has samples_per_rev = " + std::to_string(baseline->samples_per_rev) +
+                    ", revolutions = " + std::to_string(baseline->revolutions) +
+                    " but the configuration sets [extraction] " +
+                    "samples_per_rev = " + std::to_string(pc.order.samples_per_rev) +
+                    ", revolutions = " + std::to_string(pc.order.revolutions));
+      }
+      if (std::abs(baseline->gearbox.ratio - pc.gearbox.ratio) > 1e-9 * pc.gearbox.ratio) {
+        throw Error(path.string() + ": order baseline was trained with gearbox ratio " +
+                    num(baseline->gearbox.ratio) + " but the configuration gives " + num(pc.gearbox.ratio));
+      }
+    } else if (!same_rate(baseline->fs_hz, fs_hz_)) {
       throw Error(path.string() + ": baseline was trained at " + num(baseline->fs_hz) + " Hz but the " +
                   adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
     }
@@ -254,8 +279,10 @@ void Pipeline::configure_monitoring() {
           path.string() + ": baseline window length is " + std::to_string(baseline->window_len) +
           " samples but the configuration sets [extraction] window_len = " + std::to_string(window_len));
     }
-    engine_ =
-        std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method, fs_hz_, 0);
+    // Order domain: the engine judges windows on the angle axis, its "sample rate" is S (the baseline's
+    // fs_hz) and its slicer stays unused, as in `ptda monitor` (cli::monitor_recording).
+    engine_ = std::make_unique<dsp::MonitorEngine>(*baseline, pc.extraction, pc.decision, pc.method,
+                                                   order ? baseline->fs_hz : fs_hz_, 0);
     dsp::CoverageConfig cc;
     cc.timeout_s = cfg_.daemon.coverage_timeout_s;
     cc.moving_speed_rad_s = pc.extraction.min_speed_rad_s;
@@ -268,10 +295,37 @@ void Pipeline::configure_monitoring() {
     coverage_.reset();
     baseline_.reset();
   }
+  // Outside the try: a resampler the configuration cannot build is a configuration error (thrown), not
+  // a baseline refusal.
+  if (order && engine_) configure_order_front();
+}
+
+void Pipeline::configure_order_front() {
+  const config::PipelineConfig& pc = cfg_.pipeline;
+  // t0 = 0: the processing thread feeds stream time (speed samples shifted by -t0, latency already
+  // subtracted by the CAN thread), so the resampler's sample n lies at n / fs as in `ptda monitor`.
+  order_res_ = std::make_unique<dsp::AngleResampler>(config::angle_resampler_config(pc), fs_hz_, 0);
+  order_cut_ =
+      std::make_unique<dsp::OrderWindowCutter>(config::order_window_config(pc, order_res_->pass_order()));
+  if (order_cut_->window_len() != pc.extraction.window_len) {
+    throw Error("[extraction] order windows of " + std::to_string(order_cut_->window_len()) +
+                " samples but window_len = " + std::to_string(pc.extraction.window_len));
+  }
+  order_window_.assign(order_cut_->window_len(), 0.0F);
+  order_nan_.assign(drivers::kMaxBlock, std::numeric_limits<float>::quiet_NaN());
+  if (pc.order.can_time_smoothing_frames > 0) {
+    order_clock_ =
+        std::make_unique<dsp::FrameClock>(pc.speed_frame.period_s, pc.order.can_time_smoothing_frames);
+  }
 }
 
 void Pipeline::configure_training() {
   const config::PipelineConfig& pc = cfg_.pipeline;
+  if (pc.domain == dsp::Domain::kOrder) {
+    throw Error((cfg_.files.empty() ? std::string("config") : cfg_.files.front().string()) +
+                ": [extraction] domain = \"order\": field training (ptdad --train) collects time-domain "
+                "windows only; train an order baseline with `ptda train` (docs/method.md §9)");
+  }
   const std::uint32_t window_len = pc.extraction.window_len;
   train_slicer_ = std::make_unique<dsp::WindowSlicer>(pc.extraction, fs_hz_, 0);
   FieldTrainerConfig tc;
@@ -321,6 +375,7 @@ void Pipeline::configure_rings_and_timing() {
   can_burst_offset_ns_ = std::clamp<std::int64_t>(seconds_to_ns(pc.speed_frame.period_s) + 1'000'000,
                                                   1'000'000, kBurstPeriodNs / 2);
   st_ = PipelineStatus{};
+  st_.order_domain = cfg_.pipeline.domain == dsp::Domain::kOrder;
   st_.phase = mode_ == PipelineMode::kMonitor && refused() ? Phase::kRefused : Phase::kStarting;
   published_.store(st_);
 }
@@ -622,7 +677,11 @@ void Pipeline::push_block(const drivers::SampleBlock& b) noexcept {
   last_dev_ = dev;
   if (index > expected_index_) {
     const std::uint64_t gap = index - expected_index_;
-    if (engine_) engine_->mark_gap(gap);
+    if (order_res_) {
+      order_mark_gap(gap);
+    } else if (engine_) {
+      engine_->mark_gap(gap);
+    }
     if (train_slicer_) train_slicer_->mark_gap(gap);
     st_.gap_samples += gap;
   }
@@ -630,11 +689,19 @@ void Pipeline::push_block(const drivers::SampleBlock& b) noexcept {
     // Short read (bytes lost upstream) or a doubtful stamp: the samples keep their place but are
     // invalid, so every window containing them is discarded (slicer windows_invalid).
     ++st_.blocks_invalid;
-    if (engine_) engine_->mark_gap(b.count);
+    if (order_res_) {
+      order_mark_gap(b.count);
+    } else if (engine_) {
+      engine_->mark_gap(b.count);
+    }
     if (train_slicer_) train_slicer_->mark_gap(b.count);
   } else {
     const std::span<const float> samples(b.samples, b.count);
-    if (engine_) engine_->push_samples(samples);
+    if (order_res_) {
+      order_res_->push_samples(samples);
+    } else if (engine_) {
+      engine_->push_samples(samples);
+    }
     if (train_slicer_) train_slicer_->push_samples(samples);
   }
   expected_index_ = index + b.count;
@@ -648,7 +715,14 @@ void Pipeline::push_speed(const dsp::SpeedSample& s) noexcept {
   dsp::SpeedSample shifted = s;
   shifted.t_ns -= st_.t0_mono_ns;
   if (!streams_finished_) {
-    if (engine_) engine_->push_speed(shifted);
+    if (order_res_) {
+      // As `ptda monitor` in the order domain: the log time smoothed on the frame grid (dsp::FrameClock,
+      // shift-invariant, so stream time gives the offline tool's times), then the resampler.
+      if (order_clock_) shifted.t_ns = order_clock_->smooth(shifted.t_ns);
+      order_res_->push_speed(shifted);
+    } else if (engine_) {
+      engine_->push_speed(shifted);
+    }
     if (coverage_) coverage_->on_speed(s);  // daemon time, as the windows it sees
     if (train_slicer_) train_slicer_->push_speed(shifted);
   }
@@ -657,29 +731,51 @@ void Pipeline::push_speed(const dsp::SpeedSample& s) noexcept {
   have_any_speed_ = true;
 }
 
-void Pipeline::drain_windows(std::int64_t now) noexcept {
+void Pipeline::order_mark_gap(std::uint64_t count) noexcept {
+  // O(count) (a NaN costs the resampler a compare): a gap of an hour at 25.6 kHz is ~0.1 s of work.
+  while (count > 0) {
+    const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(count, order_nan_.size()));
+    order_res_->push_samples(std::span<const float>(order_nan_.data(), n));
+    count -= n;
+  }
+}
+
+void Pipeline::on_judged(dsp::WindowResult& r, std::int64_t now) noexcept {
   const std::int64_t t0 = st_.t0_mono_ns;
-  if (engine_) {
-    dsp::WindowResult r;
-    while (engine_->poll(r)) {
-      r.ref.t_start_ns += t0;
-      r.ref.t_end_ns += t0;
-      ++st_.windows;
-      if (r.status == dsp::WindowStatus::kScored) {
-        ++st_.scored;
-        if (r.verdict.abnormal()) ++st_.abnormal;
-        st_.have_window = true;
-        st_.last_window = r;
-      } else {
-        ++st_.no_class;
-      }
-      if (r.alarm) ++st_.alarm_windows;
-      if (coverage_) coverage_->on_window(r);
-      alarm_->on_window(r, alarm_time(fast_ ? r.ref.t_end_ns : now));
-      if (sink_ != nullptr) sink_->on_window(r);
-      if (window_log_on_.load(std::memory_order_relaxed) && !window_log_->try_push(r))
-        ++st_.window_log_dropped;
+  r.ref.t_start_ns += t0;
+  r.ref.t_end_ns += t0;
+  ++st_.windows;
+  if (r.status == dsp::WindowStatus::kScored) {
+    ++st_.scored;
+    if (r.verdict.abnormal()) ++st_.abnormal;
+    st_.have_window = true;
+    st_.last_window = r;
+  } else {
+    ++st_.no_class;
+  }
+  if (r.alarm) ++st_.alarm_windows;
+  if (coverage_) coverage_->on_window(r);
+  alarm_->on_window(r, alarm_time(fast_ ? r.ref.t_end_ns : now));
+  if (sink_ != nullptr) sink_->on_window(r);
+  if (window_log_on_.load(std::memory_order_relaxed) && !window_log_->try_push(r)) ++st_.window_log_dropped;
+}
+
+void Pipeline::drain_windows(std::int64_t now) noexcept {
+  if (order_res_) {
+    // The order domain, as `ptda monitor` (cli OrderMonitorSink): every order sample into the cutter,
+    // every completed window judged by the engine. No slicer, so no discarded count for the coverage.
+    dsp::OrderSample o;
+    dsp::OrderWindowRef ref;
+    const std::span<float> buf(order_window_);
+    while (order_res_->pop(o)) {
+      if (!order_cut_->push(o, ref, buf)) continue;
+      dsp::WindowResult r;
+      engine_->judge_window(dsp::window_ref_of(ref, buf.size()), buf, r);
+      on_judged(r, now);
     }
+  } else if (engine_) {
+    dsp::WindowResult r;
+    while (engine_->poll(r)) on_judged(r, now);
     if (coverage_) {
       const dsp::SlicerCounters& sc = engine_->slicer().counters();
       coverage_->on_discarded_total(sc.windows_invalid + sc.windows_lost + sc.windows_overflow);
@@ -773,7 +869,9 @@ std::int64_t Pipeline::alarm_time(std::int64_t candidate) noexcept {
 }
 
 void Pipeline::finish_streams() noexcept {
-  if (engine_) engine_->finish();
+  // Order domain: `ptda monitor` drains the resampler at the end and finishes nothing (a partial
+  // window is dropped); drain_windows() after this does the same.
+  if (engine_ && !order_res_) engine_->finish();
   if (train_slicer_) train_slicer_->finish();
   streams_finished_ = true;
   st_.ended = true;
@@ -846,6 +944,10 @@ void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
 bool Pipeline::publish(std::int64_t now, bool force) noexcept {
   if (!force && now - last_publish_ns_ < kPublishPeriodNs) return false;
   if (engine_) st_.slicer = engine_->slicer().counters();
+  if (order_res_) {
+    st_.resampler = order_res_->counters();
+    st_.order_windows_cut = order_cut_->windows();
+  }
   if (train_slicer_) st_.slicer = train_slicer_->counters();
   st_.clock_ns = alarm_time_ns_;
   st_.alarm = alarm_->state();

@@ -6,6 +6,8 @@
 //                                   └─ clear frame ─▶ AlarmManager::post_clear_request              │
 //   processing ◀───────────────────────────────────────────────────────────────────────────────────┘
 //      merges both streams by time ─▶ dsp::MonitorEngine (the code `ptda monitor` runs) ─▶ WindowResult
+//      (order domain, docs/method.md §9: speed ─ dsp::FrameClock ─▶ dsp::AngleResampler ◀─ vibration,
+//       ─▶ dsp::OrderWindowCutter ─▶ MonitorEngine::judge_window, as `ptda monitor` in order mode)
 //      ─▶ AlarmManager ─▶ AlarmOutputs (GPIO line, CAN frame); publishes PipelineStatus (seqlock)
 //
 // Lifecycle (what is true in each state):
@@ -44,9 +46,12 @@
 #include "ptda/drivers/clock.hpp"
 #include "ptda/drivers/counter.hpp"
 #include "ptda/drivers/sample_source.hpp"
+#include "ptda/dsp/angle_resampler.hpp"
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/dsp/coverage.hpp"
+#include "ptda/dsp/frame_clock.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/order_windows.hpp"
 #include "rt/spsc_ring.hpp"
 #include "rt/wake_signal.hpp"
 #include "training/field_trainer.hpp"
@@ -169,7 +174,10 @@ struct PipelineStatus {
   std::uint64_t pauses = 0;              ///< transitions into a paused phase
   std::uint64_t window_log_dropped = 0;  ///< windows the history ring could not hold (supervisor late)
   std::int64_t max_block_dev_ns = 0;     ///< max |block stamp - (t0 + index / fs)|
-  dsp::SlicerCounters slicer;
+  dsp::SlicerCounters slicer;            ///< time domain (all zero in the order domain)
+  bool order_domain = false;  ///< [extraction] domain = "order": the counters below, not the slicer's
+  dsp::AngleResamplerCounters resampler;  ///< order domain: the angle resampler's counters
+  std::uint64_t order_windows_cut = 0;    ///< order domain: windows the OrderWindowCutter completed
   bool have_window = false;
   dsp::WindowResult last_window;  ///< last scored window (times on the daemon clock)
   AlarmState alarm;
@@ -275,6 +283,7 @@ class Pipeline {
   void configure_can(const RecordingLink& link);  ///< [can] backend
   void configure_outputs();                       ///< GPIO / CAN alarm outputs (+ the factory's)
   void configure_monitoring();                    ///< baseline, engine, coverage (or refusal_)
+  void configure_order_front();                   ///< order domain: resampler, cutter, frame clock
   void configure_training();                      ///< slicer and FieldTrainer (takes over a previous pool)
   void configure_alarm_manager();                 ///< AlarmManager (warning, hold, latch)
   void configure_rings_and_timing();              ///< rings, blocks, staleness and hold times, status
@@ -297,6 +306,11 @@ class Pipeline {
   void push_block(const drivers::SampleBlock& b) noexcept;
   void push_speed(const dsp::SpeedSample& s) noexcept;
   void drain_windows(std::int64_t now) noexcept;
+  /// One judged window (engine_ stream time): counts, coverage, alarm manager, sink, history.
+  void on_judged(dsp::WindowResult& r, std::int64_t now) noexcept;
+  /// Order domain: `count` missing or invalid samples go to the resampler as NaN (it breaks the
+  /// segment there and keeps the index as its time base), in chunks of order_nan_.
+  void order_mark_gap(std::uint64_t count) noexcept;
   void update_phase(std::int64_t now) noexcept;
   void drive_outputs(std::int64_t now, bool force) noexcept;
   bool publish(std::int64_t now, bool force) noexcept;  ///< true when it published
@@ -329,6 +343,13 @@ class Pipeline {
   std::unique_ptr<dsp::Baseline> baseline_;
   std::unique_ptr<dsp::MonitorEngine> engine_;
   std::unique_ptr<dsp::CoverageTracker> coverage_;  ///< with engine_
+  // Order domain (set with engine_ when [extraction] domain = "order"; engine_ then judges the cutter's
+  // windows on the angle axis and its own slicer stays unused).
+  std::unique_ptr<dsp::AngleResampler> order_res_;
+  std::unique_ptr<dsp::OrderWindowCutter> order_cut_;
+  std::unique_ptr<dsp::FrameClock> order_clock_;  ///< null when can_time_smoothing_frames = 0
+  std::vector<float> order_window_;               ///< N = R S samples of the window being judged
+  std::vector<float> order_nan_;                  ///< NaN chunk for gaps and invalid blocks
   std::unique_ptr<dsp::WindowSlicer> train_slicer_;
   std::unique_ptr<FieldTrainer> trainer_;
   const FieldTrainer* previous_trainer_ = nullptr;

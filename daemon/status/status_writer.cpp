@@ -153,6 +153,35 @@ constexpr CounterDesc kHistoryCounters[] = {
      "Windows the history's hand-over ring could not hold (the supervisor was late).",
      &StatusSnapshot::history_windows_dropped},
 };
+// The order domain's front end (docs/method.md §9; only in the order domain, so not one of
+// kCounterGroups).
+constexpr CounterDesc kOrderCounters[] = {
+    {"frames", "ptda_order_frames_total", "Speed frames the angle resampler accepted.",
+     &StatusSnapshot::order_frames},
+    {"frames_no_angle", "ptda_order_frames_no_angle_total", "Speed frames without an angle (a break).",
+     &StatusSnapshot::order_frames_no_angle},
+    {"frames_out_of_order", "ptda_order_frames_out_of_order_total",
+     "Speed frames not after the previous one (dropped).", &StatusSnapshot::order_frames_out_of_order},
+    {"frames_overflow", "ptda_order_frames_overflow_total",
+     "Speed frames dropped: the vibration lagged too far behind.", &StatusSnapshot::order_frames_overflow},
+    {"angle_inconsistent", "ptda_order_angle_inconsistent_total",
+     "Frame intervals whose angle step disagreed with the speeds (speed integral used).",
+     &StatusSnapshot::order_angle_inconsistent},
+    {"breaks", "ptda_order_breaks_total", "Resampler segments ended (standstill, reversal, gap, bad frame).",
+     &StatusSnapshot::order_breaks},
+    {"samples_unused", "ptda_order_samples_unused_total",
+     "Vibration samples with no angle (before the first frame, in a break, not finite, gaps).",
+     &StatusSnapshot::order_samples_unused},
+    {"samples_overrun", "ptda_order_samples_overrun_total",
+     "Vibration samples lost: the speed frames lagged more than max_lead_s.",
+     &StatusSnapshot::order_samples_overrun},
+    {"outputs", "ptda_order_outputs_total", "Angle samples produced.", &StatusSnapshot::order_outputs},
+    {"outputs_dropped", "ptda_order_outputs_dropped_total", "Angle samples dropped on a full output queue.",
+     &StatusSnapshot::order_outputs_dropped},
+    {"windows", "ptda_order_windows_total", "Order windows cut (R revolutions each).",
+     &StatusSnapshot::order_windows},
+};
+
 struct CounterGroup {
   std::string_view json_key;
   std::span<const CounterDesc> counters;
@@ -409,6 +438,12 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.open('{');
     for (const CounterDesc& c : g.counters) j.u64(c.json_key, s.*c.field);
     if (g.with_bus_state) j.str("bus_state", can_bus_state_name(s.can_bus_state));
+    j.close('}');
+  }
+  if (s.order_domain) {
+    j.key("order");
+    j.open('{');
+    for (const CounterDesc& c : kOrderCounters) j.u64(c.json_key, s.*c.field);
     j.close('}');
   }
   if (s.history_enabled) {
@@ -699,6 +734,9 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
        {drivers::CanBusState::kErrorActive, drivers::CanBusState::kErrorWarning,
         drivers::CanBusState::kErrorPassive, drivers::CanBusState::kBusOff}) {
     p.sample("ptda_can_bus_state", {{"state", can_bus_state_name(st)}}, st == s.can_bus_state ? 1.0 : 0.0);
+  }
+  if (s.order_domain) {
+    for (const CounterDesc& c : kOrderCounters) p.counter(c.prom_name, c.help, s.*c.field);
   }
   if (s.history_enabled) {
     for (const CounterDesc& c : kHistoryCounters) p.counter(c.prom_name, c.help, s.*c.field);

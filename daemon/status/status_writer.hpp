@@ -231,6 +231,14 @@ struct StatusSnapshot {
   dsp::CoverageState coverage;
 
   // Event history ([history], docs/fleet.md): false when off ("history" is null, no metrics).
+  /// Order domain ([extraction] domain = "order"): the angle resampler's and window cutter's counters,
+  /// status.json "order" and ptda_order_* metrics. Absent (not null) in the time domain, whose files
+  /// stay as they were.
+  bool order_domain = false;
+  std::uint64_t order_frames = 0, order_frames_no_angle = 0, order_frames_out_of_order = 0;
+  std::uint64_t order_frames_overflow = 0, order_angle_inconsistent = 0, order_breaks = 0;
+  std::uint64_t order_samples_unused = 0, order_samples_overrun = 0, order_outputs = 0;
+  std::uint64_t order_outputs_dropped = 0, order_windows = 0;
   bool history_enabled = false;
   std::uint64_t history_lines = 0;              ///< lines written
   std::uint64_t history_write_failures = 0;     ///< lines lost to failed opens/writes (counted)

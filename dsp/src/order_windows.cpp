@@ -14,6 +14,19 @@
 
 namespace ptda::dsp {
 
+WindowRef window_ref_of(const OrderWindowRef& ref, std::size_t window_len) noexcept {
+  WindowRef w;
+  w.seq = ref.seq;
+  w.region_seq = ref.segment;
+  w.index_in_region =
+      window_len == 0 ? 0U : static_cast<std::uint32_t>(ref.k_start / static_cast<std::int64_t>(window_len));
+  w.first_sample = ref.k_start;
+  w.t_start_ns = ref.t_start_ns;
+  w.t_end_ns = ref.t_end_ns;
+  w.speed_rad_s = ref.joint_speed_rad_s;
+  return w;
+}
+
 using detail::num;
 
 OrderWindowCutter::OrderWindowCutter(const OrderWindowConfig& cfg) : cfg_(cfg) {

@@ -6,6 +6,9 @@
 //   WindowResult on the processing thread and print each with the CLI's window_json(): every line
 //   must equal the JSONL line (window times, class, features to the last printed digit, bands,
 //   verdict, k-of-n alarm). Times are mapped back from the daemon clock with the recording's t0.
+// The order domain (issue 16, docs/method.md §9): the same comparison on the joint-rotation job of
+// tests/golden/order_domain_test.cpp (same seeds, same order configuration), the daemon's resampler and
+// window cutter against `ptda monitor`'s: a healthy run stays normal, the spur-tooth run alarms.
 // A second test runs the built `ptdad` binary on the same replay (--exit-at-end) and checks its
 // status.json counts, and --check-config's exit codes and located error message.
 #include <gtest/gtest.h>
@@ -15,6 +18,8 @@
 #include <vector>
 
 #include "core/daemon.hpp"
+#include "core/daemon_config.hpp"
+#include "core/pipeline.hpp"
 #include "golden_support.hpp"
 #include "ptda/cli/monitor_output.hpp"
 #include "ptda/cli/pipeline_runner.hpp"
@@ -173,6 +178,225 @@ TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
 
 INSTANTIATE_TEST_SUITE_P(PaperJobs, DaemonReplay, ::testing::ValuesIn(kJobs),
                          [](const auto& param_info) { return std::string(param_info.param.job); });
+
+// ---- order domain ----------------------------------------------------------------------------------
+
+struct OrderPrepared {
+  fs::path dir, baseline, config;
+};
+
+/// joint_rotation.toml with domain = "order", R = 4, S = 1024 (default), as order_domain_test.cpp.
+std::string order_pipeline() {
+  std::string text = job_pipeline("joint_rotation");
+  const std::string len = "window_len = 12800";
+  const std::size_t at = text.find(len);
+  EXPECT_NE(at, std::string::npos) << "the joint-rotation configuration changed";
+  if (at != std::string::npos) text.replace(at, len.size(), "domain = \"order\"\nrevolutions = 4");
+  return text;
+}
+
+const OrderPrepared& order_prepared() {
+  static const OrderPrepared p = [] {
+    OrderPrepared q;
+    q.dir = scratch_dir("daemon_replay_order");
+    const fs::path scen = source_dir() / "config" / "scenarios";
+    // The offline configuration: the order pipeline with the simulator's 0.5 ms transport delay in [can].
+    const fs::path offline = q.dir / "order.toml";
+    std::ofstream(offline) << "[can]\nspeed_latency_s = 0.0005\n\n" << order_pipeline();
+    q.config = offline;
+    q.baseline = q.dir / "order.bin";
+    EXPECT_EQ(run_ptda({"simulate", "--scenario", (scen / "joint_rotation_healthy.toml").string(), "--out",
+                        (q.dir / "train").string()},
+                       q.dir, "sim_train")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run_ptda({"train", "--recording", (q.dir / "train").string(), "--config", offline.string(),
+                        "--out", q.baseline.string()},
+                       q.dir, "train")
+                  .exit_code,
+              0);
+    return q;
+  }();
+  return p;
+}
+
+struct OrderPinned {
+  const char* name;
+  const char* scenario;
+  const char* seed;  ///< "" = the scenario's own (order_domain_test.cpp's runs)
+  std::size_t windows, scored, alarm_windows;
+  bool alarm;
+};
+
+// The runs of tests/golden/order_domain_test.cpp (pinned there from `ptda monitor`, session 10): healthy
+// seed 201: 109 windows, 103 scored, no alarm; spur-tooth fault: 109 windows, 102 scored, alarm from the
+// first window on.
+constexpr OrderPinned kOrderRuns[] = {{"healthy", "joint_rotation_healthy.toml", "201", 109, 103, 0, false},
+                                      {"faulty", "joint_rotation_faulty.toml", "", 109, 102, 102, true}};
+
+class DaemonReplayOrder : public ::testing::TestWithParam<OrderPinned> {};
+
+TEST_P(DaemonReplayOrder, ThreadsReproduceOrderMonitorJsonlExactly) {
+  const OrderPinned pin = GetParam();
+  const OrderPrepared& p = order_prepared();
+  ASSERT_TRUE(fs::exists(p.baseline));
+  const fs::path dir = p.dir / pin.name;
+  fs::create_directories(dir);
+  const fs::path rec = dir / "recording";
+  std::vector<std::string> sim{"simulate", "--scenario",
+                               (source_dir() / "config" / "scenarios" / pin.scenario).string(), "--out",
+                               rec.string()};
+  if (*pin.seed != '\0') {
+    sim.emplace_back("--seed");
+    sim.emplace_back(pin.seed);
+  }
+  ASSERT_EQ(run_ptda(sim, dir, "sim").exit_code, 0);
+  const fs::path jsonl = dir / "monitor.jsonl";
+  const RunResult m = run_ptda({"monitor", "--recording", rec.string(), "--config", p.config.string(),
+                                "--baseline", p.baseline.string(), "--jsonl", jsonl.string(), "--quiet"},
+                               dir, "monitor");
+  ASSERT_EQ(m.exit_code, 0) << m.err;
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(jsonl);
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+  }
+  ASSERT_FALSE(lines.empty());
+
+  // The daemon: WAV + candump replays at fast pace, the CAN latency in the daemon's [can] table.
+  const fs::path config = dir / "ptdad.toml";
+  std::ofstream(config) << "[daemon]\nbaseline = \"" << p.baseline.string() << "\"\nstatus_dir = \""
+                        << (dir / "status").string()
+                        << "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \""
+                        << rec.string() << "\"\npace = \"fast\"\nblock_len = 1000\n\n[can]\nbackend = "
+                        << "\"candump\"\npace = \"fast\"\nspeed_latency_s = 0.0005\n\n[alarm]\n"
+                        << "min_hold_s = 0.0\nlatch = false\n\n"
+                        << order_pipeline();
+  Collector collector;
+  drivers::MonotonicClock clock;
+  daemon::DaemonOptions opt;
+  opt.config_file = config;
+  opt.config_dir = fs::path();
+  opt.exit_at_end = true;
+  daemon::Daemon d(opt, clock);
+  d.set_window_sink(&collector);
+  d.configure();
+  d.activate();
+  ASSERT_EQ(d.run(), 0);
+  const daemon::DaemonView v = d.view();
+  EXPECT_TRUE(v.pipeline.ended);
+  EXPECT_EQ(v.pipeline.phase, daemon::Phase::kEnded);
+  EXPECT_EQ(v.counters.acq_ring_full_blocks, 0U);
+  EXPECT_EQ(v.counters.can_ring_full, 0U);
+  EXPECT_EQ(v.pipeline.gap_samples, 0U);
+  EXPECT_TRUE(v.pipeline.order_domain);
+  EXPECT_EQ(v.pipeline.slicer.windows, 0U);  // the time-domain slicer is not used
+  EXPECT_EQ(v.pipeline.order_windows_cut, lines.size());
+  EXPECT_EQ(v.pipeline.resampler.samples_overrun, 0U);
+  EXPECT_EQ(v.pipeline.resampler.frames_overflow, 0U);
+  EXPECT_EQ(v.pipeline.resampler.outputs_dropped, 0U);
+
+  const formats::RecordingMeta meta = formats::read_recording_meta(rec);
+  const std::int64_t shift = seconds_to_ns(meta.start_time_s) - v.pipeline.t0_mono_ns;
+  ASSERT_EQ(collector.windows.size(), lines.size());
+  std::size_t alarm_windows = 0, scored = 0;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    dsp::WindowResult w = collector.windows[i];
+    w.ref.t_start_ns += shift;
+    w.ref.t_end_ns += shift;
+    // Window times, segment, class, features to the last printed digit, bands, verdict, detectors.
+    EXPECT_EQ(cli::window_json(w, dsp::Method::kPtda, dsp::Domain::kOrder), lines[i])
+        << pin.name << " window " << i;
+    if (w.status != dsp::WindowStatus::kScored) continue;
+    ++scored;
+    if (w.alarm) ++alarm_windows;  // counted on scored windows, as order_domain_test.cpp pins them
+  }
+  EXPECT_EQ(collector.windows.size(), pin.windows) << "pinned window count";
+  EXPECT_EQ(scored, pin.scored) << "pinned scored windows";
+  EXPECT_EQ(alarm_windows, pin.alarm_windows) << "pinned alarm windows";
+  // The alarm manager (what drives the GPIO/CAN outputs and status.json): raised on the faulty run only.
+  EXPECT_EQ(v.pipeline.alarm_counters.alarms_raised > 0, pin.alarm)
+      << v.pipeline.alarm_counters.alarms_raised;
+  EXPECT_EQ(v.pipeline.alarm_counters.windows_scored, pin.scored);
+
+  // status.json: the same pipeline counters as in the time domain, and the order front end's.
+  const cli::JsonValue status = cli::parse_json(read_file(dir / "status" / "status.json"), "status.json");
+  EXPECT_EQ(status.at("pipeline").at("windows_scored").as_number(), static_cast<double>(pin.scored));
+  EXPECT_EQ(status.at("order").at("windows").as_number(), static_cast<double>(lines.size()));
+  EXPECT_EQ(status.at("order").at("frames").as_number(), static_cast<double>(v.pipeline.resampler.frames));
+  EXPECT_EQ(status.at("slicer").at("windows").as_number(), 0.0);
+
+  // Coverage as `ptda monitor`'s in the order domain.
+  const cli::MonitorInputs in =
+      cli::load_monitor_inputs(rec.string(), p.config.string(), p.baseline.string());
+  cli::RunOptions ro;
+  ro.progress = false;
+  const cli::MonitorResult mr =
+      cli::monitor_recording(in.rec, in.cfg, in.baseline, dsp::Method::kPtda, in.fs_hz, {}, ro);
+  const dsp::CoverageState& dc = v.pipeline.coverage;
+  const dsp::CoverageState& mc = mr.coverage;
+  EXPECT_EQ(dc.judged, mc.judged);
+  EXPECT_EQ(dc.unmatched, mc.unmatched);
+  EXPECT_EQ(dc.moving_ns, mc.moving_ns);
+  EXPECT_EQ(dc.level, mc.level);
+  for (std::size_t k = 0; k < dsp::kCoverageMaxClasses; ++k)
+    EXPECT_EQ(dc.classes[k].judged, mc.classes[k].judged);
+  EXPECT_EQ(dc.judged, pin.scored);
+  EXPECT_EQ(dc.unmatched_total(), pin.windows - pin.scored);  // the windows no class matched, by reason
+  // The resampler saw what the offline tool's saw.
+  EXPECT_EQ(v.pipeline.resampler.frames, mr.resampler.frames);
+  EXPECT_EQ(v.pipeline.resampler.outputs, mr.resampler.outputs);
+  EXPECT_EQ(v.pipeline.resampler.breaks, mr.resampler.breaks);
+  EXPECT_EQ(v.pipeline.order_windows_cut, mr.order_windows_cut);
+}
+
+INSTANTIATE_TEST_SUITE_P(JointRotation, DaemonReplayOrder, ::testing::ValuesIn(kOrderRuns),
+                         [](const auto& param_info) { return std::string(param_info.param.name); });
+
+// A baseline of the other domain is refused at configure (fault, cause baseline), naming both.
+TEST(DaemonReplayOrderRefusal, BaselineOfTheOtherDomainIsRefused) {
+  const OrderPrepared& p = order_prepared();
+  ASSERT_TRUE(fs::exists(p.baseline));
+  const fs::path dir = p.dir / "refusal";
+  fs::create_directories(dir);
+  const fs::path time_baseline = dir / "time.bin";
+  const std::string time_cfg = (source_dir() / "config" / "examples" / "joint_rotation.toml").string();
+  ASSERT_EQ(run_ptda({"train", "--recording", (p.dir / "train").string(), "--config", time_cfg, "--out",
+                      time_baseline.string()},
+                     dir, "train_time")
+                .exit_code,
+            0);
+  const auto refusal = [&](const fs::path& baseline, const std::string& pipeline) {
+    const std::string text =
+        "[daemon]\nbaseline = \"" + baseline.string() + "\"\n[adc]\nbackend = \"wav\"\n" + "recording = \"" +
+        (p.dir / "train").string() +
+        "\"\npace = \"fast\"\n[can]\nbackend = \"candump\"\npace = \"fast\"\n\n" + pipeline;
+    const daemon::DaemonConfig cfg = daemon::parse_daemon_config(text, "ptdad.toml");
+    drivers::MonotonicClock clock;
+    daemon::Pipeline pl(cfg, daemon::PipelineMode::kMonitor, clock);
+    pl.configure();
+    EXPECT_TRUE(pl.refused());
+    // --check-config reports it too (one problem: the recording and its CAN log are fine).
+    const std::vector<std::string> problems = daemon::check_config_paths(cfg, false);
+    EXPECT_EQ(problems.size(), 1U) << (problems.empty() ? std::string() : problems.front());
+    return pl.refusal();
+  };
+  EXPECT_EQ(refusal(time_baseline, order_pipeline()),
+            time_baseline.string() +
+                ": baseline was trained in the time domain but the configuration sets [extraction] domain = "
+                "\"order\": use the configuration it was trained with, or retrain");
+  EXPECT_EQ(refusal(p.baseline, job_pipeline("joint_rotation")),
+            p.baseline.string() +
+                ": baseline was trained in the order domain but the configuration sets [extraction] domain = "
+                "\"time\": use the configuration it was trained with, or retrain");
+  // Same domain, other revolutions: named with both values.
+  std::string r8 = order_pipeline();
+  r8.replace(r8.find("revolutions = 4"), 15, "revolutions = 8");
+  EXPECT_EQ(refusal(p.baseline, r8),
+            p.baseline.string() +
+                ": order baseline has samples_per_rev = 1024, revolutions = 4 but the "
+                "configuration sets [extraction] samples_per_rev = 1024, revolutions = 8");
+}
 
 RunResult run_ptdad(const std::vector<std::string>& args, const fs::path& dir, const std::string& tag) {
   std::string cmd = shell_quote(PTDAD_BINARY);

@@ -112,5 +112,84 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   EXPECT_NE(status.find(R"("handoff":0,)"), std::string::npos) << status;
 }
 
+// ---- order domain (issue 16) ----------------------------------------------------------------------
+
+/// The simulator backends on the joint-rotation job at fast pace, looping, order domain; the simulator's
+/// 0.5 ms CAN transport delay corrected as in order_domain_test.cpp.
+std::string order_sim_config(const fs::path& dir, const std::string& extra) {
+  return "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() + "\"\nstatus_dir = \"" +
+         (dir / "status").string() + "\"\nstatus_period_s = 0.05\nmetrics_path = \"" +
+         (dir / "metrics" / "ptda.prom").string() +
+         "\"\njoint = \"j4\"\n\n[adc]\nbackend = \"sim\"\nscenario = \"" + joint_scenario().string() +
+         "\"\nseed = 101\npace = \"fast\"\n\n[can]\nbackend = \"sim\"\npace = \"fast\"\n" +
+         "speed_latency_s = 0.0005\n\n" + extra + "\n" + order_pipeline();
+}
+
+// The order domain's run state (FrameClock, AngleResampler, OrderWindowCutter, MonitorEngine::
+// judge_window on the processing thread) makes no heap allocation either: everything is sized in
+// configure(). The loop seam of the simulator (the joint angle jumps back) breaks the resampler's
+// segment, as a real restart of the job would.
+TEST(DaemonAlloc, OrderDomainSteadyStateMakesNoAllocations) {
+  block_daemon_signals();
+  const fs::path dir = scratch("alloc_order");
+  const std::string text =
+      order_sim_config(dir,
+                       "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = true\n"
+                       "period_s = 0.05\n[history]\ndir = \"" +
+                           (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n");
+  write_text(dir / "ptdad.toml", text);
+  write_sim_order_baseline(dir / "baseline.bin", text);
+  const std::uint64_t pass = make_sim_recording(joint_scenario(), 101)->samples.size();
+
+  drivers::MonotonicClock clock;
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  auto daemon = std::make_unique<Daemon>(opt, clock);
+  Daemon& d = *daemon;
+  d.configure();
+  d.activate();
+  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+
+  // Warm-up: a full pass (the loop seam included) and a few windows.
+  ASSERT_TRUE(
+      wait_for([&] { return d.view().pipeline.samples > pass + 200'000; }, std::chrono::seconds(120)));
+  const DaemonView before = d.view();
+  std::uint64_t allocations = 0;
+  const auto t_start = std::chrono::steady_clock::now();
+  {
+    ptda::test::AllocScope scope;
+    wait_for(
+        [&] {
+          const DaemonView v = d.view();
+          return v.pipeline.samples > before.pipeline.samples + 2 * pass &&
+                 v.status_writes > before.status_writes + 1;
+        },
+        std::chrono::seconds(240));
+    allocations = scope.count();
+  }
+  const DaemonView after = d.view();
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  std::printf(
+      "order steady state: %.1f s of data (%llu windows, %llu scored) in %.2f s wall, %llu allocations\n",
+      static_cast<double>(after.pipeline.samples - before.pipeline.samples) / 25600.0,
+      static_cast<unsigned long long>(after.pipeline.windows - before.pipeline.windows),
+      static_cast<unsigned long long>(after.pipeline.scored - before.pipeline.scored), wall_s,
+      static_cast<unsigned long long>(allocations));
+  d.request_stop();
+  runner.join();
+  daemon.reset();
+
+  EXPECT_EQ(allocations, 0U);
+  EXPECT_TRUE(after.pipeline.order_domain);
+  EXPECT_GT(after.pipeline.samples, before.pipeline.samples + 2 * pass);
+  EXPECT_GE(after.pipeline.scored - before.pipeline.scored, 2U * 90U);
+  EXPECT_GT(after.status_writes, before.status_writes);
+  EXPECT_EQ(after.counters.acq_ring_full_blocks, 0U);
+  EXPECT_EQ(after.pipeline.resampler.outputs_dropped, 0U);
+  EXPECT_EQ(after.pipeline.resampler.samples_overrun, 0U);
+  EXPECT_TRUE(fs::exists(dir / "history" / "history.1.jsonl"));
+}
+
 }  // namespace
 }  // namespace ptda::daemon::test

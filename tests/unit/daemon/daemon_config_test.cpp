@@ -115,15 +115,49 @@ TEST(DaemonConfig, ErrorsAreLocated) {
 // Issue 14 item 8: a NUL inside a path (TOML "\u0000") and absurdly long strings are located errors.
 // ptdad judges the time domain only; an order configuration is refused instead of running as time
 // domain (ptda train/monitor take it: tests/unit/config/order_config_test.cpp).
-TEST(DaemonConfig, OrderDomainIsRefusedByTheDaemon) {
-  const std::string order =
-      "[extraction]\ndomain = \"order\"\n[adc]\nscenario = \"s.toml\"\n[gearbox]\nkind = \"cycloidal\"\n"
-      "z_in = 28\nz_spur = 23\nz_pin = 40\n";
-  const std::string e = error_of(order);
-  EXPECT_EQ(e.rfind("t.toml: [extraction] domain = \"order\": ptdad does not judge the order domain yet", 0),
-            0U)
-      << e;
+// ptdad judges the order domain (issue 16): the order keys are the pipeline parser's, so a bad one is
+// a located error naming the key, as in `ptda train` / `ptda monitor`.
+TEST(DaemonConfig, OrderDomainIsAcceptedAndItsKeysChecked) {
+  const std::string gearbox = "[gearbox]\nkind = \"cycloidal\"\nz_in = 28\nz_spur = 23\nz_pin = 40\n";
+  const std::string head = "[adc]\nscenario = \"s.toml\"\n" + gearbox + "[extraction]\ndomain = \"order\"\n";
+  const DaemonConfig c =
+      parse_daemon_config(head + "revolutions = 4\ncan_time_smoothing_frames = 16\n", "t.toml");
+  EXPECT_EQ(c.pipeline.domain, dsp::Domain::kOrder);
+  EXPECT_EQ(c.pipeline.order.samples_per_rev, 1024U);  // the default S
+  EXPECT_EQ(c.pipeline.order.revolutions, 4U);
+  EXPECT_EQ(c.pipeline.order.can_time_smoothing_frames, 16U);
+  EXPECT_EQ(c.pipeline.extraction.window_len, 4096U);  // R S, derived
   EXPECT_EQ(parse_daemon_config(kMinimal + "", "t.toml").pipeline.domain, dsp::Domain::kTime);
+  // Field training collects time-domain windows only: --check-config --train says so.
+  bool training_refused = false;
+  for (const std::string& problem : check_config_paths(c, true))
+    training_refused =
+        training_refused || problem.rfind("[extraction] domain = \"order\": field training", 0) == 0;
+  EXPECT_TRUE(training_refused);
+  // Bad order keys: located, naming the key.
+  EXPECT_EQ(error_of(head + "samples_per_rev = 1023\n"),
+            "t.toml:10:19: extraction.samples_per_rev = 1023 must be even");
+  EXPECT_EQ(
+      error_of(head + "samples_per_rev = 1022\n"),
+      "t.toml:10:19: [extraction] revolutions (8) x samples_per_rev (1022) = 8176 is not an FFT length up to "
+      "2^24: it must have prime factors 2, 3 and 5 only (e.g. S = 1024, R = 8)");
+  EXPECT_EQ(error_of(head + "revolutions = 0\n"),
+            "t.toml:10:15: extraction.revolutions = 0 is outside 1..4096");
+  EXPECT_EQ(error_of(head + "anti_alias_cutoff = 1.0\n"),
+            "t.toml:10:21: extraction.anti_alias_cutoff must be > 0 and < 1 (a fraction of the output "
+            "Nyquist order S/2)");
+  EXPECT_EQ(error_of(head + "window_len = 4096\n"),
+            "t.toml:10:14: [extraction] window_len = 4096 disagrees with domain = \"order\": revolutions (8) "
+            "x samples_per_rev (1024) = 8192 (remove window_len; the order domain derives it)");
+  EXPECT_EQ(error_of(head + "samples_per_rev = 32\n"),
+            "t.toml:10:19: [extraction] samples_per_rev = 32 passes orders up to 11.545000000000002 only, "
+            "below the gear mesh order z_in = 28: raise samples_per_rev");
+  EXPECT_EQ(error_of(head + "can_time_smoothing_frames = 5000\n"),
+            "t.toml:10:29: extraction.can_time_smoothing_frames = 5000 is outside 0..4096");
+  // No gearbox ratio: the angle cannot be mapped to the input shaft.
+  EXPECT_EQ(error_of("[adc]\nscenario = \"s.toml\"\n[extraction]\ndomain = \"order\"\n"),
+            "t.toml:4:10: [extraction] domain = \"order\" needs the gearbox ratio (input-shaft angle = ratio "
+            "x joint angle): set [gearbox] kind and teeth, or ratio");
 }
 
 TEST(DaemonConfig, NulInPathsAndOverlongNamesAreLocatedErrors) {

@@ -226,6 +226,80 @@ TEST_F(Faults, AdcFaultsDiscardExactlyTheAffectedWindows) {
       static_cast<unsigned long long>(clean.view.pipeline.alarm_counters.alarms_raised));
 }
 
+// The order domain (issue 16): a lost block (index jump) and a short read go to the angle resampler as
+// NaN samples, which break its segment there. No order window spans a bad sample, the clean windows
+// that did are gone, each fault adds exactly one resampler break, and the NaN samples are counted.
+TEST_F(Faults, OrderDomainAdcFaultsBreakTheResamplerSegment) {
+  const fs::path dir = scratch("faults_order_adc");
+  const std::string cfg = "[daemon]\nbaseline = \"" + (dir / "baseline.bin").string() +
+                          "\"\nstatus_dir = \"" + (dir / "status").string() +
+                          "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" +
+                          (dir / "not-opened").string() +
+                          "\"\npace = \"fast\"\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n"
+                          "speed_latency_s = 0.0005\n\n" +
+                          order_pipeline();
+  write_sim_order_baseline(dir / "baseline.bin", cfg);
+  const auto rec = make_sim_recording(joint_scenario(), 101);
+  auto frames = std::make_shared<ChannelPlan>();
+  frames->frames = rec->frames;
+  const auto clean_plan = std::make_shared<SourcePlan>(plan_blocks(*rec, kBlock));
+  FakeDevices clean_dev(clean_plan, frames);
+  const RunResult clean = run_to_end(dir, cfg, clean_dev);
+  ASSERT_EQ(clean.code, 0);
+  ASSERT_GE(clean.windows.size(), 60U);
+  const PipelineStatus& cs = clean.view.pipeline;
+  EXPECT_TRUE(cs.order_domain);
+  EXPECT_EQ(cs.blocks_invalid, 0U);
+
+  // Two faults, each in the middle of a different clean window: a lost block and a short read.
+  const auto mid = [&](std::size_t k) {
+    const Win& w = clean.windows[clean.windows.size() * k / 3];
+    return (w.t_start + w.t_end) / 2;
+  };
+  const auto block_at = [&](std::int64_t t_ns) {
+    return static_cast<std::size_t>(static_cast<double>(t_ns) * 1e-9 * rec->fs_hz) / kBlock;
+  };
+  const std::size_t b_lost = block_at(mid(1)), b_short = block_at(mid(2));
+  ASSERT_LT(b_lost + 1, b_short);
+  auto plan = std::make_shared<SourcePlan>(*clean_plan);
+  auto& blocks = plan->blocks;
+  const auto span_of = [&](std::size_t b) {
+    return std::pair<std::int64_t, std::int64_t>{
+        blocks[b].t_mono_ns, rec->sample_offset_ns(blocks[b].first_index + blocks[b].count)};
+  };
+  const std::array<std::pair<std::int64_t, std::int64_t>, 2> bad{span_of(b_lost), span_of(b_short)};
+  blocks[b_short].flags |= drivers::kBlockShortRead;
+  blocks[b_lost + 1].flags |= drivers::kBlockGap;
+  blocks[b_lost + 1].gap_samples = kBlock;
+  blocks.erase(blocks.begin() + static_cast<std::ptrdiff_t>(b_lost));
+
+  FakeDevices faulty_dev(plan, frames);
+  const RunResult faulty = run_to_end(dir, cfg, faulty_dev);
+  ASSERT_EQ(faulty.code, 0);
+  const PipelineStatus& fs_ = faulty.view.pipeline;
+  const auto overlaps = [&](const Win& w) {
+    for (const auto& [t0, t1] : bad)
+      if (w.t_start < t1 && t0 <= w.t_end) return true;
+    return false;
+  };
+  std::size_t clean_hit = 0;
+  for (const Win& w : clean.windows) clean_hit += overlaps(w) ? 1 : 0;
+  EXPECT_EQ(clean_hit, 2U);  // each fault sits inside one clean window
+  for (const Win& w : faulty.windows) EXPECT_FALSE(overlaps(w)) << "window seq " << w.seq;
+  EXPECT_LT(faulty.windows.size(), clean.windows.size());
+  EXPECT_EQ(fs_.gap_samples, kBlock);
+  EXPECT_EQ(fs_.blocks_invalid, 1U);
+  EXPECT_EQ(fs_.resampler.breaks, cs.resampler.breaks + 2);
+  EXPECT_EQ(fs_.resampler.samples_unused, cs.resampler.samples_unused + 2 * kBlock);
+  EXPECT_EQ(fs_.resampler.samples, cs.resampler.samples);  // the lost block's place was filled (NaN)
+  EXPECT_TRUE(contains(faulty.status_json, "\"breaks\":" + std::to_string(fs_.resampler.breaks) + ","))
+      << faulty.status_json;
+  std::printf("order adc faults: clean %zu windows, faulty %zu; breaks %llu (clean %llu)\n",
+              clean.windows.size(), faulty.windows.size(),
+              static_cast<unsigned long long>(fs_.resampler.breaks),
+              static_cast<unsigned long long>(cs.resampler.breaks));
+}
+
 CanFrame error_frame(std::int64_t t_ns, std::uint32_t cls, std::uint8_t d1) {
   CanFrame f;
   f.t_ns = t_ns;

@@ -19,9 +19,14 @@
 #include "core/daemon.hpp"
 #include "core/daemon_config.hpp"
 #include "core/sim_backends.hpp"
+#include "ptda/common/time.hpp"
+#include "ptda/config/pipeline_config.hpp"
 #include "ptda/config/speed_codec.hpp"
+#include "ptda/dsp/angle_resampler.hpp"
 #include "ptda/dsp/baseline_training.hpp"
+#include "ptda/dsp/frame_clock.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
+#include "ptda/dsp/order_windows.hpp"
 #include "ptda/formats/baseline_file.hpp"
 
 namespace ptda::daemon::test {
@@ -168,6 +173,70 @@ inline void write_sim_baseline(const fs::path& path) {
   b.source = "daemon tests: simulated arc welding, seed 7";
   formats::write_baseline(path, b);
   first = path;
+}
+
+// ---- order domain (issue 16) ----------------------------------------------------------------------
+
+inline fs::path joint_scenario() {
+  return source_dir() / "config" / "scenarios" / "joint_rotation_healthy.toml";
+}
+
+/// The joint-rotation job's pipeline (config/examples/joint_rotation.toml) without its [can] tables, in
+/// the order domain with windows of R = 4 revolutions (as tests/golden/order_domain_test.cpp).
+inline std::string order_pipeline() {
+  std::ifstream in(source_dir() / "config" / "examples" / "joint_rotation.toml");
+  std::string line, out;
+  bool skip = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] == '[') skip = line.rfind("[can", 0) == 0;
+    if (skip) continue;
+    if (line.rfind("window_len = 12800", 0) == 0) line = "domain = \"order\"\nrevolutions = 4";
+    out += line + "\n";
+  }
+  return out;
+}
+
+/// Trains the order baseline in-process on one pass of the simulated healthy joint rotation (seed 101):
+/// the front end `ptda train` runs in the order domain (FrameClock, AngleResampler, OrderWindowCutter)
+/// and dsp::train_order_baseline. Allocates.
+inline void write_sim_order_baseline(const fs::path& path, const std::string& config_text) {
+  const DaemonConfig cfg = parse_daemon_config(config_text, "order.toml");
+  const config::PipelineConfig& pc = cfg.pipeline;
+  const auto rec = make_sim_recording(joint_scenario(), 101);
+  dsp::AngleResampler res(config::angle_resampler_config(pc), rec->fs_hz, 0);
+  const dsp::OrderWindowConfig oc = config::order_window_config(pc, res.pass_order());
+  dsp::OrderWindowCutter cut(oc);
+  dsp::FrameClock frame_clock(pc.speed_frame.period_s, pc.order.can_time_smoothing_frames);
+  const std::int64_t latency_ns = seconds_to_ns(pc.speed_latency_s);
+  dsp::OrderWindows data;
+  std::vector<float> buf(cut.window_len());
+  std::size_t f = 0;
+  const std::size_t n = rec->samples.size();
+  for (std::size_t pos = 0; pos < n; pos += 4096) {
+    const std::size_t count = std::min<std::size_t>(4096, n - pos);
+    const std::int64_t t_end = rec->sample_offset_ns(pos + count);
+    for (; f < rec->frames.size() && rec->frames[f].t_ns - latency_ns < t_end; ++f) {
+      config::DecodedSpeed d;
+      if (config::decode_speed(rec->frames[f], pc.speed_frame, d) == config::DecodeResult::kOk) {
+        res.push_speed(
+            {frame_clock.smooth(rec->frames[f].t_ns - latency_ns), d.speed_rad_s, d.angle_rad, d.has_angle});
+      }
+    }
+    res.push_samples(std::span<const float>(rec->samples.data() + pos, count));
+    dsp::OrderSample o;
+    dsp::OrderWindowRef ref;
+    while (res.pop(o)) {
+      if (!cut.push(o, ref, buf)) continue;
+      data.refs.push_back(ref);
+      data.windows.push_back(buf);
+    }
+  }
+  dsp::Baseline b = dsp::train_order_baseline(data, oc, pc.order.speed_band_rel, pc.thresholds, pc.gearbox);
+  b.domain = dsp::Domain::kOrder;
+  b.samples_per_rev = pc.order.samples_per_rev;
+  b.revolutions = pc.order.revolutions;
+  b.source = "daemon tests: simulated joint rotation, seed 101, order domain";
+  formats::write_baseline(path, b);
 }
 
 /// Blocks the daemon's signals in this thread (before any thread is started) so that a signal sent

@@ -144,10 +144,8 @@ using OrderVisitor = std::function<void(const dsp::OrderWindowRef&, std::span<co
 /// Appends `more` to `all` renumbering window seq and segment so they stay unique across recordings;
 /// the appended windows get the next recording index in all.recording.
 void append_order_windows(dsp::OrderWindows& all, dsp::OrderWindows more);
-/// The time-domain description of an order window, as MonitorEngine::judge_window and the outputs take
-/// it: seq, region_seq = resampler segment, index_in_region = k_start / N, first_sample = k_start (the
-/// grid index), times, speed_rad_s = the signed mean joint speed.
-[[nodiscard]] dsp::WindowRef window_ref_of(const dsp::OrderWindowRef& ref, std::size_t window_len) noexcept;
+/// The time-domain description of an order window (moved to dsp, where ptdad uses it too).
+using dsp::window_ref_of;
 
 /// Appends `more` to `all` (its windows when it holds them; refs only when its windows are empty),
 /// renumbering window and region sequence numbers so they stay unique

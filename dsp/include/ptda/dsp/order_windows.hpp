@@ -16,6 +16,7 @@
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/dsp/real_fft.hpp"
 #include "ptda/dsp/training.hpp"
+#include "ptda/dsp/window_slicer.hpp"
 
 namespace ptda::dsp {
 
@@ -44,6 +45,12 @@ struct OrderWindowRef {
   double max_shaft_speed_rad_s = 0.0;
   double joint_speed_rad_s = 0.0;  ///< signed mean joint speed (shaft / ratio), for Baseline::match
 };
+
+/// The time-domain description of an order window, as MonitorEngine::judge_window and the outputs take
+/// it: seq, region_seq = resampler segment, index_in_region = k_start / N, first_sample = k_start (the
+/// grid index), times, speed_rad_s = the signed mean joint speed. `ptda monitor` and ptdad both use it.
+/// Thread: any. Never allocates.
+[[nodiscard]] WindowRef window_ref_of(const OrderWindowRef& ref, std::size_t window_len) noexcept;
 
 /// Cuts non-overlapping windows of N = R S consecutive order samples of one segment, starting at grid
 /// indices that are multiples of N (so a window always starts at the same shaft angle modulo R
