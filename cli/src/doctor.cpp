@@ -128,7 +128,8 @@ std::string signed_speed(std::int8_t direction, double speed_rad_s) {
 struct AngleCheck {
   static constexpr int kFramesPerStretch = 25;
   std::uint64_t frames = 0, with_angle = 0;
-  double moving_s = 0.0;  // time between consecutive frames both above min_speed_rad_s
+  std::uint64_t wraps = 0;  // steps that differ from the speed's integral by a whole turn (modulo-2 pi angle)
+  double moving_s = 0.0;    // time between consecutive frames both above min_speed_rad_s
   std::vector<double> ratios;
   bool have_prev = false;
   double prev_v = 0.0, prev_a = 0.0;
@@ -149,8 +150,16 @@ struct AngleCheck {
         t_ns > prev_t) {
       const double dt = static_cast<double>(t_ns - prev_t) * 1e-9;
       moving_s += dt;
-      d_angle += a - prev_a;
-      d_integral += 0.5 * (v + prev_v) * dt;
+      const double integral = 0.5 * (v + prev_v) * dt;
+      // An angle sent modulo 2 pi jumps by a whole turn once per revolution: unwrapped here, counted.
+      double step = a - prev_a;
+      const double turns = std::round((step - integral) / (2.0 * std::numbers::pi));
+      if (turns != 0.0 && std::fabs(step - integral - 2.0 * std::numbers::pi * turns) < 0.5) {
+        step -= 2.0 * std::numbers::pi * turns;
+        ++wraps;
+      }
+      d_angle += step;
+      d_integral += integral;
       if (++n == kFramesPerStretch) {
         if (std::fabs(d_integral) > 1e-4) ratios.push_back(d_angle / d_integral);
         d_angle = d_integral = 0.0;
@@ -465,15 +474,24 @@ void diagnose_order(const RecordingInfo& rec, const config::PipelineConfig& cfg,
         }
       });
   const dsp::AngleResamplerCounters& rs = c.resampler;
-  if (rs.frames > 0 && rs.angle_inconsistent * 100 > rs.frames) {
+  if (angle.wraps > 0) {
+    add(Kind::kNote, "angle",
+        "the angle wraps modulo 2 pi (" + std::to_string(angle.wraps) +
+            " whole-turn steps between frames): fine, the resampler takes the speed's integral across a "
+            "wrap");
+  }
+  // The resampler counts a wrap as an inconsistent step too; only the rest is a problem.
+  const std::uint64_t bad_steps =
+      rs.angle_inconsistent > angle.wraps ? rs.angle_inconsistent - angle.wraps : 0;
+  if (rs.frames > 0 && bad_steps * 100 > rs.frames) {
     add(Kind::kProblem, "angle",
-        std::to_string(rs.angle_inconsistent) + " of " + std::to_string(rs.frames) +
+        std::to_string(bad_steps) + " of " + std::to_string(rs.frames) +
             " angle steps disagree with the speed by more than half of it (the resampler used the speed's "
             "integral instead): a wrong angle scale (above), lost frames or a corrupt angle signal");
-  } else if (rs.angle_inconsistent > 0) {
+  } else if (bad_steps > 0) {
     add(Kind::kNote, "angle",
-        std::to_string(rs.angle_inconsistent) + " of " + std::to_string(rs.frames) +
-            " angle steps disagree with the speed (an angle wrap or a bad frame; the speed's integral was "
+        std::to_string(bad_steps) + " of " + std::to_string(rs.frames) +
+            " angle steps disagree with the speed (a bad frame or log-time jitter; the speed's integral was "
             "used)");
   }
   const double revs = static_cast<double>(rs.outputs) / static_cast<double>(cfg.order.samples_per_rev);
