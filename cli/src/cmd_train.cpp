@@ -242,8 +242,9 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
   dsp::AngleResamplerConfig rc = config::angle_resampler_config(cfg);
   const dsp::OrderWindowConfig oc = config::order_window_config(cfg, dsp::AngleResampler::pass_order_of(rc));
   std::vector<std::string> dropped;
-  dsp::Baseline baseline = dsp::train_order_baseline(all, oc, cfg.order.speed_band_rel, cfg.thresholds,
-                                                     cfg.gearbox, &dropped, cfg.order.speed_law);
+  dsp::Baseline baseline =
+      dsp::train_order_baseline(all, oc, cfg.order.speed_band_rel, cfg.thresholds, cfg.gearbox, &dropped,
+                                cfg.order.speed_law, cfg.classes.min_regions);
   // Windows per hour of recording, for the CUSUM's false-alarm rates per day (the time domain counts the
   // same; with --windows the kept fraction of the recorded time).
   const double kept_s = recorded_s * (range.whole() ? 1.0 : range.to - range.from);

@@ -200,7 +200,8 @@ SpeedLawFit fit_speed_law(const std::vector<OrderWindowRef>& refs,
 
 Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig& cfg, double band_rel,
                               const ThresholdPolicy& policy, const GearboxInfo& gearbox,
-                              std::vector<std::string>* dropped, bool learn_speed_law) {
+                              std::vector<std::string>* dropped, bool learn_speed_law,
+                              std::uint32_t min_segments) {
   if (data.refs.size() != data.windows.size())
     throw Error("train_order_baseline: " + std::to_string(data.refs.size()) + " refs but " +
                 std::to_string(data.windows.size()) + " windows");
@@ -210,7 +211,8 @@ Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig&
   b.window_len = cfg.samples_per_rev * cfg.revolutions;
   b.gearbox = gearbox;
   b.policy = policy;
-  const std::vector<SegmentClass> classes = learn_order_classes(data.refs, band_rel, 3, &why);
+  const std::vector<SegmentClass> classes =
+      learn_order_classes(data.refs, band_rel, std::max<std::uint32_t>(1, min_segments), &why);
   if (learn_speed_law) {
     const SpeedLawFit law = fit_speed_law(data.refs, data.windows, classes);
     b.speed_law_fit = law.exponent;

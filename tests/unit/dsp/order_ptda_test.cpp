@@ -346,6 +346,24 @@ TEST(OrderPtda, TrainedClassesMatchTheirWindows) {
                Error);
 }
 
+TEST(OrderPtda, MinSegmentsIsTheConfiguredMinRegions) {
+  // The plateau windows of two cycles are two resampler segments: a class needs 3 by default
+  // ([classes] min_regions = 3), so training fails naming why; with min_segments 2 (or 1) it trains.
+  const Job job = make_job(33, 2, 0.0, 2.6, 0.2, false, false);
+  const OrderWindows w = plateau_only(order_windows(job));
+  ASSERT_FALSE(w.refs.empty());
+  try {
+    (void)train_order_baseline(w, OrderWindowConfig{kS, kR, kRatio}, 0.1, ThresholdPolicy{}, GearboxInfo{});
+    ADD_FAILURE() << "trained with 2 segments and min_segments 3";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("2 segment(s), fewer than 3"), std::string::npos) << e.what();
+  }
+  const Baseline b = train_order_baseline(w, OrderWindowConfig{kS, kR, kRatio}, 0.1, ThresholdPolicy{},
+                                          GearboxInfo{}, nullptr, false, 2);
+  ASSERT_EQ(b.classes.size(), 1U);
+  EXPECT_EQ(b.classes[0].segment.regions, 2U);
+}
+
 TEST(OrderPtda, CutterDropsAPartialWindowAtAGap) {
   OrderWindowCutter cut(OrderWindowConfig{16, 2, 1.0});  // N = 32
   std::vector<float> out(32);

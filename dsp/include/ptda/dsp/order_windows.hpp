@@ -103,6 +103,7 @@ struct OrderWindows {
 /// resampler segment as leave-out group. fs_hz of the result is S (samples per revolution: the
 /// "sample rate" of the angle axis) and window_len N = R S. Throws ptda::Error when no class has
 /// enough windows (the message names every dropped class). Thread: any (offline). Allocates.
+/// A class needs windows from min_segments resampler segments ([classes] min_regions; 3 by default).
 /// With learn_speed_law, the amplitude's speed law is fitted first (Baseline::speed_law_*: pooled
 /// within-class least squares of log window RMS on log |joint speed|) and, when significant, each
 /// window is normalised to its class's speed before the class is trained.
@@ -110,7 +111,7 @@ struct OrderWindows {
                                             double band_rel, const ThresholdPolicy& policy,
                                             const GearboxInfo& gearbox,
                                             std::vector<std::string>* dropped = nullptr,
-                                            bool learn_speed_law = false);
+                                            bool learn_speed_law = false, std::uint32_t min_segments = 3);
 
 /// The speed law's fit (see train_order_baseline): exponent p, its standard error, and the p applied
 /// (p when |p| > 2 se and the fit has >= 3 residual degrees of freedom, else 0). Windows of no class are
