@@ -203,15 +203,15 @@ class FakeDevices final : public DeviceFactory {
       : source_(std::move(source)), channel_(std::move(channel)), recording_output_(recording_output) {}
 
   std::unique_ptr<drivers::SampleSource> make_source(drivers::Clock& clock) override {
-    origin_ = clock.now_ns();
-    auto s = std::make_unique<FakeSource>(source_, origin_, gate);
+    origin_.store(clock.now_ns(), std::memory_order_release);
+    auto s = std::make_unique<FakeSource>(source_, origin(), gate);
     last_source = s.get();
     ++pipelines;
     return s;
   }
   std::unique_ptr<drivers::CanChannel> make_channel(drivers::Clock& clock) override {
     (void)clock;
-    auto c = std::make_unique<FakeChannel>(channel_, origin_, gate);
+    auto c = std::make_unique<FakeChannel>(channel_, origin(), gate);
     last_channel = c.get();
     return c;
   }
@@ -224,7 +224,7 @@ class FakeDevices final : public DeviceFactory {
     outputs.push_back(std::move(o));
   }
   /// Daemon time of stream time 0 of the latest pipeline.
-  [[nodiscard]] std::int64_t origin() const noexcept { return origin_; }
+  [[nodiscard]] std::int64_t origin() const noexcept { return origin_.load(std::memory_order_acquire); }
 
   Gate gate;
   FakeSource* last_source = nullptr;
@@ -236,7 +236,8 @@ class FakeDevices final : public DeviceFactory {
   std::shared_ptr<const SourcePlan> source_;
   std::shared_ptr<const ChannelPlan> channel_;
   bool recording_output_;
-  std::int64_t origin_ = 0;
+  // Written by the daemon thread at each (re)configure, read by the test thread (TSan found the race).
+  std::atomic<std::int64_t> origin_{0};
 };
 
 }  // namespace ptda::daemon::test
