@@ -518,26 +518,9 @@ dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const Fra
 void check_baseline_matches(const dsp::Baseline& baseline, const std::string& baseline_source,
                             const config::PipelineConfig& cfg, const std::string& config_source, double fs_hz,
                             const std::string& recording_source) {
-  if (baseline.domain != cfg.domain) {
-    throw Error(baseline_source + ": baseline was trained in the " + dsp::domain_name(baseline.domain) +
-                " domain but " + config_source + " sets [extraction] domain = \"" +
-                dsp::domain_name(cfg.domain) + "\": use the configuration it was trained with, or retrain");
-  }
-  if (cfg.domain == dsp::Domain::kOrder) {
-    if (baseline.samples_per_rev != cfg.order.samples_per_rev ||
-        baseline.revolutions != cfg.order.revolutions) {
-      throw Error(baseline_source +
-                  ": order baseline has samples_per_rev = " + std::to_string(baseline.samples_per_rev) +
-                  ", revolutions = " + std::to_string(baseline.revolutions) + " but " + config_source +
-                  " sets [extraction] samples_per_rev = " + std::to_string(cfg.order.samples_per_rev) +
-                  ", revolutions = " + std::to_string(cfg.order.revolutions));
-    }
-    if (std::abs(baseline.gearbox.ratio - cfg.gearbox.ratio) > 1e-9 * cfg.gearbox.ratio) {
-      throw Error(baseline_source + ": order baseline was trained with gearbox ratio " +
-                  num(baseline.gearbox.ratio) + " but " + config_source + " gives " + num(cfg.gearbox.ratio));
-    }
-    return;  // the vibration's own rate only enters the resampler, not the windows
-  }
+  config::check_baseline_domain(baseline, baseline_source, cfg, config_source);
+  // Order domain: the vibration's own rate only enters the resampler, not the windows.
+  if (cfg.domain == dsp::Domain::kOrder) return;
   if (std::abs(baseline.fs_hz - fs_hz) > 1e-9 * fs_hz) {
     throw Error(baseline_source + ": baseline was trained at " + num(baseline.fs_hz) + " Hz but recording " +
                 recording_source + " is sampled at " + num(fs_hz) + " Hz");

@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "ptda/common/error.hpp"
@@ -496,6 +497,33 @@ PipelineConfig PipelineConfigBuilder::finish() const {
     }
   }
   return cfg;
+}
+
+void check_baseline_domain(const dsp::Baseline& baseline, const std::string& baseline_source,
+                           const PipelineConfig& cfg, const std::string& config_source) {
+  const auto num = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.10g", v);
+    return std::string(buf);
+  };
+  if (baseline.domain != cfg.domain) {
+    throw Error(baseline_source + ": baseline was trained in the " + dsp::domain_name(baseline.domain) +
+                " domain but " + config_source + " sets [extraction] domain = \"" +
+                dsp::domain_name(cfg.domain) + "\": use the configuration it was trained with, or retrain");
+  }
+  if (cfg.domain != dsp::Domain::kOrder) return;
+  if (baseline.samples_per_rev != cfg.order.samples_per_rev ||
+      baseline.revolutions != cfg.order.revolutions) {
+    throw Error(baseline_source +
+                ": order baseline has samples_per_rev = " + std::to_string(baseline.samples_per_rev) +
+                ", revolutions = " + std::to_string(baseline.revolutions) + " but " + config_source +
+                " sets [extraction] samples_per_rev = " + std::to_string(cfg.order.samples_per_rev) +
+                ", revolutions = " + std::to_string(cfg.order.revolutions));
+  }
+  if (std::abs(baseline.gearbox.ratio - cfg.gearbox.ratio) > 1e-9 * cfg.gearbox.ratio) {
+    throw Error(baseline_source + ": order baseline was trained with gearbox ratio " +
+                num(baseline.gearbox.ratio) + " but " + config_source + " gives " + num(cfg.gearbox.ratio));
+  }
 }
 
 dsp::AngleResamplerConfig angle_resampler_config(const PipelineConfig& cfg) noexcept {

@@ -248,29 +248,10 @@ void Pipeline::configure_monitoring() {
   const bool order = pc.domain == dsp::Domain::kOrder;
   try {
     auto baseline = std::make_unique<dsp::Baseline>(formats::read_baseline(path));
-    if (baseline->domain != pc.domain) {
-      throw Error(path.string() + ": baseline was trained in the " + dsp::domain_name(baseline->domain) +
-                  " domain but the configuration sets [extraction] domain = \"" +
-                  dsp::domain_name(pc.domain) + "\": use the configuration it was trained with, or retrain");
-    }
-    if (order) {
-      // As `ptda monitor` (cli::check_baseline_matches): the windows are R revolutions of S samples of
-      // the input shaft, so S, R and the gearbox ratio must be the trained ones; the vibration's own
-      // rate only enters the resampler.
-      if (baseline->samples_per_rev != pc.order.samples_per_rev ||
-          baseline->revolutions != pc.order.revolutions) {
-        throw Error(path.string() +
-                    ": order baseline has samples_per_rev = " + std::to_string(baseline->samples_per_rev) +
-                    ", revolutions = " + std::to_string(baseline->revolutions) +
-                    " but the configuration sets [extraction] " +
-                    "samples_per_rev = " + std::to_string(pc.order.samples_per_rev) +
-                    ", revolutions = " + std::to_string(pc.order.revolutions));
-      }
-      if (std::abs(baseline->gearbox.ratio - pc.gearbox.ratio) > 1e-9 * pc.gearbox.ratio) {
-        throw Error(path.string() + ": order baseline was trained with gearbox ratio " +
-                    num(baseline->gearbox.ratio) + " but the configuration gives " + num(pc.gearbox.ratio));
-      }
-    } else if (!same_rate(baseline->fs_hz, fs_hz_)) {
+    // As `ptda monitor` (cli::check_baseline_matches): the same domain, and in the order domain the
+    // same S, R and gearbox ratio; the vibration's own rate then only enters the resampler.
+    config::check_baseline_domain(*baseline, path.string(), pc, "the configuration");
+    if (!order && !same_rate(baseline->fs_hz, fs_hz_)) {
       throw Error(path.string() + ": baseline was trained at " + num(baseline->fs_hz) + " Hz but the " +
                   adc_backend_name(cfg_.adc.backend) + " source delivers " + num(fs_hz_) + " Hz");
     }

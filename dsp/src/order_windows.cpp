@@ -140,14 +140,15 @@ double speed_law_gain(double class_speed_rad_s, double speed_rad_s, double expon
 }
 
 namespace {
-/// The class a window belongs to in training (direction, within the class's band), or -1.
+/// A training window belongs to a class: its direction, and its speed within the class's band.
+bool in_class(const OrderWindowRef& r, const SegmentClass& c) {
+  return (r.direction < 0 ? -1 : 1) == c.direction &&
+         std::fabs(std::fabs(r.joint_speed_rad_s) - c.speed_rad_s) <= c.speed_tol_rad_s;
+}
+/// The first class a window belongs to, or -1.
 int class_of(const OrderWindowRef& r, const std::vector<SegmentClass>& classes) {
-  for (std::size_t k = 0; k < classes.size(); ++k) {
-    const SegmentClass& c = classes[k];
-    if ((r.direction < 0 ? -1 : 1) != c.direction) continue;
-    if (std::fabs(std::fabs(r.joint_speed_rad_s) - c.speed_rad_s) > c.speed_tol_rad_s) continue;
-    return static_cast<int>(k);
-  }
+  for (std::size_t k = 0; k < classes.size(); ++k)
+    if (in_class(r, classes[k])) return static_cast<int>(k);
   return -1;
 }
 }  // namespace
@@ -225,8 +226,7 @@ Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig&
     std::vector<std::uint32_t> recordings;
     for (std::size_t i = 0; i < data.refs.size(); ++i) {
       const OrderWindowRef& r = data.refs[i];
-      if ((r.direction < 0 ? -1 : 1) != c.direction) continue;
-      if (std::fabs(std::fabs(r.joint_speed_rad_s) - c.speed_rad_s) > c.speed_tol_rad_s) continue;
+      if (!in_class(r, c)) continue;
       windows.push_back(data.windows[i]);
       if (b.speed_law_exponent != 0.0) {
         const auto g =

@@ -86,6 +86,14 @@ struct PipelineConfig {
 /// gearbox ratio, max_speed_gap_s from [extraction], speed_latency_s 0 (run_recording and the daemon
 /// apply [can] speed_latency_s when they decode the frames). Thread: any. Never allocates.
 [[nodiscard]] dsp::AngleResamplerConfig angle_resampler_config(const PipelineConfig& cfg) noexcept;
+/// The checks of a baseline against the configuration that do not depend on the input: the same domain,
+/// and in the order domain the same S, R and gearbox ratio (the windows are R revolutions of S samples
+/// of the input shaft). Throws ptda::Error "<baseline_source>: baseline was trained in the order domain
+/// but <config_source> sets [extraction] domain = \"time\": ..." (and the like for S, R and the ratio).
+/// Used by `ptda monitor` and `ptdad`. Thread: any. Allocates only to throw.
+void check_baseline_domain(const dsp::Baseline& baseline, const std::string& baseline_source,
+                           const PipelineConfig& cfg, const std::string& config_source);
+
 /// The order window cutter's configuration; max_order = the resampler's pass_order() (pass it).
 /// Thread: any. Never allocates.
 [[nodiscard]] dsp::OrderWindowConfig order_window_config(const PipelineConfig& cfg,
