@@ -12,6 +12,7 @@
 // A second test runs the built `ptdad` binary on the same replay (--exit-at-end) and checks its
 // status.json counts, and --check-config's exit codes and located error message.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <string>
@@ -117,6 +118,17 @@ struct Pinned {
 // holds the alarm from the first faulty window on (k-of-n alone: 38, 89, 18).
 constexpr Pinned kJobs[] = {{"joint_rotation", 40, 40}, {"arc_welding", 101, 101}, {"spot_welding", 20, 20}};
 
+/// The daemon's coverage tracker reached the state `ptda monitor`'s did (same windows, same speed
+/// samples, same motion time).
+void expect_same_coverage(const dsp::CoverageState& dc, const dsp::CoverageState& mc) {
+  EXPECT_EQ(dc.judged, mc.judged);
+  EXPECT_EQ(dc.unmatched, mc.unmatched);
+  EXPECT_EQ(dc.moving_ns, mc.moving_ns);
+  EXPECT_EQ(dc.level, mc.level);
+  for (std::size_t k = 0; k < dsp::kCoverageMaxClasses; ++k)
+    EXPECT_EQ(dc.classes[k].judged, mc.classes[k].judged);
+}
+
 class DaemonReplay : public ::testing::TestWithParam<Pinned> {};
 
 TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
@@ -165,13 +177,7 @@ TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
   const cli::MonitorResult m =
       cli::monitor_recording(in.rec, in.cfg, in.baseline, dsp::Method::kPtda, in.fs_hz, {}, ro);
   const dsp::CoverageState& dc = v.pipeline.coverage;
-  const dsp::CoverageState& mc = m.coverage;
-  EXPECT_EQ(dc.judged, mc.judged);
-  EXPECT_EQ(dc.unmatched, mc.unmatched);
-  EXPECT_EQ(dc.moving_ns, mc.moving_ns);
-  EXPECT_EQ(dc.level, mc.level);
-  for (std::size_t k = 0; k < dsp::kCoverageMaxClasses; ++k)
-    EXPECT_EQ(dc.classes[k].judged, mc.classes[k].judged);
+  expect_same_coverage(dc, m.coverage);
   EXPECT_EQ(dc.judged, pin.windows);
   EXPECT_EQ(dc.level, dsp::CoverageLevel::kFull);
 }
@@ -198,7 +204,9 @@ std::string order_pipeline() {
 const OrderPrepared& order_prepared() {
   static const OrderPrepared p = [] {
     OrderPrepared q;
-    q.dir = scratch_dir("daemon_replay_order");
+    // Per process: ctest runs the order tests of this binary in parallel, and scratch_dir() empties the
+    // directory it returns (a shared one was wiped under a running test: seen once in a -j2 run).
+    q.dir = scratch_dir("daemon_replay_order_" + std::to_string(::getpid()));
     const fs::path scen = source_dir() / "config" / "scenarios";
     // The offline configuration: the order pipeline with the simulator's 0.5 ms transport delay in [can].
     const fs::path offline = q.dir / "order.toml";
@@ -334,13 +342,7 @@ TEST_P(DaemonReplayOrder, ThreadsReproduceOrderMonitorJsonlExactly) {
   const cli::MonitorResult mr =
       cli::monitor_recording(in.rec, in.cfg, in.baseline, dsp::Method::kPtda, in.fs_hz, {}, ro);
   const dsp::CoverageState& dc = v.pipeline.coverage;
-  const dsp::CoverageState& mc = mr.coverage;
-  EXPECT_EQ(dc.judged, mc.judged);
-  EXPECT_EQ(dc.unmatched, mc.unmatched);
-  EXPECT_EQ(dc.moving_ns, mc.moving_ns);
-  EXPECT_EQ(dc.level, mc.level);
-  for (std::size_t k = 0; k < dsp::kCoverageMaxClasses; ++k)
-    EXPECT_EQ(dc.classes[k].judged, mc.classes[k].judged);
+  expect_same_coverage(dc, mr.coverage);
   EXPECT_EQ(dc.judged, pin.scored);
   EXPECT_EQ(dc.unmatched_total(), pin.windows - pin.scored);  // the windows no class matched, by reason
   // The resampler saw what the offline tool's saw.
