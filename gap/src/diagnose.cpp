@@ -9,6 +9,7 @@
 #include <exception>
 #include <limits>
 #include <thread>
+#include <tuple>
 
 #include "ptda/common/error.hpp"
 #include "ptda/sim/noise_tilt.hpp"
@@ -31,6 +32,12 @@ constexpr double kRecalibrateExponent = 0.05;
 constexpr std::uint64_t kHeldoutSeedOffset = 7777;
 // A speed-scale estimate smaller than this is not applied (the lines' interpolation bias is ~50 ppm).
 constexpr double kSpeedScaleMinPpm = 100.0;
+/// Interference candidates start at up to this many distinct excess lines, each at least this far (dB)
+/// above the model (the strongest is always tried).
+constexpr std::size_t kLineGuesses = 3;
+constexpr double kLineGuessMinExcessDb = 10.0;
+/// Highest harmonic of a guessed line that is looked for.
+constexpr int kMaxGuessHarmonic = 9;
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wformat-nonliteral"
@@ -346,7 +353,15 @@ struct Guesses {
   double floor_peak_accel_hz = 1000.0;
   double energy_peak_accel_hz = 1000.0;  ///< first resonance tried for knocks (transient octave excess)
   double line_still_hz = 50.0;           ///< strongest excess line where the mesh is silent (or off-order)
-  double line_const_ratio = 1.37;        ///< strongest off-order excess line in class 0 / GMF
+  /// Further excess lines there, strongest first, none within 2 % of a whole multiple of a stronger one
+  /// (a drive's PWM carrier beside the mains: one interference candidate per line, issue 11).
+  std::vector<double> more_lines_still_hz;
+  /// Harmonics seen with line_still_hz (the interference's start): how many lines, and whether only the
+  /// odd harmonics stand out (`odd_only`); parallel to more_lines_still_hz in more_line_harmonics.
+  int line_still_harmonics = 1;
+  bool line_still_odd = false;
+  std::vector<std::pair<int, bool>> more_line_harmonics;
+  double line_const_ratio = 1.37;  ///< strongest off-order excess line in class 0 / GMF
   double sideband_order = 1.0;
   double ppm = 0.0;
   double lag_s = 0.0;
@@ -383,28 +398,74 @@ double excess_peak_hz(const ProbeSet& r, const ProbeSet& m, SegmentType type, do
   return f;
 }
 
-/// Strongest bin where the measured spectrum exceeds the model's, skipping [lo, hi] exclusions.
-double excess_line_hz(const std::vector<double>& pr, const std::vector<double>& pm, double df,
-                      const std::vector<std::pair<double, double>>& excl) {
-  double best = -1e300, f = 0.0;
+/// Local maxima where the measured spectrum exceeds the model's, by excess (dB) descending, skipping
+/// [lo, hi] exclusions; each refined by a parabola through its three bins. At most `max_lines`; a line
+/// within 2 % of a whole multiple (1..16) of a stronger one is left out (a harmonic of it), as is one
+/// less than `min_excess_db` above the model.
+std::vector<double> excess_lines_hz(const std::vector<double>& pr, const std::vector<double>& pm, double df,
+                                    const std::vector<std::pair<double, double>>& excl, std::size_t max_lines,
+                                    double min_excess_db) {
+  std::vector<std::pair<double, std::size_t>> peaks;  // (excess dB, bin)
   for (std::size_t k = 3; k < std::min(pr.size(), pm.size()) * 9 / 10; ++k) {
     const double fk = static_cast<double>(k) * df;
     bool skip = false;
     for (const auto& [lo, hi] : excl) skip = skip || (fk >= lo && fk <= hi);
     if (skip) continue;
-    const double d = db(pr[k]) - db(pm[k]);
-    if (d > best && pr[k] >= pr[k - 1] && pr[k] >= pr[k + 1]) {
-      best = d;
-      f = fk;
-    }
+    if (pr[k] >= pr[k - 1] && pr[k] >= pr[k + 1]) peaks.emplace_back(db(pr[k]) - db(pm[k]), k);
   }
-  if (f > 0.0) {
-    const auto k = static_cast<std::size_t>(std::lround(f / df));
+  std::stable_sort(peaks.begin(), peaks.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<double> out;
+  for (const auto& [excess, k] : peaks) {
+    if (out.size() >= max_lines) break;
+    if (!out.empty() && excess < min_excess_db) break;
+    double f = static_cast<double>(k) * df;
     const double a = db(pr[k - 1]), b = db(pr[k]), c = db(pr[k + 1]);
     const double den = a - 2 * b + c;
     if (den < 0) f += 0.5 * (a - c) / den * df;
+    bool harmonic = false;
+    for (double g : out) {
+      const double m = std::round(f / g);
+      harmonic = harmonic || (m >= 1.0 && m <= 16.0 && std::fabs(f - m * g) < 0.02 * m * g);
+    }
+    if (!harmonic) out.push_back(f);
   }
-  return f;
+  return out;
+}
+
+/// The harmonics 2..kMaxGuessHarmonic of a line at f that also stand out (the spectrum's largest bin
+/// within 2 % of m f exceeds the model's by >= min_excess_db). Returns the library's (harmonics, odd_only)
+/// that covers them: only odd ones seen (at least two: 3 f, 5 f, ...) -> odd lines up to the highest;
+/// else all lines up to the highest seen; none -> (1, false).
+std::pair<int, bool> line_harmonics(const std::vector<double>& pr, const std::vector<double>& pm, double df,
+                                    double f, double min_excess_db) {
+  int top_odd = 1, top_even = 0, n_odd = 0;
+  const std::size_t n = std::min(pr.size(), pm.size());
+  for (int m = 2; m <= kMaxGuessHarmonic; ++m) {
+    const double fm = m * f;
+    const auto lo = static_cast<std::size_t>(std::max(1.0, std::floor(0.98 * fm / df)));
+    const auto hi = static_cast<std::size_t>(std::ceil(1.02 * fm / df));
+    if (hi + 1 >= n * 9 / 10) break;
+    double best = -1e300;
+    for (std::size_t k = lo; k <= hi; ++k) best = std::max(best, db(pr[k]) - db(pm[k]));
+    if (best < min_excess_db) continue;
+    if (m % 2 == 1) {
+      top_odd = m;
+      ++n_odd;
+    } else {
+      top_even = m;
+    }
+  }
+  if (top_even == 0 && n_odd >= 2) return {(top_odd + 1) / 2, true};
+  return {std::max(top_odd, top_even), false};
+}
+
+/// Strongest bin where the measured spectrum exceeds the model's, skipping [lo, hi] exclusions (0 when
+/// there is none).
+double excess_line_hz(const std::vector<double>& pr, const std::vector<double>& pm, double df,
+                      const std::vector<std::pair<double, double>>& excl) {
+  const std::vector<double> f = excess_lines_hz(pr, pm, df, excl, 1, 0.0);
+  return f.empty() ? 0.0 : f.front();
 }
 
 Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g,
@@ -445,15 +506,31 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
     for (int k = 1; k * gmf0 < 0.5 * fs; ++k)
       excl_const.push_back({k * gmf0 - 3.6 * f_in - 3 * df0, k * gmf0 + 3.6 * f_in + 3 * df0});
   }
+  // The strongest three distinct lines (not harmonics of each other) at least 10 dB above the model.
+  std::vector<double> still_lines;
   if (!r.still_power.empty() && r.still_power.size() == m.still_power.size()) {
-    q.line_still_hz =
-        excess_line_hz(r.still_power, m.still_power, fs / static_cast<double>(plan.still_len), {});
+    still_lines = excess_lines_hz(r.still_power, m.still_power, fs / static_cast<double>(plan.still_len), {},
+                                  kLineGuesses, kLineGuessMinExcessDb);
   } else if (!r.accel_power.empty() && r.accel_power.size() == m.accel_power.size()) {
-    q.line_still_hz =
-        excess_line_hz(r.accel_power, m.accel_power, fs / static_cast<double>(plan.accel_len), {});
+    still_lines = excess_lines_hz(r.accel_power, m.accel_power, fs / static_cast<double>(plan.accel_len), {},
+                                  kLineGuesses, kLineGuessMinExcessDb);
   } else if (r.class_power.count(0) && m.class_power.count(0)) {
-    q.line_still_hz =
-        excess_line_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0), excl_const);
+    still_lines = excess_lines_hz(r.class_power.at(0), m.class_power.at(0), fs / static_cast<double>(len0),
+                                  excl_const, kLineGuesses, kLineGuessMinExcessDb);
+  }
+  if (!still_lines.empty()) {
+    q.line_still_hz = still_lines.front();
+    q.more_lines_still_hz.assign(still_lines.begin() + 1, still_lines.end());
+    const bool still = !r.still_power.empty() && r.still_power.size() == m.still_power.size();
+    const std::vector<double>& pr = still ? r.still_power : r.accel_power;
+    const std::vector<double>& pm = still ? m.still_power : m.accel_power;
+    if (!pr.empty() && pr.size() == pm.size()) {  // not in class 0: its harmonics are mesh orders
+      const double df = fs / static_cast<double>(still ? plan.still_len : plan.accel_len);
+      std::tie(q.line_still_harmonics, q.line_still_odd) =
+          line_harmonics(pr, pm, df, q.line_still_hz, kLineGuessMinExcessDb);
+      for (double f : q.more_lines_still_hz)
+        q.more_line_harmonics.push_back(line_harmonics(pr, pm, df, f, kLineGuessMinExcessDb));
+    }
   }
   if (r.class_power.count(0) && m.class_power.count(0) && gmf0 > 0.0) {
     const double f =
@@ -579,7 +656,7 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       // Where and how strong jointly: at the default strength a weak line at the right frequency scored
       // worse than an invisible one at f / 3, and the strength was then searched at the wrong place.
       return {{"frequency_hz", fr, false, "amplitude_ms2", {0.02, 0.05, 0.1, 0.2, 0.5, 1, 2}},
-              {"harmonics", {1, 2, 3, 5, 8}},
+              {"harmonics", {1, 2, 3, 5, 8}, false, "odd_only", {0, 1}},
               {"harmonic_decay", {0.3, 0.5, 0.7, 0.9}},
               {"amplitude_ms2", {0.8, 1.0, 1.25}, true}};
     }
@@ -626,6 +703,14 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
   return {};
 }
 
+/// ", then 4000.1, 7993.2 Hz" for the further line guesses (progress log).
+std::string more_lines_text(const Guesses& q) {
+  std::string t;
+  for (std::size_t i = 0; i < q.more_lines_still_hz.size(); ++i)
+    t += (i == 0 ? ", then " : ", ") + fmt("%.2f", q.more_lines_still_hz[i]);
+  return t.empty() ? t : t + " Hz";
+}
+
 /// Initial parameters: defaults with the data-driven guesses.
 EffectSpec initial_effect(EffectKind k, const Guesses& q) {
   EffectSpec e = EffectSpec::with_defaults(k);
@@ -639,7 +724,11 @@ EffectSpec initial_effect(EffectKind k, const Guesses& q) {
       break;
     case EffectKind::kElectricalInterference:
       e.set("frequency_hz", std::max(1.0, q.line_still_hz));
-      e.set("harmonics", 1.0);
+      // The harmonics seen with the line: the screen compares candidates on them (a mains fundamental
+      // alone explained nothing of a gap held by its 5th and 7th harmonics, gen2-1024).
+      e.set("harmonics", static_cast<double>(q.line_still_harmonics));
+      e.set("odd_only", q.line_still_odd ? 1.0 : 0.0);
+      e.set("harmonic_decay", q.line_still_harmonics > 1 ? 0.7 : 0.5);
       break;
     case EffectKind::kMeshModulation:
       e.set("rate_order", q.sideband_order);
@@ -1053,11 +1142,13 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
         make_guesses(cur_real_fit, cur_model, cur_fit_gap, current, plan, ev.context().nominal_orders);
     log("round " + std::to_string(round + 1) + " guesses: floor peak " + fmt("%.0f", q.floor_peak_const_hz) +
         " Hz, accel energy peak " + fmt("%.0f", q.energy_peak_accel_hz) + " Hz, line " +
-        fmt("%.2f", q.line_still_hz) + " Hz, other-mesh ratio " + fmt("%.3f", q.line_const_ratio) +
-        ", sidebands " + fmt("%.2f", q.sideband_order) + " orders, " + fmt("%.0f", q.ppm) + " ppm, lag " +
-        fmt("%.1f", q.lag_s * 1e3) + " ms, direction " + fmt("%.2f", q.direction_gain));
+        fmt("%.2f", q.line_still_hz) + " Hz" + more_lines_text(q) + ", other-mesh ratio " +
+        fmt("%.3f", q.line_const_ratio) + ", sidebands " + fmt("%.2f", q.sideband_order) + " orders, " +
+        fmt("%.0f", q.ppm) + " ppm, lag " + fmt("%.1f", q.lag_s * 1e3) + " ms, direction " +
+        fmt("%.2f", q.direction_gain));
     struct Work {
       EffectSpec e;
+      Guesses q;  ///< the round's guesses; an interference candidate's own line (one per excess line)
       double fit_gap = 0;
       std::uint32_t evals = 0;
       std::size_t stage = 0;
@@ -1112,17 +1203,34 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       const bool located = k == EffectKind::kTransferPath || k == EffectKind::kElectricalInterference;
       if (used >= (located ? 2 : 1)) continue;
       Work w;
-      w.e = initial_effect(k, q);
+      w.q = q;
+      w.q.more_lines_still_hz.clear();
+      w.e = initial_effect(k, w.q);
       clamp_params(w.e);
       w.fit_gap = std::numeric_limits<double>::infinity();
       work.push_back(w);
+      // Interference: one candidate per distinct excess line, each screened and fitted on its own (its
+      // harmonics are only searched after the screen, so lines in one grid would be compared as single
+      // lines: a PWM sideband beat the 60 Hz mains whose odd harmonics held the gap, development case
+      // gen2-1024).
+      if (k == EffectKind::kElectricalInterference) {
+        for (std::size_t j = 0; j < q.more_lines_still_hz.size(); ++j) {
+          Work wl = w;
+          wl.q.line_still_hz = q.more_lines_still_hz[j];
+          if (j < q.more_line_harmonics.size())
+            std::tie(wl.q.line_still_harmonics, wl.q.line_still_odd) = q.more_line_harmonics[j];
+          wl.e = initial_effect(k, wl.q);
+          clamp_params(wl.e);
+          work.push_back(wl);
+        }
+      }
     }
     // Screen: where the effect acts and how strong it is (the first two stages; a joint first stage
     // covers both). A screen over the location alone at the default strength rejected weak effects
     // whose default was far too strong. Candidates are screened in parallel.
     parallel_for(work.size(), opt.threads, [&](std::size_t i) {
       Work& w = work[i];
-      const std::vector<FitStage> stages = fit_stages(w.e.kind, q, real.fs_hz, current);
+      const std::vector<FitStage> stages = fit_stages(w.e.kind, w.q, real.fs_hz, current);
       if (!stages.empty()) (void)run_stage(w, stages[0]);
       w.stage = 1;
       if (stages.size() > 1 && stages[0].param2 == nullptr) {
@@ -1134,7 +1242,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     std::sort(work.begin(), work.end(), [](const Work& a, const Work& b) { return a.fit_gap < b.fit_gap; });
     parallel_for(std::min<std::size_t>(work.size(), opt.full_fits), opt.threads, [&](std::size_t i) {
       Work& w = work[i];
-      const std::vector<FitStage> stages = fit_stages(w.e.kind, q, real.fs_hz, current);
+      const std::vector<FitStage> stages = fit_stages(w.e.kind, w.q, real.fs_hz, current);
       bool improved = false;
       for (std::size_t s = w.stage; s < stages.size(); ++s) improved = run_stage(w, stages[s]) || improved;
       // One more sweep of the refinement (relative) stages when any stage moved the fit: the
@@ -1221,8 +1329,11 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
            tied_candidates(sr.ranked, current_held, current_rep, d.noise_gap_sd, opt.min_gain_sd))
         d.chosen.back().alternatives.push_back(std::string(sim::effect_info(sr.ranked[i].effect.kind).name) +
                                                " (" + sr.ranked[i].location + ")");
+      // The chosen candidate's model (several candidates can share a kind: one per interference line).
       for (const sim::Scenario& m : models) {
-        if (!m.effects.empty() && m.effects.back().kind == best.effect.kind) current = m;
+        if (!m.effects.empty() && m.effects.back().kind == best.effect.kind &&
+            m.effects.back().params == best.effect.params)
+          current = m;
       }
       current_held = best.gap_heldout;
       cur_held_bands = best.heldout_by_band;

@@ -29,11 +29,14 @@ constexpr std::array<EffectParamInfo, 4> kImpacts{{
     {"damping_ratio", 0.05, 0.005, 0.5, "damping of that resonance"},
     {"rate_hz", 0.0, 0.0, 100.0, "extra random knocks per second (Poisson), besides the reversals"},
 }};
-constexpr std::array<EffectParamInfo, 4> kElectrical{{
+constexpr std::array<EffectParamInfo, 5> kElectrical{{
     {"frequency_hz", 50.0, 1.0, 100000.0, "fundamental (mains, drive switching)"},
     {"amplitude_ms2", 0.3, 0.0, 100.0, "amplitude of the fundamental"},
     {"harmonics", 3.0, 1.0, 50.0, "number of harmonics including the fundamental (rounded)"},
     {"harmonic_decay", 0.5, 0.0, 1.0, "amplitude ratio between successive harmonics"},
+    {"odd_only", 0.0, 0.0, 1.0,
+     "1: only odd harmonics (1, 3, 5, ...: mains pickup through a symmetric non-linearity); 0: all "
+     "(rounded)"},
 }};
 constexpr std::array<EffectParamInfo, 1> kAdcClipping{{
     {"level_ms2", 5.0, 0.001, 1.0e5, "the acquisition saturates at +-level"},

@@ -196,8 +196,10 @@ SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uin
         const auto harmonics = static_cast<int>(std::lround(e.get("harmonics")));
         double amp = e.get("amplitude_ms2");
         const double decay = e.get("harmonic_decay");
-        for (int h = 1; h <= harmonics; ++h, amp *= decay) {
-          const double f = f0 * h;
+        // `harmonics` lines, line j at harmonic j (all) or 2j - 1 (odd only), each `decay` below the last.
+        const int step = std::lround(e.get("odd_only")) != 0 ? 2 : 1;
+        for (int line = 1; line <= harmonics; ++line, amp *= decay) {
+          const double f = f0 * (1 + step * (line - 1));
           const double phase = kTwoPi * st.rng.uniform();
           if (f >= fs / 2.0 || amp <= 0.0) continue;
           st.tones.push_back({amp, kTwoPi * f / fs, phase});

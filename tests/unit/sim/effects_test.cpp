@@ -201,6 +201,25 @@ TEST(Effects, ElectricalInterferenceAtFixedFrequencies) {
   EXPECT_LT(tone_amplitude(sig.vibration.accel_ms2, 8000, 200, 0, n), 1e-6);
 }
 
+TEST(Effects, ElectricalInterferenceOddHarmonicsOnly) {
+  Scenario s = rig();
+  s.vibration.gmf_amplitudes.clear();
+  s = with(s, EffectKind::kElectricalInterference,
+           {{"frequency_hz", 50.0},
+            {"amplitude_ms2", 0.3},
+            {"harmonics", 3.0},
+            {"harmonic_decay", 0.5},
+            {"odd_only", 1.0}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  const auto n = static_cast<std::size_t>(s.sensor.fs_hz);
+  // Three lines at harmonics 1, 3, 5, each half the last; nothing at the even ones or beyond the third.
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 50, 0, n), 0.3, 1e-6);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 150, 0, n), 0.15, 1e-6);
+  EXPECT_NEAR(tone_amplitude(sig.vibration.accel_ms2, 8000, 250, 0, n), 0.075, 1e-6);
+  for (double f : {100.0, 200.0, 300.0, 350.0})
+    EXPECT_LT(tone_amplitude(sig.vibration.accel_ms2, 8000, f, 0, n), 1e-6) << f << " Hz";
+}
+
 TEST(Effects, OtherAxisAddsAnOffOrderMesh) {
   const Scenario s = with(rig(), EffectKind::kOtherAxis,
                           {{"amplitude_ms2", 0.4}, {"frequency_ratio", 1.25}, {"lag_s", 0.0}});
