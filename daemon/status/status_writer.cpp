@@ -462,6 +462,7 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.boolean("connected", m.connected);
     j.u64("queue_bytes", m.queue_bytes);
     j.u64("queue_pending", m.queue_pending);
+    j.u64("summary_queue_pending", m.summary_queue_pending);
     j.key("dropped");
     j.open('{');
     j.u64("event", m.dropped_event);

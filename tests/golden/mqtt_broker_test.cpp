@@ -30,12 +30,18 @@
 #include <vector>
 
 #include "golden_support.hpp"
+#include "mqtt/mqtt_publisher.hpp"
 #include "mqtt_support.hpp"
 
 namespace ptda::golden {
 namespace {
 
 using namespace std::chrono_literals;
+using ptda::daemon::EventKind;
+using ptda::daemon::MqttEvent;
+using ptda::daemon::MqttPublisher;
+using ptda::daemon::MqttSettings;
+using ptda::daemon::MqttStats;
 
 constexpr const char* kPrefix = "ptda/plant1/cell3/robot17/joint4";
 
@@ -203,6 +209,8 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
   ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "connected") == 0.0; }, 5s));
   ::kill(d, SIGHUP);
   ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "queue_pending") >= 3.0 && has_level_alarm(f); }, 15s));
+  // The window summaries of the outage wait in their own queue.
+  ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "summary_queue_pending") >= 2.0; }, 15s));
   const cli::JsonValue during = status_of(f);
   EXPECT_GT(during.at("mqtt").at("queue_bytes").as_number(), 0.0);
   EXPECT_GE(during.at("mqtt").at("connect_failures").as_number(), 1.0);
@@ -210,7 +218,12 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
 
   broker.start();
   ASSERT_TRUE(wait_until(
-      [&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0; }, 10s));
+      [&] {
+        return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0 &&
+               mqtt_number(f, "summary_queue_pending") == 0.0;
+      },
+      10s));
+  EXPECT_EQ(status_of(f).at("mqtt").at("dropped").at("summary").as_number(), 0.0);
   EXPECT_EQ(stop(d, SIGTERM), 0);
   std::this_thread::sleep_for(500ms);
   stop(sub, SIGTERM);
@@ -219,15 +232,134 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
   const std::vector<std::string> levels = logged_levels(log);
   ASSERT_GE(levels.size(), 3U) << log;
   check_complete(read_messages(f.dir / "sub.txt"), levels);
-  // The window summaries (QoS 0, rate-limited) carry the features of a judged window.
-  bool summary = false;
+  // The window summaries (queued, rate-limited) carry the features of a judged window; the ones of the
+  // outage arrived after it, all of them, numbered 1..M by summary_seq in window-time order.
+  std::uint64_t last_summary = 0;
+  double last_t = -1.0;
   for (const Message& m : read_messages(f.dir / "sub.txt")) {
     if (m.topic != std::string(kPrefix) + "/window") continue;
-    summary = true;
     EXPECT_EQ(m.json.at("type").as_string(), "summary");
-    EXPECT_GT(m.json.at("rms_res").as_number(), 0.0);
+    EXPECT_EQ(m.json.object.count("seq"), 0U);  // the alarm/state seq stays theirs alone
+    const auto n = static_cast<std::uint64_t>(m.json.at("summary_seq").as_number());
+    if (n == last_summary) continue;  // at least once
+    ASSERT_EQ(n, last_summary + 1);
+    last_summary = n;
+    EXPECT_GE(m.json.at("t_mono_s").as_number(), last_t);
+    last_t = m.json.at("t_mono_s").as_number();
+    if (m.json.at("status").as_string() == "scored") {
+      EXPECT_GT(m.json.at("rms_res").as_number(), 0.0);
+    }
   }
-  EXPECT_TRUE(summary);
+  EXPECT_GE(last_summary, 3U);
+}
+
+/// A summary-only publisher test without ptdad: events posted straight into MqttPublisher.
+MqttEvent summary_event(std::uint64_t n) {
+  MqttEvent e;
+  e.kind = EventKind::kSummary;
+  e.t_mono_ns = static_cast<std::int64_t>(n) * 1'000'000'000;
+  e.t_unix_ns = e.t_mono_ns + 1'700'000'000'000'000'000;
+  e.window_n = n;
+  e.status.assign("no_class");
+  return e;
+}
+
+MqttEvent alarm_event(std::uint64_t n) {
+  MqttEvent e;
+  e.kind = EventKind::kAlarm;
+  e.t_mono_ns = static_cast<std::int64_t>(n) * 1'000'000'000;
+  e.t_unix_ns = e.t_mono_ns + 1'700'000'000'000'000'000;
+  e.level.assign(n % 2 == 0 ? "normal" : "alarm");
+  e.causes.assign("rms");
+  return e;
+}
+
+// The smallest queue (queue_max_bytes 65536: 16 KiB for summaries) while the broker is down: 300
+// summaries and 10 alarms posted; the oldest summaries are dropped and counted, no alarm is. The
+// publisher is then closed and opened again (a daemon restart) with the broker up: the 10 alarms arrive
+// first with seq 1..10, then the kept summaries, the newest ones, consecutive and ending at the 300th.
+TEST(MqttBroker, ATinyQueueDropsTheOldestSummariesNeverAnAlarmAndARestartDeliversTheRest) {
+  const fs::path dir = scratch_dir("mqtt_tinyq");
+  const int port = free_port();
+  Broker broker(dir / "broker", port, "allow_anonymous true\n");
+  MqttSettings s;
+  s.cfg.enabled = true;
+  s.cfg.host = "127.0.0.1";
+  s.cfg.port = static_cast<std::uint32_t>(port);
+  s.cfg.topic_prefix = kPrefix;
+  s.cfg.queue_dir = dir / "queue";
+  s.cfg.queue_max_bytes = 65536;
+  s.cfg.window_summary_interval_s = 0.0;  // no health messages
+  s.cfg.reconnect_min_s = 0.1;
+  s.cfg.reconnect_max_s = 0.2;
+  s.joint = "joint4";
+  s.topic_prefix = kPrefix;
+  s.client_id = "ptdad-tinyq";
+  constexpr std::uint64_t kSummaries = 300, kAlarms = 10;
+  std::uint64_t dropped = 0;
+  {
+    MqttPublisher p(s);
+    for (std::uint64_t i = 1; i <= kSummaries; ++i) {
+      ASSERT_TRUE(p.post(summary_event(i)));
+      if (i % (kSummaries / kAlarms) == 0) {
+        ASSERT_TRUE(p.post(alarm_event(i / (kSummaries / kAlarms))));
+      }
+      std::this_thread::sleep_for(1ms);
+    }
+    ASSERT_TRUE(wait_until(
+        [&] {
+          const MqttStats st = p.stats();
+          return st.queue_pending == kAlarms && st.summary_queue_pending + st.dropped_summary == kSummaries;
+        },
+        5s));
+    const MqttStats st = p.stats();
+    EXPECT_FALSE(st.connected);
+    EXPECT_GT(st.dropped_summary, 0U);
+    EXPECT_GT(st.summary_queue_pending, 10U);
+    EXPECT_EQ(st.dropped_event, 0U);
+    EXPECT_EQ(st.dropped_handoff, 0U);
+    EXPECT_LE(st.queue_bytes, s.cfg.queue_max_bytes);
+    dropped = st.dropped_summary;
+  }
+  broker.start();
+  pid_t sub = spawn({"mosquitto_sub", "-h", "127.0.0.1", "-p", std::to_string(port), "-q", "1", "-t",
+                     std::string(kPrefix) + "/#", "-v", "-R"},
+                    dir / "sub.txt", dir / "sub.err");
+  const Reaper reaper{{&sub}};
+  std::this_thread::sleep_for(300ms);
+  {
+    MqttPublisher p(s);
+    ASSERT_TRUE(wait_until(
+        [&] {
+          const MqttStats st = p.stats();
+          return st.connected && st.queue_pending == 0 && st.summary_queue_pending == 0;
+        },
+        10s));
+  }
+  std::this_thread::sleep_for(300ms);
+  stop(sub, SIGTERM);
+  std::uint64_t last_alarm = 0, first_summary = 0, last_summary = 0;
+  for (const Message& m : read_messages(dir / "sub.txt")) {
+    if (m.topic == std::string(kPrefix) + "/alarm") {
+      EXPECT_EQ(last_summary, 0U) << "an alarm after a summary";
+      const auto seq = static_cast<std::uint64_t>(m.json.at("seq").as_number());
+      if (seq == last_alarm) continue;
+      ASSERT_EQ(seq, last_alarm + 1);
+      last_alarm = seq;
+    } else if (m.topic == std::string(kPrefix) + "/window") {
+      const auto seq = static_cast<std::uint64_t>(m.json.at("summary_seq").as_number());
+      EXPECT_EQ(static_cast<std::uint64_t>(m.json.at("n").as_number()), seq);  // posted with n = i
+      if (first_summary == 0) first_summary = seq;
+      if (seq == last_summary) continue;
+      if (last_summary != 0) {
+        ASSERT_EQ(seq, last_summary + 1);
+      }
+      last_summary = seq;
+    }
+  }
+  EXPECT_EQ(last_alarm, kAlarms);
+  EXPECT_EQ(first_summary, dropped + 1);  // the oldest went
+  EXPECT_EQ(last_summary, kSummaries);
 }
 
 TEST(MqttBroker, QueuedEventsSurviveKillDashNineDuringAnOutage) {
