@@ -333,6 +333,8 @@ void Pipeline::configure_alarm_manager() {
   amc.latch = cfg_.alarm.latch;
   alarm_time_ns_ = clock_.now_ns();
   alarm_ = std::make_unique<AlarmManager>(amc, alarm_time_ns_);
+  level_ring_ = std::make_unique<LevelChangeRing>();
+  alarm_->set_change_ring(level_ring_.get());
 }
 
 void Pipeline::configure_rings_and_timing() {

@@ -253,6 +253,62 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
   EXPECT_GE(last_summary, 3U);
 }
 
+// Issue 15: the supervisor looks every status period, but the processing thread records every level
+// change (LevelChangeRing). A fast replay of the healthy training recording (about 50 s in well under
+// 5 s) with a 5 s status period makes its level changes (fault -> normal at the first judged window,
+// fault at the end of the input) within the first period: each is its own MQTT alarm event (seq
+// consecutive) and its own history line. Before the ring, the supervisor saw only the last level.
+TEST(MqttBroker, TwoLevelChangesWithinOneStatusPeriodAreTwoEvents) {
+  const Fixture f = prepare("twochanges");
+  {
+    std::string cfg = read_file(f.config);
+    for (const auto& [from, to] :
+         {std::pair<std::string, std::string>{"status_period_s = 0.05", "status_period_s = 5.0"},
+          {"pace = \"realtime\"", "pace = \"fast\""},
+          {"pace = \"realtime\"", "pace = \"fast\""},
+          {"recording = \"" + f.recording.string(), "recording = \"" + (f.dir / "train").string()},
+          {"[alarm]\n", "[history]\ndir = \"" + (f.dir / "history").string() + "\"\n\n[alarm]\n"}}) {
+      const std::size_t at = cfg.find(from);
+      ASSERT_NE(at, std::string::npos) << from;
+      cfg.replace(at, from.size(), to);
+    }
+    std::ofstream(f.config) << cfg;
+  }
+  Broker broker(f.dir / "broker", f.port, "allow_anonymous true\n");
+  broker.start();
+  pid_t sub = start_subscriber(f);
+  std::this_thread::sleep_for(300ms);
+  std::vector<std::string> args = ptdad_args(f);
+  args.emplace_back("--exit-at-end");
+  pid_t d = spawn(args, f.dir / "d.out", f.dir / "d.err");
+  const Reaper reaper{{&d, &sub}};
+  // The first status period ends after 5 s: the replay is over by then, --exit-at-end stops the daemon.
+  ASSERT_TRUE(
+      wait_until([&] { return read_file(f.dir / "d.err").find("stopped") != std::string::npos; }, 20s));
+  EXPECT_EQ(stop(d, SIGTERM), 0);
+  std::this_thread::sleep_for(500ms);
+  stop(sub, SIGTERM);
+  const std::string log = read_file(f.dir / "d.err");
+  const std::vector<std::string> levels = logged_levels(log);
+  ASSERT_GE(levels.size(), 2U) << log;  // normal (warnings possible), fault at the end
+  EXPECT_EQ(levels.front(), "normal");
+  EXPECT_EQ(levels.back(), "fault");
+  EXPECT_EQ(log.find("more not recorded"), std::string::npos) << log;
+  check_complete(read_messages(f.dir / "sub.txt"), levels);
+  // One status.json write at most (the first period) saw all of them: the history has one line each.
+  std::vector<std::string> history_levels;
+  {
+    std::ifstream in(f.dir / "history" / "history.jsonl");
+    for (std::string line; std::getline(in, line);) {
+      const cli::JsonValue j = cli::parse_json(line, "history.jsonl");
+      if (j.at("type").as_string() != "state") continue;
+      if (j.at("reason").as_string().find("; cause ") == std::string::npos) continue;  // not a level change
+      history_levels.push_back(j.at("level").as_string());
+    }
+  }
+  EXPECT_EQ(history_levels, levels);
+}
+
 /// A summary-only publisher test without ptdad: events posted straight into MqttPublisher.
 MqttEvent summary_event(std::uint64_t n) {
   MqttEvent e;
