@@ -1,5 +1,7 @@
 #include "alarm/alarm_manager.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -199,6 +201,9 @@ void AlarmManager::set_level(AlarmLevel level, std::int64_t t_ns) noexcept {
   c.causes = report().causes;
   c.t_ns = t_ns;
   c.number = level_changes_.get();
+  timespec ts{};
+  ::clock_gettime(CLOCK_MONOTONIC, &ts);  // vDSO: no system call, never blocks
+  c.recorded_mono_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
   if (level == AlarmLevel::kAlarm || level == AlarmLevel::kWarning) {
     c.have_window = true;
     c.window = state_.trip;

@@ -119,8 +119,9 @@ struct LevelChange {
   std::uint8_t causes = 0;   ///< report().causes right after the change
   std::int64_t t_ns = 0;     ///< when (the manager's time base, as AlarmState::since_ns)
   std::uint64_t number = 0;  ///< AlarmCounters::level_changes counting this one (a gap = ring overflow)
-  bool have_window = false;  ///< `window` is valid
-  TripInfo window;           ///< warning/alarm: the window that raised it; normal: the last scored window
+  std::int64_t recorded_mono_ns = 0;  ///< CLOCK_MONOTONIC when recorded (the durability latency's start)
+  bool have_window = false;           ///< `window` is valid
+  TripInfo window;  ///< warning/alarm: the window that raised it; normal: the last scored window
 };
 /// Processing thread (producer) -> supervisor (consumer). 64 changes: far more than the debouncer lets
 /// happen within one status period.

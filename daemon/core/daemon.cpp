@@ -253,6 +253,7 @@ void Daemon::mqtt_alarm(const LevelChange& c, const char* causes) noexcept {
     e.t_mono_ns = c.t_ns;
   }
   e.t_unix_ns = e.t_mono_ns + drivers::realtime_offset_ns(clock_);
+  e.recorded_mono_ns = c.recorded_mono_ns;
   (void)mqtt_->post(e);
 }
 
@@ -311,6 +312,7 @@ void Daemon::configure() {
   auto p = std::make_unique<Pipeline>(cfg_, mode_, clock_);
   p->set_window_sink(sink_);
   p->enable_window_log(history_ != nullptr || mqtt_ != nullptr);
+  p->set_wake_fd(event_fd_);
   p->set_device_factory(factory_);
   p->set_probe(probe_);
   p->configure();
@@ -422,6 +424,7 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   auto fresh = std::make_unique<Pipeline>(cfg, mode, clock_);
   fresh->set_window_sink(sink_);
   fresh->enable_window_log(history_ != nullptr || mqtt_ != nullptr);
+  fresh->set_wake_fd(event_fd_);
   fresh->set_device_factory(factory_);
   fresh->set_probe(probe_);
   {
@@ -1055,6 +1058,12 @@ int Daemon::run() {
     if (rc > 0 && (fds[1].revents & POLLIN) != 0) {
       std::uint64_t v = 0;
       [[maybe_unused]] const auto n = ::read(event_fd_, &v, sizeof v);
+      // Woken by the processing thread for a level change: its MQTT event goes to the publisher (and
+      // from there to the disk queue) now, not at the next status period (docs/fleet.md, kill -9).
+      if (pipeline_) {
+        if (history_ || mqtt_) drain_windows(*pipeline_);
+        log_alarm_changes(*pipeline_);
+      }
     }
     if (stop_requested_.load(std::memory_order_acquire)) break;
     if (reload_requested_.exchange(false)) {

@@ -299,6 +299,8 @@ MqttStats MqttPublisher::stats() const noexcept {
   st.dropped_handoff = dropped_handoff_.load(std::memory_order_relaxed);
   st.dropped_io = dropped_io_.load(std::memory_order_relaxed);
   st.published = published_.load(std::memory_order_relaxed);
+  st.alarm_durable_us_last = durable_us_last_.load(std::memory_order_relaxed);
+  st.alarm_durable_us_max = durable_us_max_.load(std::memory_order_relaxed);
   st.connect_failures = connect_failures_.load(std::memory_order_relaxed);
   std::lock_guard lock(error_mutex_);
   st.last_error = last_error_;
@@ -417,6 +419,15 @@ void MqttPublisher::handle(const MqttEvent& e, std::int64_t /*now_ns*/) {
     dropped_io_.fetch_add(1, std::memory_order_relaxed);
     set_error(std::string("queue: ") + err.what(), true);
     return;
+  }
+  if (e.recorded_mono_ns > 0 && e.kind != EventKind::kSummary) {
+    // From the processing thread's record of the level change to the fsync'ed queue record: what a
+    // kill -9 or a power cut can lose of an alarm whose outputs were already set.
+    const auto us =
+        static_cast<std::uint64_t>(std::max<std::int64_t>(0, steady_ns() - e.recorded_mono_ns) / 1000);
+    durable_us_last_.store(us, std::memory_order_relaxed);
+    if (us > durable_us_max_.load(std::memory_order_relaxed))
+      durable_us_max_.store(us, std::memory_order_relaxed);
   }
   if (e.kind == EventKind::kState) {
     last_state_ = e;

@@ -47,9 +47,12 @@ struct MqttEvent {
   std::uint32_t abnormal_in_last_n = 0;
   double rms_res = 0.0, entropy_res = 0.0;
   double rms_lo = 0.0, rms_hi = 0.0, entropy_lo = 0.0, entropy_hi = 0.0;
-  double speed_rad_s = 0.0;    ///< summary
-  std::uint64_t window_n = 0;  ///< summary: the window's number
-  bool abnormal = false;       ///< summary
+  double speed_rad_s = 0.0;           ///< summary
+  std::uint64_t window_n = 0;         ///< summary: the window's number
+  bool abnormal = false;              ///< summary
+  std::int64_t recorded_mono_ns = 0;  ///< alarm/fault: CLOCK_MONOTONIC when the processing thread
+                                      ///< recorded the change (0: unknown); the publisher measures
+                                      ///< from it to the queue's fsync
 };
 
 /// The [mqtt] table resolved for one daemon: the joint and the password filled in.
@@ -142,7 +145,7 @@ class MqttPublisher {
   std::atomic<bool> connected_flag_{false};
   std::atomic<std::uint64_t> dropped_handoff_{0}, dropped_io_{0}, published_{0}, connect_failures_{0},
       queue_bytes_{0}, queue_pending_{0}, summary_pending_{0}, queue_dropped_summaries_{0},
-      queue_dropped_events_{0};
+      queue_dropped_events_{0}, durable_us_last_{0}, durable_us_max_{0};
   mutable std::mutex error_mutex_;
   FixedString<256> last_error_;
 };

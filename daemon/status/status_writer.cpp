@@ -472,6 +472,8 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.close('}');
     j.u64("published", m.published);
     j.u64("connect_failures", m.connect_failures);
+    j.u64("alarm_durable_us_last", m.alarm_durable_us_last);
+    j.u64("alarm_durable_us_max", m.alarm_durable_us_max);
     if (m.last_error.len > 0) {
       j.str("last_error", m.last_error.view());
     } else {

@@ -66,6 +66,8 @@ struct MqttStats {
   std::uint64_t dropped_io = 0;       ///< events the queue could not append (I/O error)
   std::uint64_t published = 0;        ///< PUBACKed queued events and summaries
   std::uint64_t connect_failures = 0;
+  std::uint64_t alarm_durable_us_last = 0;  ///< level change recorded -> its queue record fsync'ed
+  std::uint64_t alarm_durable_us_max = 0;   ///< the largest since the publisher started
   FixedString<256> last_error;
 };
 

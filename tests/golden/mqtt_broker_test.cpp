@@ -309,6 +309,59 @@ TEST(MqttBroker, TwoLevelChangesWithinOneStatusPeriodAreTwoEvents) {
   EXPECT_EQ(history_levels, levels);
 }
 
+// Issue 15 item 3: an alarm is in the disk queue within milliseconds of its level change, whatever the
+// status period and the broker. The broker is down and the status period 10 s (the supervisor's own
+// look comes after the kill): the processing thread wakes the supervisor for the change, which posts it,
+// and the publisher appends it (fsync). The replay's first faulty window raises the alarm about 1.05 s
+// after the start (data time, the realtime pace); ptdad is killed with SIGKILL 2.5 s after its
+// "running" line. The restarted daemon (broker up) finds the alarm in the queue and delivers it as
+// seq 1. Before the wake-up the event waited for the status period and died with the process.
+TEST(MqttBroker, AnAlarmIsQueuedBeforeTheStatusPeriodAndSurvivesKillDashNine) {
+  const Fixture f = prepare("kill9fast");
+  const auto set_period = [&](const std::string& from, const std::string& to) {
+    std::string cfg = read_file(f.config);
+    const std::size_t at = cfg.find(from);
+    ASSERT_NE(at, std::string::npos);
+    cfg.replace(at, from.size(), to);
+    std::ofstream(f.config) << cfg;
+  };
+  set_period("status_period_s = 0.05", "status_period_s = 10.0");
+  Broker broker(f.dir / "broker", f.port, "allow_anonymous true\n");
+  pid_t d = spawn(ptdad_args(f), f.dir / "d.out", f.dir / "d.err");
+  pid_t sub = -1;
+  const Reaper reaper{{&d, &sub}};
+  ASSERT_TRUE(
+      wait_until([&] { return read_file(f.dir / "d.err").find("running (") != std::string::npos; }, 10s));
+  std::this_thread::sleep_for(2500ms);
+  EXPECT_EQ(stop(d, SIGKILL), -SIGKILL);
+  const std::string first_log = read_file(f.dir / "d.err");
+  ASSERT_NE(first_log.find("alarm level alarm (was fault)"), std::string::npos) << first_log;
+  EXPECT_FALSE(fs::exists(f.status / "status.json"));  // the supervisor's status period never came
+
+  broker.start();
+  sub = start_subscriber(f);
+  std::this_thread::sleep_for(300ms);
+  set_period("status_period_s = 10.0", "status_period_s = 0.05");
+  d = spawn(ptdad_args(f), f.dir / "d2.out", f.dir / "d2.err");
+  ASSERT_TRUE(wait_until(
+      [&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "published") >= 1.0; }, 10s));
+  EXPECT_EQ(stop(d, SIGTERM), 0);
+  std::this_thread::sleep_for(500ms);
+  stop(sub, SIGTERM);
+  const std::string second_log = read_file(f.dir / "d2.err");
+  const std::string opened = "queue " + f.queue.string() + " (";
+  const std::size_t at = second_log.find(opened);
+  ASSERT_NE(at, std::string::npos) << second_log;
+  EXPECT_GE(std::stod(second_log.substr(at + opened.size())), 1.0) << second_log;
+  bool first_alarm = false;
+  for (const Message& m : read_messages(f.dir / "sub.txt")) {
+    if (m.topic != std::string(kPrefix) + "/alarm") continue;
+    first_alarm = m.json.at("seq").as_number() == 1.0 && m.json.at("level").as_string() == "alarm";
+    break;
+  }
+  EXPECT_TRUE(first_alarm) << read_file(f.dir / "sub.txt");
+}
+
 /// A summary-only publisher test without ptdad: events posted straight into MqttPublisher.
 MqttEvent summary_event(std::uint64_t n) {
   MqttEvent e;

@@ -410,6 +410,7 @@ TEST(StatusWriter, MqttFieldsAndMetrics) {
   EXPECT_NE(
       json.find(R"("mqtt":{"connected":false,"queue_bytes":2963,"queue_pending":5,"summary_queue_pending":9,)"
                 R"("dropped":{"event":1,"summary":4,"handoff":0,"io":0},"published":13,"connect_failures":7,)"
+                R"("alarm_durable_us_last":0,"alarm_durable_us_max":0,)"
                 R"("last_error":"broker refused the connection: Connection Refused: not authorised."})"),
       std::string::npos)
       << json;
