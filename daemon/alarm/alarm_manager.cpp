@@ -1,5 +1,7 @@
 #include "alarm/alarm_manager.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -62,6 +64,7 @@ AlarmLevel AlarmManager::on_window(const dsp::WindowResult& w, std::int64_t t_mo
   state_.last_entropy_res = w.features.entropy_res;
   state_.last_abnormal_in_last_n = w.abnormal_in_last_n;
   state_.last_abnormal = abnormal;
+  last_thresholds_ = w.thresholds;
   state_.condition = w.alarm;
   // The sequential detector's warning level (docs/method.md, "Decision") warns as well.
   warning_condition_ = cfg_.warning_enabled && (w.abnormal_in_last_n >= cfg_.warning_k || w.seq_warn);
@@ -186,10 +189,34 @@ void AlarmManager::evaluate(std::int64_t t_ns) noexcept {
 
 void AlarmManager::set_level(AlarmLevel level, std::int64_t t_ns) noexcept {
   if (level == state_.level) return;
+  const AlarmLevel from = state_.level;
   state_.level = level;
   state_.since_ns = t_ns;
   level_changes_.add();
   if (level == AlarmLevel::kWarning) warnings_raised_.add();
+  if (change_ring_ == nullptr) return;
+  LevelChange c;
+  c.from = from;
+  c.to = level;
+  c.causes = report().causes;
+  c.t_ns = t_ns;
+  c.number = level_changes_.get();
+  timespec ts{};
+  ::clock_gettime(CLOCK_MONOTONIC, &ts);  // vDSO: no system call, never blocks
+  c.recorded_mono_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+  if (level == AlarmLevel::kAlarm || level == AlarmLevel::kWarning) {
+    c.have_window = true;
+    c.window = state_.trip;
+  } else if (level == AlarmLevel::kNormal && state_.have_window) {
+    c.have_window = true;
+    c.window.t_ns = state_.last_window_t_ns;
+    c.window.class_id = state_.last_class_id;
+    c.window.abnormal_in_last_n = state_.last_abnormal_in_last_n;
+    c.window.rms_res = state_.last_rms_res;
+    c.window.entropy_res = state_.last_entropy_res;
+    c.window.thresholds = last_thresholds_;
+  }
+  if (!change_ring_->try_push(c)) level_changes_dropped_.add();
 }
 
 drivers::AlarmReport AlarmManager::report() const noexcept {
@@ -221,6 +248,7 @@ AlarmCounters AlarmManager::counters() const noexcept {
   c.clears_refused = clears_refused_.get();
   c.clears_nothing = clears_nothing_.get();
   c.level_changes = level_changes_.get();
+  c.level_changes_dropped = level_changes_dropped_.get();
   return c;
 }
 

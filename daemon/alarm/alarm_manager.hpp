@@ -32,6 +32,7 @@
 #include "ptda/drivers/alarm_output.hpp"
 #include "ptda/drivers/counter.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
+#include "rt/spsc_ring.hpp"
 
 namespace ptda::daemon {
 
@@ -107,7 +108,24 @@ struct AlarmCounters {
   std::uint64_t clears_refused = 0;
   std::uint64_t clears_nothing = 0;
   std::uint64_t level_changes = 0;
+  std::uint64_t level_changes_dropped = 0;  ///< changes the LevelChangeRing could not hold
 };
+
+/// One change of the alarm level, recorded where it happens (AlarmManager::set_level) so that two
+/// changes between two looks of the supervisor stay two events. Trivially copyable (SpscRing).
+struct LevelChange {
+  drivers::AlarmLevel from = drivers::AlarmLevel::kFault;
+  drivers::AlarmLevel to = drivers::AlarmLevel::kFault;
+  std::uint8_t causes = 0;   ///< report().causes right after the change
+  std::int64_t t_ns = 0;     ///< when (the manager's time base, as AlarmState::since_ns)
+  std::uint64_t number = 0;  ///< AlarmCounters::level_changes counting this one (a gap = ring overflow)
+  std::int64_t recorded_mono_ns = 0;  ///< CLOCK_MONOTONIC when recorded (the durability latency's start)
+  bool have_window = false;           ///< `window` is valid
+  TripInfo window;  ///< warning/alarm: the window that raised it; normal: the last scored window
+};
+/// Processing thread (producer) -> supervisor (consumer). 64 changes: far more than the debouncer lets
+/// happen within one status period.
+using LevelChangeRing = SpscRing<LevelChange, 64>;
 
 class AlarmManager {
  public:
@@ -150,6 +168,11 @@ class AlarmManager {
   [[nodiscard]] drivers::AlarmReport report() const noexcept;
 
   [[nodiscard]] drivers::AlarmLevel level() const noexcept { return state_.level; }
+  /// Every later level change is also pushed into `ring` (nullptr: none); a full ring counts
+  /// level_changes_dropped. Thread: the owner, before it runs. Never allocates.
+  void set_change_ring(LevelChangeRing* ring) noexcept { change_ring_ = ring; }
+  /// AlarmCounters::level_changes, cheaper. Thread: the owner. Never allocates.
+  [[nodiscard]] std::uint64_t level_change_count() const noexcept { return level_changes_.get(); }
   /// Thread: the owner (copy it to publish elsewhere). Never allocates.
   [[nodiscard]] const AlarmState& state() const noexcept { return state_; }
   [[nodiscard]] const AlarmManagerConfig& config() const noexcept { return cfg_; }
@@ -174,10 +197,13 @@ class AlarmManager {
   bool judged_ = false;  ///< a scored window was seen: kNormal/kWarning are possible from here on
   bool ended_ = false;   ///< set_input_ended(): no further verdict
   ClearResult last_clear_ = ClearResult::kNothingToClear;
+  dsp::FeatureThresholds last_thresholds_;  ///< of the last scored window (a change to normal reports it)
+  LevelChangeRing* change_ring_ = nullptr;
   std::atomic<std::uint32_t> posted_clears_{0};
   std::atomic<std::uint8_t> posted_source_{0};
   drivers::Counter windows_scored_, windows_abnormal_, windows_unclassified_, alarms_raised_,
-      warnings_raised_, faults_entered_, clears_accepted_, clears_refused_, clears_nothing_, level_changes_;
+      warnings_raised_, faults_entered_, clears_accepted_, clears_refused_, clears_nothing_, level_changes_,
+      level_changes_dropped_;
 };
 
 }  // namespace ptda::daemon

@@ -146,11 +146,16 @@ void Daemon::build_history() {
 }
 
 void Daemon::history_state(const PipelineStatus& ps, const char* reason) noexcept {
+  history_state(ps, reason, ps.alarm.level, ps.report.causes);
+}
+
+void Daemon::history_state(const PipelineStatus& ps, const char* reason, drivers::AlarmLevel level,
+                           std::uint8_t cause_bits) noexcept {
   char causes[64];
-  cause_text(ps.report.causes, causes, sizeof causes);
+  cause_text(cause_bits, causes, sizeof causes);
   const DaemonState st = state_.load(std::memory_order_relaxed);
   history_->state(clock_.now_ns() + drivers::realtime_offset_ns(clock_), daemon_state_name(st),
-                  phase_name(ps.phase), drivers::alarm_level_name(ps.alarm.level), causes, reason);
+                  phase_name(ps.phase), drivers::alarm_level_name(level), causes, reason);
 }
 
 void Daemon::build_mqtt() {
@@ -227,30 +232,28 @@ void Daemon::mqtt_state(const PipelineStatus& ps) noexcept {
   (void)mqtt_->post(e);
 }
 
-void Daemon::mqtt_alarm(const PipelineStatus& ps, const char* causes) noexcept {
-  const drivers::AlarmLevel level = ps.alarm.level;
+void Daemon::mqtt_alarm(const LevelChange& c, const char* causes) noexcept {
   MqttEvent& e = mqtt_event_;
   e = MqttEvent{};
-  e.kind = level == drivers::AlarmLevel::kFault ? EventKind::kFault : EventKind::kAlarm;
-  e.level.assign(drivers::alarm_level_name(level));
+  e.kind = c.to == drivers::AlarmLevel::kFault ? EventKind::kFault : EventKind::kAlarm;
+  e.level.assign(drivers::alarm_level_name(c.to));
   e.causes.assign(causes);
-  const bool episode = level == drivers::AlarmLevel::kAlarm || level == drivers::AlarmLevel::kWarning;
-  if (episode || (level == drivers::AlarmLevel::kNormal && ps.have_window)) {
+  if (c.have_window) {  // warning/alarm: the window that raised it; normal: the last judged window
     e.have_features = true;
-    e.t_mono_ns = episode ? ps.alarm.trip.t_ns : ps.last_window.ref.t_end_ns;
-    e.class_id = episode ? ps.alarm.trip.class_id : ps.last_window.class_id;
-    e.rms_res = episode ? ps.alarm.trip.rms_res : ps.last_window.features.rms_res;
-    e.entropy_res = episode ? ps.alarm.trip.entropy_res : ps.last_window.features.entropy_res;
-    const dsp::FeatureThresholds& th = episode ? ps.alarm.trip.thresholds : ps.last_window.thresholds;
-    e.rms_lo = th.rms.lo;
-    e.rms_hi = th.rms.hi;
-    e.entropy_lo = th.entropy.lo;
-    e.entropy_hi = th.entropy.hi;
-    e.abnormal_in_last_n = episode ? ps.alarm.trip.abnormal_in_last_n : ps.last_window.abnormal_in_last_n;
+    e.t_mono_ns = c.window.t_ns;
+    e.class_id = c.window.class_id;
+    e.rms_res = c.window.rms_res;
+    e.entropy_res = c.window.entropy_res;
+    e.rms_lo = c.window.thresholds.rms.lo;
+    e.rms_hi = c.window.thresholds.rms.hi;
+    e.entropy_lo = c.window.thresholds.entropy.lo;
+    e.entropy_hi = c.window.thresholds.entropy.hi;
+    e.abnormal_in_last_n = c.window.abnormal_in_last_n;
   } else {
-    e.t_mono_ns = ps.alarm.since_ns;
+    e.t_mono_ns = c.t_ns;
   }
   e.t_unix_ns = e.t_mono_ns + drivers::realtime_offset_ns(clock_);
+  e.recorded_mono_ns = c.recorded_mono_ns;
   (void)mqtt_->post(e);
 }
 
@@ -309,6 +312,7 @@ void Daemon::configure() {
   auto p = std::make_unique<Pipeline>(cfg_, mode_, clock_);
   p->set_window_sink(sink_);
   p->enable_window_log(history_ != nullptr || mqtt_ != nullptr);
+  p->set_wake_fd(event_fd_);
   p->set_device_factory(factory_);
   p->set_probe(probe_);
   p->configure();
@@ -420,6 +424,7 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   auto fresh = std::make_unique<Pipeline>(cfg, mode, clock_);
   fresh->set_window_sink(sink_);
   fresh->enable_window_log(history_ != nullptr || mqtt_ != nullptr);
+  fresh->set_wake_fd(event_fd_);
   fresh->set_device_factory(factory_);
   fresh->set_probe(probe_);
   {
@@ -428,6 +433,8 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
     if (pipeline_) {
       pipeline_->deactivate();
       if (history_ || mqtt_) drain_windows(*pipeline_);  // its last windows, before it goes
+      log_alarm_changes(*pipeline_);                     // and its last level changes
+      last_level_changes_ = 0;                           // the next pipeline numbers its changes from 1
       // Field training goes on: keep the collected windows for the new pipeline (held here until it
       // started, so a reload that fails keeps them for the restart with the previous configuration).
       if (mode == PipelineMode::kTrain && pipeline_->mode() == PipelineMode::kTrain) {
@@ -805,55 +812,65 @@ void Daemon::log_counter_changes() noexcept {
   last_slicer_ = sc;
 }
 
-// Runs on the supervisor (the processing thread only sets the alarm state; it never logs). Lines stay
-// under spdlog's 250-byte inline buffer, so logging them does not allocate.
-void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
-  const drivers::AlarmLevel level = ps.alarm.level;
-  const std::uint64_t changes = ps.alarm_counters.level_changes;
-  if (level == last_level_ && changes == last_level_changes_) return;
-  // A reload starts a new pipeline whose counter starts again at 0.
-  const std::uint64_t seen = changes >= last_level_changes_ ? changes - last_level_changes_ : changes;
-  const std::uint64_t missed = seen > 1 ? seen - 1 : 0;
-  const drivers::AlarmLevel was = last_level_;
+// Runs on the supervisor (the processing thread records each level change in the pipeline's
+// LevelChangeRing; it never logs). Each change is its own log line, history line and MQTT event, also
+// when several happened since the last look. A new pipeline starts at fault without a recorded change:
+// when the previous one ended at another level, that start is reported from the new one's status.
+void Daemon::log_alarm_changes(Pipeline& p) noexcept {
+  const PipelineStatus ps = p.status();
+  if (ps.alarm_counters.level_changes == 0 && ps.alarm.level != last_level_) {
+    LevelChange& c = level_change_;
+    c = LevelChange{};
+    c.from = last_level_;
+    c.to = ps.alarm.level;
+    c.causes = ps.report.causes;
+    c.t_ns = ps.alarm.since_ns;
+    report_level_change(c, ps, 0);
+  }
+  while (p.pop_level_change(level_change_)) {
+    const LevelChange& c = level_change_;
+    const std::uint64_t missed = c.number > last_level_changes_ + 1 ? c.number - last_level_changes_ - 1 : 0;
+    last_level_changes_ = c.number;
+    report_level_change(c, ps, missed);
+  }
+}
+
+// Lines stay under spdlog's 250-byte inline buffer, so logging them does not allocate.
+void Daemon::report_level_change(const LevelChange& c, const PipelineStatus& ps,
+                                 std::uint64_t missed) noexcept {
+  const drivers::AlarmLevel level = c.to;
+  const drivers::AlarmLevel was = c.from;
   last_level_ = level;
-  last_level_changes_ = changes;
 
   char since[32] = "?";
-  (void)format_rfc3339_utc(ps.alarm.since_ns + drivers::realtime_offset_ns(clock_), since, sizeof since);
+  (void)format_rfc3339_utc(c.t_ns + drivers::realtime_offset_ns(clock_), since, sizeof since);
   char head[96];
   std::snprintf(head, sizeof head, "alarm level %s (was %s", drivers::alarm_level_name(level).data(),
                 drivers::alarm_level_name(was).data());
   char extra[64] = "";
   if (missed > 0) {
-    std::snprintf(extra, sizeof extra, "; %llu more", static_cast<unsigned long long>(missed));
+    std::snprintf(extra, sizeof extra, "; %llu more not recorded: ring full",
+                  static_cast<unsigned long long>(missed));
   }
   const dsp::DecisionConfig& dc = cfg_.pipeline.decision;
   char evidence[320] = "";
   char causes[64];
-  if (level == drivers::AlarmLevel::kAlarm || level == drivers::AlarmLevel::kWarning ||
-      (level == drivers::AlarmLevel::kNormal && ps.have_window)) {
+  cause_text(c.causes, causes, sizeof causes);
+  if (c.have_window) {
     // Alarm/warning: the window that raised it; normal: the last judged window.
-    const bool episode = level != drivers::AlarmLevel::kNormal;
-    const std::int32_t cls = episode ? ps.alarm.trip.class_id : ps.last_window.class_id;
-    const double rms = episode ? ps.alarm.trip.rms_res : ps.last_window.features.rms_res;
-    const double ent = episode ? ps.alarm.trip.entropy_res : ps.last_window.features.entropy_res;
-    const dsp::FeatureThresholds& th = episode ? ps.alarm.trip.thresholds : ps.last_window.thresholds;
-    const std::uint32_t ab = episode ? ps.alarm.trip.abnormal_in_last_n : ps.last_window.abnormal_in_last_n;
     char f1[64], f2[64];
-    (void)feature_text(f1, sizeof f1, "rms_res", rms, th.rms);
-    (void)feature_text(f2, sizeof f2, "entropy_res", ent, th.entropy);
-    cause_text(ps.report.causes, causes, sizeof causes);
-    std::snprintf(evidence, sizeof evidence,
-                  "class %d, %s, %s, %u of %u abnormal (warn %u, alarm %u); cause %s", static_cast<int>(cls),
-                  f1, f2, static_cast<unsigned>(ab), static_cast<unsigned>(dc.n),
-                  static_cast<unsigned>(cfg_.alarm.warning ? cfg_.alarm.warning_k : 0),
-                  static_cast<unsigned>(dc.k), causes);
+    (void)feature_text(f1, sizeof f1, "rms_res", c.window.rms_res, c.window.thresholds.rms);
+    (void)feature_text(f2, sizeof f2, "entropy_res", c.window.entropy_res, c.window.thresholds.entropy);
+    std::snprintf(
+        evidence, sizeof evidence, "class %d, %s, %s, %u of %u abnormal (warn %u, alarm %u); cause %s",
+        static_cast<int>(c.window.class_id), f1, f2, static_cast<unsigned>(c.window.abnormal_in_last_n),
+        static_cast<unsigned>(dc.n), static_cast<unsigned>(cfg_.alarm.warning ? cfg_.alarm.warning_k : 0),
+        static_cast<unsigned>(dc.k), causes);
   } else {
-    cause_text(ps.report.causes, causes, sizeof causes);
     std::snprintf(evidence, sizeof evidence, "no verdict (%s); cause %s", phase_name(ps.phase), causes);
   }
-  if (history_) history_state(ps, evidence);
-  if (mqtt_) mqtt_alarm(ps, causes);
+  if (history_) history_state(ps, evidence, level, c.causes);
+  if (mqtt_) mqtt_alarm(c, causes);
   // spdlog formats the message, then the sink's pattern ("[2026-11-27 16:53:47.995] [warning] ", 36
   // bytes, and the newline) around it, each in a 250-byte inline buffer: a longer line would allocate
   // on the supervisor. A line longer than kMaxLine is logged as two: the level change, then its
@@ -974,7 +991,7 @@ void Daemon::supervise(std::int64_t now) noexcept {
     snapshot_.history_windows_dropped = hk.ring_dropped;
     snapshot_.history_last_errno = hk.last_errno;
   }
-  if (pipeline_) log_alarm_changes(pipeline_->status());
+  if (pipeline_) log_alarm_changes(*pipeline_);
   if (mqtt_ && pipeline_) mqtt_state(pipeline_->status());
   snapshot_.mqtt = mqtt_ ? mqtt_->stats() : MqttStats{};
   snapshot_.state_files[static_cast<std::size_t>(StateFile::kBaseline)] = baseline_health_;
@@ -1041,6 +1058,12 @@ int Daemon::run() {
     if (rc > 0 && (fds[1].revents & POLLIN) != 0) {
       std::uint64_t v = 0;
       [[maybe_unused]] const auto n = ::read(event_fd_, &v, sizeof v);
+      // Woken by the processing thread for a level change: its MQTT event goes to the publisher (and
+      // from there to the disk queue) now, not at the next status period (docs/fleet.md, kill -9).
+      if (pipeline_) {
+        if (history_ || mqtt_) drain_windows(*pipeline_);
+        log_alarm_changes(*pipeline_);
+      }
     }
     if (stop_requested_.load(std::memory_order_acquire)) break;
     if (reload_requested_.exchange(false)) {
@@ -1066,6 +1089,7 @@ int Daemon::run() {
   now = clock_.now_ns();
   update_state_and_reason(now);
   if ((history_ || mqtt_) && pipeline_) drain_windows(*pipeline_);
+  if (pipeline_) log_alarm_changes(*pipeline_);  // the changes since the last status period
   if (mqtt_ && pipeline_) mqtt_state(pipeline_->status());
   state_.store(DaemonState::kStopping);
   fill_snapshot(now);

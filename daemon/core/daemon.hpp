@@ -136,11 +136,15 @@ class Daemon {
   void log_status_write_changes() noexcept;
   void build_history();  ///< history_ from cfg_ ([history])
   void history_state(const PipelineStatus& ps, const char* reason) noexcept;  ///< a state line
-  void log_alarm_changes(const PipelineStatus& ps) noexcept;
+  void history_state(const PipelineStatus& ps, const char* reason, drivers::AlarmLevel level,
+                     std::uint8_t causes) noexcept;
+  /// Every level change `p` recorded since the last call: log line, history line, MQTT event each.
+  void log_alarm_changes(Pipeline& p) noexcept;
+  void report_level_change(const LevelChange& c, const PipelineStatus& ps, std::uint64_t missed) noexcept;
   void build_mqtt();                                   ///< mqtt_ from cfg_ ([mqtt]); keeps an unchanged one
   void drain_windows(Pipeline& p) noexcept;            ///< the window log into history and MQTT
   void mqtt_state(const PipelineStatus& ps) noexcept;  ///< a state event when state/phase/level changed
-  void mqtt_alarm(const PipelineStatus& ps, const char* causes) noexcept;  ///< an alarm/fault event
+  void mqtt_alarm(const LevelChange& c, const char* causes) noexcept;  ///< an alarm/fault event
   void restart_pipeline(const DaemonConfig& cfg, PipelineMode mode);
 
   DaemonOptions options_;
@@ -193,8 +197,9 @@ class Daemon {
   drivers::SampleSourceCounters last_source_{};
   dsp::SlicerCounters last_slicer_{};
   Phase last_phase_ = Phase::kStarting;
-  drivers::AlarmLevel last_level_ = drivers::AlarmLevel::kFault;  ///< level seen at the last supervise()
-  std::uint64_t last_level_changes_ = 0;                          ///< AlarmCounters::level_changes then
+  drivers::AlarmLevel last_level_ = drivers::AlarmLevel::kFault;  ///< the last level change reported
+  std::uint64_t last_level_changes_ = 0;  ///< its LevelChange::number (0: none of this pipeline yet)
+  LevelChange level_change_;              ///< log_alarm_changes()'s buffer (not on the stack)
   DaemonState last_state_ = DaemonState::kConfigured;
   FixedString<kStatusTextBytes> reason_;
   FixedString<kStatusTextBytes> last_reload_error_;

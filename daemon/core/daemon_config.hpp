@@ -135,11 +135,11 @@ struct MqttSection {
   std::filesystem::path tls_cert_file;  ///< client certificate (with tls_key_file)
   std::filesystem::path tls_key_file;
   std::string username;
-  std::filesystem::path password_file;  ///< first line; $CREDENTIALS_DIRECTORY/mqtt_password wins
-  std::filesystem::path queue_dir;      ///< store-and-forward queue (required when enabled)
-  std::uint64_t queue_max_bytes =
-      32ULL << 20U;  ///< 32 MiB: 24 h of a level and a state change every 1.5 s (docs/fleet.md)
-  double window_summary_interval_s = 10.0;  ///< at most one window summary per this (0 = none)
+  std::filesystem::path password_file;           ///< first line; $CREDENTIALS_DIRECTORY/mqtt_password wins
+  std::filesystem::path queue_dir;               ///< store-and-forward queue (required when enabled)
+  std::uint64_t queue_max_bytes = 32ULL << 20U;  ///< 32 MiB: 3/4 for events (24 h of a level and a state
+                                                 ///< change every 2 s), 1/4 for summaries (docs/fleet.md)
+  double window_summary_interval_s = 10.0;       ///< at most one window summary per this (0 = none)
   double reconnect_min_s = 1.0;
   double reconnect_max_s = 60.0;
   bool operator==(const MqttSection&) const = default;

@@ -2,6 +2,7 @@
 
 #include <pthread.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -333,6 +334,8 @@ void Pipeline::configure_alarm_manager() {
   amc.latch = cfg_.alarm.latch;
   alarm_time_ns_ = clock_.now_ns();
   alarm_ = std::make_unique<AlarmManager>(amc, alarm_time_ns_);
+  level_ring_ = std::make_unique<LevelChangeRing>();
+  alarm_->set_change_ring(level_ring_.get());
 }
 
 void Pipeline::configure_rings_and_timing() {
@@ -963,6 +966,13 @@ void Pipeline::processing_loop() noexcept {
     update_phase(now);
     alarm_->tick(alarm_time(fast_ ? st_.data_time_ns : now));
     drive_outputs(now, false);
+    if (wake_fd_ >= 0 && alarm_->level_change_count() != woken_changes_) {
+      // A level change is on the outputs: wake the supervisor to take it from the ring now (eventfd,
+      // non-blocking: a failed write only means the counter is already non-zero).
+      woken_changes_ = alarm_->level_change_count();
+      const std::uint64_t one = 1;
+      [[maybe_unused]] const auto n = ::write(wake_fd_, &one, sizeof one);
+    }
     if (work) unpublished = true;
     if (publish(now, false)) unpublished = false;
     if (!work) {

@@ -225,6 +225,13 @@ class Pipeline {
   /// The next window for the history, oldest first; false when none. Thread: the supervisor only (the
   /// ring's consumer). Never blocks or allocates.
   bool pop_window_log(dsp::WindowResult& out) noexcept { return window_log_ && window_log_->try_pop(out); }
+  /// An eventfd the processing thread writes (non-blocking) after the outputs were set for a new level
+  /// change, so the supervisor drains the change ring at once instead of at its next status period.
+  /// Thread: main, before activate(). Never allocates.
+  void set_wake_fd(int fd) noexcept { wake_fd_ = fd; }
+  /// The next alarm level change, oldest first; false when none. Thread: the supervisor only (the
+  /// ring's consumer). Never blocks or allocates.
+  bool pop_level_change(LevelChange& out) noexcept { return level_ring_ && level_ring_->try_pop(out); }
   /// Test-only hook, set before configure() (see DeviceFactory). Thread: main.
   void set_device_factory(DeviceFactory* f) noexcept { factory_ = f; }
   /// Benchmark hook, set before activate(). Thread: main.
@@ -359,6 +366,9 @@ class Pipeline {
   WindowSink* sink_ = nullptr;
   std::atomic<bool> window_log_on_{false};  ///< a reload may turn the history on while processing runs
   std::unique_ptr<WindowLogRing> window_log_;
+  std::unique_ptr<LevelChangeRing> level_ring_;  ///< every level change, for the supervisor
+  int wake_fd_ = -1;                             ///< set_wake_fd()
+  std::uint64_t woken_changes_ = 0;              ///< level_change_count() at the last wake
   PipelineProbe* probe_ = nullptr;
   DeviceFactory* factory_ = nullptr;
 

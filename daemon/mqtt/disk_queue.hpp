@@ -77,6 +77,8 @@ class DiskQueue {
   /// restart. Acknowledging anything but the front is a logic error (ptda::Error).
   void ack(std::uint64_t seq);
 
+  /// The oldest undelivered event's sequence number, 0 when none (no file access). Thread: the owner.
+  [[nodiscard]] std::uint64_t front_seq() const noexcept { return index_.empty() ? 0 : index_.front().seq; }
   [[nodiscard]] std::size_t pending() const noexcept { return index_.size(); }
   [[nodiscard]] std::uint64_t bytes() const noexcept;
   [[nodiscard]] std::uint64_t next_seq() const noexcept { return next_seq_; }

@@ -158,7 +158,8 @@ std::string mqtt_event_json(const MqttEvent& e, std::uint64_t seq, std::string_v
   j.i64("schema", kSchema);
   j.str("type", event_kind_name(e.kind));
   if (!joint.empty()) j.str("joint", joint);
-  if (seq > 0) j.u64("seq", seq);
+  // Summaries are numbered by their own queue: the alarm/fault/state `seq` stays gapless.
+  if (seq > 0) j.u64(e.kind == EventKind::kSummary ? "summary_seq" : "seq", seq);
   j.secs("t_mono_s", e.t_mono_ns);
   j.utc("t_utc", e.t_unix_ns);
   if (e.kind == EventKind::kSummary) {
@@ -224,7 +225,16 @@ MqttPublisher::MqttPublisher(MqttSettings s) : s_(std::move(s)) {
   qc.dir = s_.cfg.queue_dir;
   qc.max_bytes = s_.cfg.queue_max_bytes;
   qc.segment_bytes = std::min<std::uint64_t>(1ULL << 20U, std::max<std::uint64_t>(qc.max_bytes / 8, 4096));
+  // The summaries have their own queue (DIR/summaries, a quarter of queue_max_bytes): when it is full
+  // its oldest summaries go, and an alarm never competes with them for room.
+  DiskQueueConfig sc = qc;
+  sc.dir = s_.cfg.queue_dir / "summaries";
+  sc.max_bytes = qc.max_bytes / kSummaryShareDiv;
+  sc.segment_bytes = std::min<std::uint64_t>(1ULL << 20U, std::max<std::uint64_t>(sc.max_bytes / 8, 4096));
+  qc.max_bytes -= sc.max_bytes;
+  qc.segment_bytes = std::min<std::uint64_t>(1ULL << 20U, std::max<std::uint64_t>(qc.max_bytes / 8, 4096));
   queue_ = std::make_unique<DiskQueue>(qc);
+  summaries_ = std::make_unique<DiskQueue>(sc);
   ring_ = std::make_unique<SpscRing<MqttEvent, kRingEvents>>();
   mosq_ = mosquitto_new(s_.client_id.c_str(), true, this);
   if (mosq_ == nullptr) throw Error("[mqtt] mosquitto_new failed: " + std::string(std::strerror(errno)));
@@ -254,15 +264,14 @@ MqttPublisher::MqttPublisher(MqttSettings s) : s_(std::move(s)) {
   mosquitto_disconnect_callback_set(mosq_, &MqttPublisher::cb_disconnect);
   mosquitto_publish_callback_set(mosq_, &MqttPublisher::cb_publish);
   mosquitto_log_callback_set(mosq_, &MqttPublisher::cb_log);
-  queue_bytes_.store(queue_->bytes());
-  queue_pending_.store(queue_->pending());
-  spdlog::info("mqtt: broker {}:{} as {}, topics {}/..., {}{}; queue {} ({} pending event(s))", s_.cfg.host,
-               s_.cfg.port, s_.client_id, s_.topic_prefix, s_.cfg.tls_ca_file.empty() ? "no TLS" : "TLS",
-               s_.cfg.username.empty()
-                   ? std::string()
-                   : ", user " + s_.cfg.username +
-                         (s_.password.empty() ? "" : ", password from " + s_.password_source),
-               s_.cfg.queue_dir.string(), queue_->pending());
+  update_queue_stats();
+  spdlog::info(
+      "mqtt: broker {}:{} as {}, topics {}/..., {}{}; queue {} ({} pending event(s), {} summaries)",
+      s_.cfg.host, s_.cfg.port, s_.client_id, s_.topic_prefix, s_.cfg.tls_ca_file.empty() ? "no TLS" : "TLS",
+      s_.cfg.username.empty() ? std::string()
+                              : ", user " + s_.cfg.username +
+                                    (s_.password.empty() ? "" : ", password from " + s_.password_source),
+      s_.cfg.queue_dir.string(), queue_->pending(), summaries_->pending());
   thread_ = std::thread([this] { run(); });
 }
 
@@ -284,12 +293,14 @@ MqttStats MqttPublisher::stats() const noexcept {
   st.connected = connected_flag_.load(std::memory_order_relaxed);
   st.queue_bytes = queue_bytes_.load(std::memory_order_relaxed);
   st.queue_pending = queue_pending_.load(std::memory_order_relaxed);
+  st.summary_queue_pending = summary_pending_.load(std::memory_order_relaxed);
   st.dropped_event = queue_dropped_events_.load(std::memory_order_relaxed);
-  st.dropped_summary = dropped_summary_.load(std::memory_order_relaxed) +
-                       queue_dropped_summaries_.load(std::memory_order_relaxed);
+  st.dropped_summary = queue_dropped_summaries_.load(std::memory_order_relaxed);
   st.dropped_handoff = dropped_handoff_.load(std::memory_order_relaxed);
   st.dropped_io = dropped_io_.load(std::memory_order_relaxed);
   st.published = published_.load(std::memory_order_relaxed);
+  st.alarm_durable_us_last = durable_us_last_.load(std::memory_order_relaxed);
+  st.alarm_durable_us_max = durable_us_max_.load(std::memory_order_relaxed);
   st.connect_failures = connect_failures_.load(std::memory_order_relaxed);
   std::lock_guard lock(error_mutex_);
   st.last_error = last_error_;
@@ -333,12 +344,14 @@ void MqttPublisher::run() noexcept {
     }
   }
   const std::int64_t flush_end = steady_ns() + kFlushNs;
-  while (connected_ && queue_->pending() > 0 && steady_ns() < flush_end) {
+  while (connected_ && queue_->pending() + summaries_->pending() > 0 && steady_ns() < flush_end) {
     if (inflight_mid_ < 0) send_front();
     if (mosquitto_loop(mosq_, 20, 1) != MOSQ_ERR_SUCCESS) break;
   }
-  if (queue_->pending() > 0)
-    spdlog::info("mqtt: {} event(s) stay queued for the next start", queue_->pending());
+  if (queue_->pending() + summaries_->pending() > 0) {
+    spdlog::info("mqtt: {} event(s) and {} summaries stay queued for the next start", queue_->pending(),
+                 summaries_->pending());
+  }
   // Graceful stop: the retained status says offline (a clean disconnect does not send the will).
   if (connected_) {
     const std::string off =
@@ -380,6 +393,7 @@ void MqttPublisher::step(std::int64_t now_ns) {
     const MqttStats st = stats();
     j.u64("queue_bytes", st.queue_bytes);
     j.u64("queue_pending", st.queue_pending);
+    j.u64("summary_queue_pending", st.summary_queue_pending);
     j.u64("published", st.published);
     j.u64("connect_failures", st.connect_failures);
     j.u64("dropped_event", st.dropped_event);
@@ -392,40 +406,43 @@ void MqttPublisher::step(std::int64_t now_ns) {
 }
 
 void MqttPublisher::handle(const MqttEvent& e, std::int64_t /*now_ns*/) {
-  if (e.kind == EventKind::kSummary) {
-    if (!connected_) {
-      dropped_summary_.fetch_add(1, std::memory_order_relaxed);
-      return;
-    }
-    const std::string payload = mqtt_event_json(e, 0, s_.joint);
-    if (mosquitto_publish(mosq_, nullptr, topic("window").c_str(), static_cast<int>(payload.size()),
-                          payload.data(), 0, false) == MOSQ_ERR_SUCCESS) {
-      published_.fetch_add(1, std::memory_order_relaxed);
-    } else {
-      dropped_summary_.fetch_add(1, std::memory_order_relaxed);
-    }
-    return;
-  }
-  const std::uint64_t seq = queue_->next_seq();
+  DiskQueue& q = e.kind == EventKind::kSummary ? *summaries_ : *queue_;
+  const std::uint64_t seq = q.next_seq();
   const std::string payload = mqtt_event_json(e, seq, s_.joint);
   try {
-    const std::uint64_t got = queue_->append(e.kind, payload);
-    if (got != seq) set_error("internal: queue sequence mismatch", true);
+    // A summary's append may first drop the oldest summaries (counted); it never fails for room.
+    const std::uint64_t got = q.append(e.kind, payload);
+    // 0: a summary larger than its whole queue (dropped and counted by the queue).
+    if (got != seq && !(got == 0 && e.kind == EventKind::kSummary))
+      set_error("internal: queue sequence mismatch", true);
   } catch (const Error& err) {
     dropped_io_.fetch_add(1, std::memory_order_relaxed);
     set_error(std::string("queue: ") + err.what(), true);
     return;
+  }
+  if (e.recorded_mono_ns > 0 && e.kind != EventKind::kSummary) {
+    // From the processing thread's record of the level change to the fsync'ed queue record: what a
+    // kill -9 or a power cut can lose of an alarm whose outputs were already set.
+    const auto us =
+        static_cast<std::uint64_t>(std::max<std::int64_t>(0, steady_ns() - e.recorded_mono_ns) / 1000);
+    durable_us_last_.store(us, std::memory_order_relaxed);
+    if (us > durable_us_max_.load(std::memory_order_relaxed))
+      durable_us_max_.store(us, std::memory_order_relaxed);
   }
   if (e.kind == EventKind::kState) {
     last_state_ = e;
     have_state_ = true;
     newest_state_seq_ = seq;
   }
-  const DiskQueueCounters& qc = queue_->counters();
-  queue_bytes_.store(queue_->bytes(), std::memory_order_relaxed);
+  update_queue_stats();
+}
+
+void MqttPublisher::update_queue_stats() noexcept {
+  queue_bytes_.store(queue_->bytes() + summaries_->bytes(), std::memory_order_relaxed);
   queue_pending_.store(queue_->pending(), std::memory_order_relaxed);
-  queue_dropped_events_.store(qc.dropped_events, std::memory_order_relaxed);
-  queue_dropped_summaries_.store(qc.dropped_summaries, std::memory_order_relaxed);
+  summary_pending_.store(summaries_->pending(), std::memory_order_relaxed);
+  queue_dropped_events_.store(queue_->counters().dropped_events, std::memory_order_relaxed);
+  queue_dropped_summaries_.store(summaries_->counters().dropped_summaries, std::memory_order_relaxed);
 }
 
 std::string MqttPublisher::tls_hint(int rc, int err, const std::string& why) const {
@@ -465,9 +482,27 @@ void MqttPublisher::try_connect(std::int64_t now_ns) {
   next_connect_ns_ = now_ns + static_cast<std::int64_t>(backoff_s_ * 1e9);
 }
 
+// Delivery order: the event queue's backlog first, then the summaries (oldest first). Alarms are what an
+// operator acts on; a summary carries its own summary_seq and window times, so a receiver can still put
+// it on the time line. One message in flight at a time.
 void MqttPublisher::send_front() {
   QueuedEvent ev;
-  if (!queue_->front(ev)) return;
+  const bool summary = queue_->pending() == 0;
+  if (!(summary ? summaries_->front(ev) : queue_->front(ev))) return;
+  if (summary) {
+    int mid = 0;
+    const std::string t = topic("window");
+    const int rc = mosquitto_publish(mosq_, &mid, t.c_str(), static_cast<int>(ev.payload.size()),
+                                     ev.payload.data(), 1, false);
+    if (rc == MOSQ_ERR_SUCCESS) {
+      inflight_mid_ = mid;
+      inflight_seq_ = ev.seq;
+      inflight_summary_ = true;
+    } else if (rc != MOSQ_ERR_NO_CONN) {
+      set_error(std::string("publish to ") + t + ": " + mosquitto_strerror(rc), true);
+    }
+    return;
+  }
   const bool is_state = ev.kind == EventKind::kState;
   std::string payload = std::move(ev.payload);
   if (is_state) {
@@ -482,6 +517,7 @@ void MqttPublisher::send_front() {
   if (rc == MOSQ_ERR_SUCCESS) {
     inflight_mid_ = mid;
     inflight_seq_ = ev.seq;
+    inflight_summary_ = false;
   } else if (rc != MOSQ_ERR_NO_CONN) {
     set_error(std::string("publish to ") + t + ": " + mosquitto_strerror(rc), true);
   }
@@ -553,15 +589,16 @@ void MqttPublisher::on_disconnect(int rc) {
 
 void MqttPublisher::on_publish(int mid) {
   if (mid != inflight_mid_) return;  // a status or health message
+  DiskQueue& q = inflight_summary_ ? *summaries_ : *queue_;
   try {
-    queue_->ack(inflight_seq_);
+    // A summary in flight may have been dropped meanwhile to make room (then nothing to acknowledge).
+    if (q.front_seq() == inflight_seq_) q.ack(inflight_seq_);
   } catch (const Error& e) {
     set_error(std::string("queue: ") + e.what(), true);
   }
   inflight_mid_ = -1;
   published_.fetch_add(1, std::memory_order_relaxed);
-  queue_bytes_.store(queue_->bytes(), std::memory_order_relaxed);
-  queue_pending_.store(queue_->pending(), std::memory_order_relaxed);
+  update_queue_stats();
 }
 
 void MqttPublisher::on_log(int level, const char* text) {

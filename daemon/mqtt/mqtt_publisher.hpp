@@ -3,8 +3,9 @@
 //   supervisor (main thread) ──post(MqttEvent)──▶ SpscRing<MqttEvent, 256> ──▶ publisher thread
 //                                                  (fixed, lock-free; full = counted drop)
 //   publisher thread: alarm/fault/state ─JSON─▶ DiskQueue::append (fsync) ─▶ publish QoS 1, one in flight
-//                     ─▶ PUBACK (on_publish, mid) ─▶ DiskQueue::ack; window summaries: QoS 0, rate-limited,
-//                     never queued (dropped and counted while offline).
+//                     ─▶ PUBACK (on_publish, mid) ─▶ DiskQueue::ack; window summaries (rate-limited) ─▶
+//                     their own DiskQueue (DIR/summaries, 1/kSummaryShareDiv of queue_max_bytes, oldest
+//                     dropped when full, no fsync of its own) ─▶ QoS 1 once the event queue is empty.
 //
 // The publisher thread is not a real-time thread: it formats JSON (allocates), writes and fsyncs the queue
 // and runs libmosquitto's network loop (mosquitto_loop, no extra thread). The real-time threads never see
@@ -46,9 +47,12 @@ struct MqttEvent {
   std::uint32_t abnormal_in_last_n = 0;
   double rms_res = 0.0, entropy_res = 0.0;
   double rms_lo = 0.0, rms_hi = 0.0, entropy_lo = 0.0, entropy_hi = 0.0;
-  double speed_rad_s = 0.0;    ///< summary
-  std::uint64_t window_n = 0;  ///< summary: the window's number
-  bool abnormal = false;       ///< summary
+  double speed_rad_s = 0.0;           ///< summary
+  std::uint64_t window_n = 0;         ///< summary: the window's number
+  bool abnormal = false;              ///< summary
+  std::int64_t recorded_mono_ns = 0;  ///< alarm/fault: CLOCK_MONOTONIC when the processing thread
+                                      ///< recorded the change (0: unknown); the publisher measures
+                                      ///< from it to the queue's fsync
 };
 
 /// The [mqtt] table resolved for one daemon: the joint and the password filled in.
@@ -75,6 +79,8 @@ struct MqttSettings {
 class MqttPublisher {
  public:
   static constexpr std::size_t kRingEvents = 256;
+  /// The summary queue gets queue_max_bytes / kSummaryShareDiv, the event queue the rest.
+  static constexpr std::uint64_t kSummaryShareDiv = 4;
 
   /// Opens the disk queue (ptda::Error naming the directory), sets up libmosquitto (TLS files are
   /// checked here: ptda::Error naming the key) and starts the publisher thread. Thread: main. Allocates.
@@ -99,6 +105,7 @@ class MqttPublisher {
   /// A hint for a TLS connection the broker closed (client certificate missing or untrusted), or "".
   std::string tls_hint(int rc, int err, const std::string& why) const;
   void send_front();
+  void update_queue_stats() noexcept;
   void set_error(std::string_view text, bool log_it);
   void on_connect(int rc);
   void on_disconnect(int rc);
@@ -113,7 +120,8 @@ class MqttPublisher {
   }
 
   MqttSettings s_;
-  std::unique_ptr<DiskQueue> queue_;
+  std::unique_ptr<DiskQueue> queue_;      ///< alarms, faults, states: one gapless seq
+  std::unique_ptr<DiskQueue> summaries_;  ///< window summaries: their own summary_seq
   std::unique_ptr<SpscRing<MqttEvent, kRingEvents>> ring_;
   mosquitto* mosq_ = nullptr;
   std::thread thread_;
@@ -124,6 +132,7 @@ class MqttPublisher {
   bool connecting_ = false;
   int inflight_mid_ = -1;
   std::uint64_t inflight_seq_ = 0;
+  bool inflight_summary_ = false;  ///< the message in flight came from summaries_
   double backoff_s_ = 0.0;
   std::int64_t next_connect_ns_ = 0;
   std::int64_t next_health_ns_ = 0;
@@ -134,9 +143,9 @@ class MqttPublisher {
 
   // Shared with stats().
   std::atomic<bool> connected_flag_{false};
-  std::atomic<std::uint64_t> dropped_handoff_{0}, dropped_summary_{0}, dropped_io_{0}, published_{0},
-      connect_failures_{0}, queue_bytes_{0}, queue_pending_{0}, queue_dropped_summaries_{0},
-      queue_dropped_events_{0};
+  std::atomic<std::uint64_t> dropped_handoff_{0}, dropped_io_{0}, published_{0}, connect_failures_{0},
+      queue_bytes_{0}, queue_pending_{0}, summary_pending_{0}, queue_dropped_summaries_{0},
+      queue_dropped_events_{0}, durable_us_last_{0}, durable_us_max_{0};
   mutable std::mutex error_mutex_;
   FixedString<256> last_error_;
 };

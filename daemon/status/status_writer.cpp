@@ -462,6 +462,7 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.boolean("connected", m.connected);
     j.u64("queue_bytes", m.queue_bytes);
     j.u64("queue_pending", m.queue_pending);
+    j.u64("summary_queue_pending", m.summary_queue_pending);
     j.key("dropped");
     j.open('{');
     j.u64("event", m.dropped_event);
@@ -471,6 +472,8 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.close('}');
     j.u64("published", m.published);
     j.u64("connect_failures", m.connect_failures);
+    j.u64("alarm_durable_us_last", m.alarm_durable_us_last);
+    j.u64("alarm_durable_us_max", m.alarm_durable_us_max);
     if (m.last_error.len > 0) {
       j.str("last_error", m.last_error.view());
     } else {

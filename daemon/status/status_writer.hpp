@@ -58,13 +58,16 @@ struct MqttStats {
   bool enabled = false;
   bool connected = false;
   std::uint64_t queue_bytes = 0;
-  std::uint64_t queue_pending = 0;
+  std::uint64_t queue_pending = 0;          ///< alarms, faults, states not yet acknowledged
+  std::uint64_t summary_queue_pending = 0;  ///< window summaries not yet acknowledged (own queue)
   std::uint64_t dropped_event = 0;    ///< undelivered alarms, faults, states removed from the full queue
-  std::uint64_t dropped_summary = 0;  ///< window summaries not sent (broker offline)
+  std::uint64_t dropped_summary = 0;  ///< oldest undelivered window summaries removed from their full queue
   std::uint64_t dropped_handoff = 0;  ///< events the hand-over ring could not hold
   std::uint64_t dropped_io = 0;       ///< events the queue could not append (I/O error)
-  std::uint64_t published = 0;        ///< PUBACKed queued events plus sent summaries
+  std::uint64_t published = 0;        ///< PUBACKed queued events and summaries
   std::uint64_t connect_failures = 0;
+  std::uint64_t alarm_durable_us_last = 0;  ///< level change recorded -> its queue record fsync'ed
+  std::uint64_t alarm_durable_us_max = 0;   ///< the largest since the publisher started
   FixedString<256> last_error;
 };
 

@@ -30,12 +30,18 @@
 #include <vector>
 
 #include "golden_support.hpp"
+#include "mqtt/mqtt_publisher.hpp"
 #include "mqtt_support.hpp"
 
 namespace ptda::golden {
 namespace {
 
 using namespace std::chrono_literals;
+using ptda::daemon::EventKind;
+using ptda::daemon::MqttEvent;
+using ptda::daemon::MqttPublisher;
+using ptda::daemon::MqttSettings;
+using ptda::daemon::MqttStats;
 
 constexpr const char* kPrefix = "ptda/plant1/cell3/robot17/joint4";
 
@@ -203,6 +209,8 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
   ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "connected") == 0.0; }, 5s));
   ::kill(d, SIGHUP);
   ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "queue_pending") >= 3.0 && has_level_alarm(f); }, 15s));
+  // The window summaries of the outage wait in their own queue.
+  ASSERT_TRUE(wait_until([&] { return mqtt_number(f, "summary_queue_pending") >= 2.0; }, 15s));
   const cli::JsonValue during = status_of(f);
   EXPECT_GT(during.at("mqtt").at("queue_bytes").as_number(), 0.0);
   EXPECT_GE(during.at("mqtt").at("connect_failures").as_number(), 1.0);
@@ -210,7 +218,12 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
 
   broker.start();
   ASSERT_TRUE(wait_until(
-      [&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0; }, 10s));
+      [&] {
+        return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "queue_pending") == 0.0 &&
+               mqtt_number(f, "summary_queue_pending") == 0.0;
+      },
+      10s));
+  EXPECT_EQ(status_of(f).at("mqtt").at("dropped").at("summary").as_number(), 0.0);
   EXPECT_EQ(stop(d, SIGTERM), 0);
   std::this_thread::sleep_for(500ms);
   stop(sub, SIGTERM);
@@ -219,15 +232,243 @@ TEST(MqttBroker, EveryEventArrivesInOrderAcrossABrokerOutage) {
   const std::vector<std::string> levels = logged_levels(log);
   ASSERT_GE(levels.size(), 3U) << log;
   check_complete(read_messages(f.dir / "sub.txt"), levels);
-  // The window summaries (QoS 0, rate-limited) carry the features of a judged window.
-  bool summary = false;
+  // The window summaries (queued, rate-limited) carry the features of a judged window; the ones of the
+  // outage arrived after it, all of them, numbered 1..M by summary_seq in window-time order.
+  std::uint64_t last_summary = 0;
+  double last_t = -1.0;
   for (const Message& m : read_messages(f.dir / "sub.txt")) {
     if (m.topic != std::string(kPrefix) + "/window") continue;
-    summary = true;
     EXPECT_EQ(m.json.at("type").as_string(), "summary");
-    EXPECT_GT(m.json.at("rms_res").as_number(), 0.0);
+    EXPECT_EQ(m.json.object.count("seq"), 0U);  // the alarm/state seq stays theirs alone
+    const auto n = static_cast<std::uint64_t>(m.json.at("summary_seq").as_number());
+    if (n == last_summary) continue;  // at least once
+    ASSERT_EQ(n, last_summary + 1);
+    last_summary = n;
+    EXPECT_GE(m.json.at("t_mono_s").as_number(), last_t);
+    last_t = m.json.at("t_mono_s").as_number();
+    if (m.json.at("status").as_string() == "scored") {
+      EXPECT_GT(m.json.at("rms_res").as_number(), 0.0);
+    }
   }
-  EXPECT_TRUE(summary);
+  EXPECT_GE(last_summary, 3U);
+}
+
+// Issue 15: the supervisor looks every status period, but the processing thread records every level
+// change (LevelChangeRing). A fast replay of the healthy training recording (about 50 s in well under
+// 5 s) with a 5 s status period makes its level changes (fault -> normal at the first judged window,
+// fault at the end of the input) within the first period: each is its own MQTT alarm event (seq
+// consecutive) and its own history line. Before the ring, the supervisor saw only the last level.
+TEST(MqttBroker, TwoLevelChangesWithinOneStatusPeriodAreTwoEvents) {
+  const Fixture f = prepare("twochanges");
+  {
+    std::string cfg = read_file(f.config);
+    for (const auto& [from, to] :
+         {std::pair<std::string, std::string>{"status_period_s = 0.05", "status_period_s = 5.0"},
+          {"pace = \"realtime\"", "pace = \"fast\""},
+          {"pace = \"realtime\"", "pace = \"fast\""},
+          {"recording = \"" + f.recording.string(), "recording = \"" + (f.dir / "train").string()},
+          {"[alarm]\n", "[history]\ndir = \"" + (f.dir / "history").string() + "\"\n\n[alarm]\n"}}) {
+      const std::size_t at = cfg.find(from);
+      ASSERT_NE(at, std::string::npos) << from;
+      cfg.replace(at, from.size(), to);
+    }
+    std::ofstream(f.config) << cfg;
+  }
+  Broker broker(f.dir / "broker", f.port, "allow_anonymous true\n");
+  broker.start();
+  pid_t sub = start_subscriber(f);
+  std::this_thread::sleep_for(300ms);
+  std::vector<std::string> args = ptdad_args(f);
+  args.emplace_back("--exit-at-end");
+  pid_t d = spawn(args, f.dir / "d.out", f.dir / "d.err");
+  const Reaper reaper{{&d, &sub}};
+  // The first status period ends after 5 s: the replay is over by then, --exit-at-end stops the daemon.
+  ASSERT_TRUE(
+      wait_until([&] { return read_file(f.dir / "d.err").find("stopped") != std::string::npos; }, 20s));
+  EXPECT_EQ(stop(d, SIGTERM), 0);
+  std::this_thread::sleep_for(500ms);
+  stop(sub, SIGTERM);
+  const std::string log = read_file(f.dir / "d.err");
+  const std::vector<std::string> levels = logged_levels(log);
+  ASSERT_GE(levels.size(), 2U) << log;  // normal (warnings possible), fault at the end
+  EXPECT_EQ(levels.front(), "normal");
+  EXPECT_EQ(levels.back(), "fault");
+  EXPECT_EQ(log.find("more not recorded"), std::string::npos) << log;
+  check_complete(read_messages(f.dir / "sub.txt"), levels);
+  // One status.json write at most (the first period) saw all of them: the history has one line each.
+  std::vector<std::string> history_levels;
+  {
+    std::ifstream in(f.dir / "history" / "history.jsonl");
+    for (std::string line; std::getline(in, line);) {
+      const cli::JsonValue j = cli::parse_json(line, "history.jsonl");
+      if (j.at("type").as_string() != "state") continue;
+      if (j.at("reason").as_string().find("; cause ") == std::string::npos) continue;  // not a level change
+      history_levels.push_back(j.at("level").as_string());
+    }
+  }
+  EXPECT_EQ(history_levels, levels);
+}
+
+// Issue 15 item 3: an alarm is in the disk queue within milliseconds of its level change, whatever the
+// status period and the broker. The broker is down and the status period 10 s (the supervisor's own
+// look comes after the kill): the processing thread wakes the supervisor for the change, which posts it,
+// and the publisher appends it (fsync). The replay's first faulty window raises the alarm about 1.05 s
+// after the start (data time, the realtime pace); ptdad is killed with SIGKILL 2.5 s after its
+// "running" line. The restarted daemon (broker up) finds the alarm in the queue and delivers it as
+// seq 1. Before the wake-up the event waited for the status period and died with the process.
+TEST(MqttBroker, AnAlarmIsQueuedBeforeTheStatusPeriodAndSurvivesKillDashNine) {
+  const Fixture f = prepare("kill9fast");
+  const auto set_period = [&](const std::string& from, const std::string& to) {
+    std::string cfg = read_file(f.config);
+    const std::size_t at = cfg.find(from);
+    ASSERT_NE(at, std::string::npos);
+    cfg.replace(at, from.size(), to);
+    std::ofstream(f.config) << cfg;
+  };
+  set_period("status_period_s = 0.05", "status_period_s = 10.0");
+  Broker broker(f.dir / "broker", f.port, "allow_anonymous true\n");
+  pid_t d = spawn(ptdad_args(f), f.dir / "d.out", f.dir / "d.err");
+  pid_t sub = -1;
+  const Reaper reaper{{&d, &sub}};
+  ASSERT_TRUE(
+      wait_until([&] { return read_file(f.dir / "d.err").find("running (") != std::string::npos; }, 10s));
+  std::this_thread::sleep_for(2500ms);
+  EXPECT_EQ(stop(d, SIGKILL), -SIGKILL);
+  const std::string first_log = read_file(f.dir / "d.err");
+  ASSERT_NE(first_log.find("alarm level alarm (was fault)"), std::string::npos) << first_log;
+  EXPECT_FALSE(fs::exists(f.status / "status.json"));  // the supervisor's status period never came
+
+  broker.start();
+  sub = start_subscriber(f);
+  std::this_thread::sleep_for(300ms);
+  set_period("status_period_s = 10.0", "status_period_s = 0.05");
+  d = spawn(ptdad_args(f), f.dir / "d2.out", f.dir / "d2.err");
+  ASSERT_TRUE(wait_until(
+      [&] { return mqtt_number(f, "connected") == 1.0 && mqtt_number(f, "published") >= 1.0; }, 10s));
+  EXPECT_EQ(stop(d, SIGTERM), 0);
+  std::this_thread::sleep_for(500ms);
+  stop(sub, SIGTERM);
+  const std::string second_log = read_file(f.dir / "d2.err");
+  const std::string opened = "queue " + f.queue.string() + " (";
+  const std::size_t at = second_log.find(opened);
+  ASSERT_NE(at, std::string::npos) << second_log;
+  EXPECT_GE(std::stod(second_log.substr(at + opened.size())), 1.0) << second_log;
+  bool first_alarm = false;
+  for (const Message& m : read_messages(f.dir / "sub.txt")) {
+    if (m.topic != std::string(kPrefix) + "/alarm") continue;
+    first_alarm = m.json.at("seq").as_number() == 1.0 && m.json.at("level").as_string() == "alarm";
+    break;
+  }
+  EXPECT_TRUE(first_alarm) << read_file(f.dir / "sub.txt");
+}
+
+/// A summary-only publisher test without ptdad: events posted straight into MqttPublisher.
+MqttEvent summary_event(std::uint64_t n) {
+  MqttEvent e;
+  e.kind = EventKind::kSummary;
+  e.t_mono_ns = static_cast<std::int64_t>(n) * 1'000'000'000;
+  e.t_unix_ns = e.t_mono_ns + 1'700'000'000'000'000'000;
+  e.window_n = n;
+  e.status.assign("no_class");
+  return e;
+}
+
+MqttEvent alarm_event(std::uint64_t n) {
+  MqttEvent e;
+  e.kind = EventKind::kAlarm;
+  e.t_mono_ns = static_cast<std::int64_t>(n) * 1'000'000'000;
+  e.t_unix_ns = e.t_mono_ns + 1'700'000'000'000'000'000;
+  e.level.assign(n % 2 == 0 ? "normal" : "alarm");
+  e.causes.assign("rms");
+  return e;
+}
+
+// The smallest queue (queue_max_bytes 65536: 16 KiB for summaries) while the broker is down: 300
+// summaries and 10 alarms posted; the oldest summaries are dropped and counted, no alarm is. The
+// publisher is then closed and opened again (a daemon restart) with the broker up: the 10 alarms arrive
+// first with seq 1..10, then the kept summaries, the newest ones, consecutive and ending at the 300th.
+TEST(MqttBroker, ATinyQueueDropsTheOldestSummariesNeverAnAlarmAndARestartDeliversTheRest) {
+  const fs::path dir = scratch_dir("mqtt_tinyq");
+  const int port = free_port();
+  Broker broker(dir / "broker", port, "allow_anonymous true\n");
+  MqttSettings s;
+  s.cfg.enabled = true;
+  s.cfg.host = "127.0.0.1";
+  s.cfg.port = static_cast<std::uint32_t>(port);
+  s.cfg.topic_prefix = kPrefix;
+  s.cfg.queue_dir = dir / "queue";
+  s.cfg.queue_max_bytes = 65536;
+  s.cfg.window_summary_interval_s = 0.0;  // no health messages
+  s.cfg.reconnect_min_s = 0.1;
+  s.cfg.reconnect_max_s = 0.2;
+  s.joint = "joint4";
+  s.topic_prefix = kPrefix;
+  s.client_id = "ptdad-tinyq";
+  constexpr std::uint64_t kSummaries = 300, kAlarms = 10;
+  std::uint64_t dropped = 0;
+  {
+    MqttPublisher p(s);
+    for (std::uint64_t i = 1; i <= kSummaries; ++i) {
+      ASSERT_TRUE(p.post(summary_event(i)));
+      if (i % (kSummaries / kAlarms) == 0) {
+        ASSERT_TRUE(p.post(alarm_event(i / (kSummaries / kAlarms))));
+      }
+      std::this_thread::sleep_for(1ms);
+    }
+    ASSERT_TRUE(wait_until(
+        [&] {
+          const MqttStats st = p.stats();
+          return st.queue_pending == kAlarms && st.summary_queue_pending + st.dropped_summary == kSummaries;
+        },
+        5s));
+    const MqttStats st = p.stats();
+    EXPECT_FALSE(st.connected);
+    EXPECT_GT(st.dropped_summary, 0U);
+    EXPECT_GT(st.summary_queue_pending, 10U);
+    EXPECT_EQ(st.dropped_event, 0U);
+    EXPECT_EQ(st.dropped_handoff, 0U);
+    EXPECT_LE(st.queue_bytes, s.cfg.queue_max_bytes);
+    dropped = st.dropped_summary;
+  }
+  broker.start();
+  pid_t sub = spawn({"mosquitto_sub", "-h", "127.0.0.1", "-p", std::to_string(port), "-q", "1", "-t",
+                     std::string(kPrefix) + "/#", "-v", "-R"},
+                    dir / "sub.txt", dir / "sub.err");
+  const Reaper reaper{{&sub}};
+  std::this_thread::sleep_for(300ms);
+  {
+    MqttPublisher p(s);
+    ASSERT_TRUE(wait_until(
+        [&] {
+          const MqttStats st = p.stats();
+          return st.connected && st.queue_pending == 0 && st.summary_queue_pending == 0;
+        },
+        10s));
+  }
+  std::this_thread::sleep_for(300ms);
+  stop(sub, SIGTERM);
+  std::uint64_t last_alarm = 0, first_summary = 0, last_summary = 0;
+  for (const Message& m : read_messages(dir / "sub.txt")) {
+    if (m.topic == std::string(kPrefix) + "/alarm") {
+      EXPECT_EQ(last_summary, 0U) << "an alarm after a summary";
+      const auto seq = static_cast<std::uint64_t>(m.json.at("seq").as_number());
+      if (seq == last_alarm) continue;
+      ASSERT_EQ(seq, last_alarm + 1);
+      last_alarm = seq;
+    } else if (m.topic == std::string(kPrefix) + "/window") {
+      const auto seq = static_cast<std::uint64_t>(m.json.at("summary_seq").as_number());
+      EXPECT_EQ(static_cast<std::uint64_t>(m.json.at("n").as_number()), seq);  // posted with n = i
+      if (first_summary == 0) first_summary = seq;
+      if (seq == last_summary) continue;
+      if (last_summary != 0) {
+        ASSERT_EQ(seq, last_summary + 1);
+      }
+      last_summary = seq;
+    }
+  }
+  EXPECT_EQ(last_alarm, kAlarms);
+  EXPECT_EQ(first_summary, dropped + 1);  // the oldest went
+  EXPECT_EQ(last_summary, kSummaries);
 }
 
 TEST(MqttBroker, QueuedEventsSurviveKillDashNineDuringAnOutage) {

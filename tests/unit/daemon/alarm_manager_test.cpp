@@ -361,3 +361,58 @@ TEST(AlarmManager, InputEndedIsFaultWithoutCauseAndKeepsAnAlarm) {
 
 }  // namespace
 }  // namespace ptda::daemon
+
+namespace ptda::daemon {
+namespace {
+
+// Every level change goes into the ring where it happens, with what the supervisor reports: two
+// changes between two looks stay two records; a full ring counts what it could not hold.
+TEST(AlarmManager, EveryLevelChangeIsRecordedInTheChangeRing) {
+  AlarmManagerConfig c;
+  c.warning_enabled = false;
+  c.min_hold_s = 0.0;
+  c.latch = false;
+  AlarmManager m(c, 0);
+  LevelChangeRing ring;
+  m.set_change_ring(&ring);
+  m.on_window(ok(), 1 * kS);                                     // fault -> normal
+  m.on_window(win(true, false, true, 3, 2, 0.55, 0.7), 2 * kS);  // normal -> alarm
+  m.on_window(ok(), 3 * kS);                                     // alarm -> normal (no hold)
+  m.set_faults(drivers::kCauseSpeed, 4 * kS);                    // normal -> fault
+  LevelChange r;
+  ASSERT_TRUE(ring.try_pop(r));
+  EXPECT_EQ(r.from, AlarmLevel::kFault);
+  EXPECT_EQ(r.to, AlarmLevel::kNormal);
+  EXPECT_EQ(r.t_ns, 1 * kS);
+  EXPECT_EQ(r.number, 1U);
+  EXPECT_TRUE(r.have_window);
+  EXPECT_EQ(r.window.thresholds.rms.hi, 0.4);  // the last scored window's band
+  ASSERT_TRUE(ring.try_pop(r));
+  EXPECT_EQ(r.from, AlarmLevel::kNormal);
+  EXPECT_EQ(r.to, AlarmLevel::kAlarm);
+  EXPECT_EQ(r.number, 2U);
+  EXPECT_TRUE(r.have_window);
+  EXPECT_EQ(r.window.class_id, 2);  // the window that raised it
+  EXPECT_EQ(r.window.rms_res, 0.55);
+  EXPECT_EQ(r.causes, drivers::kCauseRms);
+  ASSERT_TRUE(ring.try_pop(r));
+  EXPECT_EQ(r.to, AlarmLevel::kNormal);
+  EXPECT_EQ(r.t_ns, 3 * kS);
+  ASSERT_TRUE(ring.try_pop(r));
+  EXPECT_EQ(r.to, AlarmLevel::kFault);
+  EXPECT_FALSE(r.have_window);
+  EXPECT_EQ(r.causes, drivers::kCauseSpeed);
+  EXPECT_EQ(r.number, 4U);
+  EXPECT_FALSE(ring.try_pop(r));
+  EXPECT_EQ(m.counters().level_changes_dropped, 0U);
+  // Nobody drains: after 64 held, the rest are counted.
+  for (int i = 0; i < 40; ++i) {
+    m.set_faults(0, (10 + 2 * i) * kS);
+    m.set_faults(drivers::kCauseSpeed, (11 + 2 * i) * kS);
+  }
+  EXPECT_EQ(m.counters().level_changes, 84U);
+  EXPECT_EQ(m.counters().level_changes_dropped, 80U - LevelChangeRing::kCapacity);
+}
+
+}  // namespace
+}  // namespace ptda::daemon

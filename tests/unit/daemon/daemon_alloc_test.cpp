@@ -105,7 +105,9 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   EXPECT_FALSE(fs::exists(dir / "history" / "history.3.jsonl"));
   // The events the supervisor handed over reached the queue (no broker: none delivered).
   std::uint64_t queued_bytes = 0;
-  for (const auto& e : fs::directory_iterator(dir / "mqtt")) queued_bytes += e.file_size();
+  for (const auto& e : fs::recursive_directory_iterator(dir / "mqtt")) {
+    if (e.is_regular_file()) queued_bytes += e.file_size();
+  }
   EXPECT_GT(queued_bytes, 0U);
   std::ifstream in(dir / "status" / "status.json");
   const std::string status((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -178,6 +178,40 @@ TEST(DiskQueue, TheBoundDropsSummariesBeforeAnyAlarm) {
   EXPECT_EQ(summaries + q.counters().dropped_summaries, 360U);
 }
 
+// The MQTT publisher's summary queue holds summaries only: full, the oldest go (a segment's worth at a
+// time), the newest are kept in order, every drop counted.
+TEST(DiskQueue, ASummaryOnlyQueueDropsTheOldestAndKeepsTheNewestInOrder) {
+  const fs::path dir = scratch("summaries");
+  const DiskQueueConfig c = small(dir);
+  std::uint64_t acked = 0;
+  {
+    DiskQueue q(c);
+    for (int i = 1; i <= 400; ++i) {
+      ASSERT_EQ(q.append(EventKind::kSummary, "summary " + std::to_string(i) + std::string(180, 's')),
+                static_cast<std::uint64_t>(i));
+      ASSERT_LE(files_bytes(dir), c.max_bytes) << "after summary " << i;
+      if (i == 3) {  // one delivered early: not counted as a drop
+        QueuedEvent e;
+        ASSERT_TRUE(q.front(e));
+        EXPECT_EQ(q.front_seq(), 1U);
+        q.ack(e.seq);
+        ++acked;
+      }
+    }
+    EXPECT_GT(q.counters().dropped_summaries, 0U);
+    EXPECT_EQ(q.counters().dropped_events, 0U);
+    EXPECT_EQ(q.pending() + q.counters().dropped_summaries + acked, 400U);
+  }
+  DiskQueue q(c);  // after a restart: the same newest summaries, in order, ending at the last one
+  const std::size_t pending = q.pending();
+  ASSERT_GT(pending, 10U);
+  const std::vector<std::string> got = drain(q);
+  ASSERT_EQ(got.size(), pending);
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].substr(0, got[i].find('s', 1)), "summary " + std::to_string(400 - pending + 1 + i)) << i;
+  }
+}
+
 TEST(DiskQueue, FullOfAlarmsTheOldestGoAndANewSummaryIsRefused) {
   const fs::path dir = scratch("full");
   const DiskQueueConfig c = small(dir);

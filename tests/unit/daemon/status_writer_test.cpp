@@ -399,6 +399,7 @@ TEST(StatusWriter, MqttFieldsAndMetrics) {
   s.mqtt.connected = false;
   s.mqtt.queue_bytes = 2963;
   s.mqtt.queue_pending = 5;
+  s.mqtt.summary_queue_pending = 9;
   s.mqtt.dropped_event = 1;
   s.mqtt.dropped_summary = 4;
   s.mqtt.published = 13;
@@ -407,8 +408,9 @@ TEST(StatusWriter, MqttFieldsAndMetrics) {
   const std::string json(w.render_json(s));
   EXPECT_TRUE(JsonChecker(json).valid());
   EXPECT_NE(
-      json.find(R"("mqtt":{"connected":false,"queue_bytes":2963,"queue_pending":5,)"
+      json.find(R"("mqtt":{"connected":false,"queue_bytes":2963,"queue_pending":5,"summary_queue_pending":9,)"
                 R"("dropped":{"event":1,"summary":4,"handoff":0,"io":0},"published":13,"connect_failures":7,)"
+                R"("alarm_durable_us_last":0,"alarm_durable_us_max":0,)"
                 R"("last_error":"broker refused the connection: Connection Refused: not authorised."})"),
       std::string::npos)
       << json;
