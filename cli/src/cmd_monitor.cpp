@@ -84,12 +84,14 @@ std::string window_json(const dsp::WindowResult& w, dsp::Method method, dsp::Dom
     if (scored) {
       o.add("band_z_max", w.band_z_max);
       o.add("band_cusum", w.band_statistic);
-      o.add_optional("band_cusum_band", w.band_index >= 0 ? std::optional<std::int64_t>(w.band_index) : std::nullopt);
+      o.add_optional("band_cusum_band",
+                     w.band_index >= 0 ? std::optional<std::int64_t>(w.band_index) : std::nullopt);
     } else {
       o.add_null("band_z_max").add_null("band_cusum").add_null("band_cusum_band");
     }
     o.add("band_cusum_max", w.band_max_statistic);
-    o.add_optional("band", w.band_max_index >= 0 ? std::optional<std::int64_t>(w.band_max_index) : std::nullopt);
+    o.add_optional("band",
+                   w.band_max_index >= 0 ? std::optional<std::int64_t>(w.band_max_index) : std::nullopt);
     if (w.band_max_index >= 0) {
       o.add_pair("band_hz", w.band_lo_hz, w.band_hi_hz);
     } else {

@@ -416,9 +416,10 @@ PipelineConfig PipelineConfigBuilder::finish() const {
   }
 
   if (cfg.decision.band.enabled && cfg.decision.band.band_count > cfg.extraction.window_len / 2) {
-    fail_key("decision.band_count", "[decision] band_count = " + std::to_string(cfg.decision.band.band_count) +
-                                        " needs at least one bin per band: must not exceed window_len / 2 = " +
-                                        std::to_string(cfg.extraction.window_len / 2));
+    fail_key("decision.band_count",
+             "[decision] band_count = " + std::to_string(cfg.decision.band.band_count) +
+                 " needs at least one bin per band: must not exceed window_len / 2 = " +
+                 std::to_string(cfg.extraction.window_len / 2));
   }
 
   if (cfg.decision.sequential.h_warn > cfg.decision.sequential.h_alarm) {

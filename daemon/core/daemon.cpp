@@ -857,8 +857,9 @@ void Daemon::log_alarm_changes(const PipelineStatus& ps) noexcept {
     if (episode && ps.alarm.trip.band_on && ps.alarm.trip.band_index >= 0 && used < sizeof evidence) {
       // The band CUSUM's evidence (only with [decision] band_cusum on: other lines stay as before).
       std::snprintf(evidence + used, sizeof evidence - used, "; detector %s, band %d %.0f-%.0f Hz CUSUM %.3g",
-                    dsp::alarm_detector_name(ps.alarm.trip.detector), static_cast<int>(ps.alarm.trip.band_index),
-                    ps.alarm.trip.band_lo_hz, ps.alarm.trip.band_hi_hz, ps.alarm.trip.band_statistic);
+                    dsp::alarm_detector_name(ps.alarm.trip.detector),
+                    static_cast<int>(ps.alarm.trip.band_index), ps.alarm.trip.band_lo_hz,
+                    ps.alarm.trip.band_hi_hz, ps.alarm.trip.band_statistic);
     }
   } else {
     cause_text(ps.report.causes, causes, sizeof causes);

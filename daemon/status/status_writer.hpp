@@ -201,7 +201,7 @@ struct StatusSnapshot {
   double trip_band_cusum = 0.0;        ///< largest band CUSUM at the trip window
   std::int32_t trip_band = -1;         ///< its band (-1: none)
   double trip_band_lo_hz = 0.0, trip_band_hi_hz = 0.0;  ///< its frequency range
-  std::int64_t trip_wall_ns = 0;       ///< unix ns (0 = unknown)
+  std::int64_t trip_wall_ns = 0;                        ///< unix ns (0 = unknown)
 
   // Field training (state == kTraining).
   std::uint64_t training_windows = 0;

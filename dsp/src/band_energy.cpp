@@ -20,7 +20,7 @@ std::vector<unsigned char> clean_floor_bins(std::span<const float> mean_magnitud
   for (const LineGroup& g : find_line_groups(mean_magnitude)) {
     for (std::size_t k = g.begin; k < std::min<std::size_t>(g.end, bins); ++k) in_line[k] = 1;
   }
-  constexpr std::size_t kHalf = 32;  // the local floor of find_line_groups(): median of 65 bins
+  constexpr std::size_t kHalf = 32;        // the local floor of find_line_groups(): median of 65 bins
   constexpr double kCleanOverFloor = 2.0;  // 6 dB
   std::vector<float> win;
   win.reserve(2 * kHalf + 1);
@@ -72,8 +72,9 @@ void check_band_cusum(const BandCusumConfig& cfg) {
   if (!(cfg.h > 0.0 && cfg.h <= 1000.0))
     throw Error("decision.band_cusum_h: must be > 0 and <= 1000, got " + num(cfg.h));
   if (!(cfg.day_allowance >= 0.0 && cfg.day_allowance <= 10.0))
-    throw Error("decision.band_cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
-                num(cfg.day_allowance));
+    throw Error(
+        "decision.band_cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
+        num(cfg.day_allowance));
   if (cfg.band_count < 1 || cfg.band_count > kMaxBands)
     throw Error("decision.band_count: must be 1.." + std::to_string(kMaxBands) + ", got " +
                 std::to_string(cfg.band_count));
@@ -82,7 +83,8 @@ void check_band_cusum(const BandCusumConfig& cfg) {
 BandScale band_scale(const ClassBaseline& c, double day_allowance) noexcept {
   BandScale s;
   s.count = static_cast<std::uint32_t>(std::min<std::size_t>(c.band_stats.size(), kMaxBands));
-  const double days = c.band_recordings > 0 ? std::sqrt(1.0 + 1.0 / static_cast<double>(c.band_recordings)) : 1.0;
+  const double days =
+      c.band_recordings > 0 ? std::sqrt(1.0 + 1.0 / static_cast<double>(c.band_recordings)) : 1.0;
   for (std::size_t b = 0; b < s.count; ++b) {
     const BandEnergyStats& st = c.band_stats[b];
     const double sd = std::sqrt(st.within_sd * st.within_sd + st.between_sd * st.between_sd);

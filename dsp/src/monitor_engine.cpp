@@ -60,9 +60,10 @@ const DecisionConfig& checked_band(const DecisionConfig& d, const Baseline& b, M
                 std::string(method_name(method)) + "\"");
   }
   if (b.policy.band_count == 0) {
-    throw Error("monitor: [decision] band_cusum = true needs a baseline with band-energy statistics "
-                "(format 7, trained with band_cusum = true); this baseline has none: retrain it with "
-                "[decision] band_cusum = true");
+    throw Error(
+        "monitor: [decision] band_cusum = true needs a baseline with band-energy statistics "
+        "(format 7, trained with band_cusum = true); this baseline has none: retrain it with "
+        "[decision] band_cusum = true");
   }
   if (b.policy.band_count != d.band.band_count) {
     throw Error("monitor: [decision] band_count = " + std::to_string(d.band.band_count) +
@@ -83,7 +84,8 @@ const DecisionConfig& checked_band(const DecisionConfig& d, const Baseline& b, M
 
 DecisionConfig with_band_geometry(DecisionConfig decision, const Baseline& baseline) noexcept {
   decision.band.half_bins = baseline.window_len / 2;
-  decision.band.bin_hz = baseline.window_len > 0 ? baseline.fs_hz / static_cast<double>(baseline.window_len) : 0.0;
+  decision.band.bin_hz =
+      baseline.window_len > 0 ? baseline.fs_hz / static_cast<double>(baseline.window_len) : 0.0;
   return decision;
 }
 
@@ -114,9 +116,10 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
       clean_bins_per_band(band_clean_.back(), c.band_stats.size(), counts);
       for (std::size_t b = 0; b < c.band_stats.size(); ++b) {
         if (counts[b] != c.band_stats[b].clean_bins) {
-          throw Error("monitor: baseline class " + std::to_string(i) + " band " + std::to_string(b) + " has " +
-                      std::to_string(c.band_stats[b].clean_bins) + " clean bins stored but its mean spectrum gives " +
-                      std::to_string(counts[b]) + ": the band statistics do not belong to this mean (retrain)");
+          throw Error("monitor: baseline class " + std::to_string(i) + " band " + std::to_string(b) +
+                      " has " + std::to_string(c.band_stats[b].clean_bins) +
+                      " clean bins stored but its mean spectrum gives " + std::to_string(counts[b]) +
+                      ": the band statistics do not belong to this mean (retrain)");
         }
       }
     }
@@ -150,7 +153,8 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     double top = 0.0;
     std::int32_t top_b = -1;
     for (std::size_t b = 0; b < m; ++b) {
-      const double x = std::isfinite(w.band_excess[b]) ? static_cast<double>(w.band_excess[b]) : band_.k + 1.0;
+      const double x =
+          std::isfinite(w.band_excess[b]) ? static_cast<double>(w.band_excess[b]) : band_.k + 1.0;
       s[b] = std::min(band_cap_, std::max(0.0, s[b] + x - band_.k));
       if (s[b] > top) {
         top = s[b];
@@ -196,7 +200,8 @@ void DecisionState::fill(WindowResult& w) const noexcept {
     if (w.band_max_index >= 0 && band_.half_bins > 0 && band_.band_count > 0) {
       const auto b = static_cast<std::size_t>(w.band_max_index);
       w.band_lo_hz = static_cast<double>(band_edge(band_.half_bins, band_.band_count, b)) * band_.bin_hz;
-      w.band_hi_hz = static_cast<double>(band_edge(band_.half_bins, band_.band_count, b + 1) - 1) * band_.bin_hz;
+      w.band_hi_hz =
+          static_cast<double>(band_edge(band_.half_bins, band_.band_count, b + 1) - 1) * band_.bin_hz;
     }
   }
   w.alarm = w.kofn_alarm || w.seq_alarm || w.band_alarm;

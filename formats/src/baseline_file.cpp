@@ -143,12 +143,12 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
       throw Error(cls + ": tda_mean has " + std::to_string(c.tda_mean.size()) + " values, window_len is " +
                   std::to_string(b.window_len));
     if (c.band_stats.size() != b.policy.band_count)
-      throw Error(cls + ": " + std::to_string(c.band_stats.size()) + " band statistics, the policy's band_count is " +
-                  std::to_string(b.policy.band_count));
+      throw Error(cls + ": " + std::to_string(c.band_stats.size()) +
+                  " band statistics, the policy's band_count is " + std::to_string(b.policy.band_count));
   }
   if (b.policy.band_count > dsp::kMaxBands || b.policy.band_count > b.window_len / 2)
-    throw Error(where + ": band_count " + std::to_string(b.policy.band_count) + " must be <= " +
-                std::to_string(dsp::kMaxBands) + " and <= window_len / 2");
+    throw Error(where + ": band_count " + std::to_string(b.policy.band_count) +
+                " must be <= " + std::to_string(dsp::kMaxBands) + " and <= window_len / 2");
   // Widened first: on 32-bit targets (armhf) size_t cannot exceed the u32 length field, and comparing
   // it directly is an always-false -Wtype-limits error there.
   if (std::uint64_t{b.source.size()} > std::numeric_limits<std::uint32_t>::max())
@@ -674,8 +674,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
                 " and <= window_len / 2");
     // Per class: u32 + count x (4 f64 + u32).
     if (std::uint64_t{n_classes} * (4U + std::uint64_t{count} * 36U) > body.left())
-      body.fail("the band statistics of " + std::to_string(n_classes) + " classes cannot fit in the remaining " +
-                std::to_string(body.left()) + " bytes");
+      body.fail("the band statistics of " + std::to_string(n_classes) +
+                " classes cannot fit in the remaining " + std::to_string(body.left()) + " bytes");
     b.policy.band_count = count;
     for (auto& c : b.classes) {
       c.band_recordings = body.u32();

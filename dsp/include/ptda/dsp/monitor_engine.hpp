@@ -87,20 +87,20 @@ struct WindowResult {
   SeqFeature seq_feature = SeqFeature::kNone;  ///< which of that class's statistics is largest
   double seq_max_statistic = 0.0;              ///< largest CUSUM over all classes
   // Band detector (docs/method.md §6 "Band detector"; only when DecisionConfig::band.enabled).
-  bool band_on = false;       ///< the band CUSUM runs (the band_* fields below mean something)
+  bool band_on = false;         ///< the band CUSUM runs (the band_* fields below mean something)
   std::uint8_t band_count = 0;  ///< bands of this window's class (scored)
   /// Per band of this window (scored): z_b minus its class's day allowance (BandScale), the CUSUM's
   /// increment before k; 0 for an unused band.
   std::array<float, kMaxBands> band_excess{};
-  double band_z_max = 0.0;             ///< largest band_excess of this window (scored)
-  bool band_alarm = false;             ///< some class's band CUSUM > band_cusum_h
-  double band_statistic = 0.0;         ///< this window's class: largest band CUSUM after it (scored)
-  std::int32_t band_index = -1;        ///< its band (-1 when all are 0)
-  double band_max_statistic = 0.0;     ///< largest band CUSUM over all classes and bands
-  std::int32_t band_max_index = -1;    ///< its band (-1 when all are 0)
-  std::int32_t band_max_class = -1;    ///< its class (the decision's class index)
-  double band_lo_hz = 0.0;             ///< band_max_index's first bin's frequency (0 when unknown)
-  double band_hi_hz = 0.0;             ///< its last bin's frequency
+  double band_z_max = 0.0;           ///< largest band_excess of this window (scored)
+  bool band_alarm = false;           ///< some class's band CUSUM > band_cusum_h
+  double band_statistic = 0.0;       ///< this window's class: largest band CUSUM after it (scored)
+  std::int32_t band_index = -1;      ///< its band (-1 when all are 0)
+  double band_max_statistic = 0.0;   ///< largest band CUSUM over all classes and bands
+  std::int32_t band_max_index = -1;  ///< its band (-1 when all are 0)
+  std::int32_t band_max_class = -1;  ///< its class (the decision's class index)
+  double band_lo_hz = 0.0;           ///< band_max_index's first bin's frequency (0 when unknown)
+  double band_hi_hz = 0.0;           ///< its last bin's frequency
 };
 
 /// The decision after the verdicts: k-of-n over all scored windows and one CUSUM per class (fixed
@@ -172,9 +172,9 @@ class MonitorEngine {
   Method method_;
   WindowSlicer slicer_;
   WindowAnalyzer analyzer_;
-  DecisionState decision_;         ///< per-class state sized here at configure
-  std::vector<SeqScale> z_scale_;  ///< per class: sequential_scale() of the method
-  std::vector<BandScale> band_scale_;                  ///< per class (band CUSUM on)
+  DecisionState decision_;                              ///< per-class state sized here at configure
+  std::vector<SeqScale> z_scale_;                       ///< per class: sequential_scale() of the method
+  std::vector<BandScale> band_scale_;                   ///< per class (band CUSUM on)
   std::vector<std::vector<unsigned char>> band_clean_;  ///< per class: clean_floor_bins()
   std::array<double, kMaxBands> band_tmp_{};
   std::vector<float> window_;
