@@ -82,6 +82,17 @@ const DecisionConfig& checked_band(const DecisionConfig& d, const Baseline& b, M
 
 }  // namespace
 
+namespace {
+
+// Whether statistic s (above h since crossing number `since`, 0 = not above) ranks before the current
+// top: larger, or equal and above h for longer (the band that crossed first; e.g. several at the cap).
+bool band_first(double s, std::uint64_t since, double top, std::uint64_t top_since) noexcept {
+  if (s > top) return true;
+  return s == top && s > 0.0 && since != 0 && (top_since == 0 || since < top_since);
+}
+
+}  // namespace
+
 DecisionConfig with_band_geometry(DecisionConfig decision, const Baseline& baseline) noexcept {
   decision.band.half_bins = baseline.window_len / 2;
   decision.band.bin_hz =
@@ -134,6 +145,7 @@ DecisionState::DecisionState(const DecisionConfig& decision, std::size_t classes
     check_band_cusum(band_);
     band_cap_ = band_.h + static_cast<double>(decision.n - std::min(decision.k, decision.n)) * band_.k;
     band_s_.assign(classes, std::array<double, kMaxBands>{});
+    band_since_.assign(classes, std::array<std::uint64_t, kMaxBands>{});
   }
 }
 
@@ -149,15 +161,23 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     // S_b <- min(cap, max(0, S_b + x_b - k)), x_b = z_b minus the class's day allowance; a non-finite
     // x_b counts as k + 1, as in the feature CUSUM.
     std::array<double, kMaxBands>& s = band_s_[cls];
+    std::array<std::uint64_t, kMaxBands>& since = band_since_[cls];
     const std::size_t m = std::min<std::size_t>(w.band_count, kMaxBands);
     double top = 0.0;
+    std::uint64_t top_since = 0;
     std::int32_t top_b = -1;
     for (std::size_t b = 0; b < m; ++b) {
       const double x =
           std::isfinite(w.band_excess[b]) ? static_cast<double>(w.band_excess[b]) : band_.k + 1.0;
       s[b] = std::min(band_cap_, std::max(0.0, s[b] + x - band_.k));
-      if (s[b] > top) {
+      if (!(s[b] > band_.h)) {
+        since[b] = 0;
+      } else if (since[b] == 0) {
+        since[b] = ++band_order_;
+      }
+      if (band_first(s[b], since[b], top, top_since)) {
         top = s[b];
+        top_since = since[b];
         top_b = static_cast<std::int32_t>(b);
       }
     }
@@ -182,12 +202,14 @@ void DecisionState::fill(WindowResult& w) const noexcept {
   w.band_on = band_.enabled;
   if (band_.enabled) {
     double top = 0.0;
+    std::uint64_t top_since = 0;
     w.band_max_index = -1;
     w.band_max_class = -1;
     for (std::size_t c = 0; c < band_s_.size(); ++c) {
       for (std::size_t b = 0; b < kMaxBands; ++b) {
-        if (band_s_[c][b] > top) {
+        if (band_first(band_s_[c][b], band_since_[c][b], top, top_since)) {
           top = band_s_[c][b];
+          top_since = band_since_[c][b];
           w.band_max_index = static_cast<std::int32_t>(b);
           w.band_max_class = static_cast<std::int32_t>(c);
         }

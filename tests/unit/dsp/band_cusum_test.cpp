@@ -243,6 +243,22 @@ TEST(BandCusumDecision, CrossesHAfterTheComputedWindowsAndNamesTheBand) {
   EXPECT_EQ(o.detector, AlarmDetector::kNone);
 }
 
+// Several bands at the cap: the one that went above h first is reported, not the lowest index.
+TEST(BandCusumDecision, AmongEqualStatisticsTheFirstToCrossIsReported) {
+  DecisionState st(band_on(), 1);
+  WindowResult w;
+  for (int i = 0; i < 12; ++i) {
+    w = WindowResult{};
+    w.band_count = 32;
+    w.band_excess[20] = 5.0F;                 // above h = 10 after 3 windows (4, 8, 12)
+    w.band_excess[3] = i >= 2 ? 5.0F : 0.0F;  // two windows later
+    st.scored(w, 0);
+  }
+  EXPECT_EQ(w.band_statistic, 12.0);  // both at the cap 10 + (5 - 3) x 1
+  EXPECT_EQ(w.band_index, 20);
+  EXPECT_EQ(w.band_max_index, 20);
+}
+
 // A persistent new-day offset within the between-day term does not accumulate. Band sds within 0.2,
 // between 0.3, R = 3 days: total sd sqrt(0.2^2 + 0.3^2) = 0.360555. An offset of 0.3 (one between-day
 // sd) gives z = 0.832 < k = 1: never. An offset of 0.5 gives z = 1.38675: S = 0.38675 w, above h = 10

@@ -127,6 +127,10 @@ class DecisionState {
   BandCusumConfig band_;
   double band_cap_ = 0.0;  ///< cap of each band CUSUM: band h + (n - k) band k (as cap_)
   std::vector<std::array<double, kMaxBands>> band_s_;  ///< per class, per band (empty when off)
+  /// Per class and band: the order in which the statistic went above h (0 = not above), so that among
+  /// equal statistics (e.g. all at the cap) the band that crossed first is reported.
+  std::vector<std::array<std::uint64_t, kMaxBands>> band_since_;
+  std::uint64_t band_order_ = 0;
 
   void fill(WindowResult& w) const noexcept;
 };
