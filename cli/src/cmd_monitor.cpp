@@ -79,6 +79,25 @@ std::string window_json(const dsp::WindowResult& w, dsp::Method method, dsp::Dom
     o.add_null("z_rms").add_null("z_entropy").add_null("cusum").add_null("cusum_feature");
   }
   o.add("cusum_max", w.seq_max_statistic);
+  if (w.band_on) {  // the band CUSUM (only when [decision] band_cusum is on: other lines stay as before)
+    o.add("band_alarm", w.band_alarm);
+    if (scored) {
+      o.add("band_z_max", w.band_z_max);
+      o.add("band_cusum", w.band_statistic);
+      o.add_optional("band_cusum_band",
+                     w.band_index >= 0 ? std::optional<std::int64_t>(w.band_index) : std::nullopt);
+    } else {
+      o.add_null("band_z_max").add_null("band_cusum").add_null("band_cusum_band");
+    }
+    o.add("band_cusum_max", w.band_max_statistic);
+    o.add_optional("band",
+                   w.band_max_index >= 0 ? std::optional<std::int64_t>(w.band_max_index) : std::nullopt);
+    if (w.band_max_index >= 0) {
+      o.add_pair("band_hz", w.band_lo_hz, w.band_hi_hz);
+    } else {
+      o.add_null("band_hz");
+    }
+  }
   return o.str();
 }
 
@@ -114,6 +133,11 @@ std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std
       s += std::to_string(w.abnormal_in_last_n) + " of the last " + std::to_string(decision_n);
     if (w.kofn_alarm && w.seq_alarm) s += "; ";
     if (w.seq_alarm) s += "CUSUM " + general(w.seq_max_statistic, 3);
+    if (w.band_alarm) {
+      if (w.kofn_alarm || w.seq_alarm) s += "; ";
+      s += "band CUSUM " + general(w.band_max_statistic, 3) + " in band " + std::to_string(w.band_max_index) +
+           " (" + general(w.band_lo_hz, 4) + "-" + general(w.band_hi_hz, 4) + " Hz)";
+    }
     s += ")";
   } else if (w.seq_warn) {
     s += " warning (CUSUM " + general(w.seq_max_statistic, 3) + ")";
@@ -416,7 +440,7 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
     const auto first = static_cast<std::ptrdiff_t>(range.first(r.windows.size()));
     const auto last = static_cast<std::ptrdiff_t>(range.last(r.windows.size()));
     r.windows = std::vector<dsp::WindowResult>(r.windows.begin() + first, r.windows.begin() + last);
-    redebounce(r.windows, in.cfg.decision);
+    redebounce(r.windows, dsp::with_band_geometry(in.cfg.decision, in.baseline));
     if (table) print_table_head(r.windows.size());
     for (const auto& w : r.windows) emit(w);
     r.windows.clear();

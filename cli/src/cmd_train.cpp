@@ -144,6 +144,20 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
           << " windows, false warnings / alarms per day " << general(per_day / warn, 3) << " / "
           << general(per_day / alarm, 3) << " at " << general(per_day, 4) << " windows/day\n";
     }
+    if (!c.band_stats.empty()) {
+      // The band CUSUM's statistics ([decision] band_cusum, docs/method.md §6 "Band detector").
+      std::size_t used = 0;
+      std::uint32_t clean = 0;
+      double between = 0.0;
+      for (const dsp::BandEnergyStats& b : c.band_stats) {
+        used += b.clean_bins > 0 ? 1 : 0;
+        clean += b.clean_bins;
+        between = std::max(between, b.within_sd > 0.0 ? b.between_sd / b.within_sd : 0.0);
+      }
+      out << "  band CUSUM: " << used << " of " << c.band_stats.size() << " bands with clean floor bins ("
+          << clean << " bins), " << c.band_recordings << " training recording(s), largest between-day / "
+          << "within-day sd " << general(between, 3) << "\n";
+    }
   }
   for (const std::string& w : dsp::training_warnings(baseline)) out << "warning: " << w << "\n";
   for (const std::string& d : dropped) out << "warning: no class for " << d << ": dropped, never judged\n";

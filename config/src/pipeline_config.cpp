@@ -311,6 +311,14 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "cusum_alarm", cfg_.decision.sequential.h_alarm, 1000.0)) note(r, "cusum_alarm");
     // The CUSUM's allowance for the between-day spread, in between-day sds (docs/method.md §6).
     get(r, "cusum_day_allowance", cfg_.decision.sequential.day_allowance, 0.0, 10.0);
+    // The band CUSUM (opt-in; docs/method.md §6 "Band detector"). Training stores band statistics only
+    // when it is on, so a baseline for it must be trained with it on.
+    get(r, "band_cusum", cfg_.decision.band.enabled);
+    if (read_positive(r, "band_cusum_k", cfg_.decision.band.k, 10.0)) note(r, "band_cusum_k");
+    if (read_positive(r, "band_cusum_h", cfg_.decision.band.h, 1000.0)) note(r, "band_cusum_h");
+    get(r, "band_cusum_day_allowance", cfg_.decision.band.day_allowance, 0.0, 10.0);
+    get(r, "band_count", cfg_.decision.band.band_count, std::uint32_t{1}, dsp::kMaxBands);
+    cfg_.thresholds.band_count = cfg_.decision.band.enabled ? cfg_.decision.band.band_count : 0U;
     r.finish();
   }
 
@@ -405,6 +413,13 @@ PipelineConfig PipelineConfigBuilder::finish() const {
     fail_key(is_set("decision.k") ? "decision.k" : "decision.n",
              "[decision] k = " + std::to_string(cfg.decision.k) + " must not exceed n = " +
                  std::to_string(cfg.decision.n) + " (alarm when k of the last n windows are abnormal)");
+  }
+
+  if (cfg.decision.band.enabled && cfg.decision.band.band_count > cfg.extraction.window_len / 2) {
+    fail_key("decision.band_count",
+             "[decision] band_count = " + std::to_string(cfg.decision.band.band_count) +
+                 " needs at least one bin per band: must not exceed window_len / 2 = " +
+                 std::to_string(cfg.extraction.window_len / 2));
   }
 
   if (cfg.decision.sequential.h_warn > cfg.decision.sequential.h_alarm) {
@@ -621,6 +636,11 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "cusum_warn = " << shortest(cfg.decision.sequential.h_warn) << "\n"
      << "cusum_alarm = " << shortest(cfg.decision.sequential.h_alarm) << "\n"
      << "cusum_day_allowance = " << shortest(cfg.decision.sequential.day_allowance) << "\n"
+     << "band_cusum = " << (cfg.decision.band.enabled ? "true" : "false") << "\n"
+     << "band_cusum_k = " << shortest(cfg.decision.band.k) << "\n"
+     << "band_cusum_h = " << shortest(cfg.decision.band.h) << "\n"
+     << "band_cusum_day_allowance = " << shortest(cfg.decision.band.day_allowance) << "\n"
+     << "band_count = " << cfg.decision.band.band_count << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
      << "line_gain = " << (cfg.thresholds.ptda_line_gain ? "true" : "false") << "\n"
      << "floor_gain = " << (cfg.thresholds.ptda_floor_gain ? "true" : "false") << "\n"

@@ -80,6 +80,11 @@ AlarmLevel AlarmManager::on_window(const dsp::WindowResult& w, std::int64_t t_mo
   info.thresholds = w.thresholds;
   info.detector = w.detector;
   info.seq_statistic = w.seq_max_statistic;
+  info.band_on = w.band_on;
+  info.band_statistic = w.band_max_statistic;
+  info.band_index = w.band_max_index;
+  info.band_lo_hz = w.band_lo_hz;
+  info.band_hi_hz = w.band_hi_hz;
 
   if (w.alarm && !state_.alarm_active) {
     state_.alarm_active = true;

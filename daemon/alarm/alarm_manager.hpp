@@ -71,6 +71,12 @@ struct TripInfo {
   dsp::FeatureThresholds thresholds;
   dsp::AlarmDetector detector = dsp::AlarmDetector::kNone;  ///< which detector held the alarm
   double seq_statistic = 0.0;  ///< largest class CUSUM at that window (the sequential evidence)
+  // The band CUSUM's evidence at that window (band_on: [decision] band_cusum is on).
+  bool band_on = false;
+  double band_statistic = 0.0;   ///< largest band CUSUM over classes and bands
+  std::int32_t band_index = -1;  ///< its band (-1: none)
+  double band_lo_hz = 0.0;       ///< its frequency range
+  double band_hi_hz = 0.0;
 };
 
 /// The manager's state, trivially copyable (the owner may hand copies to the status writer).

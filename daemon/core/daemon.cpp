@@ -733,6 +733,11 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.trip_t_s = ns_to_seconds(ps.alarm.trip.t_ns);
   s.trip_detector = dsp::alarm_detector_name(ps.alarm.trip.detector);
   s.trip_cusum = ps.alarm.trip.seq_statistic;
+  s.trip_band_on = ps.alarm.trip.band_on;
+  s.trip_band_cusum = ps.alarm.trip.band_statistic;
+  s.trip_band = ps.alarm.trip.band_index;
+  s.trip_band_lo_hz = ps.alarm.trip.band_lo_hz;
+  s.trip_band_hi_hz = ps.alarm.trip.band_hi_hz;
   s.trip_wall_ns = wall(ps.alarm.trip.t_ns);
 
   const drivers::SampleSourceCounters a = p->source_counters();
@@ -866,6 +871,14 @@ void Daemon::report_level_change(const LevelChange& c, const PipelineStatus& ps,
         static_cast<int>(c.window.class_id), f1, f2, static_cast<unsigned>(c.window.abnormal_in_last_n),
         static_cast<unsigned>(dc.n), static_cast<unsigned>(cfg_.alarm.warning ? cfg_.alarm.warning_k : 0),
         static_cast<unsigned>(dc.k), causes);
+    const std::size_t used = std::strlen(evidence);
+    const bool episode = level != drivers::AlarmLevel::kNormal;
+    if (episode && c.window.band_on && c.window.band_index >= 0 && used < sizeof evidence) {
+      // The band CUSUM's evidence (only with [decision] band_cusum on: other lines stay as before).
+      std::snprintf(evidence + used, sizeof evidence - used, "; detector %s, band %d %.0f-%.0f Hz CUSUM %.3g",
+                    dsp::alarm_detector_name(c.window.detector), static_cast<int>(c.window.band_index),
+                    c.window.band_lo_hz, c.window.band_hi_hz, c.window.band_statistic);
+    }
   } else {
     std::snprintf(evidence, sizeof evidence, "no verdict (%s); cause %s", phase_name(ps.phase), causes);
   }

@@ -227,6 +227,30 @@ void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) no
     o.null("cusum_feature");
   }
   o.num("cusum_max", w.seq_max_statistic);
+  if (w.band_on) {  // as ptda monitor --jsonl writes them (only with [decision] band_cusum on)
+    o.boolean("band_alarm", w.band_alarm);
+    if (scored) {
+      o.num("band_z_max", w.band_z_max);
+      o.num("band_cusum", w.band_statistic);
+      if (w.band_index >= 0) {
+        o.i64("band_cusum_band", w.band_index);
+      } else {
+        o.null("band_cusum_band");
+      }
+    } else {
+      o.null("band_z_max");
+      o.null("band_cusum");
+      o.null("band_cusum_band");
+    }
+    o.num("band_cusum_max", w.band_max_statistic);
+    if (w.band_max_index >= 0) {
+      o.i64("band", w.band_max_index);
+      o.band("band_hz", w.band_lo_hz, w.band_hi_hz);
+    } else {
+      o.null("band");
+      o.null("band_hz");
+    }
+  }
   finish_line(b, o);
 }
 

@@ -362,6 +362,16 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.num("entropy", s.trip_entropy);
     j.str("detector", s.trip_detector);
     j.num("cusum", s.trip_cusum);
+    if (s.trip_band_on) {
+      j.num("band_cusum", s.trip_band_cusum);
+      if (s.trip_band >= 0) {
+        j.i64("band", s.trip_band);
+        j.band("band_hz", s.trip_band_lo_hz, s.trip_band_hi_hz);
+      } else {
+        j.null("band");
+        j.null("band_hz");
+      }
+    }
     j.close('}');
   } else {
     j.null("trip");

@@ -200,7 +200,11 @@ struct StatusSnapshot {
   double trip_t_s = 0.0;
   const char* trip_detector = "none";  ///< dsp::alarm_detector_name of the trip window
   double trip_cusum = 0.0;             ///< largest class CUSUM at the trip window
-  std::int64_t trip_wall_ns = 0;       ///< unix ns (0 = unknown)
+  bool trip_band_on = false;           ///< the band CUSUM runs: the three fields below are written
+  double trip_band_cusum = 0.0;        ///< largest band CUSUM at the trip window
+  std::int32_t trip_band = -1;         ///< its band (-1: none)
+  double trip_band_lo_hz = 0.0, trip_band_hi_hz = 0.0;  ///< its frequency range
+  std::int64_t trip_wall_ns = 0;                        ///< unix ns (0 = unknown)
 
   // Field training (state == kTraining).
   std::uint64_t training_windows = 0;

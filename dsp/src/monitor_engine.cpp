@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -49,7 +50,55 @@ const Baseline& checked(const Baseline& b, const ExtractionConfig& cfg, double f
   return b;
 }
 
+// The band CUSUM needs the band statistics of this very configuration: said here, before anything runs.
+const DecisionConfig& checked_band(const DecisionConfig& d, const Baseline& b, Method method) {
+  if (!d.band.enabled) return d;
+  check_band_cusum(d.band);
+  if (method != Method::kPtda) {
+    throw Error(std::string("monitor: [decision] band_cusum needs [monitor] method = \"ptda\" (the band "
+                            "statistics are those of the PTDA residual), got \"") +
+                std::string(method_name(method)) + "\"");
+  }
+  if (b.policy.band_count == 0) {
+    throw Error(
+        "monitor: [decision] band_cusum = true needs a baseline with band-energy statistics "
+        "(format 7, trained with band_cusum = true); this baseline has none: retrain it with "
+        "[decision] band_cusum = true");
+  }
+  if (b.policy.band_count != d.band.band_count) {
+    throw Error("monitor: [decision] band_count = " + std::to_string(d.band.band_count) +
+                " but the baseline was trained with " + std::to_string(b.policy.band_count) +
+                " bands: set band_count = " + std::to_string(b.policy.band_count) + " or retrain");
+  }
+  for (std::size_t i = 0; i < b.classes.size(); ++i) {
+    if (b.classes[i].band_stats.size() != b.policy.band_count) {
+      throw Error("monitor: baseline class " + std::to_string(i) + " has " +
+                  std::to_string(b.classes[i].band_stats.size()) + " band statistics, expected " +
+                  std::to_string(b.policy.band_count));
+    }
+  }
+  return d;
+}
+
 }  // namespace
+
+namespace {
+
+// Whether statistic s (above h since crossing number `since`, 0 = not above) ranks before the current
+// top: larger, or equal and above h for longer (the band that crossed first; e.g. several at the cap).
+bool band_first(double s, std::uint64_t since, double top, std::uint64_t top_since) noexcept {
+  if (s > top) return true;
+  return s == top && s > 0.0 && since != 0 && (top_since == 0 || since < top_since);
+}
+
+}  // namespace
+
+DecisionConfig with_band_geometry(DecisionConfig decision, const Baseline& baseline) noexcept {
+  decision.band.half_bins = baseline.window_len / 2;
+  decision.band.bin_hz =
+      baseline.window_len > 0 ? baseline.fs_hz / static_cast<double>(baseline.window_len) : 0.0;
+  return decision;
+}
 
 MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& cfg,
                              const DecisionConfig& decision, Method method, double fs_hz, std::int64_t t0_ns)
@@ -57,7 +106,8 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
       method_(method),
       slicer_(cfg, fs_hz, t0_ns),
       analyzer_(cfg.window_len),
-      decision_(decision, baseline_.classes.size()),
+      decision_(with_band_geometry(checked_band(decision, baseline_, method), baseline_),
+                baseline_.classes.size()),
       window_(cfg.window_len, 0.0F) {
   // The line groups are runtime state derived from the stored means: recomputed on the engine's copy,
   // so an engine built from any baseline (read, trained or made by hand) scores the residual it was
@@ -66,12 +116,37 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
   for (const ClassBaseline& c : baseline_.classes) {
     z_scale_.push_back(sequential_scale(c, method, baseline_.policy, decision.sequential.day_allowance));
   }
+  if (decision.band.enabled) {
+    // The clean bins are derived from the stored mean as training derived them; the counts stored per
+    // band prove it (a baseline edited by hand or from another build would otherwise score other bins).
+    std::array<std::uint32_t, kMaxBands> counts{};
+    for (std::size_t i = 0; i < baseline_.classes.size(); ++i) {
+      const ClassBaseline& c = baseline_.classes[i];
+      band_clean_.push_back(clean_floor_bins(c.mean_magnitude));
+      band_scale_.push_back(band_scale(c, decision.band.day_allowance));
+      clean_bins_per_band(band_clean_.back(), c.band_stats.size(), counts);
+      for (std::size_t b = 0; b < c.band_stats.size(); ++b) {
+        if (counts[b] != c.band_stats[b].clean_bins) {
+          throw Error("monitor: baseline class " + std::to_string(i) + " band " + std::to_string(b) +
+                      " has " + std::to_string(c.band_stats[b].clean_bins) +
+                      " clean bins stored but its mean spectrum gives " + std::to_string(counts[b]) +
+                      ": the band statistics do not belong to this mean (retrain)");
+        }
+      }
+    }
+  }
 }
 
 DecisionState::DecisionState(const DecisionConfig& decision, std::size_t classes)
-    : debouncer_(decision.k, decision.n), seq_(decision.sequential), cusum_(classes) {
+    : debouncer_(decision.k, decision.n), seq_(decision.sequential), cusum_(classes), band_(decision.band) {
   check_sequential(seq_);
   cap_ = seq_.h_alarm + static_cast<double>(decision.n - std::min(decision.k, decision.n)) * seq_.k;
+  if (band_.enabled) {
+    check_band_cusum(band_);
+    band_cap_ = band_.h + static_cast<double>(decision.n - std::min(decision.k, decision.n)) * band_.k;
+    band_s_.assign(classes, std::array<double, kMaxBands>{});
+    band_since_.assign(classes, std::array<std::uint64_t, kMaxBands>{});
+  }
 }
 
 void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
@@ -81,6 +156,33 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     c.update(w.z_rms, w.z_entropy, seq_.k, cap_, w.seq_allowance_rms, w.seq_allowance_entropy);
     w.seq_statistic = c.statistic();
     w.seq_feature = c.feature();
+  }
+  if (band_.enabled && cls < band_s_.size()) {
+    // S_b <- min(cap, max(0, S_b + x_b - k)), x_b = z_b minus the class's day allowance; a non-finite
+    // x_b counts as k + 1, as in the feature CUSUM.
+    std::array<double, kMaxBands>& s = band_s_[cls];
+    std::array<std::uint64_t, kMaxBands>& since = band_since_[cls];
+    const std::size_t m = std::min<std::size_t>(w.band_count, kMaxBands);
+    double top = 0.0;
+    std::uint64_t top_since = 0;
+    std::int32_t top_b = -1;
+    for (std::size_t b = 0; b < m; ++b) {
+      const double x =
+          std::isfinite(w.band_excess[b]) ? static_cast<double>(w.band_excess[b]) : band_.k + 1.0;
+      s[b] = std::min(band_cap_, std::max(0.0, s[b] + x - band_.k));
+      if (!(s[b] > band_.h)) {
+        since[b] = 0;
+      } else if (since[b] == 0) {
+        since[b] = ++band_order_;
+      }
+      if (band_first(s[b], since[b], top, top_since)) {
+        top = s[b];
+        top_since = since[b];
+        top_b = static_cast<std::int32_t>(b);
+      }
+    }
+    w.band_statistic = top;
+    w.band_index = top_b;
   }
   fill(w);
 }
@@ -97,9 +199,36 @@ void DecisionState::fill(WindowResult& w) const noexcept {
   w.seq_max_statistic = worst;
   w.seq_warn = seq_.enabled && worst >= seq_.h_warn;
   w.seq_alarm = seq_.enabled && worst >= seq_.h_alarm;
-  w.alarm = w.kofn_alarm || w.seq_alarm;
-  w.detector = w.kofn_alarm ? (w.seq_alarm ? AlarmDetector::kBoth : AlarmDetector::kKOfN)
-                            : (w.seq_alarm ? AlarmDetector::kSequential : AlarmDetector::kNone);
+  w.band_on = band_.enabled;
+  if (band_.enabled) {
+    double top = 0.0;
+    std::uint64_t top_since = 0;
+    w.band_max_index = -1;
+    w.band_max_class = -1;
+    for (std::size_t c = 0; c < band_s_.size(); ++c) {
+      for (std::size_t b = 0; b < kMaxBands; ++b) {
+        if (band_first(band_s_[c][b], band_since_[c][b], top, top_since)) {
+          top = band_s_[c][b];
+          top_since = band_since_[c][b];
+          w.band_max_index = static_cast<std::int32_t>(b);
+          w.band_max_class = static_cast<std::int32_t>(c);
+        }
+      }
+    }
+    w.band_max_statistic = top;
+    w.band_alarm = top > band_.h;
+    w.band_lo_hz = 0.0;
+    w.band_hi_hz = 0.0;
+    if (w.band_max_index >= 0 && band_.half_bins > 0 && band_.band_count > 0) {
+      const auto b = static_cast<std::size_t>(w.band_max_index);
+      w.band_lo_hz = static_cast<double>(band_edge(band_.half_bins, band_.band_count, b)) * band_.bin_hz;
+      w.band_hi_hz =
+          static_cast<double>(band_edge(band_.half_bins, band_.band_count, b + 1) - 1) * band_.bin_hz;
+    }
+  }
+  w.alarm = w.kofn_alarm || w.seq_alarm || w.band_alarm;
+  const unsigned bits = (w.kofn_alarm ? 1U : 0U) | (w.seq_alarm ? 2U : 0U) | (w.band_alarm ? 4U : 0U);
+  w.detector = static_cast<AlarmDetector>(bits);
 }
 
 void MonitorEngine::push_speed(const SpeedSample& s) noexcept {
@@ -166,6 +295,19 @@ void MonitorEngine::score(const WindowRef& ref, WindowResult& out) noexcept {
   out.z_entropy = z.entropy;
   out.seq_allowance_rms = z_scale_[ci].rms_allowance;
   out.seq_allowance_entropy = z_scale_[ci].entropy_allowance;
+  if (!band_scale_.empty()) {
+    // Band energies of the residual the analyzer just formed (no extra transform).
+    const BandScale& bs = band_scale_[ci];
+    band_log_energies(analyzer_.residual_energy(), band_clean_[ci], bs.count, band_tmp_);
+    out.band_count = static_cast<std::uint8_t>(bs.count);
+    double top = -std::numeric_limits<double>::infinity();
+    for (std::size_t b = 0; b < bs.count; ++b) {
+      const double x = bs.active[b] != 0 ? (band_tmp_[b] - bs.mean[b]) / bs.sd[b] - bs.allowance[b] : 0.0;
+      out.band_excess[b] = static_cast<float>(x);
+      top = std::max(top, x);
+    }
+    out.band_z_max = bs.count > 0 ? top : 0.0;
+  }
   decision_.scored(out, ci);
 }
 

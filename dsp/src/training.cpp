@@ -15,6 +15,7 @@
 
 #include "ptda/common/error.hpp"
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/band_energy.hpp"
 #include "ptda/dsp/real_fft.hpp"
 
 namespace ptda::dsp {
@@ -335,6 +336,11 @@ struct ClassBaselineBuilder::State {
   std::array<std::vector<double>, kMethodCount> rms_values;
   std::array<std::vector<double>, kMethodCount> entropy_values;
   std::vector<std::uint32_t> value_recording;  // the recording of each value, in the values' order
+  // Band CUSUM statistics (policy.band_count > 0): clean floor bins of the full mean, and per band the
+  // leave-one-out ln band energies of the referred PTDA residual, in the values' order.
+  std::vector<unsigned char> clean;
+  std::vector<std::vector<double>> band_values;
+  std::array<double, kMaxBands> band_tmp{};
 };
 
 ClassBaselineBuilder::ClassBaselineBuilder(const SegmentClass& segment, std::size_t window_len,
@@ -346,6 +352,10 @@ ClassBaselineBuilder::ClassBaselineBuilder(const SegmentClass& segment, std::siz
   }
   if (!(std::isfinite(policy.day_sd_floor) && policy.day_sd_floor >= 0.0)) {
     throw Error(where + ": thresholds.day_sd_floor must be finite and >= 0");
+  }
+  if (policy.band_count > kMaxBands || policy.band_count > window_len / 2) {
+    throw Error(where + ": decision.band_count = " + std::to_string(policy.band_count) + " must be <= " +
+                std::to_string(kMaxBands) + " and <= window_len / 2 = " + std::to_string(window_len / 2));
   }
   s_ = std::make_unique<State>(segment, window_len, policy);
 }
@@ -402,6 +412,12 @@ void ClassBaselineBuilder::finish_mean() {
   for (auto& v : s.rms_values) v.reserve(s.m);
   for (auto& v : s.entropy_values) v.reserve(s.m);
   s.value_recording.reserve(s.m);
+  if (s.policy.band_count > 0) {
+    // From the mean of all the class's windows, like the line groups (docs/method.md §6, band detector).
+    s.clean = clean_floor_bins(cls.mean_magnitude);
+    s.band_values.assign(s.policy.band_count, {});
+    for (auto& v : s.band_values) v.reserve(s.m);
+  }
 }
 
 const ClassBaseline& ClassBaselineBuilder::means() const noexcept {
@@ -459,6 +475,11 @@ void ClassBaselineBuilder::score_group(std::span<const std::span<const float>> w
     for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
       s.rms_values[mi].push_back(f[mi].rms_res);
       s.entropy_values[mi].push_back(f[mi].entropy_res);
+    }
+    if (!s.band_values.empty()) {
+      // analyze_all() ends with PTDA: the analyzer's energies are its (leave-one-out, referred) residual.
+      band_log_energies(s.analyzer.residual_energy(), s.clean, s.band_values.size(), s.band_tmp);
+      for (std::size_t b = 0; b < s.band_values.size(); ++b) s.band_values[b].push_back(s.band_tmp[b]);
     }
   }
   ++s.groups;
@@ -540,6 +561,24 @@ ClassBaseline ClassBaselineBuilder::finish() {
     cls.entropy_stats[mi] = feature_stats(entropy_values[mi]);
     // A zero residual (possible only for a window identical to the mean) is left out of the log stats.
     cls.log_rms_stats[mi] = feature_stats(logs);
+  }
+  // Band CUSUM statistics: per band the random-effects split of the leave-one-out ln band energies with
+  // the recordings as groups; the between-day sd used is floored at day_sd_floor x within sd (one
+  // recording: the floor alone), as the session-11 study standardised them (docs/method.md §8).
+  if (!s.band_values.empty()) {
+    std::array<std::uint32_t, kMaxBands> clean_n{};
+    clean_bins_per_band(s.clean, s.band_values.size(), clean_n);
+    cls.band_stats.assign(s.band_values.size(), BandEnergyStats{});
+    for (std::size_t b = 0; b < s.band_values.size(); ++b) {
+      BandEnergyStats& st = cls.band_stats[b];
+      st.clean_bins = clean_n[b];
+      const VarianceComponents v = variance_components(s.band_values[b], value_recording);
+      cls.band_recordings = v.groups;
+      st.mean = v.mean;
+      st.within_sd = std::sqrt(v.within_var);
+      st.between_est = std::sqrt(v.between_var);
+      st.between_sd = std::max(st.between_est, policy.day_sd_floor * st.within_sd);
+    }
   }
   return std::move(cls);
 }

@@ -142,7 +142,13 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
     if (c.tda_mean.size() != b.window_len)
       throw Error(cls + ": tda_mean has " + std::to_string(c.tda_mean.size()) + " values, window_len is " +
                   std::to_string(b.window_len));
+    if (c.band_stats.size() != b.policy.band_count)
+      throw Error(cls + ": " + std::to_string(c.band_stats.size()) +
+                  " band statistics, the policy's band_count is " + std::to_string(b.policy.band_count));
   }
+  if (b.policy.band_count > dsp::kMaxBands || b.policy.band_count > b.window_len / 2)
+    throw Error(where + ": band_count " + std::to_string(b.policy.band_count) +
+                " must be <= " + std::to_string(dsp::kMaxBands) + " and <= window_len / 2");
   // Widened first: on 32-bit targets (armhf) size_t cannot exceed the u32 length field, and comparing
   // it directly is an always-false -Wtype-limits error there.
   if (std::uint64_t{b.source.size()} > std::numeric_limits<std::uint32_t>::max())
@@ -344,7 +350,20 @@ void validate_baseline(const dsp::Baseline& b, const std::string& where) {
     throw Error(w + "policy day_sd_floor is " + num(p.day_sd_floor) + ", must be finite and >= 0");
   for (std::size_t i = 0; i < b.classes.size(); ++i) {
     const dsp::ClassBaseline& c = b.classes[i];
-    check_class_values(c, w + "class " + std::to_string(i) + " (id " + std::to_string(c.segment.id) + ")");
+    const std::string cls = w + "class " + std::to_string(i) + " (id " + std::to_string(c.segment.id) + ")";
+    check_class_values(c, cls);
+    for (std::size_t k = 0; k < c.band_stats.size(); ++k) {
+      const dsp::BandEnergyStats& st = c.band_stats[k];
+      if (!(std::isfinite(st.mean) && std::isfinite(st.within_sd) && st.within_sd >= 0.0 &&
+            std::isfinite(st.between_est) && st.between_est >= 0.0 && std::isfinite(st.between_sd) &&
+            st.between_sd >= 0.0))
+        throw Error(cls + ": band " + std::to_string(k) + " statistics (mean " + num(st.mean) + ", sds " +
+                    num(st.within_sd) + ", " + num(st.between_est) + ", " + num(st.between_sd) +
+                    "): need finite values and sds >= 0");
+      if (st.clean_bins > b.window_len / 2)
+        throw Error(cls + ": band " + std::to_string(k) + " has " + std::to_string(st.clean_bins) +
+                    " clean bins, more than N/2");
+    }
   }
   for (std::size_t i = 0; i < b.training.size(); ++i) {
     const dsp::TrainingRecording& t = b.training[i];
@@ -371,7 +390,8 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   // A time-domain baseline is written as version 4, byte for byte as before version 5 existed; only an
   // order-domain baseline needs (and gets) version 5.
   const bool order = b.domain == dsp::Domain::kOrder;
-  w.u32(order ? kBaselineFormatVersion : kBaselineTimeDomainVersion);
+  const bool bands = b.policy.band_count > 0;
+  w.u32(bands ? kBaselineFormatVersion : (order ? kBaselineOrderDomainVersion : kBaselineTimeDomainVersion));
   w.u64(0);  // total size, patched below
   w.f64(b.fs_hz);
   w.u32(b.window_len);
@@ -441,13 +461,29 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
     }
   }
   // Version 5: the domain and the order windows' S and R; version 6: the speed law.
-  if (order) {
+  if (order || bands) {
     w.u8(static_cast<std::uint8_t>(b.domain));
     w.u32(b.samples_per_rev);
     w.u32(b.revolutions);
+  }
+  if (order) {
     w.f64(b.speed_law_exponent);
     w.f64(b.speed_law_fit);
     w.f64(b.speed_law_se);
+  }
+  // Version 7: the band CUSUM's statistics (written only when trained with them).
+  if (bands) {
+    w.u32(b.policy.band_count);
+    for (const auto& c : b.classes) {
+      w.u32(c.band_recordings);
+      for (const dsp::BandEnergyStats& st : c.band_stats) {
+        w.f64(st.mean);
+        w.f64(st.within_sd);
+        w.f64(st.between_est);
+        w.f64(st.between_sd);
+        w.u32(st.clean_bins);
+      }
+    }
   }
   w.patch_u64(kMagic.size() + 4, w.buf().size() + kCrcBytes);
   w.u32(crc32(w.buf().data(), w.buf().size()));
@@ -630,6 +666,28 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
     b.speed_law_exponent = body.f64();
     b.speed_law_fit = body.f64();
     b.speed_law_se = body.f64();
+  }
+  if (version >= 7) {
+    const std::uint32_t count = body.u32();
+    if (count == 0 || count > dsp::kMaxBands || count > b.window_len / 2)
+      body.fail("band_count " + std::to_string(count) + " must be 1.." + std::to_string(dsp::kMaxBands) +
+                " and <= window_len / 2");
+    // Per class: u32 + count x (4 f64 + u32).
+    if (std::uint64_t{n_classes} * (4U + std::uint64_t{count} * 36U) > body.left())
+      body.fail("the band statistics of " + std::to_string(n_classes) +
+                " classes cannot fit in the remaining " + std::to_string(body.left()) + " bytes");
+    b.policy.band_count = count;
+    for (auto& c : b.classes) {
+      c.band_recordings = body.u32();
+      c.band_stats.resize(count);
+      for (dsp::BandEnergyStats& st : c.band_stats) {
+        st.mean = body.f64();
+        st.within_sd = body.f64();
+        st.between_est = body.f64();
+        st.between_sd = body.f64();
+        st.clean_bins = body.u32();
+      }
+    }
   }
   if (body.left() != 0) body.fail(std::to_string(body.left()) + " unexpected bytes before the CRC");
   // A CRC only proves the bytes are what some writer produced: a forged or buggy file with NaN,

@@ -14,7 +14,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -41,9 +43,20 @@ class Collector final : public daemon::WindowSink {
   std::vector<dsp::WindowResult> windows;
 };
 
-std::string job_pipeline(const std::string& job) {
-  // The job's pipeline tables without [can] (the daemon file has its own [can] table below).
+// The job's example configuration, with `band_cusum = true` in its [decision] table when `band` is set.
+std::string job_config_text(const std::string& job, bool band) {
   std::ifstream in(source_dir() / "config" / "examples" / (job + ".toml"));
+  std::string line, out;
+  while (std::getline(in, line)) {
+    out += line + "\n";
+    if (band && line == "[decision]") out += "band_cusum = true\n";
+  }
+  return out;
+}
+
+std::string job_pipeline(const std::string& job, bool band = false) {
+  // The job's pipeline tables without [can] (the daemon file has its own [can] table below).
+  std::istringstream in(job_config_text(job, band));
   std::string line, out;
   bool skip = false;
   while (std::getline(in, line)) {
@@ -54,14 +67,14 @@ std::string job_pipeline(const std::string& job) {
 }
 
 fs::path write_daemon_config(const fs::path& dir, const std::string& job, const fs::path& recording,
-                             const fs::path& baseline) {
+                             const fs::path& baseline, bool band = false) {
   const fs::path path = dir / "ptdad.toml";
   std::ofstream out(path);
   out << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << (dir / "status").string()
       << "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" << recording.string()
       << "\"\npace = \"fast\"\nblock_len = 1000\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n"
       << "speed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n"
-      << job_pipeline(job);
+      << job_pipeline(job, band);
   return path;
 }
 
@@ -72,11 +85,15 @@ struct Prepared {
 
 // `tag` keeps each test's scratch directory its own: ctest runs the tests of this binary as separate
 // processes in parallel, and a shared directory would be wiped by the other test mid-run.
-Prepared prepare(const std::string& job, const std::string& tag = "threads") {
+Prepared prepare(const std::string& job, const std::string& tag = "threads", bool band = false) {
   Prepared p;
   p.dir = scratch_dir("daemon_replay_" + tag + "_" + job);
   const std::string scen = (source_dir() / "config" / "scenarios").string() + "/" + job;
-  const std::string cfg = (source_dir() / "config" / "examples" / (job + ".toml")).string();
+  std::string cfg = (source_dir() / "config" / "examples" / (job + ".toml")).string();
+  if (band) {
+    cfg = (p.dir / (job + "_band.toml")).string();
+    std::ofstream(cfg) << job_config_text(job, true);
+  }
   p.faulty = p.dir / "faulty";
   p.baseline = p.dir / "baseline.bin";
   p.jsonl = p.dir / "faulty.jsonl";
@@ -102,7 +119,7 @@ Prepared prepare(const std::string& job, const std::string& tag = "threads") {
   std::ifstream in(p.jsonl);
   std::string line;
   while (std::getline(in, line)) p.lines.push_back(line);
-  p.config = write_daemon_config(p.dir, job, p.faulty, p.baseline);
+  p.config = write_daemon_config(p.dir, job, p.faulty, p.baseline, band);
   return p;
 }
 
@@ -116,6 +133,11 @@ struct Pinned {
 // welding re-measured after its example config moved to k = 4 of n = 10 and the presets gained
 // cycle-to-cycle variation. Re-pinned for issue 12 (CUSUM beside k-of-n, tolerance bands): the CUSUM
 // holds the alarm from the first faulty window on (k-of-n alone: 38, 89, 18).
+// The band CUSUM on spot welding's faulty recording (full severity; measured with the seeds above): it
+// alarms from the first window, in band 7 of 32 (bins 1121..1280 of 2.5 Hz: 2802.5-3200 Hz).
+constexpr std::size_t kBandFirstAlarm = 0;
+constexpr std::int32_t kBandFirstAlarmBand = 7;
+
 constexpr Pinned kJobs[] = {{"joint_rotation", 40, 40}, {"arc_welding", 101, 101}, {"spot_welding", 20, 20}};
 
 /// The daemon's coverage tracker reached the state `ptda monitor`'s did (same windows, same speed
@@ -131,11 +153,10 @@ void expect_same_coverage(const dsp::CoverageState& dc, const dsp::CoverageState
 
 class DaemonReplay : public ::testing::TestWithParam<Pinned> {};
 
-TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
-  const Pinned pin = GetParam();
-  const Prepared p = prepare(pin.job);
-  ASSERT_FALSE(p.lines.empty());
-
+// Replays p's faulty recording through ptdad's threads and expects every window to give the JSONL line
+// `ptda monitor` wrote, and the same coverage. Returns the daemon's windows.
+std::vector<dsp::WindowResult> expect_daemon_equals_monitor(const Prepared& p, const std::string& job,
+                                                            const std::string& cfg) {
   Collector collector;
   drivers::MonotonicClock clock;
   daemon::DaemonOptions opt;
@@ -146,7 +167,7 @@ TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
   d.set_window_sink(&collector);
   d.configure();
   d.activate();
-  ASSERT_EQ(d.run(), 0);
+  EXPECT_EQ(d.run(), 0);
   const daemon::DaemonView v = d.view();
   EXPECT_TRUE(v.pipeline.ended);
   EXPECT_EQ(v.pipeline.phase, daemon::Phase::kEnded);
@@ -156,21 +177,16 @@ TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
 
   const formats::RecordingMeta meta = formats::read_recording_meta(p.faulty);
   const std::int64_t shift = seconds_to_ns(meta.start_time_s) - v.pipeline.t0_mono_ns;
-  ASSERT_EQ(collector.windows.size(), p.lines.size());
-  std::size_t alarm_windows = 0;
-  for (std::size_t i = 0; i < p.lines.size(); ++i) {
-    dsp::WindowResult w = collector.windows[i];
+  EXPECT_EQ(collector.windows.size(), p.lines.size());
+  for (std::size_t i = 0; i < std::min(p.lines.size(), collector.windows.size()); ++i) {
+    dsp::WindowResult& w = collector.windows[i];
     w.ref.t_start_ns += shift;
     w.ref.t_end_ns += shift;
-    EXPECT_EQ(cli::window_json(w, dsp::Method::kPtda), p.lines[i]) << pin.job << " window " << i;
-    if (w.alarm) ++alarm_windows;
+    EXPECT_EQ(cli::window_json(w, dsp::Method::kPtda), p.lines[i]) << job << " window " << i;
   }
-  EXPECT_EQ(collector.windows.size(), pin.windows) << "pinned window count";
-  EXPECT_EQ(alarm_windows, pin.alarm_windows) << "pinned alarm windows";
 
   // Coverage: the daemon's tracker reaches the state `ptda monitor`'s does (same windows, same speed
   // samples, same motion time), and every window of a paper job's faulty recording is judged.
-  const std::string cfg = (source_dir() / "config" / "examples" / (std::string(pin.job) + ".toml")).string();
   const cli::MonitorInputs in = cli::load_monitor_inputs(p.faulty.string(), cfg, p.baseline.string());
   cli::RunOptions ro;
   ro.progress = false;
@@ -178,12 +194,47 @@ TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
       cli::monitor_recording(in.rec, in.cfg, in.baseline, dsp::Method::kPtda, in.fs_hz, {}, ro);
   const dsp::CoverageState& dc = v.pipeline.coverage;
   expect_same_coverage(dc, m.coverage);
-  EXPECT_EQ(dc.judged, pin.windows);
+  EXPECT_EQ(dc.judged, p.lines.size());
   EXPECT_EQ(dc.level, dsp::CoverageLevel::kFull);
+  return collector.windows;
+}
+
+TEST_P(DaemonReplay, ThreadsReproduceMonitorJsonlExactly) {
+  const Pinned pin = GetParam();
+  const Prepared p = prepare(pin.job);
+  ASSERT_FALSE(p.lines.empty());
+  const std::string cfg = (source_dir() / "config" / "examples" / (std::string(pin.job) + ".toml")).string();
+  const std::vector<dsp::WindowResult> windows = expect_daemon_equals_monitor(p, pin.job, cfg);
+  std::size_t alarm_windows = 0;
+  for (const dsp::WindowResult& w : windows) alarm_windows += w.alarm ? 1 : 0;
+  EXPECT_EQ(windows.size(), pin.windows) << "pinned window count";
+  EXPECT_EQ(alarm_windows, pin.alarm_windows) << "pinned alarm windows";
 }
 
 INSTANTIATE_TEST_SUITE_P(PaperJobs, DaemonReplay, ::testing::ValuesIn(kJobs),
                          [](const auto& param_info) { return std::string(param_info.param.job); });
+
+// The band CUSUM on (`[decision] band_cusum = true`, session 12): trained and monitored with it, the
+// daemon's windows still give `ptda monitor`'s JSONL line for line, band evidence included. Pinned from
+// this run (seeds 1001 / 3003): spot welding's 20 faulty windows, the band detector's first alarm.
+TEST(DaemonReplayBandCusum, ThreadsReproduceMonitorJsonlWithBandCusum) {
+  const Prepared p = prepare("spot_welding", "band", true);
+  ASSERT_FALSE(p.lines.empty());
+  const std::string cfg = (p.dir / "spot_welding_band.toml").string();
+  const std::vector<dsp::WindowResult> windows = expect_daemon_equals_monitor(p, "spot_welding", cfg);
+  ASSERT_EQ(windows.size(), 20U);
+  std::size_t first_band_alarm = windows.size();
+  for (std::size_t i = 0; i < windows.size(); ++i) {
+    EXPECT_TRUE(windows[i].band_on) << i;
+    EXPECT_NE(p.lines[i].find("\"band_cusum_max\":"), std::string::npos) << p.lines[i];
+    if (windows[i].band_alarm && first_band_alarm == windows.size()) first_band_alarm = i;
+  }
+  ASSERT_EQ(first_band_alarm, kBandFirstAlarm) << "pinned first band alarm";
+  EXPECT_EQ(windows[first_band_alarm].band_max_index, kBandFirstAlarmBand);
+  EXPECT_EQ(windows[first_band_alarm].detector, dsp::AlarmDetector::kSequentialBand);  // k-of-n needs 3
+  EXPECT_NE(p.lines[first_band_alarm].find("\"detector\":\"sequential+band\""), std::string::npos)
+      << p.lines[first_band_alarm];
+}
 
 // ---- order domain ----------------------------------------------------------------------------------
 

@@ -120,6 +120,23 @@ TEST(WindowJson, ScoredAndUnclassifiedWindows) {
           "\"entropy_out\":false,\"abnormal\":true,\"alarm\":true,\"abnormal_in_last_n\":3,\"rms_low\":false,"
           "\"detector\":\"k_of_n\",\"kofn_alarm\":true,\"seq_alarm\":false,\"seq_warn\":true,\"z_rms\":2.5,"
           "\"z_entropy\":-0.25,\"cusum\":1.5,\"cusum_feature\":\"rms_high\",\"cusum_max\":4.5}");
+  // The band CUSUM's evidence (only with [decision] band_cusum on), the text the daemon's history
+  // writes (tests/unit/daemon/history_log_test.cpp, BandCusumEvidenceEndsTheWindowLine).
+  w.band_on = true;
+  w.band_alarm = true;
+  w.band_z_max = 3.5;
+  w.band_statistic = 12.0;
+  w.band_index = 7;
+  w.band_max_statistic = 12.0;
+  w.band_max_index = 7;
+  w.band_lo_hz = 2802.5;
+  w.band_hi_hz = 3200.0;
+  const std::string banded = window_json(w, dsp::Method::kPtda);
+  const std::string tail =
+      R"("cusum_max":4.5,"band_alarm":true,"band_z_max":3.5,"band_cusum":12,"band_cusum_band":7,)"
+      R"("band_cusum_max":12,"band":7,"band_hz":[2802.5,3200]})";
+  EXPECT_EQ(banded.substr(banded.size() - tail.size()), tail) << banded;
+  w.band_on = false;
   w.status = dsp::WindowStatus::kNoClass;
   w.class_id = -1;
   w.alarm = false;

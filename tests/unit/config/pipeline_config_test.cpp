@@ -686,5 +686,49 @@ TEST(SpeedFrameSchema, ConflictingByteOrderAndLittleEndianIsAnError) {
   EXPECT_EQ(cfg.warnings.size(), 1U);
 }
 
+// The band CUSUM's keys (session 12): off by default, parsed and carried to training's policy when on,
+// every bad value located at its key.
+TEST(PipelineConfigBandCusum, KeysParseAndReachTraining) {
+  const PipelineConfig off = parse_pipeline_config("[extraction]\nwindow_len = 4096\n", "cfg.toml");
+  EXPECT_FALSE(off.decision.band.enabled);
+  EXPECT_EQ(off.thresholds.band_count, 0U);
+  EXPECT_EQ(off.decision.band.k, 1.0);
+  EXPECT_EQ(off.decision.band.h, 10.0);
+  EXPECT_EQ(off.decision.band.band_count, 32U);
+  const PipelineConfig on = parse_pipeline_config(
+      "[extraction]\nwindow_len = 4096\n[decision]\nband_cusum = true\nband_cusum_k = 1.5\nband_cusum_h = "
+      "12\n"
+      "band_cusum_day_allowance = 1\nband_count = 16\n",
+      "cfg.toml");
+  EXPECT_TRUE(on.decision.band.enabled);
+  EXPECT_EQ(on.decision.band.k, 1.5);
+  EXPECT_EQ(on.decision.band.h, 12.0);
+  EXPECT_EQ(on.decision.band.day_allowance, 1.0);
+  EXPECT_EQ(on.decision.band.band_count, 16U);
+  EXPECT_EQ(on.thresholds.band_count, 16U);  // training computes 16 bands' statistics
+  // The formatted configuration reads back the same.
+  const PipelineConfig back = parse_pipeline_config(format_pipeline_config(on), "formatted.toml");
+  EXPECT_TRUE(back.decision.band.enabled);
+  EXPECT_EQ(back.decision.band.k, 1.5);
+  EXPECT_EQ(back.decision.band.h, 12.0);
+  EXPECT_EQ(back.decision.band.day_allowance, 1.0);
+  EXPECT_EQ(back.thresholds.band_count, 16U);
+}
+
+TEST(PipelineConfigBandCusum, BadValuesAreLocated) {
+  EXPECT_EQ(error_of("[decision]\nband_cusum_k = 0\n"), "cfg.toml:2:16: decision.band_cusum_k must be > 0");
+  EXPECT_EQ(error_of("[decision]\nband_cusum_h = 2000\n"),
+            "cfg.toml:2:16: decision.band_cusum_h = 2000 is outside 0..1000");
+  EXPECT_EQ(error_of("[decision]\nband_count = 65\n"),
+            "cfg.toml:2:14: decision.band_count = 65 is outside 1..64");
+  EXPECT_EQ(error_of("[decision]\nband_cusum_day_allowance = 11\n"),
+            "cfg.toml:2:28: decision.band_cusum_day_allowance = 11 is outside 0..10");
+  EXPECT_EQ(error_of("[decision]\nband_cusum = 1\n").rfind("cfg.toml:2:14: decision.band_cusum", 0), 0U)
+      << error_of("[decision]\nband_cusum = 1\n");
+  EXPECT_EQ(error_of("[extraction]\nwindow_len = 32\n[decision]\nband_cusum = true\nband_count = 32\n"),
+            "cfg.toml:5:14: [decision] band_count = 32 needs at least one bin per band: must not exceed "
+            "window_len / 2 = 16");
+}
+
 }  // namespace
 }  // namespace ptda::config

@@ -114,6 +114,57 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   EXPECT_NE(status.find(R"("handoff":0,)"), std::string::npos) << status;
 }
 
+// The band CUSUM on (session 12): its per-class, per-band state is sized at configure, the band energies
+// come from the analyzer's residual, and the history log writes the band evidence, all without a heap
+// allocation on the real-time threads or the supervisor.
+TEST(DaemonAlloc, BandCusumSteadyStateMakesNoAllocations) {
+  block_daemon_signals();
+  const fs::path dir = scratch("alloc_band");
+  write_sim_baseline(dir / "baseline.bin", true);
+  write_text(
+      dir / "ptdad.toml",
+      sim_config(dir / "baseline.bin", dir / "status", "fast",
+                 "metrics_path = \"" + (dir / "metrics" / "ptda.prom").string() + "\"\njoint = \"j4\"\n",
+                 "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[history]\ndir = \"" +
+                     (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n",
+                 true));
+  drivers::MonotonicClock clock;
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  auto daemon = std::make_unique<Daemon>(opt, clock);
+  Daemon& d = *daemon;
+  d.configure();
+  d.activate();
+  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+  const std::uint64_t pass = 1'626'483;  // samples of one pass of the scenario (as above)
+  ASSERT_TRUE(wait_for([&] { return d.view().pipeline.samples > pass + 200'000; }, std::chrono::seconds(60)));
+  const DaemonView before = d.view();
+  std::uint64_t allocations = 0;
+  {
+    ptda::test::AllocScope scope;
+    wait_for(
+        [&] {
+          const DaemonView v = d.view();
+          return v.pipeline.samples > before.pipeline.samples + 2 * pass &&
+                 v.status_writes > before.status_writes + 1;
+        },
+        std::chrono::seconds(120));
+    allocations = scope.count();
+  }
+  const DaemonView after = d.view();
+  d.request_stop();
+  runner.join();
+  daemon.reset();
+  EXPECT_EQ(allocations, 0U);
+  EXPECT_GE(after.pipeline.scored - before.pipeline.scored, 190U);
+  EXPECT_TRUE(after.pipeline.last_window.band_on);  // the band CUSUM ran
+  // The history's window lines carry the band evidence.
+  std::ifstream in(dir / "history" / "history.jsonl");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"band_cusum_max\":"), std::string::npos);
+}
+
 // ---- order domain (issue 16) ----------------------------------------------------------------------
 
 /// The simulator backends on the joint-rotation job at fast pace, looping, order domain; the simulator's

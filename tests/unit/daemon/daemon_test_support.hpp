@@ -56,13 +56,15 @@ inline void write_text(const fs::path& p, const std::string& text) {
 }
 
 /// The arc-welding job's pipeline (config/examples/arc_welding.toml) without its [can] table.
-inline std::string arc_pipeline() {
+/// band: with `band_cusum = true` in its [decision] table (the band CUSUM, session 12).
+inline std::string arc_pipeline(bool band = false) {
   std::ifstream in(source_dir() / "config" / "examples" / "arc_welding.toml");
   std::string line, out;
   bool skip = false;
   while (std::getline(in, line)) {
     if (!line.empty() && line[0] == '[') skip = line.rfind("[can", 0) == 0;
     if (!skip) out += line + "\n";
+    if (band && line == "[decision]") out += "band_cusum = true\n";
   }
   return out;
 }
@@ -119,26 +121,28 @@ inline std::size_t temp_files(const fs::path& dir) {
 
 /// A daemon configuration for the simulator backends (arc-welding healthy scenario).
 inline std::string sim_config(const fs::path& baseline, const fs::path& status_dir, const std::string& pace,
-                              const std::string& extra_daemon = "", const std::string& extra = "") {
+                              const std::string& extra_daemon = "", const std::string& extra = "",
+                              bool band = false) {
   std::ostringstream s;
   s << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << status_dir.string()
     << "\"\nstatus_period_s = 0.05\n"
     << extra_daemon << "\n[adc]\nbackend = \"sim\"\nscenario = \"" << arc_scenario().string()
     << "\"\nseed = 7\npace = \"" << pace << "\"\n\n[can]\nbackend = \"sim\"\npace = \"" << pace << "\"\n\n"
     << extra << "\n"
-    << arc_pipeline();
+    << arc_pipeline(band);
   return s.str();
 }
 
 /// Trains a baseline on the simulated healthy arc-welding job (seed 7) and writes it to `path`, once
 /// per process (later calls copy the first file). Allocates; takes ~1 s.
-inline void write_sim_baseline(const fs::path& path) {
-  static fs::path first;
-  if (!first.empty()) {
-    fs::copy_file(first, path, fs::copy_options::overwrite_existing);
+/// band: trained with `[decision] band_cusum = true` (band statistics, format 7).
+inline void write_sim_baseline(const fs::path& path, bool band = false) {
+  static fs::path first[2];
+  if (!first[band ? 1 : 0].empty()) {
+    fs::copy_file(first[band ? 1 : 0], path, fs::copy_options::overwrite_existing);
     return;
   }
-  const DaemonConfig cfg = parse_daemon_config(sim_config(path, "", "fast"), "baseline.toml");
+  const DaemonConfig cfg = parse_daemon_config(sim_config(path, "", "fast", "", "", band), "baseline.toml");
   const config::PipelineConfig& pc = cfg.pipeline;
   const auto rec = make_sim_recording(arc_scenario(), 7);
   dsp::WindowSlicer slicer(pc.extraction, rec->fs_hz, 0);
@@ -172,7 +176,7 @@ inline void write_sim_baseline(const fs::path& path) {
   dsp::Baseline b = dsp::train_baseline(data, pc.classes, pc.thresholds, rec->fs_hz, pc.gearbox);
   b.source = "daemon tests: simulated arc welding, seed 7";
   formats::write_baseline(path, b);
-  first = path;
+  first[band ? 1 : 0] = path;
 }
 
 // ---- order domain (issue 16) ----------------------------------------------------------------------

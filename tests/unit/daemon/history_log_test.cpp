@@ -104,6 +104,44 @@ TEST(HistoryLog, WindowAndStateLinesAreTheMonitorFieldsAsJsonLines) {
             R"("phase":"monitoring","level":"alarm","causes":"rms","reason":"class 3, rms \"high\""})");
 }
 
+// With the band CUSUM on, window lines end with its evidence, as `ptda monitor --jsonl` writes it
+// (tests/unit/cli/jsonl_test.cpp pins the same text); without it nothing changes (test above).
+TEST(HistoryLog, BandCusumEvidenceEndsTheWindowLine) {
+  const fs::path dir = scratch("band");
+  HistoryConfig c;
+  c.dir = dir;
+  c.method = "ptda";
+  {
+    HistoryLog h(c);
+    dsp::WindowResult w = scored_window(7);
+    w.band_on = true;
+    w.band_alarm = true;
+    w.band_z_max = 3.5;
+    w.band_statistic = 12.0;
+    w.band_index = 7;
+    w.band_max_statistic = 12.0;
+    w.band_max_index = 7;
+    w.band_lo_hz = 2802.5;
+    w.band_hi_hz = 3200.0;
+    h.window(w, 1700000000123456789);
+    dsp::WindowResult u = scored_window(8);
+    u.status = dsp::WindowStatus::kNoClass;
+    u.band_on = true;
+    h.window(u, 0);
+  }
+  const std::vector<std::string> lines = lines_of(dir / "history.jsonl");
+  ASSERT_EQ(lines.size(), 2U);
+  for (const std::string& l : lines) EXPECT_TRUE(test::JsonChecker(l).valid()) << l;
+  const std::string tail =
+      R"("cusum_max":0,"band_alarm":true,"band_z_max":3.5,"band_cusum":12,"band_cusum_band":7,)"
+      R"("band_cusum_max":12,"band":7,"band_hz":[2802.5,3200]})";
+  EXPECT_EQ(lines[0].substr(lines[0].size() - tail.size()), tail) << lines[0];
+  const std::string unscored =
+      R"("band_alarm":false,"band_z_max":null,"band_cusum":null,"band_cusum_band":null,"band_cusum_max":0,)"
+      R"("band":null,"band_hz":null})";
+  EXPECT_EQ(lines[1].substr(lines[1].size() - unscored.size()), unscored) << lines[1];
+}
+
 TEST(HistoryLog, RotationBoundsTheHistoryAndKeepsTheNewestInOrder) {
   const fs::path dir = scratch("rotation");
   HistoryConfig c;

@@ -143,6 +143,15 @@ void expect_equal(const Baseline& a, const Baseline& b) {
     EXPECT_EQ(x.mean_magnitude, y.mean_magnitude);
     EXPECT_EQ(x.tda_mean, y.tda_mean);
     EXPECT_EQ(x.windows_per_hour, y.windows_per_hour);
+    EXPECT_EQ(x.band_recordings, y.band_recordings);
+    ASSERT_EQ(x.band_stats.size(), y.band_stats.size());
+    for (std::size_t k = 0; k < x.band_stats.size(); ++k) {
+      EXPECT_TRUE(same_bits(x.band_stats[k].mean, y.band_stats[k].mean));
+      EXPECT_TRUE(same_bits(x.band_stats[k].within_sd, y.band_stats[k].within_sd));
+      EXPECT_TRUE(same_bits(x.band_stats[k].between_est, y.band_stats[k].between_est));
+      EXPECT_TRUE(same_bits(x.band_stats[k].between_sd, y.band_stats[k].between_sd));
+      EXPECT_EQ(x.band_stats[k].clean_bins, y.band_stats[k].clean_bins);
+    }
     for (std::size_t m = 0; m < ptda::dsp::kMethodCount; ++m) {
       EXPECT_TRUE(same_bits(x.log_rms_stats[m].mean, y.log_rms_stats[m].mean));
       EXPECT_TRUE(same_bits(x.log_rms_stats[m].stddev, y.log_rms_stats[m].stddev));
@@ -412,11 +421,11 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
                                     std::to_string(good.size() + 1) + " (trailing bytes)");
   Bytes version = good;
-  // Version 6 (issue 16, the order domain's speed law) is the newest readable one.
-  version[8] = 7;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 7 (this build reads 1 to 6)");
+  // Version 7 (session 12, the band CUSUM's statistics) is the newest readable one.
+  version[8] = 8;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 8 (this build reads 1 to 7)");
   version[8] = 0;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 6)");
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 7)");
   Bytes flipped = good;
   flipped[good.size() / 2] ^= 0x01;
   const std::string crc_msg = message_of(flipped);
@@ -800,6 +809,58 @@ TEST(BaselineFile, Version4DaySpreadAndVersion3Files) {
   cut.resize(cut.size() + 4);
   fix_crc(cut);
   EXPECT_NE(message_of(cut).find("inconsistent baseline at byte"), std::string::npos) << message_of(cut);
+}
+
+// Version 7 (session 12): the band CUSUM's statistics, written only when the policy has a band count;
+// the same baseline without them is still written as version 4, byte for byte as before.
+TEST(BaselineFile, Version7BandStatisticsRoundTripAndOnlyWhenPresent) {
+  Baseline b = make_baseline(16, 5);
+  const Bytes v4 = serialize_baseline(b);
+  EXPECT_EQ(v4[8], 4U);
+  b.policy.band_count = 4;
+  std::uint32_t seed = 1;
+  for (auto& c : b.classes) {
+    c.band_recordings = 3;
+    for (std::uint32_t k = 0; k < 4; ++k) {
+      c.band_stats.push_back({-3.0 + 0.25 * seed, 0.5 + 0.01 * k, 0.1 * k, 0.15 + 0.1 * k, k + 1});
+      ++seed;
+    }
+  }
+  const Bytes v7 = serialize_baseline(b);
+  EXPECT_EQ(v7[8], 7U);
+  // After the version-4 body: domain u8 + S u32 + R u32, band_count u32, per class u32 + 4 x 36 bytes.
+  EXPECT_EQ(v7.size(), v4.size() + 9 + 4 + b.classes.size() * (4 + 4 * 36));
+  const Baseline back = parse_baseline(v7, "v7.bin");
+  EXPECT_EQ(back.policy.band_count, 4U);
+  expect_equal(back, b);
+  // Without band statistics nothing changed: the bytes of the version-4 file.
+  Baseline plain = back;
+  plain.policy.band_count = 0;
+  for (auto& c : plain.classes) {
+    c.band_stats.clear();
+    c.band_recordings = 0;
+  }
+  EXPECT_EQ(serialize_baseline(plain), v4);
+  EXPECT_EQ(parse_baseline(v4, "v4.bin").policy.band_count, 0U);
+  // A negative sd and a count that disagrees with the policy are refused with their location.
+  Baseline bad = b;
+  bad.classes[1].band_stats[2].within_sd = -1.0;
+  try {
+    (void)serialize_baseline(bad);
+    FAIL() << "negative band sd written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("class 1 (id 8): band 2 statistics"), std::string::npos) << e.what();
+  }
+  bad = b;
+  bad.classes[0].band_stats.pop_back();
+  try {
+    (void)serialize_baseline(bad);
+    FAIL() << "short band statistics written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("3 band statistics, the policy's band_count is 4"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -55,6 +55,11 @@ class WindowAnalyzer {
                         std::span<const float> tda_mean, Method method,
                         std::span<const LineGroup> line_groups = {}, bool floor_gain = false) noexcept;
 
+  /// The one-sided energies |R[k]|^2, k = 0..N/2, of the residual whose features the last analyze*()
+  /// call returned (PTDA with floor gain: the level-referred residual), for the band CUSUM
+  /// (band_energy.hpp). Valid until the next call. Thread: the owner's. Never allocates.
+  [[nodiscard]] std::span<const float> residual_energy() const noexcept { return e_; }
+
   /// The floor gain g_f of the last PTDA window analysed with floor_gain (1 otherwise).
   [[nodiscard]] double floor_gain() const noexcept { return floor_gain_; }
 

@@ -78,6 +78,24 @@ struct ThresholdPolicy {
   /// every detection and removed the drift soak's false alarms). Not stored in the baseline file; the
   /// bands it gives are.
   bool cover_recordings = true;
+  /// Band-energy statistics for the band CUSUM (`[decision] band_cusum`, docs/method.md §6 "Band
+  /// detector"): training computes, per class, the leave-one-out ln energy of the referred PTDA residual
+  /// in this many equal bands of bins 1..N/2 (clean floor bins only; dsp/band_energy.hpp) and stores
+  /// them (baseline format 7). 0 = none (format <= 6, byte-identical to before).
+  std::uint32_t band_count = 0;
+};
+
+/// Largest band count of the band CUSUM (fixed capacity of its run-time state).
+inline constexpr std::uint32_t kMaxBands = 64;
+
+/// One band's healthy distribution of ln band energy in one class (format >= 7). Units: ln(energy).
+struct BandEnergyStats {
+  double mean = 0.0;         ///< grand mean over the leave-one-out training windows
+  double within_sd = 0.0;    ///< pooled within-recording sd (MSW^1/2; one recording: the sample sd)
+  double between_est = 0.0;  ///< random-effects estimate of the between-day sd (0 for 1 recording)
+  /// The between-day sd used: max(between_est, day_sd_floor * within_sd).
+  double between_sd = 0.0;
+  std::uint32_t clean_bins = 0;  ///< clean floor bins of the band (0: the band is not used)
 };
 
 /// Within- and between-day (between-recording) spread of one method's features in one class
@@ -140,6 +158,9 @@ struct ClassBaseline {
   /// scale and allowance use it (docs/method.md §5, §6).
   std::array<DaySpread, kMethodCount> day_spread{};
   double windows_per_hour = 0.0;  ///< training windows of this class per hour of recording
+  /// Band-energy statistics (policy.band_count entries; empty when the baseline has none, format <= 6).
+  std::vector<BandEnergyStats> band_stats;
+  std::uint32_t band_recordings = 0;  ///< training recordings (days) behind band_stats
   /// Runtime only (not stored): the line groups of mean_magnitude when the policy asks for PTDA line
   /// gains (find_line_groups(), filled by prepare_line_groups()), else empty = the paper's PTDA.
   std::vector<LineGroup> line_groups;

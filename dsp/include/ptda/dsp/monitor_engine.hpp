@@ -2,11 +2,13 @@
 // k-of-n decision. The daemon's processing thread and `ptda monitor` both drive this one class.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
 
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/band_energy.hpp"
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/dsp/decision.hpp"
 #include "ptda/dsp/window_slicer.hpp"
@@ -17,10 +19,24 @@ struct DecisionConfig {
   std::uint32_t k = 3;          ///< abnormal windows ...
   std::uint32_t n = 5;          ///< ... out of the last n scored windows raise the alarm
   SequentialConfig sequential;  ///< per-class CUSUM beside k-of-n (either raises the alarm)
+  BandCusumConfig band;         ///< per-class, per-band CUSUM on band energies (opt-in; any raises it)
 };
 
-/// Which detector holds the alarm (WindowResult::detector).
-enum class AlarmDetector : std::uint8_t { kNone = 0, kKOfN = 1, kSequential = 2, kBoth = 3 };
+/// `decision` with band.half_bins and band.bin_hz set from the baseline (window_len / 2 and
+/// fs_hz / window_len), so the alarm record can name a band's frequency range. Thread: any.
+[[nodiscard]] DecisionConfig with_band_geometry(DecisionConfig decision, const Baseline& baseline) noexcept;
+
+/// Which detectors hold the alarm (WindowResult::detector): a bit set, k-of-n 1, sequential 2, band 4.
+enum class AlarmDetector : std::uint8_t {
+  kNone = 0,
+  kKOfN = 1,
+  kSequential = 2,
+  kBoth = 3,  ///< k-of-n and sequential
+  kBand = 4,
+  kKOfNBand = 5,
+  kSequentialBand = 6,
+  kAll = 7,
+};
 [[nodiscard]] constexpr const char* alarm_detector_name(AlarmDetector d) noexcept {
   switch (d) {
     case AlarmDetector::kNone:
@@ -31,6 +47,14 @@ enum class AlarmDetector : std::uint8_t { kNone = 0, kKOfN = 1, kSequential = 2,
       return "sequential";
     case AlarmDetector::kBoth:
       return "k_of_n+sequential";
+    case AlarmDetector::kBand:
+      return "band";
+    case AlarmDetector::kKOfNBand:
+      return "k_of_n+band";
+    case AlarmDetector::kSequentialBand:
+      return "sequential+band";
+    case AlarmDetector::kAll:
+      return "k_of_n+sequential+band";
   }
   return "?";
 }
@@ -62,6 +86,21 @@ struct WindowResult {
   double seq_statistic = 0.0;                  ///< this window's class CUSUM after it (scored)
   SeqFeature seq_feature = SeqFeature::kNone;  ///< which of that class's statistics is largest
   double seq_max_statistic = 0.0;              ///< largest CUSUM over all classes
+  // Band detector (docs/method.md §6 "Band detector"; only when DecisionConfig::band.enabled).
+  bool band_on = false;         ///< the band CUSUM runs (the band_* fields below mean something)
+  std::uint8_t band_count = 0;  ///< bands of this window's class (scored)
+  /// Per band of this window (scored): z_b minus its class's day allowance (BandScale), the CUSUM's
+  /// increment before k; 0 for an unused band.
+  std::array<float, kMaxBands> band_excess{};
+  double band_z_max = 0.0;           ///< largest band_excess of this window (scored)
+  bool band_alarm = false;           ///< some class's band CUSUM > band_cusum_h
+  double band_statistic = 0.0;       ///< this window's class: largest band CUSUM after it (scored)
+  std::int32_t band_index = -1;      ///< its band (-1 when all are 0)
+  double band_max_statistic = 0.0;   ///< largest band CUSUM over all classes and bands
+  std::int32_t band_max_index = -1;  ///< its band (-1 when all are 0)
+  std::int32_t band_max_class = -1;  ///< its class (the decision's class index)
+  double band_lo_hz = 0.0;           ///< band_max_index's first bin's frequency (0 when unknown)
+  double band_hi_hz = 0.0;           ///< its last bin's frequency
 };
 
 /// The decision after the verdicts: k-of-n over all scored windows and one CUSUM per class (fixed
@@ -71,8 +110,8 @@ class DecisionState {
  public:
   DecisionState(const DecisionConfig& decision, std::size_t classes);
   /// A scored window of class index `cls` (< classes): reads w.verdict, w.z_rms, w.z_entropy,
-  /// w.seq_allowance_rms and w.seq_allowance_entropy and fills the decision fields of w. Thread: the owner's.
-  /// Never allocates or blocks.
+  /// w.seq_allowance_rms and w.seq_allowance_entropy (band CUSUM: w.band_count, w.band_excess) and fills
+  /// the decision fields of w. Thread: the owner's. Never allocates or blocks.
   void scored(WindowResult& w, std::size_t cls) noexcept;
   /// A window not judged: its decision fields repeat the current state. Never allocates or blocks.
   void unscored(WindowResult& w) const noexcept;
@@ -85,6 +124,13 @@ class DecisionState {
   /// be cleared as soon after a repair as k-of-n allows). Reaching h_alarm is not affected.
   double cap_ = 0.0;
   std::vector<Cusum> cusum_;  ///< one per class
+  BandCusumConfig band_;
+  double band_cap_ = 0.0;  ///< cap of each band CUSUM: band h + (n - k) band k (as cap_)
+  std::vector<std::array<double, kMaxBands>> band_s_;  ///< per class, per band (empty when off)
+  /// Per class and band: the order in which the statistic went above h (0 = not above), so that among
+  /// equal statistics (e.g. all at the cap) the band that crossed first is reported.
+  std::vector<std::array<std::uint64_t, kMaxBands>> band_since_;
+  std::uint64_t band_order_ = 0;
 
   void fill(WindowResult& w) const noexcept;
 };
@@ -93,7 +139,9 @@ class MonitorEngine {
  public:
   /// Copies what it needs of baseline (the caller may drop it). Throws ptda::Error when the baseline's
   /// sample rate or window length disagree with fs_hz / cfg.window_len (says which), or the
-  /// sequential parameters are invalid (check_sequential()).
+  /// sequential parameters are invalid (check_sequential()), or the band CUSUM is on and its parameters
+  /// are invalid (check_band_cusum()), the method is not PTDA, or the baseline has no band statistics
+  /// (format <= 6 or trained without band_cusum: retrain) or another band count.
   /// Thread: any (setup). Allocates.
   MonitorEngine(const Baseline& baseline, const ExtractionConfig& cfg, const DecisionConfig& decision,
                 Method method, double fs_hz, std::int64_t t0_ns);
@@ -128,8 +176,11 @@ class MonitorEngine {
   Method method_;
   WindowSlicer slicer_;
   WindowAnalyzer analyzer_;
-  DecisionState decision_;         ///< per-class state sized here at configure
-  std::vector<SeqScale> z_scale_;  ///< per class: sequential_scale() of the method
+  DecisionState decision_;                              ///< per-class state sized here at configure
+  std::vector<SeqScale> z_scale_;                       ///< per class: sequential_scale() of the method
+  std::vector<BandScale> band_scale_;                   ///< per class (band CUSUM on)
+  std::vector<std::vector<unsigned char>> band_clean_;  ///< per class: clean_floor_bins()
+  std::array<double, kMaxBands> band_tmp_{};
   std::vector<float> window_;
 };
 

@@ -26,7 +26,13 @@ namespace ptda::formats {
 /// is still written as version 4 (unchanged bytes), and versions 1 to 4 read as time domain.
 /// Version 6 appends the order domain's speed law (f64 applied exponent, f64 fit, f64 its standard
 /// error; dsp::Baseline::speed_law_*); version 5 reads with no speed law.
-inline constexpr std::uint32_t kBaselineFormatVersion = 6;
+/// Version 7 (session 12) is written only for a baseline with band-energy statistics (policy.band_count
+/// > 0, `[decision] band_cusum`): after the domain block (always present in version 7; the speed law only
+/// for the order domain) u32 band_count, then per class u32 recordings and per band f64 mean, within sd,
+/// between-day estimate, between-day sd used, u32 clean bins (dsp::BandEnergyStats). Versions 1 to 6
+/// read with no band statistics; other baselines are written as before (4 or 6), byte for byte.
+inline constexpr std::uint32_t kBaselineFormatVersion = 7;
+inline constexpr std::uint32_t kBaselineOrderDomainVersion = 6;
 inline constexpr std::uint32_t kBaselineTimeDomainVersion = 4;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
 

@@ -1,0 +1,99 @@
+// Band energies of the referred residual and their per-class standardisation (band CUSUM).
+#include "ptda/dsp/band_energy.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "number_text.hpp"
+#include "ptda/common/error.hpp"
+#include "ptda/dsp/analyzer.hpp"
+
+namespace ptda::dsp {
+
+std::vector<unsigned char> clean_floor_bins(std::span<const float> mean_magnitude) {
+  const std::size_t bins = mean_magnitude.size();
+  std::vector<unsigned char> clean(bins, 0);
+  if (bins < 3) return clean;
+  std::vector<unsigned char> in_line(bins, 0);
+  for (const LineGroup& g : find_line_groups(mean_magnitude)) {
+    for (std::size_t k = g.begin; k < std::min<std::size_t>(g.end, bins); ++k) in_line[k] = 1;
+  }
+  constexpr std::size_t kHalf = 32;        // the local floor of find_line_groups(): median of 65 bins
+  constexpr double kCleanOverFloor = 2.0;  // 6 dB
+  std::vector<float> win;
+  win.reserve(2 * kHalf + 1);
+  for (std::size_t k = 1; k < bins; ++k) {
+    if (in_line[k] != 0) continue;
+    const std::size_t lo = k > kHalf + 1 ? k - kHalf : 1;
+    const std::size_t hi = std::min(bins, k + kHalf + 1);
+    win.assign(mean_magnitude.begin() + static_cast<std::ptrdiff_t>(lo),
+               mean_magnitude.begin() + static_cast<std::ptrdiff_t>(hi));
+    const auto mid = win.begin() + static_cast<std::ptrdiff_t>(win.size() / 2);
+    std::nth_element(win.begin(), mid, win.end());
+    clean[k] = static_cast<double>(mean_magnitude[k]) <= kCleanOverFloor * static_cast<double>(*mid) ? 1 : 0;
+  }
+  return clean;
+}
+
+void clean_bins_per_band(std::span<const unsigned char> clean, std::size_t count,
+                         std::span<std::uint32_t> out) noexcept {
+  if (clean.size() < 2 || count == 0 || out.size() < count) return;
+  const std::size_t half = clean.size() - 1;
+  for (std::size_t b = 0; b < count; ++b) {
+    std::uint32_t n = 0;
+    for (std::size_t k = band_edge(half, count, b); k < band_edge(half, count, b + 1); ++k) n += clean[k];
+    out[b] = n;
+  }
+}
+
+void band_log_energies(std::span<const float> energy, std::span<const unsigned char> clean, std::size_t count,
+                       std::span<double> out) noexcept {
+  const std::size_t m = std::min(count, out.size());
+  if (energy.size() != clean.size() || energy.size() < 2 || out.size() < count) {
+    for (std::size_t b = 0; b < m; ++b) out[b] = std::numeric_limits<double>::quiet_NaN();
+    return;
+  }
+  const std::size_t half = energy.size() - 1;
+  for (std::size_t b = 0; b < count; ++b) {
+    double sum = 0.0;
+    for (std::size_t k = band_edge(half, count, b); k < band_edge(half, count, b + 1); ++k) {
+      if (clean[k] != 0) sum += static_cast<double>(energy[k]);
+    }
+    out[b] = std::isnan(sum) ? sum : std::log(std::max(1e-30, sum));
+  }
+}
+
+void check_band_cusum(const BandCusumConfig& cfg) {
+  using detail::num;
+  if (!(cfg.k > 0.0 && cfg.k <= 10.0))
+    throw Error("decision.band_cusum_k: must be > 0 and <= 10 standard deviations, got " + num(cfg.k));
+  if (!(cfg.h > 0.0 && cfg.h <= 1000.0))
+    throw Error("decision.band_cusum_h: must be > 0 and <= 1000, got " + num(cfg.h));
+  if (!(cfg.day_allowance >= 0.0 && cfg.day_allowance <= 10.0))
+    throw Error(
+        "decision.band_cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
+        num(cfg.day_allowance));
+  if (cfg.band_count < 1 || cfg.band_count > kMaxBands)
+    throw Error("decision.band_count: must be 1.." + std::to_string(kMaxBands) + ", got " +
+                std::to_string(cfg.band_count));
+}
+
+BandScale band_scale(const ClassBaseline& c, double day_allowance) noexcept {
+  BandScale s;
+  s.count = static_cast<std::uint32_t>(std::min<std::size_t>(c.band_stats.size(), kMaxBands));
+  const double days =
+      c.band_recordings > 0 ? std::sqrt(1.0 + 1.0 / static_cast<double>(c.band_recordings)) : 1.0;
+  for (std::size_t b = 0; b < s.count; ++b) {
+    const BandEnergyStats& st = c.band_stats[b];
+    const double sd = std::sqrt(st.within_sd * st.within_sd + st.between_sd * st.between_sd);
+    s.mean[b] = st.mean;
+    s.sd[b] = sd;
+    s.active[b] = st.clean_bins > 0 && sd > 0.0 && std::isfinite(sd) && std::isfinite(st.mean) ? 1 : 0;
+    s.allowance[b] = s.active[b] != 0 ? day_allowance * st.between_sd * days / sd : 0.0;
+  }
+  return s;
+}
+
+}  // namespace ptda::dsp
