@@ -780,6 +780,7 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.windows_scored = ps.scored;
   s.windows_abnormal = ps.abnormal;
   s.alarms_raised = ps.alarm_counters.alarms_raised;
+  s.level_changes_dropped = ps.alarm_counters.level_changes_dropped;
   s.coverage = ps.coverage;
   s.coverage_timeout_s = cfg_.daemon.coverage_timeout_s;
   s.coverage_known = b != nullptr && p->mode() == PipelineMode::kMonitor;

@@ -236,6 +236,9 @@ constexpr CounterDesc kPipelineCounters[] = {
      &StatusSnapshot::windows_abnormal},
     {"alarms_raised", "ptda_alarms_raised_total", "Alarms raised (k-of-n confirmed).",
      &StatusSnapshot::alarms_raised},
+    {"level_changes_dropped", "ptda_alarm_level_changes_dropped_total",
+     "Alarm level changes the full change ring could not hold (no own log, history line or MQTT event).",
+     &StatusSnapshot::level_changes_dropped},
     {"watchdog_pings", "ptda_watchdog_pings_total", "systemd watchdog pings sent.",
      &StatusSnapshot::watchdog_pings},
 };
@@ -762,6 +765,9 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
             static_cast<double>(m.queue_bytes));
     p.gauge("ptda_mqtt_queue_pending", "Events in the MQTT queue not yet acknowledged by the broker.",
             static_cast<double>(m.queue_pending));
+    p.gauge("ptda_mqtt_summaries_queue_pending",
+            "Window summaries in their MQTT queue not yet acknowledged by the broker.",
+            static_cast<double>(m.summary_queue_pending));
     p.family("ptda_mqtt_queue_dropped_total", "counter",
              "MQTT events dropped: event (alarm/fault/state removed from the full queue), summary (window "
              "summary while offline or from the full queue), handoff (supervisor ring full), io (queue write "
@@ -774,6 +780,13 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
               "MQTT messages the broker acknowledged (queued events) or took (summaries).", m.published);
     p.counter("ptda_mqtt_connect_failures_total",
               "Failed MQTT connection attempts (refused, unreachable, TLS).", m.connect_failures);
+    p.family("ptda_mqtt_alarm_durable_seconds", "gauge",
+             "Alarm level change recorded -> its MQTT queue record fsync'ed: the latest (stat=last) and the "
+             "largest since the publisher started (stat=max); 0 before the first.");
+    p.sample("ptda_mqtt_alarm_durable_seconds", {{"stat", "last"}},
+             static_cast<double>(m.alarm_durable_us_last) / 1e6);
+    p.sample("ptda_mqtt_alarm_durable_seconds", {{"stat", "max"}},
+             static_cast<double>(m.alarm_durable_us_max) / 1e6);
   }
   render_state_files_prom(p, files);
 }

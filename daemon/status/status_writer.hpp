@@ -230,6 +230,7 @@ struct StatusSnapshot {
   std::uint64_t ring_overflows = 0;
   std::uint64_t windows_scored = 0, windows_abnormal = 0;
   std::uint64_t alarms_raised = 0;
+  std::uint64_t level_changes_dropped = 0;  ///< AlarmCounters::level_changes_dropped (LevelChangeRing full)
   std::uint64_t watchdog_pings = 0;
 
   // Coverage (monitoring with a baseline): judged and unmatched windows, motion since the last judgement.

@@ -102,6 +102,7 @@ StatusSnapshot known_snapshot() {
   s.windows_scored = 107;
   s.windows_abnormal = 4;
   s.alarms_raised = 1;
+  s.level_changes_dropped = 2;
   s.watchdog_pings = 7200;
   // Coverage: class 1 judged (last window), class 0 never in 3000 s of motion: partial.
   s.coverage_known = true;
@@ -153,7 +154,7 @@ constexpr std::string_view kKnownJson =
     R"("rx_overflow_drops":0,"bus_off":0,"bus_state":"error_passive"},)"
     R"("slicer":{"regions":24,"windows":108,"windows_invalid":0,"windows_lost":0},)"
     R"("pipeline":{"ring_overflows":0,"windows_scored":107,"windows_abnormal":4,"alarms_raised":1,)"
-    R"("watchdog_pings":7200},)"
+    R"("level_changes_dropped":2,"watchdog_pings":7200},)"
     R"("history":null,"mqtt":null,)"
     R"("state_files":{"status":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
     R"("metrics":{"failing":false,"failures":0,"last_errno":0,"last_error":""},)"
@@ -404,13 +405,15 @@ TEST(StatusWriter, MqttFieldsAndMetrics) {
   s.mqtt.dropped_summary = 4;
   s.mqtt.published = 13;
   s.mqtt.connect_failures = 7;
+  s.mqtt.alarm_durable_us_last = 1612;  // microseconds, as the publisher measures them
+  s.mqtt.alarm_durable_us_max = 27305;
   s.mqtt.last_error.assign("broker refused the connection: Connection Refused: not authorised.");
   const std::string json(w.render_json(s));
   EXPECT_TRUE(JsonChecker(json).valid());
   EXPECT_NE(
       json.find(R"("mqtt":{"connected":false,"queue_bytes":2963,"queue_pending":5,"summary_queue_pending":9,)"
                 R"("dropped":{"event":1,"summary":4,"handoff":0,"io":0},"published":13,"connect_failures":7,)"
-                R"("alarm_durable_us_last":0,"alarm_durable_us_max":0,)"
+                R"("alarm_durable_us_last":1612,"alarm_durable_us_max":27305,)"
                 R"("last_error":"broker refused the connection: Connection Refused: not authorised."})"),
       std::string::npos)
       << json;
@@ -419,6 +422,14 @@ TEST(StatusWriter, MqttFieldsAndMetrics) {
             std::vector<std::string>{"ptda_mqtt_connected 0"});
   EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_bytes"),
             std::vector<std::string>{"ptda_mqtt_queue_bytes 2963"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_pending"),
+            std::vector<std::string>{"ptda_mqtt_queue_pending 5"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_summaries_queue_pending"),
+            std::vector<std::string>{"ptda_mqtt_summaries_queue_pending 9"});
+  // Seconds in Prometheus (1612 us, 27305 us).
+  EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_alarm_durable_seconds"),
+            (std::vector<std::string>{R"(ptda_mqtt_alarm_durable_seconds{stat="last"} 0.001612)",
+                                      R"(ptda_mqtt_alarm_durable_seconds{stat="max"} 0.027305)"}));
   EXPECT_EQ(test::prom_samples(prom, "ptda_mqtt_queue_dropped_total"),
             (std::vector<std::string>{R"(ptda_mqtt_queue_dropped_total{kind="event"} 1)",
                                       R"(ptda_mqtt_queue_dropped_total{kind="summary"} 4)",
@@ -506,6 +517,8 @@ TEST(StatusWriter, PrometheusLines) {
             std::vector<std::string>{"ptda_acquisition_samples_total 102400"});
   EXPECT_EQ(test::prom_samples(text, "ptda_watchdog_pings_total"),
             std::vector<std::string>{"ptda_watchdog_pings_total 7200"});
+  EXPECT_EQ(test::prom_samples(text, "ptda_alarm_level_changes_dropped_total"),
+            std::vector<std::string>{"ptda_alarm_level_changes_dropped_total 2"});
   EXPECT_EQ(test::prom_samples(text, "ptda_can_bus_state")[2],
             R"(ptda_can_bus_state{state="error_passive"} 1)");
   EXPECT_EQ(test::prom_samples(text, "ptda_can_remote_frames_total"),
