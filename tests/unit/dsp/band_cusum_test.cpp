@@ -347,7 +347,10 @@ TEST(BandCusumEngine, EvidenceIsTheRecursionOnTheWindowsOwnResidual) {
   MonitorEngine engine(b, extraction(), band_on(), Method::kPtda, kFs, 0);
   WindowAnalyzer an(kN);
   const std::vector<unsigned char> clean = clean_floor_bins(c.mean_magnitude);
-  const BandScale s = band_scale(c, 0.0);
+  // The engine's increments subtract the configured day allowance (default 1 since session 12).
+  const double q = band_on().band.day_allowance;
+  EXPECT_EQ(q, 1.0);
+  const BandScale s = band_scale(c, q);
   std::mt19937 rng(77);
   WindowRef ref;
   ref.speed_rad_s = 2.0;
@@ -376,7 +379,7 @@ TEST(BandCusumEngine, EvidenceIsTheRecursionOnTheWindowsOwnResidual) {
     std::array<double, 32> ln{};
     band_log_energies(an.residual_energy(), clean, 32, ln);
     for (std::size_t band = 0; band < 32; ++band) {
-      const double z = s.active[band] != 0 ? (ln[band] - s.mean[band]) / s.sd[band] : 0.0;
+      const double z = s.active[band] != 0 ? (ln[band] - s.mean[band]) / s.sd[band] - s.allowance[band] : 0.0;
       EXPECT_NEAR(w.band_excess[band], z, 1e-5 * std::max(1.0, std::abs(z)))
           << "window " << i << " band " << band;
     }

@@ -42,7 +42,7 @@ struct BandCusumConfig {
   bool enabled = false;           ///< `band_cusum`: off by default (opt-in, session 12)
   double k = 1.0;                 ///< `band_cusum_k`: reference value in total sds per window
   double h = 10.0;                ///< `band_cusum_h`: alarm when some band's statistic exceeds h
-  double day_allowance = 0.0;     ///< `band_cusum_day_allowance`: extra k in between-day sds
+  double day_allowance = 1.0;     ///< `band_cusum_day_allowance`: extra k in between-day sds
   std::uint32_t band_count = 32;  ///< `band_count`: bands of bins 1..N/2 (training stores them)
   /// Run-time geometry for the alarm record's frequency range (set by with_band_geometry()): N/2
   /// and the bin spacing fs/N in Hz (order domain: cycles per revolution). 0 = unknown.
