@@ -373,23 +373,26 @@ double select_nth(std::span<double> values, std::size_t rank, std::span<double> 
   return cand[rank - below];
 }
 
+float local_floor_median(std::span<const float> a, std::size_t k, std::vector<float>& scratch) {
+  constexpr std::size_t kHalf = 32;  // 65 bins around k
+  const std::size_t lo = k > kHalf + 1 ? k - kHalf : 1;
+  const std::size_t hi = std::min(a.size(), k + kHalf + 1);
+  scratch.assign(a.begin() + static_cast<std::ptrdiff_t>(lo), a.begin() + static_cast<std::ptrdiff_t>(hi));
+  const auto mid = scratch.begin() + static_cast<std::ptrdiff_t>(scratch.size() / 2);
+  std::nth_element(scratch.begin(), mid, scratch.end());
+  return *mid;
+}
+
 std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
   std::vector<LineGroup> out;
   const std::size_t bins = mean_magnitude.size();
   if (bins < 3) return out;
-  constexpr std::size_t kHalf = 32;       // floor: median of 65 bins around k
-  constexpr double kLineOverFloor = 4.0;  // 12 dB
+  constexpr double kLineOverFloor = 4.0;  // 12 dB over the local floor (median of 65 bins around k)
   std::vector<float> win;
-  win.reserve(2 * kHalf + 1);
   std::vector<bool> line(bins, false);
   for (std::size_t k = 1; k < bins; ++k) {
-    const std::size_t lo = k > kHalf + 1 ? k - kHalf : 1;
-    const std::size_t hi = std::min(bins, k + kHalf + 1);
-    win.assign(mean_magnitude.begin() + static_cast<std::ptrdiff_t>(lo),
-               mean_magnitude.begin() + static_cast<std::ptrdiff_t>(hi));
-    const auto mid = win.begin() + static_cast<std::ptrdiff_t>(win.size() / 2);
-    std::nth_element(win.begin(), mid, win.end());
-    line[k] = static_cast<double>(mean_magnitude[k]) > kLineOverFloor * static_cast<double>(*mid);
+    line[k] = static_cast<double>(mean_magnitude[k]) >
+              kLineOverFloor * static_cast<double>(local_floor_median(mean_magnitude, k, win));
   }
   for (std::size_t k = 1; k < bins; ++k) {
     if (!line[k]) continue;

@@ -20,19 +20,14 @@ std::vector<unsigned char> clean_floor_bins(std::span<const float> mean_magnitud
   for (const LineGroup& g : find_line_groups(mean_magnitude)) {
     for (std::size_t k = g.begin; k < std::min<std::size_t>(g.end, bins); ++k) in_line[k] = 1;
   }
-  constexpr std::size_t kHalf = 32;        // the local floor of find_line_groups(): median of 65 bins
-  constexpr double kCleanOverFloor = 2.0;  // 6 dB
+  constexpr double kCleanOverFloor = 2.0;  // 6 dB over find_line_groups()' local floor
   std::vector<float> win;
-  win.reserve(2 * kHalf + 1);
   for (std::size_t k = 1; k < bins; ++k) {
     if (in_line[k] != 0) continue;
-    const std::size_t lo = k > kHalf + 1 ? k - kHalf : 1;
-    const std::size_t hi = std::min(bins, k + kHalf + 1);
-    win.assign(mean_magnitude.begin() + static_cast<std::ptrdiff_t>(lo),
-               mean_magnitude.begin() + static_cast<std::ptrdiff_t>(hi));
-    const auto mid = win.begin() + static_cast<std::ptrdiff_t>(win.size() / 2);
-    std::nth_element(win.begin(), mid, win.end());
-    clean[k] = static_cast<double>(mean_magnitude[k]) <= kCleanOverFloor * static_cast<double>(*mid) ? 1 : 0;
+    clean[k] = static_cast<double>(mean_magnitude[k]) <=
+                       kCleanOverFloor * static_cast<double>(local_floor_median(mean_magnitude, k, win))
+                   ? 1
+                   : 0;
   }
   return clean;
 }

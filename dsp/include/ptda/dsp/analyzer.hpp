@@ -145,6 +145,11 @@ class WindowAnalyzer {
 /// that touch merged. Bin 0 (DC) is never part of a line. Deterministic. Thread: any. Allocates.
 [[nodiscard]] std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude);
 
+/// The local floor of bin k (1 <= k < a.size()) that find_line_groups() compares lines with: the median
+/// of a over the up to 65 bins centred on k (bins 1..a.size() - 1). `scratch` is reused between calls.
+/// Thread: any. Allocates only when scratch grows (setup and training, never per window).
+[[nodiscard]] float local_floor_median(std::span<const float> a, std::size_t k, std::vector<float>& scratch);
+
 /// Fills every class's line_groups from its mean_magnitude when baseline.policy.ptda_line_gain is
 /// set, and clears them otherwise; and every class's tda_spectrum = DFT(tda_mean) (left empty when
 /// the length is not a RealFft length). Called by training and by the baseline reader. Thread: any.
