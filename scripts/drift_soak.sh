@@ -38,6 +38,11 @@
 #              900001; training piece j uses TRAIN_SEED + j), PTDA_SOAK_TRAIN_PIECES, PTDA_SOAK_TRAIN_CYCLES,
 #              PTDA_SOAK_BASELINE (see Baseline above), PTDA_SOAK_CONFIG (pipeline config for train and
 #              monitor; default config/examples/joint_rotation.toml),
+#              PTDA_SOAK_PTDAD_DROPIN (a TOML file added to ptdad's drop-ins, e.g. `[decision] band_cusum = true`
+#              to match PTDA_SOAK_CONFIG), PTDA_SOAK_PAUSE_EVERY_CYCLES (a program pause every N cycles in
+#              every piece, for long pieces: 1440 with PTDA_SOAK_CHUNK_CYCLES=14000 gives the hourly pause of
+#              the default schedule and 12-hour pieces, so the detectors' state runs on for 12 h),
+#              PTDA_SOAK_KEEP_JSONL=1 (keep each piece's `ptda monitor --jsonl` as out_dir/pieceN.jsonl.gz),
 #              PTDA_SOAK_NO_DRIFT=1 (reference run: load cycle and warm-up off, pauses kept),
 #              PTDA_SOAK_SUMMARY_ONLY=WALL_S (only rewrite out_dir/summary.md from its pieces.tsv, e.g. of an
 #              interrupted run; WALL_S is the wall time to report).
@@ -223,6 +228,10 @@ backend = "candump"
 replay_file = ""
 pace = "fast"
 EOF
+if [[ -n ${PTDA_SOAK_PTDAD_DROPIN:-} ]]; then
+  [[ -f $PTDA_SOAK_PTDAD_DROPIN ]] || { echo "drift_soak: PTDA_SOAK_PTDAD_DROPIN: no file $PTDA_SOAK_PTDAD_DROPIN" >&2; exit 2; }
+  cp "$PTDA_SOAK_PTDAD_DROPIN" "$work/ptdad.d/60-extra.toml"
+fi
 
 printf 'piece\tt0_h\tt1_h\tload_start\tcoldness_start\tpause\tseverity\twindows\tscored\tabnormal\tptdad_alarms\tmonitor_alarm_windows\tfirst_abnormal_h\tfirst_alarm_h\tsim_s\tptdad_s\tptdad_rss_kb\tsim_rss_kb\n' >"$tsv"
 t=0.0
@@ -233,7 +242,9 @@ while awk -v t="$t" -v e="$total_s" 'BEGIN { exit !(t < e - 5) }'; do  # stop wi
   # The last piece is shortened to end near HOURS (whole cycles of ~2.5 s).
   cycles=$(awk -v t="$t" -v e="$total_s" -v c="$chunk_cycles" 'BEGIN { n = int((e - t) / 2.525 + 0.5); if (n > c) n = c; if (n < 4) n = 4; print n }')
   pause_every=0
-  if [[ $(((piece + 1) % pause_every_chunks)) -eq 0 && $cycles -gt 2 ]]; then pause_every=$((cycles / 2)); fi
+  if [[ -n ${PTDA_SOAK_PAUSE_EVERY_CYCLES:-} ]]; then
+    pause_every=$PTDA_SOAK_PAUSE_EVERY_CYCLES  # long pieces: a pause every N cycles inside each piece
+  elif [[ $(((piece + 1) % pause_every_chunks)) -eq 0 && $cycles -gt 2 ]]; then pause_every=$((cycles / 2)); fi
   severity=0
   if [[ $mode == fault ]]; then
     severity=$(awk -v t="$t" -v c="$cycles" -v a="$onset_h" -v b="$full_h" 'BEGIN {
@@ -251,6 +262,7 @@ while awk -v t="$t" -v e="$total_s" 'BEGIN { exit !(t < e - 5) }'; do  # stop wi
   ptdad_stats=$(tail -1 "$work/ptdad.time")
   "$ptda" monitor --recording "$work/piece" --config "$pipeline" --baseline "$work/baseline.bin" --quiet \
     --jsonl "$work/piece.jsonl" >/dev/null
+  if [[ ${PTDA_SOAK_KEEP_JSONL:-0} == 1 ]]; then gzip -c "$work/piece.jsonl" >"$out/piece$piece.jsonl.gz"; fi
   status=$(cat "$work/status/status.json")
   member() { sed -E "s/.*\"$1\":([0-9.]+).*/\\1/" <<<"$status"; }
   end_s=$(truth_value "$work/piece" time_end_s)
