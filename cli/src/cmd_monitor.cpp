@@ -393,6 +393,12 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
 
   MonitorInputs in = load_monitor_inputs(a.value("recording"), a.value("config"), a.value("baseline"));
   const dsp::Method method = method_opt.value_or(in.cfg.method);
+  if (in.cfg.decision.band.enabled) {
+    if (const std::string why = dsp::band_cusum_unusable(in.cfg.decision, in.baseline, method);
+        !why.empty() && !in.cfg.decision.band.required) {
+      std::cerr << "note: band detector off: " << why << " (k-of-n and the feature CUSUM still judge)\n";
+    }
+  }
 
   // Open the JSONL output before the long run so a bad path fails fast.
   const std::string jsonl_path = a.value_or("jsonl", "");
@@ -440,7 +446,8 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
     const auto first = static_cast<std::ptrdiff_t>(range.first(r.windows.size()));
     const auto last = static_cast<std::ptrdiff_t>(range.last(r.windows.size()));
     r.windows = std::vector<dsp::WindowResult>(r.windows.begin() + first, r.windows.begin() + last);
-    redebounce(r.windows, dsp::with_band_geometry(in.cfg.decision, in.baseline));
+    redebounce(r.windows, dsp::with_band_geometry(dsp::effective_band(in.cfg.decision, in.baseline, method),
+                                                  in.baseline));
     if (table) print_table_head(r.windows.size());
     for (const auto& w : r.windows) emit(w);
     r.windows.clear();

@@ -311,14 +311,17 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "cusum_alarm", cfg_.decision.sequential.h_alarm, 1000.0)) note(r, "cusum_alarm");
     // The CUSUM's allowance for the between-day spread, in between-day sds (docs/method.md §6).
     get(r, "cusum_day_allowance", cfg_.decision.sequential.day_allowance, 0.0, 10.0);
-    // The band CUSUM (opt-in; docs/method.md §6 "Band detector"). Training stores band statistics only
-    // when it is on, so a baseline for it must be trained with it on.
-    get(r, "band_cusum", cfg_.decision.band.enabled);
+    // The band CUSUM (on by default since session 13; docs/method.md §6 "Band detector"). Training
+    // stores band statistics only when it is on. Said explicitly, it is required (errors instead of the
+    // default's fallback when the method or the baseline cannot carry it).
+    if (r.read("band_cusum", cfg_.decision.band.enabled)) {
+      note(r, "band_cusum");
+      cfg_.decision.band.required = cfg_.decision.band.enabled;
+    }
     if (read_positive(r, "band_cusum_k", cfg_.decision.band.k, 10.0)) note(r, "band_cusum_k");
     if (read_positive(r, "band_cusum_h", cfg_.decision.band.h, 1000.0)) note(r, "band_cusum_h");
     get(r, "band_cusum_day_allowance", cfg_.decision.band.day_allowance, 0.0, 10.0);
     get(r, "band_count", cfg_.decision.band.band_count, std::uint32_t{1}, dsp::kMaxBands);
-    cfg_.thresholds.band_count = cfg_.decision.band.enabled ? cfg_.decision.band.band_count : 0U;
     r.finish();
   }
 
@@ -415,6 +418,26 @@ PipelineConfig PipelineConfigBuilder::finish() const {
                  std::to_string(cfg.decision.n) + " (alarm when k of the last n windows are abnormal)");
   }
 
+  // The band detector reads the PTDA residual's band energies: by default it is off for another method;
+  // asked for explicitly, that is an error here rather than at monitoring time.
+  if (cfg.decision.band.enabled && cfg.method != dsp::Method::kPtda) {
+    if (cfg.decision.band.required) {
+      fail_key(
+          is_set("monitor.method") ? "monitor.method" : "decision.band_cusum",
+          std::string("[decision] band_cusum = true needs [monitor] method = \"ptda\" (the band statistics "
+                      "are those of the PTDA residual), got \"") +
+              std::string(dsp::method_name(cfg.method)) + "\": set band_cusum = false or method = \"ptda\"");
+    }
+    cfg.decision.band.enabled = false;
+  }
+  // By default a window too short for band_count bands just goes without the band detector, and so does
+  // the order domain, where it has not been measured (docs/method.md §8): there it must be asked for.
+  if (cfg.decision.band.enabled && !cfg.decision.band.required &&
+      ((!is_set("decision.band_count") && cfg.decision.band.band_count > cfg.extraction.window_len / 2) ||
+       cfg.domain == dsp::Domain::kOrder)) {
+    cfg.decision.band.enabled = false;
+  }
+  cfg.thresholds.band_count = cfg.decision.band.enabled ? cfg.decision.band.band_count : 0U;
   if (cfg.decision.band.enabled && cfg.decision.band.band_count > cfg.extraction.window_len / 2) {
     fail_key("decision.band_count",
              "[decision] band_count = " + std::to_string(cfg.decision.band.band_count) +

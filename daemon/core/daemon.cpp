@@ -332,6 +332,9 @@ void Daemon::configure() {
     spdlog::info("baseline {}: {} segment class(es), trained at {} Hz", cfg_.daemon.baseline.string(),
                  p->baseline()->classes.size(), p->baseline()->fs_hz);
   }
+  if (const std::string why = p->band_off_reason(); !why.empty()) {
+    spdlog::warn("band detector off: {} (k-of-n and the feature CUSUM still judge)", why);
+  }
   std::lock_guard lock(pipeline_mutex_);
   pipeline_ = std::move(p);
 }

@@ -261,6 +261,11 @@ class Pipeline {
 
   /// After configure(). Thread: any.
   [[nodiscard]] bool refused() const noexcept { return !refusal_.empty(); }
+  /// Why the default-on band detector is off for this baseline and method (empty when it runs or the
+  /// configuration switched it off; docs/method.md §6 "Band detector"). Thread: the owner's (configure).
+  [[nodiscard]] std::string band_off_reason() const {
+    return engine_ ? engine_->band_off_reason() : std::string();
+  }
   [[nodiscard]] const std::string& refusal() const noexcept { return refusal_; }
   [[nodiscard]] const dsp::Baseline* baseline() const noexcept { return baseline_.get(); }
   [[nodiscard]] double fs_hz() const noexcept { return fs_hz_; }

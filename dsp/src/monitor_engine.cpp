@@ -50,8 +50,37 @@ const Baseline& checked(const Baseline& b, const ExtractionConfig& cfg, double f
   return b;
 }
 
+}  // namespace
+
+std::string band_cusum_unusable(const DecisionConfig& d, const Baseline& b, Method method) {
+  if (method != Method::kPtda) {
+    return std::string("method \"") + std::string(method_name(method)) +
+           "\" (the band statistics are those of the PTDA residual)";
+  }
+  if (b.policy.band_count == 0) {
+    return "the baseline has no band statistics (format <= 6, or trained with band_cusum = false or another "
+           "method): "
+           "retrain to use it";
+  }
+  if (b.policy.band_count != d.band.band_count) {
+    return "the baseline has " + std::to_string(b.policy.band_count) + " bands, [decision] band_count is " +
+           std::to_string(d.band.band_count);
+  }
+  return {};
+}
+
+DecisionConfig effective_band(DecisionConfig d, const Baseline& b, Method method) {
+  if (d.band.enabled && !d.band.required && !band_cusum_unusable(d, b, method).empty())
+    d.band.enabled = false;
+  return d;
+}
+
+namespace {
+
 // The band CUSUM needs the band statistics of this very configuration: said here, before anything runs.
-const DecisionConfig& checked_band(const DecisionConfig& d, const Baseline& b, Method method) {
+// On by default (not required), it is switched off where it cannot run; asked for, that is an error.
+DecisionConfig checked_band(DecisionConfig d, const Baseline& b, Method method) {
+  d = effective_band(d, b, method);
   if (!d.band.enabled) return d;
   check_band_cusum(d.band);
   if (method != Method::kPtda) {
@@ -116,7 +145,9 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
   for (const ClassBaseline& c : baseline_.classes) {
     z_scale_.push_back(sequential_scale(c, method, baseline_.policy, decision.sequential.day_allowance));
   }
-  if (decision.band.enabled) {
+  if (decision.band.enabled && !decision.band.required)
+    band_off_reason_ = band_cusum_unusable(decision, baseline_, method);
+  if (decision.band.enabled && band_off_reason_.empty()) {
     // The clean bins are derived from the stored mean as training derived them; the counts stored per
     // band prove it (a baseline edited by hand or from another build would otherwise score other bins).
     std::array<std::uint32_t, kMaxBands> counts{};

@@ -131,5 +131,50 @@ TEST(MonitorCoverage, MonitoringTheTrainingDataWarnsInSample) {
   EXPECT_TRUE(has(first.out, "warning: in-sample")) << first.out;
 }
 
+// The band detector is on by default since session 13. A baseline trained with it off (as every
+// baseline before session 13) still monitors: the band detector is off with a note that says why, and
+// the windows are judged as before. Said explicitly (`band_cusum = true`), the same baseline is an error.
+TEST(MonitorCoverage, ABaselineWithoutBandStatisticsMonitorsWithANoteUnlessTheBandDetectorIsRequired) {
+  const Prepared& p = prepared();
+  const std::string text = read_file(p.config);
+  const std::size_t at = text.find("[decision]\n");
+  ASSERT_NE(at, std::string::npos) << "arc_welding.toml has no [decision] table";
+  const auto with_decision = [&](const std::string& line) {
+    std::string t = text;
+    t.insert(at + 11, line + "\n");
+    return t;
+  };
+  const fs::path off_cfg = p.dir / "band_off.toml";
+  const fs::path on_cfg = p.dir / "band_on.toml";
+  std::ofstream(off_cfg) << with_decision("band_cusum = false");
+  std::ofstream(on_cfg) << with_decision("band_cusum = true");
+  const fs::path old_base = p.dir / "no_bands.bin";
+  ASSERT_EQ(run_ptda({"train", "--recording", p.healthy.string(), "--config", off_cfg.string(), "--out",
+                      old_base.string()},
+                     p.dir, "train_band_off")
+                .exit_code,
+            0);
+  // Default configuration, old-style baseline: runs, says why the band detector is off.
+  const RunResult def = monitor(p.other, old_base, "band_default_old");
+  EXPECT_EQ(def.exit_code, 0) << def.err;
+  EXPECT_TRUE(has(def.err, "note: band detector off: the baseline has no band statistics")) << def.err;
+  // The default-trained baseline has them: no note.
+  const RunResult fresh = monitor(p.other, p.baseline, "band_default_new");
+  EXPECT_EQ(fresh.exit_code, 0) << fresh.err;
+  EXPECT_FALSE(has(fresh.err, "band detector off")) << fresh.err;
+  // Explicitly on, the old baseline is refused with the reason.
+  const RunResult req = run_ptda({"monitor", "--recording", p.other.string(), "--config", on_cfg.string(),
+                                  "--baseline", old_base.string(), "--quiet"},
+                                 p.dir, "band_required_old");
+  EXPECT_NE(req.exit_code, 0);
+  EXPECT_TRUE(has(req.err, "retrain it with [decision] band_cusum = true")) << req.err;
+  // Explicitly off: no note either.
+  const RunResult off = run_ptda({"monitor", "--recording", p.other.string(), "--config", off_cfg.string(),
+                                  "--baseline", old_base.string(), "--quiet"},
+                                 p.dir, "band_off_old");
+  EXPECT_EQ(off.exit_code, 0) << off.err;
+  EXPECT_FALSE(has(off.err, "band detector off")) << off.err;
+}
+
 }  // namespace
 }  // namespace ptda::golden

@@ -686,21 +686,41 @@ TEST(SpeedFrameSchema, ConflictingByteOrderAndLittleEndianIsAnError) {
   EXPECT_EQ(cfg.warnings.size(), 1U);
 }
 
-// The band CUSUM's keys (session 12): off by default, parsed and carried to training's policy when on,
-// every bad value located at its key.
+// The band CUSUM's keys: on by default since session 13 (time domain, PTDA) but not required, required
+// when said, parsed and carried to training's policy when on, every bad value located at its key.
 TEST(PipelineConfigBandCusum, KeysParseAndReachTraining) {
-  const PipelineConfig off = parse_pipeline_config("[extraction]\nwindow_len = 4096\n", "cfg.toml");
+  const PipelineConfig def = parse_pipeline_config("[extraction]\nwindow_len = 4096\n", "cfg.toml");
+  EXPECT_TRUE(def.decision.band.enabled);
+  EXPECT_FALSE(def.decision.band.required);
+  EXPECT_EQ(def.thresholds.band_count, 32U);  // training stores the band statistics by default
+  EXPECT_EQ(def.decision.band.k, 1.0);
+  EXPECT_EQ(def.decision.band.h, 10.0);
+  EXPECT_EQ(def.decision.band.band_count, 32U);
+  const PipelineConfig off =
+      parse_pipeline_config("[extraction]\nwindow_len = 4096\n[decision]\nband_cusum = false\n", "cfg.toml");
   EXPECT_FALSE(off.decision.band.enabled);
+  EXPECT_FALSE(off.decision.band.required);
   EXPECT_EQ(off.thresholds.band_count, 0U);
-  EXPECT_EQ(off.decision.band.k, 1.0);
-  EXPECT_EQ(off.decision.band.h, 10.0);
-  EXPECT_EQ(off.decision.band.band_count, 32U);
+  // By default it is off where it cannot run: TDA/raw, and windows too short for 32 bands.
+  const PipelineConfig tda =
+      parse_pipeline_config("[extraction]\nwindow_len = 4096\n[monitor]\nmethod = \"tda\"\n", "cfg.toml");
+  EXPECT_FALSE(tda.decision.band.enabled);
+  EXPECT_EQ(tda.thresholds.band_count, 0U);
+  const PipelineConfig shortw = parse_pipeline_config("[extraction]\nwindow_len = 32\n", "cfg.toml");
+  EXPECT_FALSE(shortw.decision.band.enabled);
+  // Said explicitly, another method is an error at its key.
+  EXPECT_EQ(
+      error_of(
+          "[extraction]\nwindow_len = 4096\n[decision]\nband_cusum = true\n[monitor]\nmethod = \"raw\"\n"),
+      "cfg.toml:6:10: [decision] band_cusum = true needs [monitor] method = \"ptda\" (the band statistics "
+      "are those of the PTDA residual), got \"raw\": set band_cusum = false or method = \"ptda\"");
   const PipelineConfig on = parse_pipeline_config(
       "[extraction]\nwindow_len = 4096\n[decision]\nband_cusum = true\nband_cusum_k = 1.5\nband_cusum_h = "
       "12\n"
       "band_cusum_day_allowance = 1\nband_count = 16\n",
       "cfg.toml");
   EXPECT_TRUE(on.decision.band.enabled);
+  EXPECT_TRUE(on.decision.band.required);
   EXPECT_EQ(on.decision.band.k, 1.5);
   EXPECT_EQ(on.decision.band.h, 12.0);
   EXPECT_EQ(on.decision.band.day_allowance, 1.0);

@@ -85,9 +85,17 @@ ExtractionConfig extraction() {
   return c;
 }
 
+// `band_cusum = true` said in the configuration: required (errors instead of the default's fallback).
 DecisionConfig band_on() {
   DecisionConfig d{3, 5, {}, {}};
   d.band.enabled = true;
+  d.band.required = true;
+  return d;
+}
+
+DecisionConfig band_off() {
+  DecisionConfig d{3, 5, {}, {}};
+  d.band.enabled = false;
   return d;
 }
 
@@ -233,7 +241,7 @@ TEST(BandCusumDecision, CrossesHAfterTheComputedWindowsAndNamesTheBand) {
   st.scored(nan, 1);
   EXPECT_EQ(nan.band_statistic, 1.0);
   // Off: no band fields, the detectors of before.
-  DecisionState off(DecisionConfig{3, 5, {}, {}}, 1);
+  DecisionState off(band_off(), 1);
   WindowResult o;
   o.band_count = 32;
   o.band_excess[5] = 100.0F;
@@ -306,7 +314,7 @@ TEST(BandCusumEngine, ABaselineWithoutBandStatisticsIsAClearError) {
         std::string::npos)
         << e.what();
   }
-  EXPECT_NO_THROW(MonitorEngine(old, extraction(), DecisionConfig{3, 5, {}, {}}, Method::kPtda, kFs, 0));
+  EXPECT_NO_THROW(MonitorEngine(old, extraction(), band_off(), Method::kPtda, kFs, 0));
   const Baseline b = band_baseline(32);
   DecisionConfig d16 = band_on();
   d16.band.band_count = 16;
@@ -341,6 +349,47 @@ TEST(BandCusumEngine, ABaselineWithoutBandStatisticsIsAClearError) {
 // residual (recomputed here with a second analyzer), a healthy new day at the highest training day's
 // level stays quiet, and a band noise 4x stronger (+12 dB in amplitude) raises the band alarm in band 10
 // exactly when the recursion on those increments crosses h.
+// On by default (session 13) but not said in the configuration: where it cannot run (a baseline of format
+// <= 6, another band count, TDA or raw) the band detector is off with a reason, never an error; where it
+// can, it runs.
+TEST(BandCusumEngine, OnByDefaultItRunsWhereItCanAndSaysWhyNotElsewhere) {
+  DecisionConfig def{3, 5, {}, {}};
+  ASSERT_TRUE(def.band.enabled);
+  ASSERT_FALSE(def.band.required);
+  const Baseline old = band_baseline(0);
+  const Baseline b = band_baseline(32);
+  {
+    const MonitorEngine e(old, extraction(), def, Method::kPtda, kFs, 0);
+    EXPECT_FALSE(e.band_cusum_on());
+    EXPECT_NE(e.band_off_reason().find("the baseline has no band statistics"), std::string::npos)
+        << e.band_off_reason();
+    EXPECT_FALSE(effective_band(def, old, Method::kPtda).band.enabled);
+  }
+  {
+    const MonitorEngine e(b, extraction(), def, Method::kTda, kFs, 0);
+    EXPECT_FALSE(e.band_cusum_on());
+    EXPECT_EQ(e.band_off_reason(), "method \"tda\" (the band statistics are those of the PTDA residual)");
+  }
+  {
+    DecisionConfig d16 = def;
+    d16.band.band_count = 16;
+    const MonitorEngine e(b, extraction(), d16, Method::kPtda, kFs, 0);
+    EXPECT_FALSE(e.band_cusum_on());
+    EXPECT_EQ(e.band_off_reason(), "the baseline has 32 bands, [decision] band_count is 16");
+  }
+  {
+    const MonitorEngine e(b, extraction(), def, Method::kPtda, kFs, 0);
+    EXPECT_TRUE(e.band_cusum_on());
+    EXPECT_TRUE(e.band_off_reason().empty());
+    EXPECT_TRUE(effective_band(def, b, Method::kPtda).band.enabled);
+  }
+  {
+    const MonitorEngine e(b, extraction(), band_off(), Method::kPtda, kFs, 0);
+    EXPECT_FALSE(e.band_cusum_on());
+    EXPECT_TRUE(e.band_off_reason().empty());  // switched off by the configuration: nothing to explain
+  }
+}
+
 TEST(BandCusumEngine, EvidenceIsTheRecursionOnTheWindowsOwnResidual) {
   const Baseline b = band_baseline(32);
   const ClassBaseline& c = b.classes[0];

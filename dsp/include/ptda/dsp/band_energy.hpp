@@ -39,7 +39,12 @@ void band_log_energies(std::span<const float> energy, std::span<const unsigned c
 
 /// Parameters of the band CUSUM ([decision] band_* keys, config/README.md).
 struct BandCusumConfig {
-  bool enabled = false;           ///< `band_cusum`: off by default (opt-in, session 12)
+  /// `band_cusum`: on by default since session 13 (opt-in in session 12). On by default it runs only
+  /// where it can (method PTDA, a baseline with band statistics) and is off elsewhere with a notice.
+  bool enabled = true;
+  /// The configuration said `band_cusum = true` itself: then a baseline without band statistics or a
+  /// method other than PTDA is an error, not a silent fallback.
+  bool required = false;
   double k = 1.0;                 ///< `band_cusum_k`: reference value in total sds per window
   double h = 10.0;                ///< `band_cusum_h`: alarm when some band's statistic exceeds h
   double day_allowance = 1.0;     ///< `band_cusum_day_allowance`: extra k in between-day sds

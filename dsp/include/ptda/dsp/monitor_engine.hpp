@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "ptda/dsp/analyzer.hpp"
@@ -135,13 +136,24 @@ class DecisionState {
   void fill(WindowResult& w) const noexcept;
 };
 
+/// Why the band CUSUM cannot run with this method and baseline (not PTDA, no band statistics, another
+/// band count), in words for a log line; empty when it can. Thread: any. Allocates the message.
+[[nodiscard]] std::string band_cusum_unusable(const DecisionConfig& decision, const Baseline& baseline,
+                                              Method method);
+/// decision with the default-on band detector switched off where band_cusum_unusable() says it cannot
+/// run; an explicit `band_cusum = true` (decision.band.required) is left on (MonitorEngine then throws).
+/// Thread: any. Allocates only inside band_cusum_unusable().
+[[nodiscard]] DecisionConfig effective_band(DecisionConfig decision, const Baseline& baseline, Method method);
+
 class MonitorEngine {
  public:
   /// Copies what it needs of baseline (the caller may drop it). Throws ptda::Error when the baseline's
   /// sample rate or window length disagree with fs_hz / cfg.window_len (says which), or the
   /// sequential parameters are invalid (check_sequential()), or the band CUSUM is on and its parameters
-  /// are invalid (check_band_cusum()), the method is not PTDA, or the baseline has no band statistics
-  /// (format <= 6 or trained without band_cusum: retrain) or another band count.
+  /// are invalid (check_band_cusum()). With `band_cusum = true` said explicitly (decision.band.required)
+  /// it also throws when the method is not PTDA, the baseline has no band statistics (format <= 6 or
+  /// trained without band_cusum: retrain) or another band count; on by default, those switch the band
+  /// detector off instead and band_off_reason() says why.
   /// Thread: any (setup). Allocates.
   MonitorEngine(const Baseline& baseline, const ExtractionConfig& cfg, const DecisionConfig& decision,
                 Method method, double fs_hz, std::int64_t t0_ns);
@@ -168,6 +180,10 @@ class MonitorEngine {
   [[nodiscard]] const WindowAnalyzer& analyzer() const noexcept { return analyzer_; }
   [[nodiscard]] const WindowSlicer& slicer() const noexcept { return slicer_; }
   [[nodiscard]] const Baseline& baseline() const noexcept { return baseline_; }
+  /// Whether the band CUSUM runs, and why the default-on band detector does not (empty when it runs or
+  /// was switched off by the configuration). Thread: any. Never allocates.
+  [[nodiscard]] bool band_cusum_on() const noexcept { return !band_scale_.empty(); }
+  [[nodiscard]] const std::string& band_off_reason() const noexcept { return band_off_reason_; }
 
  private:
   void score(const WindowRef& ref, WindowResult& out) noexcept;  ///< window_ holds the samples
@@ -182,6 +198,7 @@ class MonitorEngine {
   std::vector<std::vector<unsigned char>> band_clean_;  ///< per class: clean_floor_bins()
   std::array<double, kMaxBands> band_tmp_{};
   std::vector<float> window_;
+  std::string band_off_reason_;  ///< default-on band detector switched off: why (empty otherwise)
 };
 
 }  // namespace ptda::dsp
