@@ -25,10 +25,13 @@ void check_hold(double v, const char* key) {
   }
 }
 
-std::uint8_t verdict_causes(const dsp::Verdict& v) noexcept {
+std::uint8_t verdict_causes(const dsp::WindowResult& w) noexcept {
   std::uint8_t c = 0;
-  if (v.rms_out) c |= drivers::kCauseRms;
-  if (v.entropy_out) c |= drivers::kCauseEntropy;
+  if (w.verdict.rms_out) c |= drivers::kCauseRms;
+  if (w.verdict.entropy_out) c |= drivers::kCauseEntropy;
+  // A band alarm can come with both features in their bands: without this bit it would read "alarm,
+  // no cause" on the CAN frame and in status.json.
+  if (w.band_alarm) c |= drivers::kCauseBand;
   return c;
 }
 
@@ -52,7 +55,7 @@ AlarmLevel AlarmManager::on_window(const dsp::WindowResult& w, std::int64_t t_mo
     return state_.level;
   }
   const bool abnormal = w.verdict.abnormal();
-  const std::uint8_t causes = verdict_causes(w.verdict);
+  const std::uint8_t causes = verdict_causes(w);
   windows_scored_.add();
   if (abnormal) windows_abnormal_.add();
 

@@ -49,7 +49,8 @@ inline constexpr std::uint8_t kFaultCauseMask = drivers::kCauseSensor | drivers:
                                                 drivers::kCauseBaseline | drivers::kCauseInternal |
                                                 drivers::kCauseCoverage;
 /// Mask of the AlarmCause bits a window's verdict can set.
-inline constexpr std::uint8_t kFeatureCauseMask = drivers::kCauseRms | drivers::kCauseEntropy;
+inline constexpr std::uint8_t kFeatureCauseMask =
+    drivers::kCauseRms | drivers::kCauseEntropy | drivers::kCauseBand;
 
 enum class ClearSource : std::uint8_t { kCan = 0, kLocal = 1 };
 

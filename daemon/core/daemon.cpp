@@ -95,7 +95,7 @@ void cause_text(std::uint8_t causes, char* out, std::size_t cap) noexcept {
       {drivers::kCauseRms, "rms"},           {drivers::kCauseEntropy, "entropy"},
       {drivers::kCauseSensor, "sensor"},     {drivers::kCauseSpeed, "speed"},
       {drivers::kCauseBaseline, "baseline"}, {drivers::kCauseInternal, "internal"},
-      {drivers::kCauseCoverage, "coverage"}};
+      {drivers::kCauseCoverage, "coverage"}, {drivers::kCauseBand, "band"}};
   std::size_t n = 0;
   out[0] = '\0';
   for (const auto& [bit, name] : kNames) {

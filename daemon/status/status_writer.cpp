@@ -117,7 +117,7 @@ namespace {
 
 using drivers::AlarmLevel;
 
-constexpr std::array<std::pair<std::uint8_t, std::string_view>, 7> kCauseNames{{
+constexpr std::array<std::pair<std::uint8_t, std::string_view>, 8> kCauseNames{{
     {drivers::kCauseRms, "rms"},
     {drivers::kCauseEntropy, "entropy"},
     {drivers::kCauseSensor, "sensor"},
@@ -125,6 +125,7 @@ constexpr std::array<std::pair<std::uint8_t, std::string_view>, 7> kCauseNames{{
     {drivers::kCauseBaseline, "baseline"},
     {drivers::kCauseInternal, "internal"},
     {drivers::kCauseCoverage, "coverage"},
+    {drivers::kCauseBand, "band"},
 }};
 
 constexpr std::array<dsp::UnmatchedReason, dsp::kUnmatchedReasonCount> kUnmatchedReasons{

@@ -292,6 +292,23 @@ TEST(AlarmManager, ReportCarriesTheLastWindow) {
   EXPECT_EQ(r.abnormal_windows, 255);
 }
 
+// An alarm by the band CUSUM alone (both features in their bands) carries the band cause, so the CAN
+// frame and status.json never read "alarm" without a cause.
+TEST(AlarmManager, ABandAlarmCarriesTheBandCause) {
+  AlarmManager m(latched_cfg(), 0);
+  m.set_faults(0, 0);
+  dsp::WindowResult w = win(false, false, true, 0);
+  w.band_on = true;
+  w.band_alarm = true;
+  w.detector = dsp::AlarmDetector::kSequentialBand;
+  EXPECT_EQ(m.on_window(w, 1 * kS), AlarmLevel::kAlarm);
+  EXPECT_EQ(m.report().causes, drivers::kCauseBand);
+  EXPECT_EQ(m.state().trip.causes, drivers::kCauseBand);
+  // A later window out of the RMS band adds its cause to the episode's.
+  m.on_window(win(true, false, true, 1), 2 * kS);
+  EXPECT_EQ(m.report().causes, drivers::kCauseBand | drivers::kCauseRms);
+}
+
 TEST(AlarmManager, RunStateMakesNoAllocations) {
   AlarmManager m(latched_cfg(), 0);
   const dsp::WindowResult bad = win(true, true, true, 3);

@@ -490,7 +490,7 @@ TEST(StatusWriter, PrometheusLines) {
                 R"(ptda_alarm_cause{cause="rms"} 1)", R"(ptda_alarm_cause{cause="entropy"} 0)",
                 R"(ptda_alarm_cause{cause="sensor"} 0)", R"(ptda_alarm_cause{cause="speed"} 1)",
                 R"(ptda_alarm_cause{cause="baseline"} 0)", R"(ptda_alarm_cause{cause="internal"} 0)",
-                R"(ptda_alarm_cause{cause="coverage"} 0)"}));
+                R"(ptda_alarm_cause{cause="coverage"} 0)", R"(ptda_alarm_cause{cause="band"} 0)"}));
   EXPECT_EQ(
       test::prom_samples(text, "ptda_coverage_state"),
       (std::vector<std::string>{

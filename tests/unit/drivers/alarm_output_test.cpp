@@ -128,6 +128,16 @@ TEST(CanAlarmFrame, LayoutIsPinned) {
   EXPECT_EQ(back.abnormal_windows, 4);
   EXPECT_FLOAT_EQ(back.rms, 1.25F);
   EXPECT_FLOAT_EQ(back.entropy, 0.875F);
+
+  // The band CUSUM's cause is bit 7 of byte 1 (session 13), alone here: 3A0#1280030400000000 with the
+  // values zeroed.
+  r.causes = kCauseBand;
+  r.rms = 0.0F;
+  r.entropy = 0.0F;
+  const CanFrame fb = encode_alarm_frame(r, c, 1);
+  EXPECT_EQ(fb.data[1], 0x80);
+  ASSERT_TRUE(decode_alarm_frame(fb, c, back, alive));
+  EXPECT_EQ(back.causes, kCauseBand);
 }
 
 TEST(CanAlarmFrame, SaturatesMarksUnavailableAndRejectsForeignFrames) {

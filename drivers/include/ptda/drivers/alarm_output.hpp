@@ -44,6 +44,7 @@ enum AlarmCause : std::uint8_t {
   kCauseBaseline = 1U << 4,  ///< no baseline for the current segment class
   kCauseInternal = 1U << 5,  ///< ring overrun, stage stalled, watchdog
   kCauseCoverage = 1U << 6,  ///< running, but no window judged for [daemon] coverage_timeout_s of motion
+  kCauseBand = 1U << 7,      ///< the band CUSUM is above its h (energy grew in one band of the residual)
 };
 
 inline constexpr std::uint8_t kNoSegmentClass = 0xFF;
