@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "daemon_test_support.hpp"
+#include "ptda/formats/baseline_file.hpp"
 #include "status/status_writer.hpp"
 #include "status_text.hpp"
 
@@ -369,6 +370,32 @@ TEST_F(StatusTimes, EndOfReplayIsItsOwnPhaseNotASensorFault) {
   EXPECT_TRUE(has(r.metrics, "\nptda_state{state=\"ended\"} 1\n")) << r.metrics;
   EXPECT_TRUE(has(r.metrics, "\nptda_alarm_cause{cause=\"sensor\"} 0\n")) << r.metrics;
   EXPECT_TRUE(has(r.log, "info: state ended (replay ended): replay ended; ")) << r.log;
+}
+
+// The band CUSUM is on by default (session 13). A baseline without band statistics (format <= 6, or
+// trained with it off) still monitors; configure() logs at warning level why the band detector is off.
+// With a baseline that has them, nothing is said.
+TEST_F(StatusTimes, ABaselineWithoutBandStatisticsIsLoggedAsBandDetectorOff) {
+  const fs::path dir = scratch("band_off_log");
+  write_sim_baseline(dir / "with_bands.bin");
+  dsp::Baseline b = formats::read_baseline(dir / "with_bands.bin");
+  ASSERT_GT(b.policy.band_count, 0U) << "the default training stores band statistics";
+  b.policy.band_count = 0;
+  for (dsp::ClassBaseline& c : b.classes) c.band_stats.clear();
+  formats::write_baseline(dir / "no_bands.bin", b);
+  for (const bool bands : {false, true}) {
+    const fs::path base = dir / (bands ? "with_bands.bin" : "no_bands.bin");
+    write_text(dir / "ptdad.toml", sim_config(base, dir / "status", "fast"));
+    LogCapture log;
+    DaemonOptions opt;
+    opt.config_file = dir / "ptdad.toml";
+    opt.config_dir = fs::path();
+    drivers::MonotonicClock clock;
+    Daemon d(opt, clock);
+    d.configure();
+    const std::string text = log.text();
+    EXPECT_EQ(has(text, "warning: band detector off: the baseline has no band statistics"), !bands) << text;
+  }
 }
 
 }  // namespace

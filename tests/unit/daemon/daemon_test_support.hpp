@@ -135,7 +135,8 @@ inline std::string sim_config(const fs::path& baseline, const fs::path& status_d
 
 /// Trains a baseline on the simulated healthy arc-welding job (seed 7) and writes it to `path`, once
 /// per process (later calls copy the first file). Allocates; takes ~1 s.
-/// band: trained with `[decision] band_cusum = true` (band statistics, format 7).
+/// band: trained with `[decision] band_cusum = true` said (required); without it the default (on since
+/// session 13) also stores band statistics (format 7).
 inline void write_sim_baseline(const fs::path& path, bool band = false) {
   static fs::path first[2];
   if (!first[band ? 1 : 0].empty()) {
