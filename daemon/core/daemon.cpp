@@ -315,6 +315,8 @@ void Daemon::configure() {
   p->set_wake_fd(event_fd_);
   p->set_device_factory(factory_);
   p->set_probe(probe_);
+  // Every stage beats between two watchdog pings (check_watchdog): sleep at most half a ping period.
+  p->set_liveness_period_ns(options_.watchdog.enabled ? options_.watchdog.ping_period_ns / 2 : 0);
   p->configure();
   spdlog::info("configured from {} file(s) ({}{}); inputs: {}; fs {} Hz, window {} samples, method {}",
                cfg_.files.size(), cfg_.files.front().string(), cfg_.files.size() > 1 ? " + drop-ins" : "",
@@ -403,6 +405,7 @@ DaemonView Daemon::view() const noexcept {
       v.pipeline = pipeline_->status();
       v.counters = pipeline_->counters();
       v.heartbeats = pipeline_->heartbeats();
+      v.wake = pipeline_->wake_schedule();
       v.window_len = pipeline_->config().pipeline.extraction.window_len;
       v.min_hold_s = pipeline_->config().alarm.min_hold_s;
     }
@@ -430,6 +433,8 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   fresh->set_wake_fd(event_fd_);
   fresh->set_device_factory(factory_);
   fresh->set_probe(probe_);
+  // Every stage beats between two watchdog pings (check_watchdog): sleep at most half a ping period.
+  fresh->set_liveness_period_ns(options_.watchdog.enabled ? options_.watchdog.ping_period_ns / 2 : 0);
   {
     // Stop the old pipeline first: a device (IIO buffer, GPIO line) has one user at a time.
     std::lock_guard lock(pipeline_mutex_);

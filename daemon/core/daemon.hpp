@@ -59,6 +59,7 @@ struct DaemonView {
   PipelineStatus pipeline;
   PipelineCounters counters;
   StageHeartbeats heartbeats;
+  WakeSchedule wake;                  ///< how the stages schedule their wake-ups (real-time pace)
   std::uint64_t reloads = 0;          ///< successful reloads
   std::uint64_t reload_failures = 0;  ///< rejected reloads (old configuration kept)
   std::uint64_t watchdog_pings = 0;

@@ -353,11 +353,50 @@ void Pipeline::configure_rings_and_timing() {
       std::min<std::int64_t>(std::max<std::int64_t>(seconds_to_ns(4 * pc.speed_frame.period_s), 50'000'000),
                              std::max<std::int64_t>(speed_stale_ns_ / 2, 1'000'000));
   output_period_ns_ = seconds_to_ns(cfg_.alarm.can_period_s);
-  // The CAN burst comes after the acquisition burst by one speed frame period (+1 ms): the speed sample
-  // that follows the newest block's end (the processing thread waits for it) is then in the same tick.
-  // Slower frames (> kBurstPeriodNs / 2 - 1 ms) make the block wait one more period.
-  can_burst_offset_ns_ = std::clamp<std::int64_t>(seconds_to_ns(pc.speed_frame.period_s) + 1'000'000,
-                                                  1'000'000, kBurstPeriodNs / 2);
+  // Wake-ups (docs/daemon.md, "Sleeping until a window can close"). The acquisition thread wakes one
+  // block after the due time (the block holding the window's last sample is then complete; +1 ms for a
+  // device's delivery); the CAN thread one speed frame period (+ the speed latency, +1 ms) after that,
+  // so the speed sample that follows the newest block is in its ring too.
+  const std::int64_t frame_ns = std::max<std::int64_t>(seconds_to_ns(pc.speed_frame.period_s), 1);
+  const std::int64_t block_ns =
+      static_cast<std::int64_t>(std::ceil(static_cast<double>(cfg_.adc.block_len) * 1e9 / fs_hz_));
+  wake_ = WakeSchedule{};
+  wake_.acq_offset_ns = block_ns + 1'000'000;
+  wake_.can_offset_ns = wake_.acq_offset_ns + std::max<std::int64_t>(latency_ns_, 0) + frame_ns + 1'000'000;
+  // The longest sleep: half of what the sample ring, the speed ring and an IIO buffer hold (an IIO
+  // buffer of unknown length ("keep"): the burst period), half the sensor staleness (blocks arrive at
+  // least twice in it), a quarter of the stall time and the liveness period (watchdog).
+  std::int64_t max_sleep = kMaxSleepNs;
+  max_sleep = std::min(max_sleep, static_cast<std::int64_t>(kSampleRingBlocks) * block_ns / 2);
+  max_sleep = std::min(max_sleep, static_cast<std::int64_t>(kSpeedRingSamples) * frame_ns / 2);
+  if (cfg_.adc.backend == AdcBackend::kIio && factory_ == nullptr) {
+    max_sleep = std::min(
+        max_sleep,
+        cfg_.adc.buffer_length == 0
+            ? kBurstPeriodNs
+            : static_cast<std::int64_t>(static_cast<double>(cfg_.adc.buffer_length) * 1e9 / fs_hz_ / 2));
+  }
+  max_sleep = std::min(max_sleep, sensor_stale_ns_ / 2);
+  max_sleep = std::min(max_sleep, seconds_to_ns(cfg_.daemon.stage_stall_s) / 4);
+  if (liveness_ns_ > 0) max_sleep = std::min(max_sleep, liveness_ns_);
+  wake_.max_sleep_ns = std::max<std::int64_t>(max_sleep, 1'000'000);
+  wake_.follows_windows = engine_ != nullptr && order_res_ == nullptr;
+  if (wake_.follows_windows) {
+    // No window closes sooner than one hop after the previous one in its region, nor sooner than
+    // new_run_close_ns() after a speed sample that starts a new region.
+    const dsp::WindowSlicer& sl = engine_->slicer();
+    const auto hop_ns = static_cast<std::int64_t>(static_cast<double>(sl.hop_samples()) * 1e9 / fs_hz_);
+    wake_.spacing_ns = std::max<std::int64_t>(std::min(hop_ns, sl.new_run_close_ns()), 1'000'000);
+  } else {
+    wake_.spacing_ns = kBurstPeriodNs;  // the order domain: a fixed grid of bursts
+    if (order_res_) wake_.acq_offset_ns = 0;
+  }
+  // A window still open when the CAN thread has served its due time (a late frame or block): retry every
+  // frame period for as long as a speed gap may last before it breaks the run (then the due time moves).
+  wake_.retry_ns = frame_ns + 1'000'000;
+  wake_.late_window_ns = seconds_to_ns(pc.extraction.max_speed_gap_s) + hold_ns_;
+  next_due_ns_.store(kNoDue, std::memory_order_relaxed);
+  due_late_.store(false, std::memory_order_relaxed);
   st_ = PipelineStatus{};
   st_.order_domain = cfg_.pipeline.domain == dsp::Domain::kOrder;
   st_.phase = mode_ == PipelineMode::kMonitor && refused() ? Phase::kRefused : Phase::kStarting;
@@ -406,6 +445,8 @@ void Pipeline::deactivate() noexcept {
   if (!active_) return;
   stop_.store(true, std::memory_order_relaxed);
   work_signal_.ring();
+  acq_signal_.ring();
+  can_signal_.ring();
   if (acq_thread_.joinable()) acq_thread_.join();
   if (can_thread_.joinable()) can_thread_.join();
   if (proc_thread_.joinable()) proc_thread_.join();
@@ -418,6 +459,13 @@ void Pipeline::deactivate() noexcept {
 void Pipeline::post_clear() noexcept {
   if (alarm_) alarm_->post_clear_request(ClearSource::kLocal);
   work_signal_.ring();
+}
+
+WakeSchedule Pipeline::wake_schedule() const noexcept {
+  WakeSchedule w = wake_;
+  w.next_due_ns = next_due_ns_.load(std::memory_order_relaxed);
+  w.late = due_late_.load(std::memory_order_relaxed);
+  return w;
 }
 
 StageHeartbeats Pipeline::heartbeats() const noexcept {
@@ -457,17 +505,15 @@ drivers::CanBusState Pipeline::can_bus_state() const noexcept {
 
 // ---- acquisition thread -------------------------------------------------------------------------
 
-std::int64_t Pipeline::wait_burst(std::int64_t tick) noexcept {
-  std::int64_t now = clock_.now_ns();
-  if (tick > now) {
-    clock_.sleep_until_ns(tick);
-    now = clock_.now_ns();
-  }
-  // Stay on the grid; a stage that fell behind by a period or more (a stall, a long burst) skips the
-  // ticks it missed instead of waking back to back.
-  std::int64_t next = tick + kBurstPeriodNs;
-  if (next <= now) next += ((now - next) / kBurstPeriodNs + 1) * kBurstPeriodNs;
-  return next;
+void Pipeline::wait_stage(WakeSignal& signal, std::int64_t offset_ns) noexcept {
+  // The ticket first: a deactivate() from here on ends the wait at once.
+  const std::uint32_t ticket = signal.ticket();
+  if (stop_.load(std::memory_order_relaxed)) return;
+  const std::int64_t now = clock_.now_ns();
+  const std::int64_t wake = plan_wake(now, next_due_ns_.load(std::memory_order_relaxed), offset_ns,
+                                      wake_.spacing_ns, wake_.max_sleep_ns, burst_origin_ns_,
+                                      due_late_.load(std::memory_order_relaxed), wake_.retry_ns);
+  if (wake > now) signal.wait(ticket, wake - now);
 }
 
 SourceStatus Pipeline::acquire(std::int64_t timeout_ns) noexcept {
@@ -504,7 +550,6 @@ SourceStatus Pipeline::acquire(std::int64_t timeout_ns) noexcept {
 }
 
 void Pipeline::acquisition_loop() noexcept {
-  std::int64_t tick = burst_origin_ns_;
   while (!stop_.load(std::memory_order_relaxed)) {
     acq_beat_.fetch_add(1, std::memory_order_relaxed);
     if (acq_end_.load(std::memory_order_relaxed)) {
@@ -518,11 +563,12 @@ void Pipeline::acquisition_loop() noexcept {
       if (st == SourceStatus::kError || st == SourceStatus::kNotActive) sleep_ns(10'000'000);
       continue;
     }
-    // Real-time pace: the burst timer is this thread's one wait; then every block the device (or the
-    // replay's clock) has ready is taken without waiting. The processing thread is not rung for blocks:
-    // it waits for the speed sample after a block anyway, and the CAN burst that brings it follows this
-    // one (can_burst_offset_ns_). It is rung when the ring fills up or the stream ends.
-    tick = wait_burst(tick);
+    // Real-time pace: this thread's one wait lasts until a window can close (wait_stage); then every
+    // block the device (or the replay's clock) has ready is taken without waiting. The processing thread
+    // is not rung for blocks: it waits for the speed sample after a block anyway, and the CAN thread
+    // that brings it wakes after this one (WakeSchedule::can_offset_ns). It is rung when the ring fills
+    // up or the stream ends.
+    wait_stage(acq_signal_, wake_.acq_offset_ns);
     SourceStatus st = SourceStatus::kOk;
     bool rang = false;
     for (std::size_t i = 0; i < kSampleRingBlocks && !stop_.load(std::memory_order_relaxed); ++i) {
@@ -597,7 +643,6 @@ CanStatus Pipeline::receive_batch(std::int64_t timeout_ns, std::size_t& received
 }
 
 void Pipeline::can_loop() noexcept {
-  std::int64_t tick = burst_origin_ns_ + can_burst_offset_ns_;
   while (!stop_.load(std::memory_order_relaxed)) {
     can_beat_.fetch_add(1, std::memory_order_relaxed);
     if (can_end_.load(std::memory_order_relaxed)) {
@@ -611,20 +656,19 @@ void Pipeline::can_loop() noexcept {
       if (st == CanStatus::kError || st == CanStatus::kNotActive) sleep_ns(10'000'000);
       continue;
     }
-    // Real-time pace: the burst timer is this thread's one wait. Then the socket (recvmmsg, kernel
-    // receive stamps) or the replay is drained without waiting, batch after batch, and the processing
-    // thread is rung once for the burst (speed samples, a clear request or error frames to look at).
-    tick = wait_burst(tick);
-    std::size_t total = 0;
+    // Real-time pace: this thread's one wait lasts until the speed frame after the block that can close
+    // a window has arrived (wait_stage). Then the socket (recvmmsg, kernel receive stamps) or the replay
+    // is drained without waiting, batch after batch, and the processing thread is rung once: the pass
+    // was scheduled for it (a window may close; else the staleness checks see the stages alive).
+    wait_stage(can_signal_, wake_.can_offset_ns);
     CanStatus st = CanStatus::kOk;
     for (std::size_t i = 0; i < kSpeedRingSamples / kCanBatch && !stop_.load(std::memory_order_relaxed);
          ++i) {
       st = receive_batch(0, n);
-      total += n;
       if (st != CanStatus::kOk || n < kCanBatch) break;
       if (speed_ring_->size_approx() > kSpeedRingSamples / 2) work_signal_.ring();  // a long burst
     }
-    if (total > 0 || st == CanStatus::kEndOfStream) work_signal_.ring();
+    work_signal_.ring();
   }
 }
 
@@ -943,6 +987,60 @@ bool Pipeline::publish(std::int64_t now, bool force) noexcept {
   return true;
 }
 
+void Pipeline::publish_due(std::int64_t now) noexcept {
+  std::int64_t due = kNoDue;
+  if (!streams_finished_) {
+    if (wake_.follows_windows) {
+      if (st_.have_t0) due = st_.t0_mono_ns + engine_->slicer().next_close_ns();
+    } else if (order_res_) {
+      due = burst_origin_ns_;  // the fixed grid (WakeSchedule::spacing_ns = kBurstPeriodNs)
+    }
+  }
+  const std::int64_t old_due = next_due_ns_.load(std::memory_order_relaxed);
+  next_due_ns_.store(due, std::memory_order_relaxed);
+  if (due != old_due) {
+    // A stage that has just served a due time that was only a bound (no run yet) planned one spacing
+    // ahead; a run that began since may close sooner. Ring a stage whose plan the new due time brings
+    // forward: it plans again (one wake-up, about once per region).
+    const bool late_now = due_late_.load(std::memory_order_relaxed);
+    const auto sooner = [&](std::int64_t offset_ns) {
+      return plan_wake(now, due, offset_ns, wake_.spacing_ns, wake_.max_sleep_ns, burst_origin_ns_, late_now,
+                       wake_.retry_ns) < plan_wake(now, old_due, offset_ns, wake_.spacing_ns,
+                                                   wake_.max_sleep_ns, burst_origin_ns_, late_now,
+                                                   wake_.retry_ns);
+    };
+    if (sooner(wake_.acq_offset_ns)) acq_signal_.ring();
+    if (sooner(wake_.can_offset_ns)) can_signal_.ring();
+  }
+  // Late: both stages have served the due time (this pass follows the CAN thread's) and the window is
+  // still open. The stages planned one spacing ahead; ring them to retry every frame period instead.
+  const bool late = wake_.follows_windows && due != kNoDue && now >= due + wake_.can_offset_ns &&
+                    now < due + wake_.can_offset_ns + wake_.late_window_ns;
+  if (late != due_late_.load(std::memory_order_relaxed)) {
+    due_late_.store(late, std::memory_order_relaxed);
+    if (late) {
+      acq_signal_.ring();
+      can_signal_.ring();
+    }
+  }
+}
+
+std::int64_t Pipeline::processing_wait_ns(std::int64_t now, bool unpublished) const noexcept {
+  // The CAN thread rings after every pass it makes (at most max_sleep_ns apart); the timeout covers what
+  // depends on time alone: the CAN verdict frame's period, the publication of work done, a held block's
+  // hold time (it waits for the speed sample after it).
+  std::int64_t wait_ns = wake_.max_sleep_ns + wake_.can_offset_ns;
+  if (!outputs_.empty() && output_period_ns_ > 0)
+    wait_ns = std::min(wait_ns, last_output_ns_ + output_period_ns_ - now);
+  if (unpublished) wait_ns = std::min(wait_ns, last_publish_ns_ + kPublishPeriodNs - now);
+  if (have_block_) {
+    const drivers::SampleBlock& b = *held_block_;
+    const std::uint64_t end_index = b.first_index >= base_index_ ? b.first_index - base_index_ + b.count : 0;
+    wait_ns = std::min(wait_ns, st_.t0_mono_ns + sample_time(end_index) + hold_ns_ + 1 - now);
+  }
+  return std::max<std::int64_t>(wait_ns, 100'000);
+}
+
 void Pipeline::processing_loop() noexcept {
   std::int64_t now = clock_.now_ns();
   update_phase(now);
@@ -975,12 +1073,16 @@ void Pipeline::processing_loop() noexcept {
     }
     if (work) unpublished = true;
     if (publish(now, false)) unpublished = false;
+    if (!fast_) publish_due(now);
     if (!work) {
       // Idle: sleep until rung, but publish what was done within kPublishPeriodNs (the supervisor and
       // status.json must not see a stale phase for a whole idle period).
       std::int64_t wait_ns = kProcessingIdleWaitNs;
-      if (unpublished)
+      if (!fast_) {
+        wait_ns = processing_wait_ns(now, unpublished);
+      } else if (unpublished) {
         wait_ns = std::clamp<std::int64_t>(last_publish_ns_ + kPublishPeriodNs - now, 100'000, wait_ns);
+      }
       work_signal_.wait(ticket, wait_ns);
     }
   }

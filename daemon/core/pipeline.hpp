@@ -19,7 +19,8 @@
 //   active       - activate() started the devices and the three threads. From here on nothing
 //                  allocates, throws, logs or blocks except each thread's one wait.
 //   deactivated  - deactivate() stopped and joined the threads (each checks the stop flag at least every
-//                  kStageWaitNs), drove the outputs fail-safe and stopped the devices. Idempotent.
+//                  kStageWaitNs, or is rung out of its real-time sleep), drove the outputs fail-safe and
+//                  stopped the devices. Idempotent.
 //
 // Time: every timestamp is on the daemon clock (CLOCK_MONOTONIC ns). The first vibration block defines
 // t0 = t_mono_ns(first block) - first_index / fs ("stream time" 0). The engine runs on stream time
@@ -41,6 +42,7 @@
 #include "core/daemon_config.hpp"
 #include "core/seqlock.hpp"
 #include "core/sim_backends.hpp"
+#include "core/wake_plan.hpp"
 #include "ptda/drivers/alarm_output.hpp"
 #include "ptda/drivers/can_channel.hpp"
 #include "ptda/drivers/clock.hpp"
@@ -67,17 +69,21 @@ inline constexpr std::size_t kSampleRingBlocks = 64;      ///< 64 x 1024 samples
 inline constexpr std::size_t kSpeedRingSamples = 4096;    ///< 16 s of 4 ms speed frames
 inline constexpr std::size_t kCanBatch = 64;              ///< frames per receive() call
 inline constexpr std::int64_t kStageWaitNs = 50'000'000;  ///< longest wait of a stage before it re-checks
-/// Real-time sources are read in bursts: the acquisition and CAN threads wake once per burst period (a
-/// timer on a grid anchored at activate()), take everything the device or the replay's clock has ready
-/// without waiting, and the CAN thread rings the processing thread once per burst. One channel at
-/// 25.6 kHz then costs about 2 x 50 wake-ups a second instead of one per block, per frame and per idle
-/// check. The latency this adds from the end of a window to its verdict is at most one period plus the
-/// CAN offset below (docs/daemon.md, "Bursts"; docs/benchmarks.md measures p50/p99).
+/// Real-time sources are read when a window can close (docs/daemon.md, "Sleeping until a window can
+/// close"): the processing thread publishes the earliest time the next window can close
+/// (WindowSlicer::next_close_ns()); the acquisition thread wakes once the block holding that window's
+/// last sample is complete, the CAN thread once the speed frame after that block has arrived, each takes
+/// everything ready without waiting, and the CAN thread rings the processing thread. When no window can
+/// close (speed changing, standstill) they sleep for at most kMaxSleepNs, or less when the rings, an IIO
+/// buffer, the staleness checks or the watchdog need it (Pipeline::wake_schedule()).
+inline constexpr std::int64_t kMaxSleepNs = 250'000'000;
+/// The order domain (no slicer to ask) keeps a fixed grid of bursts of this period, as before the
+/// wake-ups followed the windows; an IIO buffer of unknown length caps the max sleep at it.
 inline constexpr std::int64_t kBurstPeriodNs = 20'000'000;
-/// The processing thread sleeps on its doorbell (rt/wake_signal.hpp) at most this long when it has no
-/// work: the CAN burst (real time) and every block and frame batch (fast replays) wake it at once; the
-/// timeout paces what depends on time alone when no frame arrives (a block's >= 50 ms wait for speed,
-/// staleness, alarm hold times, the CAN verdict frame's period).
+/// Fast replays: the processing thread sleeps on its doorbell (rt/wake_signal.hpp) at most this long
+/// when it has no work (every block and frame batch rings it). At real-time pace it sleeps until the
+/// CAN thread rings, the CAN verdict frame's period, a held block's hold time, or wake_schedule()'s
+/// max sleep + CAN offset.
 inline constexpr std::int64_t kProcessingIdleWaitNs = 50'000'000;
 /// The processing thread publishes its status (seqlock) at most this often, and at most this long
 /// after it did some work.
@@ -87,6 +93,14 @@ inline constexpr std::int64_t kPublishPeriodNs = 10'000'000;
 inline constexpr std::int64_t kTimeJumpNs = 100'000'000;
 
 using SampleRing = SpscRing<drivers::SampleBlock, kSampleRingBlocks>;
+// The rings hold at least twice the longest sleep at the production rates (25.6 kHz in 256-sample
+// blocks; speed frames every 1 ms or slower). configure() shortens the sleep for smaller blocks or
+// faster rates (ring time / 2), so no configuration overflows a ring by sleeping; an overflow that still
+// happens (a stall) is counted (acq_ring_full_*, can_ring_full).
+static_assert(kSampleRingBlocks * 256 * 1'000'000'000LL / 25'600 >= 2 * kMaxSleepNs,
+              "the sample ring must hold two max sleeps of 256-sample blocks at 25.6 kHz");
+static_assert(static_cast<std::int64_t>(kSpeedRingSamples) * 1'000'000 >= 2 * kMaxSleepNs,
+              "the speed ring must hold two max sleeps of 1 ms speed frames");
 using SpeedRing = SpscRing<dsp::SpeedSample, kSpeedRingSamples>;
 /// Windows handed from processing to the supervisor for the event history ([history]); the supervisor
 /// drains it every status period, so 256 windows cover periods of seconds at any window rate a
@@ -186,6 +200,21 @@ struct PipelineStatus {
   dsp::CoverageState coverage;  ///< judged/unmatched windows, motion since the last judgement
 };
 
+/// How the acquisition and CAN threads schedule their wake-ups at real-time pace (plan_wake()). Fixed
+/// at configure() (max_sleep_ns also by set_liveness_period_ns()); next_due_ns is the processing
+/// thread's latest publication.
+struct WakeSchedule {
+  bool follows_windows = false;  ///< time domain, monitoring: wake-ups follow next_close_ns()
+  std::int64_t max_sleep_ns = 0;
+  std::int64_t spacing_ns = 0;      ///< no window closes sooner than this after the previous one
+  std::int64_t acq_offset_ns = 0;   ///< after the due time: the block holding the window's end is complete
+  std::int64_t can_offset_ns = 0;   ///< after the due time: the speed frame after that block has arrived
+  std::int64_t retry_ns = 0;        ///< a late window: the stages retry this often (one frame period + 1 ms)
+  std::int64_t late_window_ns = 0;  ///< ... for at most this long after due + can_offset_ns
+  std::int64_t next_due_ns = kNoDue;
+  bool late = false;  ///< the due window is still open after the stages served it
+};
+
 struct StageHeartbeats {
   std::uint64_t acquisition = 0, can = 0, processing = 0;
 };
@@ -248,6 +277,11 @@ class Pipeline {
   /// Test-only fault injection: while true the processing thread stops working and stops beating
   /// (it still honours stop). Thread: any. Never blocks.
   void set_processing_stall(bool stall) noexcept { stall_.store(stall, std::memory_order_relaxed); }
+  /// The longest a stage may sleep so that a liveness check sees its heartbeat (e.g. half the
+  /// watchdog ping period); 0 = none. Set before configure(). Thread: main.
+  void set_liveness_period_ns(std::int64_t ns) noexcept { liveness_ns_ = ns; }
+  /// After configure(). Thread: any. Never blocks or allocates.
+  [[nodiscard]] WakeSchedule wake_schedule() const noexcept;
   /// Posts an operator clear of a latched alarm. Thread: any. Never blocks or allocates.
   void post_clear() noexcept;
 
@@ -308,9 +342,15 @@ class Pipeline {
   /// Receives one batch of frames with the given timeout and handles them; `received` = frames taken.
   /// Thread: CAN.
   drivers::CanStatus receive_batch(std::int64_t timeout_ns, std::size_t& received) noexcept;
-  /// Sleeps until `tick` (the burst timer: the stage's one wait) and returns the next tick on the grid
-  /// (the one after now when the stage fell behind). Thread: acquisition or CAN, real-time pace.
-  std::int64_t wait_burst(std::int64_t tick) noexcept;
+  /// Sleeps until plan_wake() with the stage's offset (the stage's one wait; deactivate() rings
+  /// `signal` to end it at once). Thread: acquisition or CAN, real-time pace.
+  void wait_stage(WakeSignal& signal, std::int64_t offset_ns) noexcept;
+  /// Publishes the daemon time the next window can close (next_due_ns_), and whether it is late (the
+  /// stages served it and it is still open: due_late_; the stages are rung to retry sooner). Thread:
+  /// processing.
+  void publish_due(std::int64_t now) noexcept;
+  /// How long the processing thread may sleep at real-time pace. Thread: processing.
+  [[nodiscard]] std::int64_t processing_wait_ns(std::int64_t now, bool unpublished) const noexcept;
   void processing_loop() noexcept;
 
   // Processing helpers (processing thread only).
@@ -343,8 +383,12 @@ class Pipeline {
   drivers::WavReplaySource* wav_replay_ = nullptr;           ///< source_, when it is a WAV replay
   drivers::CandumpReplayChannel* candump_replay_ = nullptr;  ///< channel_, when it is a candump replay
   std::optional<std::int64_t> replay_origin_mono_ns_;
-  std::int64_t burst_origin_ns_ = 0;      ///< the burst grid's origin (activate())
-  std::int64_t can_burst_offset_ns_ = 0;  ///< the CAN burst follows the acquisition burst by this much
+  std::int64_t burst_origin_ns_ = 0;               ///< origin of the wake-up grids (activate())
+  std::int64_t liveness_ns_ = 0;                   ///< set_liveness_period_ns()
+  WakeSchedule wake_;                              ///< fixed at configure() (next_due_ns: see next_due_ns_)
+  std::atomic<std::int64_t> next_due_ns_{kNoDue};  ///< processing -> acquisition, CAN
+  std::atomic<bool> due_late_{false};              ///< processing -> acquisition, CAN
+  WakeSignal acq_signal_, can_signal_;             ///< rung by deactivate() to end a stage's sleep
   std::vector<std::unique_ptr<drivers::AlarmOutput>> outputs_;
   bool source_fast_ = false, can_fast_ = false, fast_ = false;
   double fs_hz_ = 0.0;

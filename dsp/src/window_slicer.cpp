@@ -76,6 +76,9 @@ WindowSlicer::WindowSlicer(const ExtractionConfig& cfg, double fs_hz, std::int64
   min_duration_ns_ = seconds_to_ns(cfg.min_duration_s);
   guard_ns_ = seconds_to_ns(cfg.guard_s);
   max_gap_ns_ = seconds_to_ns(cfg.max_speed_gap_s);
+  // A run starting at t cuts its first window at first0 = ceil_index(t + guard) and closes it when the
+  // speed reaches offset(first0 + n) >= t + guard + offset(n) - 1 ns, and not before t + min_duration.
+  new_run_close_ns_ = std::max(min_duration_ns_, guard_ns_ + offset_ns(n) - 1);
 
   const std::size_t history =
       history_len == 0 ? 4 * static_cast<std::size_t>(n) + static_cast<std::size_t>(std::ceil(fs_hz))
@@ -193,6 +196,27 @@ void WindowSlicer::end_run() noexcept {
   }
   run_ = Run{};
   run_samples_.clear();
+}
+
+std::int64_t WindowSlicer::next_close_ns() const noexcept {
+  const auto n = static_cast<std::int64_t>(cfg_.window_len);
+  // A run that has not begun starts at a speed sample after the newest one.
+  std::int64_t close = (have_last_speed_ ? last_speed_t_ns_ : t0_ns_) + 1 + new_run_close_ns_;
+  // A cut window waiting for its samples closes when they arrive (speed ahead of the vibration).
+  if (!pending_.empty()) close = std::min(close, pending_.front().t_end_ns);
+  if (run_.open) {
+    if (run_.is_region) {
+      if (cfg_.max_windows_per_region == 0 || run_.windows_cut < cfg_.max_windows_per_region) {
+        const std::int64_t first = run_.first_sample0 + static_cast<std::int64_t>(run_.windows_cut) * hop_;
+        close = std::min(close, t0_ns_ + offset_ns(first + n));
+      }
+    } else {
+      // As cut_windows() once the candidate becomes a region; trimming only moves t_first_ns later.
+      const std::int64_t first = ceil_index(run_.t_first_ns + guard_ns_ - t0_ns_);
+      close = std::min(close, std::max(t0_ns_ + offset_ns(first + n), run_.t_first_ns + min_duration_ns_));
+    }
+  }
+  return close;
 }
 
 void WindowSlicer::cut_windows() noexcept {

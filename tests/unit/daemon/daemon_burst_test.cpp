@@ -1,7 +1,9 @@
-// At real-time pace the daemon reads its sources in bursts (docs/daemon.md, "Bursts"): the acquisition
-// and CAN threads wake once per burst period (kBurstPeriodNs) and the processing thread once per CAN
-// burst, instead of once per 256-sample block (100/s), per CAN frame (250/s) and per 5 ms idle check.
-// Every sample and frame still arrives, and the run state makes no allocation.
+// At real-time pace the daemon sleeps until a window can close (docs/daemon.md, "Sleeping until a window
+// can close"): the acquisition and CAN threads wake when the processing thread's next_close_ns() (plus
+// their offsets) comes, or at most every max sleep, and the processing thread when the CAN thread rings
+// or the CAN verdict frame is due, instead of once per 256-sample block (100/s), per CAN frame (250/s)
+// or per 20 ms burst (50/s). Every sample and frame still arrives, and the run state makes no
+// allocation.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -26,7 +28,36 @@ Rates rates(const DaemonView& a, const DaemonView& b, double wall_s) {
           static_cast<double>(b.pipeline.speeds - a.pipeline.speeds) / wall_s};
 }
 
-TEST(DaemonBurst, RealTimeStagesWakeOncePerBurstAndAllocateNothing) {
+TEST(WakePlan, FollowsTheDueTimeAndNeverSleepsLongerThanMaxSleep) {
+  constexpr std::int64_t kMs = 1'000'000;
+  const std::int64_t origin = 1000 * kMs;
+  // Due in the future: due + offset.
+  EXPECT_EQ(plan_wake(1010 * kMs, 1100 * kMs, 16 * kMs, 125 * kMs, 250 * kMs, origin), 1116 * kMs);
+  // No due (speed changing before t0, training): the next grid point origin + offset + k * max_sleep.
+  EXPECT_EQ(plan_wake(1010 * kMs, kNoDue, 16 * kMs, 125 * kMs, 250 * kMs, origin), 1016 * kMs);
+  EXPECT_EQ(plan_wake(1016 * kMs, kNoDue, 16 * kMs, 125 * kMs, 250 * kMs, origin), 1266 * kMs);
+  // Due further than max_sleep: brought forward by whole max_sleeps (1411 - 250), so every stage that
+  // sees this due keeps its offset from the others.
+  EXPECT_EQ(plan_wake(1100 * kMs, 1400 * kMs, 11 * kMs, 125 * kMs, 250 * kMs, origin), 1161 * kMs);
+  EXPECT_EQ(plan_wake(1100 * kMs, 1400 * kMs, 16 * kMs, 125 * kMs, 250 * kMs, origin), 1166 * kMs);
+  // Just served (due + offset has passed, the processing thread has not published the next): no
+  // window closes sooner than one spacing after it.
+  EXPECT_EQ(plan_wake(1116 * kMs, 1100 * kMs, 16 * kMs, 125 * kMs, 250 * kMs, origin), 1241 * kMs);
+  EXPECT_EQ(plan_wake(1300 * kMs, 1100 * kMs, 16 * kMs, 125 * kMs, 250 * kMs, origin), 1366 * kMs);
+  // Late (the processing thread found the due window still open after the CAN thread served it, e.g. a
+  // speed frame 20 ms late): retry every frame period (5 ms) instead of one spacing later.
+  EXPECT_EQ(plan_wake(1116 * kMs, 1100 * kMs, 16 * kMs, 125 * kMs, 250 * kMs, origin, true, 5 * kMs),
+            1121 * kMs);
+  EXPECT_EQ(plan_wake(1123 * kMs, 1100 * kMs, 16 * kMs, 125 * kMs, 250 * kMs, origin, true, 5 * kMs),
+            1126 * kMs);
+  // The CAN thread (larger offset) wakes after the acquisition thread on the same due and the same grid.
+  EXPECT_LT(plan_wake(1010 * kMs, 1100 * kMs, 11 * kMs, 125 * kMs, 250 * kMs, origin),
+            plan_wake(1010 * kMs, 1100 * kMs, 16 * kMs, 125 * kMs, 250 * kMs, origin));
+  EXPECT_LT(plan_wake(1100 * kMs, kNoDue, 11 * kMs, 125 * kMs, 250 * kMs, origin),
+            plan_wake(1100 * kMs, kNoDue, 16 * kMs, 125 * kMs, 250 * kMs, origin));
+}
+
+TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
   block_daemon_signals();
   const fs::path dir = scratch("burst");
   write_sim_baseline(dir / "baseline.bin");
@@ -60,15 +91,32 @@ TEST(DaemonBurst, RealTimeStagesWakeOncePerBurstAndAllocateNothing) {
   runner.join();
 
   const Rates r = rates(before, after, wall_s);
+  const WakeSchedule& w = after.wake;
   std::printf(
-      "wake-ups per second: acquisition %.1f, can %.1f, processing %.1f; %.0f samples/s, %.0f speeds/s\n",
-      r.acquisition, r.can, r.processing, r.samples, r.speeds);
-  const double bursts_per_s = 1e9 / static_cast<double>(kBurstPeriodNs);  // 50
-  // Per burst: one wait each. (Without bursts: 100 blocks/s, ~250 frames/s, processing > 300/s.)
-  EXPECT_LE(r.acquisition, 1.2 * bursts_per_s);
-  EXPECT_LE(r.can, 1.2 * bursts_per_s);
-  // Processing: woken by each CAN burst, one pass with work and one that finds none.
-  EXPECT_LE(r.processing, 2.4 * bursts_per_s);
+      "wake-ups per second: acquisition %.1f, can %.1f, processing %.1f; %.0f samples/s, %.0f speeds/s; "
+      "max sleep %.0f ms, spacing %.1f ms, offsets %.1f / %.1f ms\n",
+      r.acquisition, r.can, r.processing, r.samples, r.speeds, w.max_sleep_ns / 1e6, w.spacing_ns / 1e6,
+      w.acq_offset_ns / 1e6, w.can_offset_ns / 1e6);
+  // The schedule from the design (arc-welding job: 3200-sample windows and hop, min_duration 0.13 s,
+  // guard 5 ms; 256-sample blocks at 25.6 kHz, 4 ms speed frames, no speed latency):
+  ASSERT_TRUE(w.follows_windows);
+  EXPECT_EQ(w.max_sleep_ns, kMaxSleepNs);  // rings, staleness (1 s) and stall (2 s) allow 250 ms
+  EXPECT_EQ(w.spacing_ns, 125'000'000);    // min(hop 0.125 s, max(0.13 s, 5 ms + 0.125 s) - 1 ns)
+  EXPECT_EQ(w.acq_offset_ns, 11'000'000);  // one 10 ms block + 1 ms
+  EXPECT_EQ(w.can_offset_ns, 16'000'000);  // + one 4 ms speed frame + 1 ms
+  EXPECT_EQ(w.retry_ns, 5'000'000);        // one 4 ms speed frame + 1 ms
+  // The latency this design adds after a window's end: the CAN offset, within the 50 ms p99 target.
+  EXPECT_LE(w.can_offset_ns, 50'000'000);
+  // Wake-ups: each is a due time (at least `spacing` apart while windows close) or at most max_sleep
+  // after the previous one, with slack for the due times of regions that break before their
+  // window closes. (20 ms bursts: 50/s; per block or frame: 100/s and ~250/s.)
+  const double due_and_grid_per_s =
+      1e9 / static_cast<double>(w.spacing_ns) + 1e9 / static_cast<double>(w.max_sleep_ns);
+  EXPECT_LE(r.acquisition, 1.5 * due_and_grid_per_s);
+  EXPECT_LE(r.can, 1.5 * due_and_grid_per_s);
+  // Processing: each CAN ring (a pass with work and the one that finds none) and the 0.1 s CAN verdict
+  // frame.
+  EXPECT_LE(r.processing, 2.0 * 1.5 * due_and_grid_per_s + 10.0 + 2.0);
   // Nothing is lost: the samples keep up with the clock (25.6 kHz; a loaded machine delays, not drops).
   EXPECT_GT(r.samples, 0.8 * 25600.0);
   EXPECT_GT(r.speeds, 0.8 * 250.0);

@@ -734,3 +734,102 @@ TEST(WindowSlicer, SampleValidityCountsEveryFloatKindAcrossRingWrap) {
 
 }  // namespace
 }  // namespace ptda::dsp
+
+namespace ptda::dsp {
+namespace {
+
+// next_close_ns() is what ptdad sleeps until (docs/daemon.md, "Sleeping until a window can close"). It
+// must be a lower bound (a window handed out before its speed confirmation reached it would be a verdict
+// the daemon slept through), and exact where the design says so: the next window of an open region
+// closes at its own end, the first window of a run at max(its end, the run's start + min_duration).
+TEST(WindowSlicerNextClose, IsALowerBoundAndExactInsideARunAndAfterIt) {
+  const auto speed = make_profile({{200, 0.0},
+                                   {252, 3.5},
+                                   {1000, 3.5},
+                                   {252, 1.0},
+                                   {60, 1.0},
+                                   {100, 0.0},
+                                   {200, 0.0},
+                                   {208, -2.0},
+                                   {800, -2.0},
+                                   {208, 0.0},
+                                   {100, 0.0}});
+  const auto x = ramp_samples(samples_to_cover(speed));
+  ExtractionConfig cfg = base_config();
+  cfg.hop = kN / 2;     // 50 ms between the windows of a region, 0.1 s long each
+  cfg.guard_s = 0.003;  // the first window starts 3 ms into its region
+  WindowSlicer s(cfg, kFs, kT0);
+  // 0.1 s min_duration against 3 ms guard + 0.1 s window: the window decides.
+  EXPECT_EQ(s.new_run_close_ns(), 103 * kMs - 1);
+  EXPECT_EQ(s.hop_samples(), static_cast<std::int64_t>(kN / 2));
+
+  struct Seen {
+    WindowRef ref;
+    std::int64_t newest_speed_ns;  // when it was handed out
+    std::int64_t max_due_ns;       // largest next_close_ns() since the previous window
+    std::int64_t due_before_ns;    // next_close_ns() just before the step that handed it out
+  };
+  std::vector<Seen> seen;
+  std::vector<float> buf(kN);
+  std::int64_t newest_speed = 0;
+  std::int64_t max_due = std::numeric_limits<std::int64_t>::min();
+  std::size_t k = 0;
+  constexpr std::size_t kBlock = 8;  // 4 ms: one speed sample per step
+  for (std::size_t i = 0; i < x.size(); i += kBlock) {
+    const std::int64_t due = s.next_close_ns();
+    max_due = std::max(max_due, due);
+    const std::size_t len = std::min(kBlock, x.size() - i);
+    const std::int64_t t_end = kT0 + static_cast<std::int64_t>(static_cast<double>(i + len) / kFs * 1e9);
+    for (; k < speed.size() && speed[k].t_ns <= t_end; ++k) {
+      s.push_speed(speed[k]);
+      newest_speed = speed[k].t_ns;
+    }
+    s.push_samples(std::span<const float>(x).subspan(i, len));
+    WindowRef ref;
+    while (s.pop(ref, buf)) {
+      seen.push_back(Seen{ref, newest_speed, max_due, due});
+      max_due = std::numeric_limits<std::int64_t>::min();
+    }
+  }
+  std::vector<RegionInfo> regions;
+  s.finish();
+  RegionInfo r;
+  while (s.pop_region(r)) regions.push_back(r);
+  ASSERT_EQ(regions.size(), 2U);
+  // Every window the two regions hold (counted independently of the slicer) was handed out.
+  ASSERT_EQ(seen.size(),
+            expected_windows(regions[0], kN / 2, 0.003) + expected_windows(regions[1], kN / 2, 0.003));
+  for (const Seen& w : seen) {
+    // Lower bound: the speed timeline had reached every due time given out before the window.
+    EXPECT_GE(w.newest_speed_ns, w.max_due_ns) << "window " << w.ref.seq;
+    EXPECT_GE(w.newest_speed_ns, w.ref.t_end_ns) << "window " << w.ref.seq;
+    const RegionInfo& reg = regions[w.ref.region_seq];
+    const std::int64_t close =
+        w.ref.index_in_region == 0 ? std::max(w.ref.t_end_ns, reg.t_begin_ns + 100 * kMs) : w.ref.t_end_ns;
+    // Exact: the step before the window was handed out already named its closing time.
+    EXPECT_EQ(w.due_before_ns, close) << "window " << w.ref.seq << " (index " << w.ref.index_in_region << ")";
+  }
+}
+
+TEST(WindowSlicerNextClose, WithoutARunItIsOneNewRunCloseAfterTheNewestSpeed) {
+  ExtractionConfig cfg = base_config();
+  cfg.min_duration_s = 0.25;  // longer than the 0.1 s window: the region's age decides
+  WindowSlicer s(cfg, kFs, kT0);
+  EXPECT_EQ(s.new_run_close_ns(), 250 * kMs);
+  // No speed yet: from t0.
+  EXPECT_EQ(s.next_close_ns(), kT0 + 1 + 250 * kMs);
+  // Standstill: no run opens; the bound follows the newest speed sample.
+  s.push_speed(SpeedSample{kT0 + 40 * kMs, 0.0, 0.0, false});
+  EXPECT_EQ(s.next_close_ns(), kT0 + 40 * kMs + 1 + 250 * kMs);
+  // A run opens at 44 ms: its first window can close at 44 ms + 0.25 s, no earlier.
+  s.push_speed(SpeedSample{kT0 + 44 * kMs, 2.0, 0.0, false});
+  EXPECT_EQ(s.next_close_ns(), kT0 + 44 * kMs + 250 * kMs);
+  s.push_speed(SpeedSample{kT0 + 48 * kMs, 2.0, 0.0, false});
+  EXPECT_EQ(s.next_close_ns(), kT0 + 44 * kMs + 250 * kMs);
+  // The speed leaves the tolerance (a ramp): the run restarts at 52 ms.
+  s.push_speed(SpeedSample{kT0 + 52 * kMs, 3.0, 0.0, false});
+  EXPECT_EQ(s.next_close_ns(), kT0 + 52 * kMs + 250 * kMs);
+}
+
+}  // namespace
+}  // namespace ptda::dsp

@@ -99,6 +99,22 @@ class WindowSlicer {
   /// Thread: the owner's. Never allocates or blocks.
   bool pop_region(RegionInfo& region) noexcept;
 
+  /// The earliest speed-timeline time (on this slicer's clock, t0_ns-based) at which the next window
+  /// can be cut: a lower bound, so no window is handed out for a speed timeline that ends before it.
+  /// It is exact for the next window of an open region (its t_end_ns), the later of the first window's
+  /// end and the region's min_duration for a candidate run, a cut window's t_end_ns while it waits for
+  /// its samples, and for any run not yet begun (standstill, speed changing, no speed yet) one
+  /// new_run_close_ns() after the newest speed sample. The open run may still break, so the time is
+  /// when a window may close, not when one will. The
+  /// daemon sleeps until then (docs/daemon.md, "Sleeping until a window can close").
+  /// Thread: the owner's. Never allocates or blocks.
+  [[nodiscard]] std::int64_t next_close_ns() const noexcept;
+  /// The shortest time from a speed sample that starts a run to the first window that run can close:
+  /// max(min_duration_s, guard_s + window_len / fs), less 1 ns of rounding. Thread: any.
+  [[nodiscard]] std::int64_t new_run_close_ns() const noexcept { return new_run_close_ns_; }
+  /// Samples between window starts in one region (hop, or window_len when hop = 0). Thread: any.
+  [[nodiscard]] std::int64_t hop_samples() const noexcept { return hop_; }
+
   [[nodiscard]] const SlicerCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] double fs_hz() const noexcept { return fs_hz_; }
   [[nodiscard]] const ExtractionConfig& config() const noexcept { return cfg_; }
@@ -180,6 +196,7 @@ class WindowSlicer {
   std::int64_t min_duration_ns_ = 0;
   std::int64_t guard_ns_ = 0;
   std::int64_t max_gap_ns_ = 0;
+  std::int64_t new_run_close_ns_ = 0;
 
   // Speed side.
   bool have_last_speed_ = false;
