@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstdint>
 #include <cstdio>
 #include <limits>
 #include <numbers>
@@ -284,18 +286,28 @@ TEST(WindowAnalyzer, UnsupportedLengthThrows) {
 }
 
 // select_nth() (the floor gain's median, issue 13) must return what std::nth_element leaves at the
-// rank, for every rank class, distribution and size, including ties, infinities, NaN (fallback) and
-// inputs too short for the sample; and it must not allocate.
+// rank, for every rank class, distribution and size, including ties, infinities, NaN (fallback), values
+// outside the histogram's range and inputs too short for it; and it must not allocate.
+double reference_nth(std::vector<double> v, std::size_t rank) {
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(rank), v.end());
+  return v[rank];
+}
+
 TEST(SelectNth, EqualsNthElement) {
   std::mt19937 rng(2026);
   std::normal_distribution<double> normal(1.0, 0.3);
   std::exponential_distribution<double> expo(2.0);
-  std::vector<double> scratch(20000 + 256);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<double> candidates(20000);
+  std::vector<std::uint32_t> histogram(kSelectBuckets);
   int checked = 0;
-  for (int trial = 0; trial < 600; ++trial) {
+  constexpr int kKinds = 11;
+  for (int trial = 0; trial < 1100; ++trial) {
     const std::size_t m = trial % 7 == 0 ? 1 + rng() % 1100 : 1000 + rng() % 12000;
     std::vector<double> v(m);
-    const int kind = trial % 6;
+    const int kind = trial % kKinds;
+    // One bucket is 1/128 octave wide: values inside [1, 1 + 2^-10) all share the bucket of 1.
+    const double one_bucket_base = 1.0;
     for (std::size_t i = 0; i < m; ++i) {
       switch (kind) {
         case 0:
@@ -305,13 +317,29 @@ TEST(SelectNth, EqualsNthElement) {
           v[i] = expo(rng);
           break;
         case 2:
-          v[i] = static_cast<double>(rng() % 5);  // heavy ties
+          v[i] = static_cast<double>(rng() % 5);  // heavy ties, zeros (bucket 0)
           break;
         case 3:
-          v[i] = static_cast<double>(i);  // sorted
+          v[i] = 1.0 + static_cast<double>(rng() % 7) * 0x1p-20;  // ties, all in one bucket
           break;
         case 4:
+          v[i] = static_cast<double>(i);  // sorted, most above 2^8 (last bucket)
+          break;
+        case 5:
           v[i] = static_cast<double>(m - i) * 1e-3;  // reversed
+          break;
+        case 6:
+          v[i] = one_bucket_base + unit(rng) * 0x1p-11;  // adversarial: every value in one bucket
+          break;
+        case 7:
+          v[i] = normal(rng) - 1.0;  // about half negative
+          break;
+        case 8:
+          v[i] = std::ldexp(unit(rng) + 0.5, static_cast<int>(rng() % 40) - 20);  // wide range
+          break;
+        case 9:  // adversarial: bucket boundaries (powers of two and their neighbours)
+          v[i] =
+              std::nextafter(std::ldexp(1.0, static_cast<int>(rng() % 5) - 2), rng() % 2 == 0 ? 0.0 : 10.0);
           break;
         default:
           v[i] = rng() % 50 == 0 ? std::numeric_limits<double>::infinity() : normal(rng);
@@ -320,33 +348,47 @@ TEST(SelectNth, EqualsNthElement) {
     }
     if (trial % 25 == 0) v[rng() % m] = std::numeric_limits<double>::quiet_NaN();  // fallback path
     const std::size_t rank = trial % 3 == 0 ? m / 2 : rng() % m;
-    std::vector<double> ref = v;
-    std::nth_element(ref.begin(), ref.begin() + static_cast<std::ptrdiff_t>(rank), ref.end());
+    const double want = reference_nth(v, rank);
     std::vector<double> got = v;
-    const double x = select_nth(got, rank, scratch);
-    const double want = ref[rank];
+    const double x = select_nth(got, rank, candidates, histogram);
     if (std::isnan(want)) {
       EXPECT_TRUE(std::isnan(x)) << "trial " << trial;
     } else {
-      EXPECT_EQ(x, want) << "trial " << trial << " m " << m << " rank " << rank;
+      EXPECT_EQ(x, want) << "trial " << trial << " kind " << kind << " m " << m << " rank " << rank;
     }
     ++checked;
   }
-  EXPECT_EQ(checked, 600);
+  EXPECT_EQ(checked, 1100);
+
+  // Every rank of one tie-heavy input around 1 (the histogram path for all but the edge buckets).
+  std::vector<double> ties(3000);
+  for (std::size_t i = 0; i < ties.size(); ++i) ties[i] = 0.5 + static_cast<double>((i * 7919) % 37) / 32.0;
+  for (std::size_t rank = 0; rank < ties.size(); ++rank) {
+    std::vector<double> got = ties;
+    ASSERT_EQ(select_nth(got, rank, candidates, histogram), reference_nth(ties, rank)) << "rank " << rank;
+  }
 
   // Too little scratch or an out-of-range rank: nth_element, or NaN for the rank.
   std::vector<double> v(5000);
   for (std::size_t i = 0; i < v.size(); ++i) v[i] = static_cast<double>((i * 7919) % 5000);
   std::vector<double> small(10);
+  std::vector<std::uint32_t> small_hist(10);
   std::vector<double> copy = v;
-  EXPECT_EQ(select_nth(copy, 2500, small), 2500.0);
-  EXPECT_TRUE(std::isnan(select_nth(copy, 5000, scratch)));
-
+  EXPECT_EQ(select_nth(copy, 2500, small, histogram), 2500.0);
   copy = v;
+  EXPECT_EQ(select_nth(copy, 2500, candidates, small_hist), 2500.0);
+  EXPECT_TRUE(std::isnan(select_nth(copy, 5000, candidates, histogram)));
+
+  // The histogram path leaves the input in its order (only the fallback reorders it).
+  std::vector<double> ratios(6400);
+  for (std::size_t i = 0; i < ratios.size(); ++i) ratios[i] = std::fabs(normal(rng));
+  copy = ratios;
+  const double want = reference_nth(ratios, 3200);
   ptda::test::AllocScope scope;
-  const double med = select_nth(copy, 2500, scratch);
+  const double med = select_nth(copy, 3200, candidates, histogram);
   EXPECT_EQ(scope.count(), 0U);
-  EXPECT_EQ(med, 2500.0);
+  EXPECT_EQ(med, want);
+  EXPECT_EQ(copy, ratios);
 }
 
 }  // namespace
