@@ -41,15 +41,6 @@ std::size_t select_bucket(double x) noexcept {
   return static_cast<std::size_t>(clamped);
 }
 
-// The same buckets for a float (7 mantissa bits below the exponent: bits >> 16; 2^-8 = 0x3B800000).
-// Monotone in the value for non-NaN floats, like select_bucket().
-std::uint16_t select_bucket_f(float x) noexcept {
-  const auto bits = std::bit_cast<std::uint32_t>(x);
-  const auto rel = static_cast<std::int32_t>(bits >> 16) - static_cast<std::int32_t>(0x3B800000U >> 16) + 1;
-  const std::int32_t neg = -static_cast<std::int32_t>(bits >> 31);
-  return static_cast<std::uint16_t>(std::clamp<std::int32_t>(rel & ~neg, 0, kSelectBuckets - 1));
-}
-
 using ArrayMap = Eigen::Map<Eigen::ArrayXf>;
 using ConstArrayMap = Eigen::Map<const Eigen::ArrayXf>;
 
@@ -119,11 +110,56 @@ inline float cephes_log(float v) noexcept {
 
 }  // namespace
 
-// The loop of p_log_p(), compiled twice on x86-64 (SSE2 and AVX2, chosen at load time; neither has FMA,
-// so both give the same bits) and vectorised with GCC's dynamic cost model (dsp/CMakeLists.txt).
+// Loops compiled twice on x86-64 (SSE2 and AVX2, chosen at load time by the CPU; AVX2 without FMA, so
+// both give the same bits: no multiply-add is fused) and vectorised by GCC's dynamic cost model
+// (dsp/CMakeLists.txt). They have external linkage (target_clones needs it) but no header.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
+#define PTDA_SIMD_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define PTDA_SIMD_CLONES
 #endif
+
+// The floor gain's last pass over the bins k = 1..N/2 (out of line, for the vectoriser): a floor bin
+// (in_line[k] == 0) gets res[k] = |X[k]| - g a[k] (in double, as a float) and refer[k] = floor_refer,
+// a group bin keeps both; e[k] = (res[k] refer[k])^2.
+PTDA_SIMD_CLONES
+void floor_residual_energies(const float* mag, const float* a, const std::uint32_t* in_line, double gain,
+                             float floor_refer, float* res, float* refer, float* e, std::size_t n) noexcept {
+  for (std::size_t k = 1; k < n; ++k) {
+    const std::uint32_t keep = 0U - static_cast<std::uint32_t>(in_line[k] != 0U);
+    const auto floor_res = static_cast<float>(static_cast<double>(mag[k]) - gain * a[k]);
+    const float r = std::bit_cast<float>((std::bit_cast<std::uint32_t>(res[k]) & keep) |
+                                         (std::bit_cast<std::uint32_t>(floor_res) & ~keep));
+    const float f = std::bit_cast<float>((std::bit_cast<std::uint32_t>(refer[k]) & keep) |
+                                         (std::bit_cast<std::uint32_t>(floor_refer) & ~keep));
+    res[k] = r;
+    refer[k] = f;
+    e[k] = (r * f) * (r * f);
+  }
+}
+
+// bucket[k], k = 1..n-1: select_bucket()'s bucket of the float quotient mag[k] / a[k] (7 mantissa bits
+// below the exponent: bits >> 16; 2^-8 is 0x3B800000; monotone in the value for non-NaN floats) for a
+// floor bin (in_line[k] == 0 and a[k] > 0), kSelectBuckets (one past the histogram) for any other bin.
+PTDA_SIMD_CLONES
+void floor_buckets(const float* mag, const float* a, const std::uint32_t* in_line, std::uint16_t* bucket,
+                   std::size_t n) noexcept {
+  for (std::size_t k = 1; k < n; ++k) {
+    const auto bits = std::bit_cast<std::uint32_t>(mag[k] / a[k]);
+    std::int32_t rel =
+        static_cast<std::int32_t>(bits >> 16) - static_cast<std::int32_t>(0x3B800000U >> 16) + 1;
+    rel &= ~(-static_cast<std::int32_t>(bits >> 31));  // sign bit (a NaN with it): bucket 0
+    rel = std::max(rel, 0);
+    rel = std::min(rel, static_cast<std::int32_t>(kSelectBuckets - 1));
+    const std::uint32_t other =
+        0U - (static_cast<std::uint32_t>(in_line[k] != 0U) | static_cast<std::uint32_t>(!(a[k] > 0.0F)));
+    bucket[k] = static_cast<std::uint16_t>((static_cast<std::uint32_t>(rel) & ~other) |
+                                           (static_cast<std::uint32_t>(kSelectBuckets) & other));
+  }
+}
+
+// The loop of p_log_p().
+PTDA_SIMD_CLONES
 void p_log_p_kernel(const float* e, float scale, float* out, std::size_t n) noexcept {
   constexpr float kMinNormal = std::numeric_limits<float>::min();
   for (std::size_t k = 0; k < n; ++k) {
@@ -158,10 +194,9 @@ WindowAnalyzer::WindowAnalyzer(std::size_t n)
       refer_(n / 2 + 1, 1.0F),
       ratio_(n / 2 + 1, 0.0),
       select_scratch_(n / 2 + 1, 0.0),
-      select_histogram_(kSelectBuckets, 0U),
-      floor_bin_(n / 2 + 1, 0U),
+      select_histogram_(2 * (kSelectBuckets + 1), 0U),
       floor_bucket_(n / 2 + 1, 0U),
-      in_line_(n / 2 + 1, 0),
+      in_line_(n / 2 + 1, 0U),
       e_(n / 2 + 1, 0.0F),
       scratch_(n / 2 + 1, 0.0F),
       d_(n, 0.0F),
@@ -232,9 +267,14 @@ Features WindowAnalyzer::ptda_features(std::span<const float> mean_magnitude,
   ArrayMap e(e_.data(), bins);
   const ConstArrayMap a(mean_magnitude.data(), bins);
   mag = e.sqrt();
-  res = mag - a;
   floor_gain_ = 1.0;
-  if (floor_gain) std::fill(refer_.begin(), refer_.end(), 1.0F);
+  if (floor_gain) {
+    // Every bin k >= 1 gets its residual and referral from a group or from the floor below.
+    res_[0] = mag_[0] - mean_magnitude[0];
+    refer_[0] = 1.0F;
+  } else {
+    res = mag - a;
+  }
   for (const LineGroup& g : line_groups) {
     const std::size_t lo = std::max<std::size_t>(g.begin, 1);
     const std::size_t hi = std::min<std::size_t>(g.end, X_.size());
@@ -260,71 +300,77 @@ Features WindowAnalyzer::ptda_features(std::span<const float> mean_magnitude,
   // Floor gain (docs/method.md §2): the median of |X[k]| / a[k] over the bins k >= 1 outside every
   // group. The median, not a least-squares gain: a defect's sidebands and impact combs fill a minority
   // of the floor bins and must not be absorbed into the floor level.
-  std::fill(in_line_.begin(), in_line_.end(), static_cast<unsigned char>(0));
+  std::fill(in_line_.begin(), in_line_.end(), 0U);
   for (const LineGroup& g : line_groups) {
     const std::size_t hi = std::min<std::size_t>(g.end, X_.size());
-    for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1;
+    for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1U;
   }
   const double mid = floor_median(mean_magnitude);
   if (mid > 0.0 && std::isfinite(mid)) floor_gain_ = mid;
   const auto floor_refer = static_cast<float>(referral(floor_gain_));
-  for (std::size_t k = 1; k < X_.size(); ++k) {
-    if (in_line_[k] == 0) {
-      res_[k] = static_cast<float>(static_cast<double>(mag_[k]) - floor_gain_ * mean_magnitude[k]);
-      refer_[k] = floor_refer;
-    }
-  }
   // res_ stays the physical residual (the views rebuild D from it); the features are those of the
-  // level-referred one: each part divided by its own gain, within the allowance.
-  const ConstArrayMap refer(refer_.data(), bins);
-  e = (res * refer).square();
+  // level-referred one: each part divided by its own gain, within the allowance. One pass, the group
+  // bins kept by a mask (no branch, so it vectorises).
+  floor_pass(mean_magnitude.data(), floor_gain_, floor_refer);
+  e_[0] = (res_[0] * refer_[0]) * (res_[0] * refer_[0]);
   return features_from_energy();
+}
+
+void WindowAnalyzer::floor_pass(const float* mean_magnitude, double gain, float floor_refer) noexcept {
+  floor_residual_energies(mag_.data(), mean_magnitude, in_line_.data(), gain, floor_refer, res_.data(),
+                          refer_.data(), e_.data(), X_.size());
 }
 
 // The median (rank m / 2 of m) of the double ratios q[k] = |X[k]| / a[k] over the floor bins (k >= 1,
 // outside every group, a[k] > 0); NaN when there are none. The histogram select of select_nth() fused
 // with the bin loop, on the float quotient: round-to-float is monotone in the exact quotient, and so is
 // the double one, so a bucket of the float quotients holds a contiguous run of the double ratios in
-// sorted order. One pass counts and remembers each floor bin and its bucket, then the double ratios are
-// computed for the bins of the median's bucket only. A NaN or a median outside [2^-8, 2^8): the double
-// ratios of every floor bin and select_nth() (whose fallback is std::nth_element), as before.
+// sorted order. A vectorised pass gives every bin its bucket, a second counts them, then the double
+// ratios are computed for the bins of the median's bucket only. A NaN or a median outside [2^-8, 2^8): the
+// double ratios of every floor bin and select_nth() (whose fallback is std::nth_element), as before.
 double WindowAnalyzer::floor_median(std::span<const float> a) noexcept {
   const std::size_t bins = X_.size();
-  std::uint32_t* const hist = select_histogram_.data();
-  std::fill(hist, hist + kSelectBuckets, 0U);
-  std::size_t m = 0;
-  for (std::size_t k = 1; k < bins; ++k) {
-    if (in_line_[k] == 0 && a[k] > 0.0F) {
-      const std::uint16_t b = select_bucket_f(mag_[k] / a[k]);
-      floor_bin_[m] = static_cast<std::uint32_t>(k);
-      floor_bucket_[m] = b;
-      ++hist[b];
-      ++m;
-    }
+  std::uint16_t* const bucket = floor_bucket_.data();
+  floor_buckets(mag_.data(), a.data(), in_line_.data(), bucket, bins);
+  // Two histograms (even and odd bins), so that neighbouring bins of one bucket do not wait on each
+  // other's increment; the last entry of each counts the bins that are not floor bins.
+  std::uint32_t* const h0 = select_histogram_.data();
+  std::uint32_t* const h1 = h0 + kSelectBuckets + 1;
+  std::fill(h0, h0 + 2 * (kSelectBuckets + 1), 0U);
+  std::size_t k = 1;
+  for (; k + 1 < bins; k += 2) {
+    ++h0[bucket[k]];
+    ++h1[bucket[k + 1]];
   }
+  for (; k < bins; ++k) ++h0[bucket[k]];
+  const std::size_t m = bins - 1 - h0[kSelectBuckets] - h1[kSelectBuckets];
   if (m == 0) return kNaN;
   const std::size_t rank = m / 2;
   std::size_t below = 0;
   std::size_t b = 0;
-  while (below + hist[b] <= rank) below += hist[b++];  // terminates: the counts add up to m > rank
-  bool edge = b == 0 || b == kSelectBuckets - 1;
-  if (!edge && (hist[0] != 0 || hist[kSelectBuckets - 1] != 0)) {
-    for (std::size_t i = 0; i < m; ++i) edge = edge || std::isnan(mag_[floor_bin_[i]]);
+  // Terminates: the counts of buckets 0..kSelectBuckets-1 add up to m > rank.
+  while (below + h0[b] + h1[b] <= rank) {
+    below += h0[b] + h1[b];
+    ++b;
+  }
+  constexpr std::size_t kLast = kSelectBuckets - 1;
+  bool edge = b == 0 || b == kLast;
+  if (!edge && (h0[0] + h1[0] + h0[kLast] + h1[kLast]) != 0) {
+    for (std::size_t j = 1; j < bins; ++j)
+      edge = edge || (bucket[j] != kSelectBuckets && std::isnan(mag_[j]));
   }
   if (edge) {
-    for (std::size_t i = 0; i < m; ++i) {
-      const std::size_t k = floor_bin_[i];
-      ratio_[i] = static_cast<double>(mag_[k]) / a[k];
+    std::size_t i = 0;
+    for (std::size_t j = 1; j < bins; ++j) {
+      if (in_line_[j] == 0U && a[j] > 0.0F) ratio_[i++] = static_cast<double>(mag_[j]) / a[j];
     }
-    return select_nth(std::span<double>(ratio_.data(), m), rank, select_scratch_, select_histogram_);
+    return select_nth(std::span<double>(ratio_.data(), m), rank, select_scratch_,
+                      std::span<std::uint32_t>(h0, kSelectBuckets));
   }
   double* const cand = select_scratch_.data();
   std::size_t c = 0;
-  for (std::size_t i = 0; i < m; ++i) {
-    if (floor_bucket_[i] == b) {
-      const std::size_t k = floor_bin_[i];
-      cand[c++] = static_cast<double>(mag_[k]) / a[k];
-    }
+  for (std::size_t j = 1; j < bins; ++j) {
+    if (bucket[j] == b) cand[c++] = static_cast<double>(mag_[j]) / a[j];
   }
   std::nth_element(cand, cand + (rank - below), cand + c);
   return cand[rank - below];

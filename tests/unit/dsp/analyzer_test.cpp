@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <complex>
 #include <cstdint>
@@ -389,6 +390,107 @@ TEST(SelectNth, EqualsNthElement) {
   EXPECT_EQ(scope.count(), 0U);
   EXPECT_EQ(med, want);
   EXPECT_EQ(copy, ratios);
+}
+
+// The floor gain's median (floor_median(): float-quotient buckets, double ratios for the median's
+// bucket only) must be the median of the double ratios |X[k]| / a[k] over the floor bins that
+// std::nth_element gives, on noise windows at several levels (the median inside [2^-8, 2^8) and far
+// outside it: the fallback), with a NaN sample, with zero bins in a (excluded) and with line groups.
+TEST(FloorGain, MedianEqualsNthElementOfDoubleRatios) {
+  constexpr std::size_t kLen = 3200;
+  constexpr std::size_t kHalfBins = kLen / 2 + 1;
+  std::mt19937 rng(77);
+  std::normal_distribution<float> noise(0.0F, 1.0F);
+  std::uniform_real_distribution<float> level(0.5F, 2.0F);
+  RealFft fft(kLen);
+  WindowAnalyzer an(kLen);
+  std::vector<std::complex<float>> spectrum(kHalfBins);
+  const std::vector<LineGroup> groups{{0, 3}, {100, 112}, {400, 404}, {1500, kHalfBins + 10}};
+  int fallback_checked = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    std::vector<float> a(kHalfBins);
+    for (std::size_t k = 0; k < kHalfBins; ++k) a[k] = 30.0F * level(rng);
+    if (trial % 4 == 1) {
+      for (std::size_t k = 5; k < kHalfBins; k += 9) a[k] = 0.0F;  // no ratio for these bins
+    }
+    const float scale = trial % 5 == 2 ? 2000.0F : (trial % 5 == 3 ? 1e-4F : 1.0F);  // outside the range
+    std::vector<float> x(kLen);
+    for (float& v : x) v = scale * noise(rng);
+    if (trial % 6 == 5) x[17] = std::numeric_limits<float>::quiet_NaN();
+    fft.forward(x, spectrum);
+    std::vector<double> ratios;
+    std::vector<bool> in_line(kHalfBins, false);
+    for (const LineGroup& g : groups) {
+      for (std::size_t k = g.begin; k < std::min<std::size_t>(g.end, kHalfBins); ++k) in_line[k] = true;
+    }
+    // |X[k]| as the analyzer computes it: float energies, then Eigen's array sqrt over all bins (with
+    // EIGEN_FAST_MATH its SSE packet sqrt is not std::sqrt's bits).
+    std::vector<float> energy(kHalfBins);
+    std::vector<float> mag(kHalfBins);
+    for (std::size_t k = 0; k < kHalfBins; ++k) {
+      const float re = spectrum[k].real();
+      const float im = spectrum[k].imag();
+      energy[k] = re * re + im * im;
+    }
+    Eigen::Map<Eigen::ArrayXf>(mag.data(), kHalfBins) =
+        Eigen::Map<const Eigen::ArrayXf>(energy.data(), kHalfBins).sqrt();
+    for (std::size_t k = 1; k < kHalfBins; ++k) {
+      if (!in_line[k] && a[k] > 0.0F) ratios.push_back(static_cast<double>(mag[k]) / a[k]);
+    }
+    const double median = reference_nth(ratios, ratios.size() / 2);
+    const Features f = an.analyze_with(x, a, {}, Method::kPtda, groups, true);
+    if (median > 0.0 && std::isfinite(median)) {
+      EXPECT_EQ(an.floor_gain(), median) << "trial " << trial;
+      EXPECT_TRUE(std::isfinite(f.rms_res)) << "trial " << trial;
+      if (scale != 1.0F) ++fallback_checked;
+    } else {
+      EXPECT_EQ(an.floor_gain(), 1.0) << "trial " << trial;  // NaN median: no floor gain
+    }
+  }
+  EXPECT_GE(fallback_checked, 20);
+}
+
+// p_log_p(): the bits of Eigen's array expression it replaced (the same packet log on whole packets of
+// four, std::log on the rest), for p across [FLT_MIN, 1] and a few below, at lengths 1..67; and ln
+// within 2e-7 relative of the double logarithm over that range (Cephes' float log).
+TEST(PLogP, SameBitsAsEigenAndAccurate) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> exponent(-130.0F, 0.0F);
+  for (std::size_t n = 1; n <= 67; ++n) {
+    std::vector<float> e(n);
+    for (float& v : e) v = std::exp2(exponent(rng));
+    if (n > 3) e[2] = 0.0F;
+    const float scale = 0.75F;
+    std::vector<float> got(n);
+    p_log_p(e, scale, got);
+    std::vector<float> want(n);
+    const Eigen::Map<const Eigen::ArrayXf> ev(e.data(), static_cast<Eigen::Index>(n));
+    Eigen::Map<Eigen::ArrayXf> wv(want.data(), static_cast<Eigen::Index>(n));
+    wv = (ev * scale) * (ev * scale).max(std::numeric_limits<float>::min()).log();
+    for (std::size_t k = 0; k < n; ++k) {
+      EXPECT_EQ(std::bit_cast<std::uint32_t>(got[k]), std::bit_cast<std::uint32_t>(want[k]))
+          << "n " << n << " k " << k << " e " << e[k];
+    }
+  }
+  // Accuracy over the range: p ln p / p against ln p in double, for normal p in (0, 1].
+  double worst = 0.0;
+  std::vector<float> p(4096);
+  std::vector<float> out(p.size());
+  for (int round = 0; round < 20; ++round) {
+    for (float& v : p) v = std::max(std::exp2(exponent(rng)), std::numeric_limits<float>::min());
+    p[0] = 1.0F;
+    p[1] = std::numeric_limits<float>::min();
+    p_log_p(p, 1.0F, out);
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      const double ln = std::log(static_cast<double>(p[k]));
+      if (ln == 0.0) {
+        EXPECT_EQ(out[k], 0.0F);
+        continue;
+      }
+      worst = std::max(worst, std::fabs(static_cast<double>(out[k]) / p[k] - ln) / std::fabs(ln));
+    }
+  }
+  EXPECT_LT(worst, 2e-7);
 }
 
 }  // namespace

@@ -106,10 +106,9 @@ class WindowAnalyzer {
   std::vector<float> refer_;                     ///< floor gain: 1 / the (clamped) gain of bin k's part
   std::vector<double> ratio_;                    ///< floor gain scratch: |X[k]| / a[k] over the floor bins
   std::vector<double> select_scratch_;           ///< select_nth()'s candidates
-  std::vector<std::uint32_t> select_histogram_;  ///< select_nth()'s histogram
-  std::vector<std::uint32_t> floor_bin_;         ///< floor_median(): the floor bins
-  std::vector<std::uint16_t> floor_bucket_;      ///< floor_median(): their buckets
-  std::vector<unsigned char> in_line_;           ///< floor gain scratch: bin k lies in a line group
+  std::vector<std::uint32_t> select_histogram_;  ///< floor_median()'s two histograms, select_nth()'s
+  std::vector<std::uint16_t> floor_bucket_;      ///< floor_median(): each bin's bucket
+  std::vector<std::uint32_t> in_line_;           ///< floor gain scratch: bin k lies in a line group
   double floor_gain_ = 1.0;
   std::vector<float> e_;        ///< |R[k]|^2
   std::vector<float> scratch_;  ///< p ln p of the entropy
@@ -129,6 +128,7 @@ class WindowAnalyzer {
                          bool floor_gain) noexcept;
   Features features_from_energy() noexcept;
   double floor_median(std::span<const float> mean_magnitude) noexcept;
+  void floor_pass(const float* mean_magnitude, double gain, float floor_refer) noexcept;
   void build_views() const noexcept;
 };
 
