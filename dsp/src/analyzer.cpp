@@ -158,7 +158,8 @@ void floor_buckets(const float* mag, const float* a, const std::uint32_t* in_lin
   }
 }
 
-// The loop of p_log_p().
+#if defined(__x86_64__)
+// The loop of p_log_p() on x86-64.
 PTDA_SIMD_CLONES
 void p_log_p_kernel(const float* e, float scale, float* out, std::size_t n) noexcept {
   constexpr float kMinNormal = std::numeric_limits<float>::min();
@@ -171,9 +172,11 @@ void p_log_p_kernel(const float* e, float scale, float* out, std::size_t n) noex
     out[k] = p * cephes_log(std::bit_cast<float>(clamped));
   }
 }
+#endif
 
 void p_log_p(std::span<const float> e, float scale, std::span<float> out) noexcept {
   const std::size_t n = std::min(e.size(), out.size());
+#if defined(__x86_64__)
   // Eigen's array log ran its packet log on whole packets of 4 and std::log on the remainder.
   const std::size_t packets = n - n % 4;
   p_log_p_kernel(e.data(), scale, out.data(), packets);
@@ -181,6 +184,13 @@ void p_log_p(std::span<const float> e, float scale, std::span<float> out) noexce
     const float p = e[k] * scale;
     out[k] = p * std::log(std::max(p, std::numeric_limits<float>::min()));
   }
+#else
+  // Elsewhere (NEON) Eigen's packet log fuses its multiply-adds, which the plain code above would
+  // only match as far as the compiler's contraction does: keep Eigen's expression itself.
+  const ConstArrayMap ev(e.data(), static_cast<Eigen::Index>(n));
+  ArrayMap plnp(out.data(), static_cast<Eigen::Index>(n));
+  plnp = (ev * scale) * (ev * scale).max(std::numeric_limits<float>::min()).log();
+#endif
 }
 
 WindowAnalyzer::WindowAnalyzer(std::size_t n)

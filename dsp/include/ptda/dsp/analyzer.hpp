@@ -135,7 +135,9 @@ class WindowAnalyzer {
 /// out[k] = p ln p with p = e[k] * scale, for k < min(e.size(), out.size()): the entropy's terms.
 /// ln is Eigen 3.4's float packet log (Cephes, relative error about 1e-7 for p in [FLT_MIN, 1]) with the
 /// same bits, vectorised by the compiler (AVX2 when the CPU has it); p below FLT_MIN is clamped inside
-/// the log only. The last n % 4 terms use std::log (as Eigen's array log did). For finite e >= 0 with
+/// the log only. The last n % 4 terms use std::log (as Eigen's array log did). On x86-64 a plain
+/// auto-vectorised loop (SSE2 or AVX2 by the CPU); elsewhere Eigen's array log itself (NEON fuses the
+/// multiply-adds). For finite e >= 0 with
 /// p <= 1. Thread: any. Never allocates.
 void p_log_p(std::span<const float> e, float scale, std::span<float> out) noexcept;
 
