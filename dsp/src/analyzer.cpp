@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -13,7 +14,6 @@ namespace ptda::dsp {
 
 namespace {
 
-constexpr std::size_t kSelectSample = 512;  // select_nth()'s sample size
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Level referral absorbs level changes up to this factor (6 dB) either way; beyond it the excess counts,
@@ -23,6 +23,22 @@ constexpr double kLevelAllowance = 2.0;
 double referral(double gain) noexcept {
   if (!(gain > 0.0) || !std::isfinite(gain)) return 1.0;
   return 1.0 / std::clamp(gain, 1.0 / kLevelAllowance, kLevelAllowance);
+}
+
+// select_nth()'s bucket of a value: 2^7 buckets per octave over [2^-8, 2^8) (the bits of a positive
+// double are in the order of its value; 7 mantissa bits below the exponent), bucket 0 for everything
+// below (negative values, zero, small values, a NaN with the sign bit), the last bucket for everything
+// above (infinity, NaN). Monotone in the value for non-NaN values.
+constexpr int kSelectShift = 45;
+constexpr std::uint64_t kSelectLowBits = 0x3F70000000000000ULL;  // 2^-8
+std::size_t select_bucket(double x) noexcept {
+  const auto bits = std::bit_cast<std::uint64_t>(x);
+  const auto rel = static_cast<std::int64_t>(bits >> kSelectShift) -
+                   static_cast<std::int64_t>(kSelectLowBits >> kSelectShift) + 1;
+  // A negative value has the sign bit set: its bits are above every positive value's; map it to 0.
+  const std::int64_t neg = -static_cast<std::int64_t>(bits >> 63);  // all ones when negative
+  const std::int64_t clamped = std::clamp<std::int64_t>(rel & ~neg, 0, kSelectBuckets - 1);
+  return static_cast<std::size_t>(clamped);
 }
 
 using ArrayMap = Eigen::Map<Eigen::ArrayXf>;
@@ -61,7 +77,121 @@ void difference_energies(const std::complex<float>* a, const std::complex<float>
   }
 }
 
+// The float logarithm of Eigen 3.4's plog_impl_float (Cephes: frexp, a shift to [sqrt(1/2), sqrt(2)),
+// a degree-8 polynomial) for a normal positive float, operation by operation in the same order, without
+// fused multiply-adds (pmadd is a multiply and an add on SSE and AVX2 without FMA), so it returns the
+// same bits as Eigen's SSE packet log. Written as plain float code so the compiler vectorises the loop
+// for the widest unit at hand (p_log_p_kernel's target clones).
+inline float cephes_log(float v) noexcept {
+  const auto bits = std::bit_cast<std::uint32_t>(v);
+  float e = static_cast<float>(static_cast<std::int32_t>(bits >> 23) - 126);
+  float x = std::bit_cast<float>((bits & 0x807FFFFFU) | 0x3F000000U);  // in [0.5, 1)
+  // Branch-free masks (what the packet code does; a conditional would keep the loop scalar).
+  const std::uint32_t below = 0U - static_cast<std::uint32_t>(x < 0.707106781186547524F);
+  const float tmp = std::bit_cast<float>(std::bit_cast<std::uint32_t>(x) & below);
+  x = x - 1.0F;
+  e = e - std::bit_cast<float>(std::bit_cast<std::uint32_t>(1.0F) & below);
+  x = x + tmp;
+  const float x2 = x * x;
+  const float x3 = x2 * x;
+  float y = 7.0376836292E-2F * x + -1.1514610310E-1F;
+  float y1 = -1.2420140846E-1F * x + +1.4249322787E-1F;
+  float y2 = +2.0000714765E-1F * x + -2.4999993993E-1F;
+  y = y * x + 1.1676998740E-1F;
+  y1 = y1 * x + -1.6668057665E-1F;
+  y2 = y2 * x + +3.3333331174E-1F;
+  y = y * x3 + y1;
+  y = y * x3 + y2;
+  y = y * x3;
+  y = -0.5F * x2 + y;
+  x = x + y;
+  return e * static_cast<float>(0.693147180559945309417232121458176568L) + x;
+}
+
 }  // namespace
+
+// Loops compiled twice on x86-64 (SSE2 and AVX2, chosen at load time by the CPU; AVX2 without FMA, so
+// both give the same bits: no multiply-add is fused) and vectorised by GCC's dynamic cost model
+// (dsp/CMakeLists.txt). They have external linkage (target_clones needs it) but no header.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define PTDA_SIMD_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define PTDA_SIMD_CLONES
+#endif
+
+// The floor gain's last pass over the bins k = 1..N/2 (out of line, for the vectoriser): a floor bin
+// (in_line[k] == 0) gets res[k] = |X[k]| - g a[k] (in double, as a float) and refer[k] = floor_refer,
+// a group bin keeps both; e[k] = (res[k] refer[k])^2.
+PTDA_SIMD_CLONES
+void floor_residual_energies(const float* mag, const float* a, const std::uint32_t* in_line, double gain,
+                             float floor_refer, float* res, float* refer, float* e, std::size_t n) noexcept {
+  for (std::size_t k = 1; k < n; ++k) {
+    const std::uint32_t keep = 0U - static_cast<std::uint32_t>(in_line[k] != 0U);
+    const auto floor_res = static_cast<float>(static_cast<double>(mag[k]) - gain * a[k]);
+    const float r = std::bit_cast<float>((std::bit_cast<std::uint32_t>(res[k]) & keep) |
+                                         (std::bit_cast<std::uint32_t>(floor_res) & ~keep));
+    const float f = std::bit_cast<float>((std::bit_cast<std::uint32_t>(refer[k]) & keep) |
+                                         (std::bit_cast<std::uint32_t>(floor_refer) & ~keep));
+    res[k] = r;
+    refer[k] = f;
+    e[k] = (r * f) * (r * f);
+  }
+}
+
+// bucket[k], k = 1..n-1: select_bucket()'s bucket of the float quotient mag[k] / a[k] (7 mantissa bits
+// below the exponent: bits >> 16; 2^-8 is 0x3B800000; monotone in the value for non-NaN floats) for a
+// floor bin (in_line[k] == 0 and a[k] > 0), kSelectBuckets (one past the histogram) for any other bin.
+PTDA_SIMD_CLONES
+void floor_buckets(const float* mag, const float* a, const std::uint32_t* in_line, std::uint16_t* bucket,
+                   std::size_t n) noexcept {
+  for (std::size_t k = 1; k < n; ++k) {
+    const auto bits = std::bit_cast<std::uint32_t>(mag[k] / a[k]);
+    std::int32_t rel =
+        static_cast<std::int32_t>(bits >> 16) - static_cast<std::int32_t>(0x3B800000U >> 16) + 1;
+    rel &= ~(-static_cast<std::int32_t>(bits >> 31));  // sign bit (a NaN with it): bucket 0
+    rel = std::max(rel, 0);
+    rel = std::min(rel, static_cast<std::int32_t>(kSelectBuckets - 1));
+    const std::uint32_t other =
+        0U - (static_cast<std::uint32_t>(in_line[k] != 0U) | static_cast<std::uint32_t>(!(a[k] > 0.0F)));
+    bucket[k] = static_cast<std::uint16_t>((static_cast<std::uint32_t>(rel) & ~other) |
+                                           (static_cast<std::uint32_t>(kSelectBuckets) & other));
+  }
+}
+
+#if defined(__x86_64__)
+// The loop of p_log_p() on x86-64.
+PTDA_SIMD_CLONES
+void p_log_p_kernel(const float* e, float scale, float* out, std::size_t n) noexcept {
+  constexpr float kMinNormal = std::numeric_limits<float>::min();
+  for (std::size_t k = 0; k < n; ++k) {
+    const float p = e[k] * scale;
+    // max(p, FLT_MIN) without a branch: p < FLT_MIN selects FLT_MIN's bits.
+    const std::uint32_t small = 0U - static_cast<std::uint32_t>(p < kMinNormal);
+    const std::uint32_t clamped =
+        (std::bit_cast<std::uint32_t>(p) & ~small) | (std::bit_cast<std::uint32_t>(kMinNormal) & small);
+    out[k] = p * cephes_log(std::bit_cast<float>(clamped));
+  }
+}
+#endif
+
+void p_log_p(std::span<const float> e, float scale, std::span<float> out) noexcept {
+  const std::size_t n = std::min(e.size(), out.size());
+#if defined(__x86_64__)
+  // Eigen's array log ran its packet log on whole packets of 4 and std::log on the remainder.
+  const std::size_t packets = n - n % 4;
+  p_log_p_kernel(e.data(), scale, out.data(), packets);
+  for (std::size_t k = packets; k < n; ++k) {
+    const float p = e[k] * scale;
+    out[k] = p * std::log(std::max(p, std::numeric_limits<float>::min()));
+  }
+#else
+  // Elsewhere (NEON) Eigen's packet log fuses its multiply-adds, which the plain code above would
+  // only match as far as the compiler's contraction does: keep Eigen's expression itself.
+  const ConstArrayMap ev(e.data(), static_cast<Eigen::Index>(n));
+  ArrayMap plnp(out.data(), static_cast<Eigen::Index>(n));
+  plnp = (ev * scale) * (ev * scale).max(std::numeric_limits<float>::min()).log();
+#endif
+}
 
 WindowAnalyzer::WindowAnalyzer(std::size_t n)
     : n_(n),
@@ -73,8 +203,10 @@ WindowAnalyzer::WindowAnalyzer(std::size_t n)
       res_(n / 2 + 1, 0.0F),
       refer_(n / 2 + 1, 1.0F),
       ratio_(n / 2 + 1, 0.0),
-      select_scratch_(n / 2 + 1 + kSelectSample, 0.0),
-      in_line_(n / 2 + 1, 0),
+      select_scratch_(n / 2 + 1, 0.0),
+      select_histogram_(2 * (kSelectBuckets + 1), 0U),
+      floor_bucket_(n / 2 + 1, 0U),
+      in_line_(n / 2 + 1, 0U),
       e_(n / 2 + 1, 0.0F),
       scratch_(n / 2 + 1, 0.0F),
       d_(n, 0.0F),
@@ -108,10 +240,8 @@ Features WindowAnalyzer::features_from_energy() noexcept {
     // p in float (1 / total is a normal float here); p ln p with Eigen's vectorised log. p below the
     // smallest normal float is clamped inside the log only: its term is < 1.2e-38 * 88 either way.
     const auto inv_total = static_cast<float>(1.0 / total);
-    const ConstArrayMap ev(e + 1, static_cast<Eigen::Index>(half));
-    ArrayMap plnp(scratch_.data(), static_cast<Eigen::Index>(half));
-    plnp = (ev * inv_total) * (ev * inv_total).max(std::numeric_limits<float>::min()).log();
-    f.entropy_res = -sum_f64(plnp.data(), half) * inv_log_half_;
+    p_log_p(std::span<const float>(e + 1, half), inv_total, std::span<float>(scratch_.data(), half));
+    f.entropy_res = -sum_f64(scratch_.data(), half) * inv_log_half_;
   } else {
     // Extreme scales (never a real accelerometer): the reference definition in double.
     double h = 0.0;
@@ -147,9 +277,14 @@ Features WindowAnalyzer::ptda_features(std::span<const float> mean_magnitude,
   ArrayMap e(e_.data(), bins);
   const ConstArrayMap a(mean_magnitude.data(), bins);
   mag = e.sqrt();
-  res = mag - a;
   floor_gain_ = 1.0;
-  if (floor_gain) std::fill(refer_.begin(), refer_.end(), 1.0F);
+  if (floor_gain) {
+    // Every bin k >= 1 gets its residual and referral from a group or from the floor below.
+    res_[0] = mag_[0] - mean_magnitude[0];
+    refer_[0] = 1.0F;
+  } else {
+    res = mag - a;
+  }
   for (const LineGroup& g : line_groups) {
     const std::size_t lo = std::max<std::size_t>(g.begin, 1);
     const std::size_t hi = std::min<std::size_t>(g.end, X_.size());
@@ -175,32 +310,80 @@ Features WindowAnalyzer::ptda_features(std::span<const float> mean_magnitude,
   // Floor gain (docs/method.md §2): the median of |X[k]| / a[k] over the bins k >= 1 outside every
   // group. The median, not a least-squares gain: a defect's sidebands and impact combs fill a minority
   // of the floor bins and must not be absorbed into the floor level.
-  std::fill(in_line_.begin(), in_line_.end(), static_cast<unsigned char>(0));
+  std::fill(in_line_.begin(), in_line_.end(), 0U);
   for (const LineGroup& g : line_groups) {
     const std::size_t hi = std::min<std::size_t>(g.end, X_.size());
-    for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1;
+    for (std::size_t k = g.begin; k < hi; ++k) in_line_[k] = 1U;
   }
-  std::size_t m = 0;
-  for (std::size_t k = 1; k < X_.size(); ++k) {
-    if (in_line_[k] == 0 && mean_magnitude[k] > 0.0F)
-      ratio_[m++] = static_cast<double>(mag_[k]) / mean_magnitude[k];
-  }
-  if (m > 0) {
-    const double mid = select_nth(std::span<double>(ratio_.data(), m), m / 2, select_scratch_);
-    if (mid > 0.0 && std::isfinite(mid)) floor_gain_ = mid;
-  }
+  const double mid = floor_median(mean_magnitude);
+  if (mid > 0.0 && std::isfinite(mid)) floor_gain_ = mid;
   const auto floor_refer = static_cast<float>(referral(floor_gain_));
-  for (std::size_t k = 1; k < X_.size(); ++k) {
-    if (in_line_[k] == 0) {
-      res_[k] = static_cast<float>(static_cast<double>(mag_[k]) - floor_gain_ * mean_magnitude[k]);
-      refer_[k] = floor_refer;
-    }
-  }
   // res_ stays the physical residual (the views rebuild D from it); the features are those of the
-  // level-referred one: each part divided by its own gain, within the allowance.
-  const ConstArrayMap refer(refer_.data(), bins);
-  e = (res * refer).square();
+  // level-referred one: each part divided by its own gain, within the allowance. One pass, the group
+  // bins kept by a mask (no branch, so it vectorises).
+  floor_pass(mean_magnitude.data(), floor_gain_, floor_refer);
+  e_[0] = (res_[0] * refer_[0]) * (res_[0] * refer_[0]);
   return features_from_energy();
+}
+
+void WindowAnalyzer::floor_pass(const float* mean_magnitude, double gain, float floor_refer) noexcept {
+  floor_residual_energies(mag_.data(), mean_magnitude, in_line_.data(), gain, floor_refer, res_.data(),
+                          refer_.data(), e_.data(), X_.size());
+}
+
+// The median (rank m / 2 of m) of the double ratios q[k] = |X[k]| / a[k] over the floor bins (k >= 1,
+// outside every group, a[k] > 0); NaN when there are none. The histogram select of select_nth() fused
+// with the bin loop, on the float quotient: round-to-float is monotone in the exact quotient, and so is
+// the double one, so a bucket of the float quotients holds a contiguous run of the double ratios in
+// sorted order. A vectorised pass gives every bin its bucket, a second counts them, then the double
+// ratios are computed for the bins of the median's bucket only. A NaN or a median outside [2^-8, 2^8): the
+// double ratios of every floor bin and select_nth() (whose fallback is std::nth_element), as before.
+double WindowAnalyzer::floor_median(std::span<const float> a) noexcept {
+  const std::size_t bins = X_.size();
+  std::uint16_t* const bucket = floor_bucket_.data();
+  floor_buckets(mag_.data(), a.data(), in_line_.data(), bucket, bins);
+  // Two histograms (even and odd bins), so that neighbouring bins of one bucket do not wait on each
+  // other's increment; the last entry of each counts the bins that are not floor bins.
+  std::uint32_t* const h0 = select_histogram_.data();
+  std::uint32_t* const h1 = h0 + kSelectBuckets + 1;
+  std::fill(h0, h0 + 2 * (kSelectBuckets + 1), 0U);
+  std::size_t k = 1;
+  for (; k + 1 < bins; k += 2) {
+    ++h0[bucket[k]];
+    ++h1[bucket[k + 1]];
+  }
+  for (; k < bins; ++k) ++h0[bucket[k]];
+  const std::size_t m = bins - 1 - h0[kSelectBuckets] - h1[kSelectBuckets];
+  if (m == 0) return kNaN;
+  const std::size_t rank = m / 2;
+  std::size_t below = 0;
+  std::size_t b = 0;
+  // Terminates: the counts of buckets 0..kSelectBuckets-1 add up to m > rank.
+  while (below + h0[b] + h1[b] <= rank) {
+    below += h0[b] + h1[b];
+    ++b;
+  }
+  constexpr std::size_t kLast = kSelectBuckets - 1;
+  bool edge = b == 0 || b == kLast;
+  if (!edge && (h0[0] + h1[0] + h0[kLast] + h1[kLast]) != 0) {
+    for (std::size_t j = 1; j < bins; ++j)
+      edge = edge || (bucket[j] != kSelectBuckets && std::isnan(mag_[j]));
+  }
+  if (edge) {
+    std::size_t i = 0;
+    for (std::size_t j = 1; j < bins; ++j) {
+      if (in_line_[j] == 0U && a[j] > 0.0F) ratio_[i++] = static_cast<double>(mag_[j]) / a[j];
+    }
+    return select_nth(std::span<double>(ratio_.data(), m), rank, select_scratch_,
+                      std::span<std::uint32_t>(h0, kSelectBuckets));
+  }
+  double* const cand = select_scratch_.data();
+  std::size_t c = 0;
+  for (std::size_t j = 1; j < bins; ++j) {
+    if (bucket[j] == b) cand[c++] = static_cast<double>(mag_[j]) / a[j];
+  }
+  std::nth_element(cand, cand + (rank - below), cand + c);
+  return cand[rank - below];
 }
 
 Features WindowAnalyzer::analyze(std::span<const float> x, const ClassBaseline& cls, Method method) noexcept {
@@ -325,50 +508,41 @@ std::span<const std::complex<float>> WindowAnalyzer::residual_spectrum() const n
   return R_;
 }
 
-double select_nth(std::span<double> values, std::size_t rank, std::span<double> scratch) noexcept {
+double select_nth(std::span<double> values, std::size_t rank, std::span<double> candidates,
+                  std::span<std::uint32_t> histogram) noexcept {
   const std::size_t m = values.size();
   double* const v = values.data();
   const auto fallback = [&]() noexcept {
     std::nth_element(v, v + rank, v + m);
     return v[rank];
   };
-  if (m < 4 * kSelectSample || scratch.size() < m + kSelectSample || rank >= m) {
-    return rank < m ? fallback() : kNaN;
+  if (rank >= m) return kNaN;
+  if (m < kSelectMinValues || candidates.size() < m || histogram.size() < kSelectBuckets) return fallback();
+  // Pass 1: a histogram of the buckets (128 per octave from 2^-8 to 2^8; everything else, NaN included,
+  // lands in the first or the last bucket).
+  std::uint32_t* const hist = histogram.data();
+  std::fill(hist, hist + kSelectBuckets, 0U);
+  for (std::size_t i = 0; i < m; ++i) ++hist[select_bucket(v[i])];
+  if (hist[0] != 0 || hist[kSelectBuckets - 1] != 0) {
+    // A NaN has no order: std::nth_element decides (what the analyzer has always returned then).
+    for (std::size_t i = 0; i < m; ++i) {
+      if (std::isnan(v[i])) return fallback();
+    }
   }
-  // Sample kSelectSample values at a fixed stride; pivots about 2.8 standard deviations of the sample
-  // rank either side of where `rank` falls in it (the rank of the sample median has sd sqrt(512) / 2).
-  double* const sample = scratch.data();
-  double* const cand = scratch.data() + kSelectSample;
-  const std::size_t stride = m / kSelectSample;
-  bool nan = false;
-  for (std::size_t i = 0; i < kSelectSample; ++i) {
-    sample[i] = v[i * stride + stride / 2];
-    nan = nan || std::isnan(sample[i]);
-  }
-  if (nan) return fallback();
-  constexpr std::size_t kMargin = 32;
-  const std::size_t centre = rank * kSelectSample / m;
-  const std::size_t lo_rank = centre > kMargin ? centre - kMargin : 0;
-  const std::size_t hi_rank = std::min(kSelectSample - 1, centre + kMargin);
-  std::nth_element(sample, sample + lo_rank, sample + kSelectSample);
-  const double lo = sample[lo_rank];
-  std::nth_element(sample + lo_rank, sample + hi_rank, sample + kSelectSample);
-  const double hi = sample[hi_rank];
-  // One pass: count below lo, gather [lo, hi] (the store is unconditional, the index moves only for a
-  // candidate), and notice a NaN (all comparisons false).
   std::size_t below = 0;
+  std::size_t b = 0;
+  while (below + hist[b] <= rank) below += hist[b++];        // terminates: the counts add up to m > rank
+  if (b == 0 || b == kSelectBuckets - 1) return fallback();  // outside the bucketed range
+  // Pass 2: gather the values of bucket b (the store is unconditional, the index moves only for a
+  // candidate: no branch to mispredict). Every value of a lower bucket is smaller than each of them,
+  // every value of a higher bucket larger.
+  double* const cand = candidates.data();
   std::size_t c = 0;
-  std::size_t unordered = 0;
   for (std::size_t i = 0; i < m; ++i) {
     const double x = v[i];
     cand[c] = x;
-    // Bitwise, not &&: a branch here mispredicts on about half of the values.
-    c += static_cast<std::size_t>(x >= lo) & static_cast<std::size_t>(x <= hi);
-    below += static_cast<std::size_t>(x < lo);
-    unordered += static_cast<std::size_t>(std::isnan(x));
+    c += static_cast<std::size_t>(select_bucket(x) == b);
   }
-  if (unordered != 0 || rank < below || rank >= below + c) return fallback();
-  // Sorted, the values are: `below` values < lo, then the c candidates, then the values > hi.
   std::nth_element(cand, cand + (rank - below), cand + c);
   return cand[rank - below];
 }

@@ -121,6 +121,11 @@ WavReader::WavReader(const std::filesystem::path& path) : path_(path) {
   require_regular_file(path, kNoSizeLimit, "WAV file");  // a FIFO would block fopen
   f_ = std::fopen(name.c_str(), "rb");
   if (f_ == nullptr) throw Error(name + ": cannot open WAV file: " + errno_text());
+  // No stdio buffer: read() asks for whole blocks (kBlockFrames frames), and a buffered FILE split each
+  // into a copy from its 4 KiB buffer plus a second read(2) because the data chunk does not start on a
+  // 4 KiB boundary. Unbuffered, each block is one read(2) straight into buf_ (if this fails, the FILE
+  // just stays buffered).
+  (void)std::setvbuf(f_, nullptr, _IONBF, 0);
   try {
     if (fseeko(f_, 0, SEEK_END) != 0) throw Error(name + ": cannot seek: " + errno_text());
     const off_t end = ftello(f_);

@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <complex>
+#include <cstdint>
 #include <cstdio>
 #include <limits>
 #include <numbers>
@@ -284,18 +287,28 @@ TEST(WindowAnalyzer, UnsupportedLengthThrows) {
 }
 
 // select_nth() (the floor gain's median, issue 13) must return what std::nth_element leaves at the
-// rank, for every rank class, distribution and size, including ties, infinities, NaN (fallback) and
-// inputs too short for the sample; and it must not allocate.
+// rank, for every rank class, distribution and size, including ties, infinities, NaN (fallback), values
+// outside the histogram's range and inputs too short for it; and it must not allocate.
+double reference_nth(std::vector<double> v, std::size_t rank) {
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(rank), v.end());
+  return v[rank];
+}
+
 TEST(SelectNth, EqualsNthElement) {
   std::mt19937 rng(2026);
   std::normal_distribution<double> normal(1.0, 0.3);
   std::exponential_distribution<double> expo(2.0);
-  std::vector<double> scratch(20000 + 256);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<double> candidates(20000);
+  std::vector<std::uint32_t> histogram(kSelectBuckets);
   int checked = 0;
-  for (int trial = 0; trial < 600; ++trial) {
+  constexpr int kKinds = 11;
+  for (int trial = 0; trial < 1100; ++trial) {
     const std::size_t m = trial % 7 == 0 ? 1 + rng() % 1100 : 1000 + rng() % 12000;
     std::vector<double> v(m);
-    const int kind = trial % 6;
+    const int kind = trial % kKinds;
+    // One bucket is 1/128 octave wide: values inside [1, 1 + 2^-10) all share the bucket of 1.
+    const double one_bucket_base = 1.0;
     for (std::size_t i = 0; i < m; ++i) {
       switch (kind) {
         case 0:
@@ -305,13 +318,29 @@ TEST(SelectNth, EqualsNthElement) {
           v[i] = expo(rng);
           break;
         case 2:
-          v[i] = static_cast<double>(rng() % 5);  // heavy ties
+          v[i] = static_cast<double>(rng() % 5);  // heavy ties, zeros (bucket 0)
           break;
         case 3:
-          v[i] = static_cast<double>(i);  // sorted
+          v[i] = 1.0 + static_cast<double>(rng() % 7) * 0x1p-20;  // ties, all in one bucket
           break;
         case 4:
+          v[i] = static_cast<double>(i);  // sorted, most above 2^8 (last bucket)
+          break;
+        case 5:
           v[i] = static_cast<double>(m - i) * 1e-3;  // reversed
+          break;
+        case 6:
+          v[i] = one_bucket_base + unit(rng) * 0x1p-11;  // adversarial: every value in one bucket
+          break;
+        case 7:
+          v[i] = normal(rng) - 1.0;  // about half negative
+          break;
+        case 8:
+          v[i] = std::ldexp(unit(rng) + 0.5, static_cast<int>(rng() % 40) - 20);  // wide range
+          break;
+        case 9:  // adversarial: bucket boundaries (powers of two and their neighbours)
+          v[i] =
+              std::nextafter(std::ldexp(1.0, static_cast<int>(rng() % 5) - 2), rng() % 2 == 0 ? 0.0 : 10.0);
           break;
         default:
           v[i] = rng() % 50 == 0 ? std::numeric_limits<double>::infinity() : normal(rng);
@@ -320,33 +349,148 @@ TEST(SelectNth, EqualsNthElement) {
     }
     if (trial % 25 == 0) v[rng() % m] = std::numeric_limits<double>::quiet_NaN();  // fallback path
     const std::size_t rank = trial % 3 == 0 ? m / 2 : rng() % m;
-    std::vector<double> ref = v;
-    std::nth_element(ref.begin(), ref.begin() + static_cast<std::ptrdiff_t>(rank), ref.end());
+    const double want = reference_nth(v, rank);
     std::vector<double> got = v;
-    const double x = select_nth(got, rank, scratch);
-    const double want = ref[rank];
+    const double x = select_nth(got, rank, candidates, histogram);
     if (std::isnan(want)) {
       EXPECT_TRUE(std::isnan(x)) << "trial " << trial;
     } else {
-      EXPECT_EQ(x, want) << "trial " << trial << " m " << m << " rank " << rank;
+      EXPECT_EQ(x, want) << "trial " << trial << " kind " << kind << " m " << m << " rank " << rank;
     }
     ++checked;
   }
-  EXPECT_EQ(checked, 600);
+  EXPECT_EQ(checked, 1100);
+
+  // Every rank of one tie-heavy input around 1 (the histogram path for all but the edge buckets).
+  std::vector<double> ties(3000);
+  for (std::size_t i = 0; i < ties.size(); ++i) ties[i] = 0.5 + static_cast<double>((i * 7919) % 37) / 32.0;
+  for (std::size_t rank = 0; rank < ties.size(); ++rank) {
+    std::vector<double> got = ties;
+    ASSERT_EQ(select_nth(got, rank, candidates, histogram), reference_nth(ties, rank)) << "rank " << rank;
+  }
 
   // Too little scratch or an out-of-range rank: nth_element, or NaN for the rank.
   std::vector<double> v(5000);
   for (std::size_t i = 0; i < v.size(); ++i) v[i] = static_cast<double>((i * 7919) % 5000);
   std::vector<double> small(10);
+  std::vector<std::uint32_t> small_hist(10);
   std::vector<double> copy = v;
-  EXPECT_EQ(select_nth(copy, 2500, small), 2500.0);
-  EXPECT_TRUE(std::isnan(select_nth(copy, 5000, scratch)));
-
+  EXPECT_EQ(select_nth(copy, 2500, small, histogram), 2500.0);
   copy = v;
+  EXPECT_EQ(select_nth(copy, 2500, candidates, small_hist), 2500.0);
+  EXPECT_TRUE(std::isnan(select_nth(copy, 5000, candidates, histogram)));
+
+  // The histogram path leaves the input in its order (only the fallback reorders it).
+  std::vector<double> ratios(6400);
+  for (std::size_t i = 0; i < ratios.size(); ++i) ratios[i] = std::fabs(normal(rng));
+  copy = ratios;
+  const double want = reference_nth(ratios, 3200);
   ptda::test::AllocScope scope;
-  const double med = select_nth(copy, 2500, scratch);
+  const double med = select_nth(copy, 3200, candidates, histogram);
   EXPECT_EQ(scope.count(), 0U);
-  EXPECT_EQ(med, 2500.0);
+  EXPECT_EQ(med, want);
+  EXPECT_EQ(copy, ratios);
+}
+
+// The floor gain's median (floor_median(): float-quotient buckets, double ratios for the median's
+// bucket only) must be the median of the double ratios |X[k]| / a[k] over the floor bins that
+// std::nth_element gives, on noise windows at several levels (the median inside [2^-8, 2^8) and far
+// outside it: the fallback), with a NaN sample, with zero bins in a (excluded) and with line groups.
+TEST(FloorGain, MedianEqualsNthElementOfDoubleRatios) {
+  constexpr std::size_t kLen = 3200;
+  constexpr std::size_t kHalfBins = kLen / 2 + 1;
+  std::mt19937 rng(77);
+  std::normal_distribution<float> noise(0.0F, 1.0F);
+  std::uniform_real_distribution<float> level(0.5F, 2.0F);
+  RealFft fft(kLen);
+  WindowAnalyzer an(kLen);
+  std::vector<std::complex<float>> spectrum(kHalfBins);
+  const std::vector<LineGroup> groups{{0, 3}, {100, 112}, {400, 404}, {1500, kHalfBins + 10}};
+  int fallback_checked = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    std::vector<float> a(kHalfBins);
+    for (std::size_t k = 0; k < kHalfBins; ++k) a[k] = 30.0F * level(rng);
+    if (trial % 4 == 1) {
+      for (std::size_t k = 5; k < kHalfBins; k += 9) a[k] = 0.0F;  // no ratio for these bins
+    }
+    const float scale = trial % 5 == 2 ? 2000.0F : (trial % 5 == 3 ? 1e-4F : 1.0F);  // outside the range
+    std::vector<float> x(kLen);
+    for (float& v : x) v = scale * noise(rng);
+    if (trial % 6 == 5) x[17] = std::numeric_limits<float>::quiet_NaN();
+    fft.forward(x, spectrum);
+    std::vector<double> ratios;
+    std::vector<bool> in_line(kHalfBins, false);
+    for (const LineGroup& g : groups) {
+      for (std::size_t k = g.begin; k < std::min<std::size_t>(g.end, kHalfBins); ++k) in_line[k] = true;
+    }
+    // |X[k]| as the analyzer computes it: float energies, then Eigen's array sqrt over all bins (with
+    // EIGEN_FAST_MATH its SSE packet sqrt is not std::sqrt's bits).
+    std::vector<float> energy(kHalfBins);
+    std::vector<float> mag(kHalfBins);
+    for (std::size_t k = 0; k < kHalfBins; ++k) {
+      const float re = spectrum[k].real();
+      const float im = spectrum[k].imag();
+      energy[k] = re * re + im * im;
+    }
+    Eigen::Map<Eigen::ArrayXf>(mag.data(), kHalfBins) =
+        Eigen::Map<const Eigen::ArrayXf>(energy.data(), kHalfBins).sqrt();
+    for (std::size_t k = 1; k < kHalfBins; ++k) {
+      if (!in_line[k] && a[k] > 0.0F) ratios.push_back(static_cast<double>(mag[k]) / a[k]);
+    }
+    const double median = reference_nth(ratios, ratios.size() / 2);
+    const Features f = an.analyze_with(x, a, {}, Method::kPtda, groups, true);
+    if (median > 0.0 && std::isfinite(median)) {
+      EXPECT_EQ(an.floor_gain(), median) << "trial " << trial;
+      EXPECT_TRUE(std::isfinite(f.rms_res)) << "trial " << trial;
+      if (scale != 1.0F) ++fallback_checked;
+    } else {
+      EXPECT_EQ(an.floor_gain(), 1.0) << "trial " << trial;  // NaN median: no floor gain
+    }
+  }
+  EXPECT_GE(fallback_checked, 20);
+}
+
+// p_log_p(): the bits of Eigen's array expression it replaced (the same packet log on whole packets of
+// four, std::log on the rest), for p across [FLT_MIN, 1] and a few below, at lengths 1..67; and ln
+// within 2e-7 relative of the double logarithm over that range (Cephes' float log).
+TEST(PLogP, SameBitsAsEigenAndAccurate) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> exponent(-130.0F, 0.0F);
+  for (std::size_t n = 1; n <= 67; ++n) {
+    std::vector<float> e(n);
+    for (float& v : e) v = std::exp2(exponent(rng));
+    if (n > 3) e[2] = 0.0F;
+    const float scale = 0.75F;
+    std::vector<float> got(n);
+    p_log_p(e, scale, got);
+    std::vector<float> want(n);
+    const Eigen::Map<const Eigen::ArrayXf> ev(e.data(), static_cast<Eigen::Index>(n));
+    Eigen::Map<Eigen::ArrayXf> wv(want.data(), static_cast<Eigen::Index>(n));
+    wv = (ev * scale) * (ev * scale).max(std::numeric_limits<float>::min()).log();
+    for (std::size_t k = 0; k < n; ++k) {
+      EXPECT_EQ(std::bit_cast<std::uint32_t>(got[k]), std::bit_cast<std::uint32_t>(want[k]))
+          << "n " << n << " k " << k << " e " << e[k];
+    }
+  }
+  // Accuracy over the range: p ln p / p against ln p in double, for normal p in (0, 1].
+  double worst = 0.0;
+  std::vector<float> p(4096);
+  std::vector<float> out(p.size());
+  for (int round = 0; round < 20; ++round) {
+    for (float& v : p) v = std::max(std::exp2(exponent(rng)), std::numeric_limits<float>::min());
+    p[0] = 1.0F;
+    p[1] = std::numeric_limits<float>::min();
+    p_log_p(p, 1.0F, out);
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      const double ln = std::log(static_cast<double>(p[k]));
+      if (ln == 0.0) {
+        EXPECT_EQ(out[k], 0.0F);
+        continue;
+      }
+      worst = std::max(worst, std::fabs(static_cast<double>(out[k]) / p[k] - ln) / std::fabs(ln));
+    }
+  }
+  EXPECT_LT(worst, 2e-7);
 }
 
 }  // namespace

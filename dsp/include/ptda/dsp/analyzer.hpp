@@ -97,16 +97,18 @@ class WindowAnalyzer {
   enum class Last : std::uint8_t { kNone, kRaw, kTda, kPtda };
 
   std::size_t n_;
-  double inv_log_half_;                 ///< 1 / ln(N/2): the entropy's normalisation
-  mutable RealFft fft_;                 ///< mutable: the lazy views run the inverse transform
-  std::vector<std::complex<float>> X_;  ///< DFT of the last window
-  std::vector<std::complex<float>> M_;  ///< DFT of tda_mean when the caller has no spectrum for it
-  std::vector<float> mag_;              ///< |X[k]|
-  std::vector<float> res_;              ///< PTDA: |R[k]| with sign, |X[k]| - |D[k]|
-  std::vector<float> refer_;            ///< floor gain: 1 / the (clamped) gain of bin k's part
-  std::vector<double> ratio_;           ///< floor gain scratch: |X[k]| / a[k] over the floor bins
-  std::vector<double> select_scratch_;  ///< select_nth()'s sample and candidates
-  std::vector<unsigned char> in_line_;  ///< floor gain scratch: bin k lies in a line group
+  double inv_log_half_;                          ///< 1 / ln(N/2): the entropy's normalisation
+  mutable RealFft fft_;                          ///< mutable: the lazy views run the inverse transform
+  std::vector<std::complex<float>> X_;           ///< DFT of the last window
+  std::vector<std::complex<float>> M_;           ///< DFT of tda_mean when the caller has no spectrum for it
+  std::vector<float> mag_;                       ///< |X[k]|
+  std::vector<float> res_;                       ///< PTDA: |R[k]| with sign, |X[k]| - |D[k]|
+  std::vector<float> refer_;                     ///< floor gain: 1 / the (clamped) gain of bin k's part
+  std::vector<double> ratio_;                    ///< floor gain scratch: |X[k]| / a[k] over the floor bins
+  std::vector<double> select_scratch_;           ///< select_nth()'s candidates
+  std::vector<std::uint32_t> select_histogram_;  ///< floor_median()'s two histograms, select_nth()'s
+  std::vector<std::uint16_t> floor_bucket_;      ///< floor_median(): each bin's bucket
+  std::vector<std::uint32_t> in_line_;           ///< floor gain scratch: bin k lies in a line group
   double floor_gain_ = 1.0;
   std::vector<float> e_;        ///< |R[k]|^2
   std::vector<float> scratch_;  ///< p ln p of the entropy
@@ -125,19 +127,38 @@ class WindowAnalyzer {
   Features ptda_features(std::span<const float> mean_magnitude, std::span<const LineGroup> line_groups,
                          bool floor_gain) noexcept;
   Features features_from_energy() noexcept;
+  double floor_median(std::span<const float> mean_magnitude) noexcept;
+  void floor_pass(const float* mean_magnitude, double gain, float floor_refer) noexcept;
   void build_views() const noexcept;
 };
 
+/// out[k] = p ln p with p = e[k] * scale, for k < min(e.size(), out.size()): the entropy's terms.
+/// ln is Eigen 3.4's float packet log (Cephes, relative error about 1e-7 for p in [FLT_MIN, 1]) with the
+/// same bits, vectorised by the compiler (AVX2 when the CPU has it); p below FLT_MIN is clamped inside
+/// the log only. The last n % 4 terms use std::log (as Eigen's array log did). On x86-64 a plain
+/// auto-vectorised loop (SSE2 or AVX2 by the CPU); elsewhere Eigen's array log itself (NEON fuses the
+/// multiply-adds). For finite e >= 0 with
+/// p <= 1. Thread: any. Never allocates.
+void p_log_p(std::span<const float> e, float scale, std::span<float> out) noexcept;
+
+/// Buckets of select_nth()'s histogram (the size its `histogram` scratch needs).
+inline constexpr std::size_t kSelectBuckets = 2048;
+/// Below this many values select_nth() is std::nth_element.
+inline constexpr std::size_t kSelectMinValues = 256;
+
 /// The value of rank `rank` (0-based) in ascending order of `values`: what
 /// `std::nth_element(values.begin(), values.begin() + rank, values.end())` leaves at that position
-/// (the same value; only a zero may come back as -0.0 instead of +0.0 or the reverse). Floyd-Rivest: two
-/// pivots from a sample of 512 values bracket the rank, one branch-free pass counts the values below and
-/// gathers those between them into `scratch`, and only those are selected. A NaN (no order), a bracket that
-/// misses, or fewer than 2048 values fall back to std::nth_element on `values` itself. Needs rank <
-/// values.size() and scratch.size() >= values.size() + 512 (else the fallback). `values` may be reordered.
-/// Thread: any. Never allocates.
-[[nodiscard]] double select_nth(std::span<double> values, std::size_t rank,
-                                std::span<double> scratch) noexcept;
+/// (the same value; only a zero may come back as -0.0 instead of +0.0 or the reverse). A histogram
+/// select: one pass counts the values per bucket (128 buckets per octave of the value over
+/// [2^-8, 2^8), from the bits of the double), a second gathers the values of the bucket that holds the
+/// rank into `candidates`, and only those are selected. Fast when the values are positive and spread
+/// around 1 (the floor gain's ratios |X[k]| / a[k]); exact for any input. A NaN (no order), a rank in
+/// the first or the last bucket (values outside the range), fewer than kSelectMinValues values, or too
+/// little scratch (candidates.size() < values.size(), histogram.size() < kSelectBuckets) fall back to
+/// std::nth_element on `values` itself. rank >= values.size() gives NaN. `values` is reordered only by
+/// the fallback. Thread: any. Never allocates.
+[[nodiscard]] double select_nth(std::span<double> values, std::size_t rank, std::span<double> candidates,
+                                std::span<std::uint32_t> histogram) noexcept;
 
 /// The spectral lines of a healthy mean magnitude spectrum a[k], k = 0..N/2: bins above 4 times
 /// (12 dB) the local floor (the median of a over the 65 bins centred on k, clipped to 1..N/2), each
