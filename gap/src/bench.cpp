@@ -447,8 +447,13 @@ bool location_matches(const EffectSpec& t, const EffectSpec& f) {
       return std::fabs(f.get("ppm") - t.get("ppm")) < std::max(100.0, 0.2 * std::fabs(t.get("ppm")));
     case EffectKind::kSpeedLatency:
       return std::fabs(f.get("delay_s") - t.get("delay_s")) < 0.005;
-    case EffectKind::kOtherAxis:
-      return rel(f.get("frequency_ratio"), t.get("frequency_ratio")) < 0.02;
+    case EffectKind::kOtherAxis: {
+      // Another axis on its own program is located by its line; the lagged form by its ratio to this
+      // GMF. One form named for the other is not located (a fixed line has no ratio to compare).
+      const double t_own = t.get("own_frequency_hz"), f_own = f.get("own_frequency_hz");
+      if (t_own > 0.0) return f_own > 0.0 && rel(f_own, t_own) < 0.02;
+      return f_own <= 0.0 && rel(f.get("frequency_ratio"), t.get("frequency_ratio")) < 0.02;
+    }
     case EffectKind::kLoadDependence:
       return f.get("direction_gain") * t.get("direction_gain") > 0.0;
     case EffectKind::kNoiseColor:

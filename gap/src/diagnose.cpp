@@ -36,6 +36,9 @@ constexpr double kSpeedScaleMinPpm = 100.0;
 /// above the model (the strongest is always tried).
 constexpr std::size_t kLineGuesses = 3;
 constexpr double kLineGuessMinExcessDb = 10.0;
+/// A line present in fewer of the fit part's frames is not steady pickup (`line_presence`; chosen
+/// a priori: pickup from the mains or a drive is on in every frame, up to the noise).
+constexpr double kSteadyLineShare = 0.85;
 /// Highest harmonic of a guessed line that is looked for.
 constexpr int kMaxGuessHarmonic = 9;
 
@@ -373,6 +376,10 @@ struct Guesses {
   /// The motion has acceleration pieces (torque reversals for the `impacts` effect's knocks). Without,
   /// e.g. a constant-speed test rig, knocks can only come at a Poisson rate, so the fit tries rates.
   bool has_reversals = true;
+  /// > 0: the candidate is another axis on its own program, its line here (an excess line that comes
+  /// and goes, `line_presence`), moving `own_axis_duty` of the time; 0: the lagged form.
+  double own_axis_hz = 0.0;
+  double own_axis_duty = 1.0;
 };
 
 double mean_alarm_rate(const ProbeSet& p) {
@@ -700,6 +707,14 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       return {{"delay_s", d}, {"jitter_s", j}, {"delay_s", {0.9, 1.0, 1.1}, true}};
     }
     case EffectKind::kOtherAxis:
+      if (q.own_axis_hz > 0.0) {
+        // Its own program: the line and its on share are measured; its level is fitted (then the line
+        // within +-0.1 %: the frames resolve 10 Hz, the class spectra finer).
+        return {{"amplitude_ms2", {0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5}},
+                {"harmonic2", {0.0, 0.15, 0.3, 0.5, 0.8}},
+                {"own_frequency_hz", {0.999, 0.9995, 1.0, 1.0005, 1.001}, true},
+                {"amplitude_ms2", {0.8, 0.9, 1.0, 1.12, 1.25}, true}};
+      }
       return {
           {"frequency_ratio", {q.line_const_ratio * 0.995, q.line_const_ratio, q.line_const_ratio * 1.005}},
           {"amplitude_ms2", {0.05, 0.1, 0.2, 0.5, 1, 2}},
@@ -760,6 +775,11 @@ EffectSpec initial_effect(EffectKind k, const Guesses& q) {
       break;
     case EffectKind::kOtherAxis:
       e.set("frequency_ratio", q.line_const_ratio);
+      if (q.own_axis_hz > 0.0) {
+        e.set("own_frequency_hz", q.own_axis_hz);
+        e.set("duty", q.own_axis_duty);
+        e.set("lag_s", 0.0);
+      }
       break;
     case EffectKind::kAdcClipping:
       e.set("level_ms2", q.max_abs_ms2);
@@ -808,6 +828,9 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
     case EffectKind::kSpeedLatency:
       return "CAN speed " + fmt("%.1f", e.get("delay_s") * 1e3) + " ms late";
     case EffectKind::kOtherAxis:
+      if (e.get("own_frequency_hz") > 0.0)
+        return "another axis's mesh line at " + fmt("%.2f", e.get("own_frequency_hz")) +
+               " Hz, on its own program (present " + fmt("%.0f", 100.0 * e.get("duty")) + " % of the time)";
       return "extra mesh at " + fmt("%.3f", e.get("frequency_ratio")) + " x GMF, lag " +
              fmt("%.2f", e.get("lag_s")) + " s";
     case EffectKind::kLoadDependence:
@@ -1214,6 +1237,25 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       w.fit_gap = best;
       return improved;
     };
+    // Lines that come and go are not pickup from the mains or a drive (steady): they are another
+    // axis's mesh on its own program (issue 11: gen2-1011's other axis at 177 Hz was named interference).
+    // Each guessed line's presence over the fit part's frames decides which candidate it starts.
+    const double gmf_per_rad_s = std::fabs(sim::gmf_hz(current.gearbox, 1.0));
+    std::vector<double> guess_lines{q.line_still_hz};
+    guess_lines.insert(guess_lines.end(), q.more_lines_still_hz.begin(), q.more_lines_still_hz.end());
+    std::vector<LinePresence> presence;
+    std::string presence_words;
+    for (double f : guess_lines) {
+      presence.push_back(line_presence(real, ev.segments(), fit, f, gmf_per_rad_s));
+      const LinePresence& lp = presence.back();
+      presence_words += " " + fmt("%.2f", f) + " Hz " +
+                        (lp.judged ? fmt("%.0f", 100.0 * lp.share) + " % of " + std::to_string(lp.frames) +
+                                         " frames at " + fmt("%.0f", lp.on_level_db) + " dB"
+                                   : std::string("not judged (") + std::to_string(lp.frames) + " frames, " +
+                                         fmt("%.0f", lp.on_level_db) + " dB)");
+    }
+    log("round " + std::to_string(round + 1) + " line presence:" + presence_words);
+    auto intermittent = [&](std::size_t j) { return presence[j].judged && presence[j].share < kSteadyLineShare; };
     for (EffectKind k : kinds) {
       // One instance per kind, except for effects that act at a place (a second structural path, a
       // second interference source): up to two of those.
@@ -1227,13 +1269,26 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       w.e = initial_effect(k, w.q);
       clamp_params(w.e);
       w.fit_gap = std::numeric_limits<double>::infinity();
-      work.push_back(w);
+      if (k != EffectKind::kElectricalInterference || !intermittent(0)) work.push_back(w);
+      if (k == EffectKind::kOtherAxis) {
+        for (std::size_t j = 0; j < guess_lines.size(); ++j) {
+          if (!intermittent(j)) continue;
+          Work wo = w;  // the strongest line that comes and goes
+          wo.q.own_axis_hz = guess_lines[j];
+          wo.q.own_axis_duty = presence[j].share;
+          wo.e = initial_effect(k, wo.q);
+          clamp_params(wo.e);
+          work.push_back(wo);
+          break;
+        }
+      }
       // Interference: one candidate per distinct excess line, each screened and fitted on its own (its
       // harmonics are only searched after the screen, so lines in one grid would be compared as single
       // lines: a PWM sideband beat the 60 Hz mains whose odd harmonics held the gap, development case
       // gen2-1024).
       if (k == EffectKind::kElectricalInterference) {
         for (std::size_t j = 0; j < q.more_lines_still_hz.size(); ++j) {
+          if (intermittent(j + 1)) continue;
           Work wl = w;
           wl.q.line_still_hz = q.more_lines_still_hz[j];
           wl.q.line_subharmonics = false;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
@@ -348,6 +349,75 @@ std::vector<std::string> missing_classes(const std::vector<Window>& windows, con
     }
     out.push_back(name + (in_fit[i] ? " not in the held-out part" : " not in the fit part"));
   }
+  return out;
+}
+
+LinePresence line_presence(const GapRecording& rec, const std::vector<Segment>& segs,
+                           const std::vector<char>& use_cycle, double f_hz, double gmf_per_rad_s) {
+  LinePresence out;
+  const double fs = rec.fs_hz;
+  const auto n = static_cast<std::size_t>(std::max(64.0, std::round(0.1 * fs)));
+  const double df = fs / static_cast<double>(n);
+  if (!(f_hz > 9.0 * df) || f_hz > 0.5 * fs - 9.0 * df || rec.accel_ms2.size() < n) return out;
+  std::vector<double> hann(n);
+  for (std::size_t i = 0; i < n; ++i)
+    hann[i] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(n));
+  // The line's bin and 12 floor bins (+-3..8 bins), each evaluated by a rotating phasor.
+  std::vector<double> freqs{f_hz};
+  for (int m = 3; m <= 8; ++m) {
+    freqs.push_back(f_hz - m * df);
+    freqs.push_back(f_hz + m * df);
+  }
+  std::vector<double> ratios;
+  std::vector<double> floor_p(freqs.size() - 1);
+  for (const Segment& sg : segs) {
+    if (sg.type == SegmentType::kAccel) continue;
+    if (!use_cycle.empty() && (sg.cycle >= use_cycle.size() || !use_cycle[sg.cycle])) continue;
+    if (sg.type == SegmentType::kConstant && gmf_per_rad_s > 0.0) {
+      const double gmf = gmf_per_rad_s * std::fabs(sg.speed_rad_s);
+      const double k = std::round(f_hz / std::max(gmf, 1e-9));
+      if (gmf > 0.0 && k >= 1.0 && std::fabs(f_hz - k * gmf) < 4.0 * df) continue;
+    }
+    const auto i_end = std::min(rec.accel_ms2.size(), static_cast<std::size_t>(std::floor(sg.t1_s * fs)));
+    for (auto i0 = static_cast<std::size_t>(std::ceil(std::max(0.0, sg.t0_s) * fs)); i0 + n <= i_end; i0 += n) {
+      double line = 0.0;
+      for (std::size_t j = 0; j < freqs.size(); ++j) {
+        const double w = 2.0 * std::numbers::pi * freqs[j] / fs;
+        const double cw = std::cos(w), sw = std::sin(w);
+        double c = 1.0, s = 0.0, re = 0.0, im = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+          const double v = hann[i] * static_cast<double>(rec.accel_ms2[i0 + i]);
+          re += v * c;
+          im -= v * s;
+          const double c2 = c * cw - s * sw;
+          s = s * cw + c * sw;
+          c = c2;
+        }
+        const double p = re * re + im * im;
+        if (j == 0) {
+          line = p;
+        } else {
+          floor_p[j - 1] = p;
+        }
+      }
+      std::nth_element(floor_p.begin(), floor_p.begin() + static_cast<std::ptrdiff_t>(floor_p.size() / 2),
+                       floor_p.end());
+      const double fl = floor_p[floor_p.size() / 2];
+      ratios.push_back(fl > 0.0 ? line / fl : 1.0);
+    }
+  }
+  out.frames = static_cast<std::uint32_t>(ratios.size());
+  if (ratios.size() < 8) return out;
+  std::sort(ratios.begin(), ratios.end());
+  const std::size_t top0 = ratios.size() - std::max<std::size_t>(1, (3 * ratios.size()) / 10);
+  const std::vector<double> top(ratios.begin() + static_cast<std::ptrdiff_t>(top0), ratios.end());
+  const double on = top[top.size() / 2];
+  out.on_level_db = 10.0 * std::log10(std::max(on, 1e-12));
+  if (on < 10.0) return out;
+  const double thr = std::sqrt(on);
+  const auto n_on = static_cast<double>(ratios.end() - std::upper_bound(ratios.begin(), ratios.end(), thr));
+  out.share = n_on / static_cast<double>(ratios.size());
+  out.judged = true;
   return out;
 }
 

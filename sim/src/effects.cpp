@@ -48,10 +48,15 @@ constexpr std::array<EffectParamInfo, 2> kSpeedLatency{{
     {"delay_s", 0.02, 0.0, 0.5, "extra delay of the CAN speed frames"},
     {"jitter_s", 0.0, 0.0, 0.1, "extra uniform jitter (jitter + [can] jitter_s must stay below period_s)"},
 }};
-constexpr std::array<EffectParamInfo, 3> kOtherAxis{{
+constexpr std::array<EffectParamInfo, 6> kOtherAxis{{
     {"amplitude_ms2", 0.5, 0.0, 100.0, "mesh amplitude of the other joint at this joint's reference speed"},
     {"frequency_ratio", 1.37, 0.05, 20.0, "its mesh frequency / this GMF at the same joint speed"},
     {"lag_s", 0.1, 0.0, 10.0, "its motion is this joint's motion delayed by lag_s"},
+    {"own_frequency_hz", 0.0, 0.0, 1.0e5,
+     "0: it follows this joint (ratio, lag); > 0: it runs its own program, its mesh line at this frequency "
+     "while it moves (frequency_ratio and lag_s unused)"},
+    {"duty", 1.0, 0.02, 1.0, "own program: share of the time it moves (on/off in 2.5 s periods)"},
+    {"harmonic2", 0.0, 0.0, 2.0, "own program: level of its mesh's 2nd harmonic / the 1st"},
 }};
 constexpr std::array<EffectParamInfo, 2> kLoadDependence{{
     {"direction_gain", 0.3, -0.95, 0.95, "mesh amplitude * (1 + g sign(speed))"},
@@ -81,7 +86,7 @@ constexpr std::array<EffectInfo, kEffectKinds> kCatalog{{
     {EffectKind::kSpeedLatency, "speed_latency", kSpeedLatency,
      "the CAN speed frames are logged later (and with more jitter) than the simulator's [can] says"},
     {EffectKind::kOtherAxis, "other_axis", kOtherAxis,
-     "another joint's mesh, driven by this joint's motion delayed by lag_s"},
+     "another joint's mesh, driven by this joint's motion delayed by lag_s, or on its own program"},
     {EffectKind::kLoadDependence, "load_dependence", kLoadDependence,
      "mesh amplitude depends on the direction of motion and on accelerating vs braking"},
     {EffectKind::kNoiseColor, "noise_color", kNoiseColor, "extra red (low-pass) Gaussian background noise"},

@@ -123,6 +123,10 @@ struct SignalEffects::Step {
   std::ptrdiff_t lag = 0;
   double order = 0.0;
   std::optional<MotionSampler> lagged;
+  // other_axis on its own program: its line (rad per sample), the on share of each gate period, where
+  // in the period the signal starts (samples), the period and its raised-cosine edges (samples)
+  double own_w = 0.0, own_phase = 0.0, duty = 1.0, gate_offset = 0.0, gate_period = 0.0, gate_edge = 0.0;
+  double harmonic2 = 0.0;
   // noise_color
   LowpassNoise lp;
   DoublePoleNoise lp2;
@@ -166,7 +170,21 @@ SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uin
         const double ratio = reduction_ratio(s.gearbox);
         st.lag = static_cast<std::ptrdiff_t>(std::llround(e.get("lag_s") * fs));
         st.order = e.get("frequency_ratio") * static_cast<double>(s.gearbox.z_in) * ratio;  // per joint rad
-        st.lagged.emplace(m);
+        const double own_hz = e.get("own_frequency_hz");
+        if (own_hz > 0.0) {
+          // Its own program: moving a `duty` share of every 2.5 s (a move and a rest of another joint), at
+          // one speed, from a random point of the period; the line's level is its mesh amplitude.
+          st.own_w = kTwoPi * own_hz / fs;
+          st.own_phase = kTwoPi * st.rng.uniform();
+          st.duty = std::clamp(e.get("duty"), 0.0, 1.0);
+          st.harmonic2 = 2.0 * own_hz < 0.5 * fs ? e.get("harmonic2") : 0.0;
+          st.gate_period = 2.5 * fs;
+          st.gate_edge = std::min(0.1 * fs, 0.5 * st.duty * st.gate_period);
+          st.gate_offset = st.rng.uniform() * st.gate_period;
+          st.active = amp > 0.0 && own_hz < 0.5 * fs;
+        } else {
+          st.lagged.emplace(m);
+        }
         break;
       }
       case EffectKind::kNoiseColor:
@@ -262,6 +280,20 @@ void SignalEffects::apply(std::size_t i0, std::span<double> x) {
     if (st.kind == EffectKind::kImpacts) {
       st.reversals.apply(i0, x, fs, n_total_);
       st.random.apply(i0, x, fs, n_total_);
+    } else if (st.kind == EffectKind::kOtherAxis && st.own_w > 0.0) {
+      const double on = st.duty * st.gate_period;
+      for (std::size_t q = 0; q < n; ++q) {
+        const double i = static_cast<double>(i0 + q);
+        const double u = std::fmod(i + st.gate_offset, st.gate_period);  // place in the gate period
+        if (u >= on) continue;
+        double gate = 1.0;
+        if (st.duty < 1.0 && st.gate_edge > 0.0) {
+          const double d_edge = std::min(u, on - u);  // distance to the nearer edge of the move
+          if (d_edge < st.gate_edge) gate = 0.5 - 0.5 * std::cos(std::numbers::pi * d_edge / st.gate_edge);
+        }
+        const double ph = st.own_w * i + st.own_phase;
+        x[q] += st.amp * gate * (std::sin(ph) + st.harmonic2 * std::sin(2.0 * ph + 0.7));
+      }
     } else if (st.kind == EffectKind::kOtherAxis) {
       for (std::size_t q = 0; q < n; ++q) {
         const std::ptrdiff_t j = static_cast<std::ptrdiff_t>(i0 + q) - st.lag;

@@ -490,7 +490,10 @@ def library_truth(kind, p, m, info, x_peak):
     if kind == "speed_latency":
         return {"delay_s": p["delay_s"], "jitter_s": p["jitter_s"]}
     if kind == "other_axis":
-        return {"amplitude_ms2": p["amplitude_ms2"], "frequency_ratio": p["ratio"], "lag_s": 0.0}
+        # Its own program in the library's terms: its line while it moves, the share of time it moves,
+        # its 2nd harmonic's level (0.35 below).
+        return {"amplitude_ms2": p["amplitude_ms2"], "frequency_ratio": p["ratio"], "lag_s": 0.0,
+                "own_frequency_hz": p["gmf_hz"], "duty": info["other_axis_moving_share"], "harmonic2": 0.35}
     if kind == "load_dependence":
         # Measured direction gain from the mean load factor on positive vs negative cruise.
         fac, w = info["load_factor"], info["w"]

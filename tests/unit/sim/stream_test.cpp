@@ -138,12 +138,13 @@ TEST(SimulateStreaming, MatchesTheWholeSignalImplementationItReplaced) {
   // Session 7 re-pinned the truth.toml of cases 0 and 2 only: their noise_color effect now lists its
   // `poles` parameter (default 1, the same noise); the WAV and CAN bytes are still those of b614402.
   // Session 12 re-pinned case 0's truth.toml only: its electrical_interference lists `odd_only` (default
-  // 0, the same lines).
+  // 0, the same lines). Session 14 re-pinned case 0's truth.toml only: its other_axis lists
+  // `own_frequency_hz`, `duty` and `harmonic2` (defaults 0, 1, 0: the same lagged mesh).
   struct Pin {
     std::uint64_t wav, can, truth;
   };
   constexpr Pin kPins[] = {
-      {0x21d34dd1673a2adfULL, 0x800996445d5dfd5bULL, 0x7112768cce6e434fULL},
+      {0x21d34dd1673a2adfULL, 0x800996445d5dfd5bULL, 0x03937fddb1a6542eULL},
       {0x8ebce2dce7d2389cULL, 0xc604fb348f9cc8f9ULL, 0x83c4a2d5ea489fa3ULL},
       {0x70de9e2f4e1459c1ULL, 0x9fb1248ec3780492ULL, 0xd819ba862cf057b4ULL},
   };
