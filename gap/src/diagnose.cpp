@@ -317,6 +317,10 @@ std::vector<std::string> effect_bands(const EffectSpec& e, double fs_hz) {
   } else if (e.kind == EffectKind::kElectricalInterference) {
     const int n = std::clamp(static_cast<int>(std::lround(e.get("harmonics"))), 1, 8);
     for (int k = 1; k <= n; ++k) f.push_back(k * e.get("frequency_hz"));
+  } else if (e.kind == EffectKind::kOtherAxis && e.get("own_frequency_hz") > 0.0) {
+    // Another axis on its own program: a line (and its 2nd harmonic) at a place, like pickup.
+    f.push_back(e.get("own_frequency_hz"));
+    if (e.get("harmonic2") > 0.0) f.push_back(2.0 * e.get("own_frequency_hz"));
   }
   std::vector<std::string> out;
   for (double x : f) {
@@ -1243,6 +1247,15 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     const double gmf_per_rad_s = std::fabs(sim::gmf_hz(current.gearbox, 1.0));
     std::vector<double> guess_lines{q.line_still_hz};
     guess_lines.insert(guess_lines.end(), q.more_lines_still_hz.begin(), q.more_lines_still_hz.end());
+    // Last, the other-mesh guess (class 0's strongest off-order line): another axis need not be the
+    // strongest line at standstill (gen2-1045: it moved mostly while this joint moved). It seeds the
+    // own-program candidate only, never an interference one.
+    if (!plan.speeds.empty()) {
+      const double f_const = q.line_const_ratio * std::fabs(sim::gmf_hz(current.gearbox, plan.speeds[0]));
+      bool known = false;
+      for (double f : guess_lines) known = known || std::fabs(f - f_const) < 0.01 * f_const;
+      if (f_const > 0.0 && !known) guess_lines.push_back(f_const);
+    }
     std::vector<LinePresence> presence;
     std::string presence_words;
     for (double f : guess_lines) {
@@ -1255,7 +1268,9 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
                                          fmt("%.0f", lp.on_level_db) + " dB)");
     }
     log("round " + std::to_string(round + 1) + " line presence:" + presence_words);
-    auto intermittent = [&](std::size_t j) { return presence[j].judged && presence[j].share < kSteadyLineShare; };
+    auto intermittent = [&](std::size_t j) {
+      return presence[j].judged && presence[j].share < kSteadyLineShare;
+    };
     for (EffectKind k : kinds) {
       // One instance per kind, except for effects that act at a place (a second structural path, a
       // second interference source): up to two of those.
@@ -1272,8 +1287,8 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       if (k != EffectKind::kElectricalInterference || !intermittent(0)) work.push_back(w);
       if (k == EffectKind::kOtherAxis) {
         for (std::size_t j = 0; j < guess_lines.size(); ++j) {
-          if (!intermittent(j)) continue;
-          Work wo = w;  // the strongest line that comes and goes
+          if (!intermittent(j)) continue;  // pickup lines first (strongest first), then the other-mesh line
+          Work wo = w;                     // the strongest line that comes and goes
           wo.q.own_axis_hz = guess_lines[j];
           wo.q.own_axis_duty = presence[j].share;
           wo.e = initial_effect(k, wo.q);

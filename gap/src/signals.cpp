@@ -379,7 +379,8 @@ LinePresence line_presence(const GapRecording& rec, const std::vector<Segment>& 
       if (gmf > 0.0 && k >= 1.0 && std::fabs(f_hz - k * gmf) < 4.0 * df) continue;
     }
     const auto i_end = std::min(rec.accel_ms2.size(), static_cast<std::size_t>(std::floor(sg.t1_s * fs)));
-    for (auto i0 = static_cast<std::size_t>(std::ceil(std::max(0.0, sg.t0_s) * fs)); i0 + n <= i_end; i0 += n) {
+    for (auto i0 = static_cast<std::size_t>(std::ceil(std::max(0.0, sg.t0_s) * fs)); i0 + n <= i_end;
+         i0 += n) {
       double line = 0.0;
       for (std::size_t j = 0; j < freqs.size(); ++j) {
         const double w = 2.0 * std::numbers::pi * freqs[j] / fs;
@@ -409,7 +410,7 @@ LinePresence line_presence(const GapRecording& rec, const std::vector<Segment>& 
   out.frames = static_cast<std::uint32_t>(ratios.size());
   if (ratios.size() < 8) return out;
   std::sort(ratios.begin(), ratios.end());
-  const std::size_t top0 = ratios.size() - std::max<std::size_t>(1, (3 * ratios.size()) / 10);
+  const std::size_t top0 = ratios.size() - std::max<std::size_t>(1, ratios.size() / 10);
   const std::vector<double> top(ratios.begin() + static_cast<std::ptrdiff_t>(top0), ratios.end());
   const double on = top[top.size() / 2];
   out.on_level_db = 10.0 * std::log10(std::max(on, 1e-12));

@@ -110,11 +110,11 @@ struct ProgramSplit {
 /// 0.1 s frames; a constant-speed frame is skipped when a multiple of this joint's GMF lies within 4
 /// bins of the line (`gmf_per_rad_s`: GMF in Hz per rad/s of joint speed; 0 skips none). Per frame,
 /// the Hann-windowed power at f_hz over the median power at f_hz +- 3..8 bins. The "on" level is the
-/// median of the frames' top 30 %; a frame is on above the geometric midpoint between that level and
-/// the floor. `share` = on frames / frames; 1 (cannot tell) with fewer than 8 frames or an on level
-/// below 10 dB. Any thread; allocates.
+/// median of the frames' top 10 % (a line on in a tenth of the frames is still seen); a frame is on above the
+/// geometric midpoint between that level and the floor. `share` = on frames / frames; 1 (cannot tell) with
+/// fewer than 8 frames or an on level below 10 dB. Any thread; allocates.
 struct LinePresence {
-  double share = 1.0;     ///< share of frames in which the line stands out
+  double share = 1.0;        ///< share of frames in which the line stands out
   double on_level_db = 0.0;  ///< its level over the local floor when on
   std::uint32_t frames = 0;
   bool judged = false;  ///< false: too few frames or too weak a line
