@@ -113,7 +113,9 @@ inline float cephes_log(float v) noexcept {
 // Loops compiled twice on x86-64 (SSE2 and AVX2, chosen at load time by the CPU; AVX2 without FMA, so
 // both give the same bits: no multiply-add is fused) and vectorised by GCC's dynamic cost model
 // (dsp/CMakeLists.txt). They have external linkage (target_clones needs it) but no header.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+// Not under ThreadSanitizer: GCC instruments the clone's IFUNC resolver, which the dynamic loader runs
+// during relocation, before the TSan runtime is up, so every binary linking the DSP crashed at load.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
 #define PTDA_SIMD_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define PTDA_SIMD_CLONES
