@@ -30,9 +30,16 @@ void WavReplaySource::configure() {
   if (info.sample_rate_hz == 0) throw Error(where, 0, 0, "sample rate 0");
   fs_hz_ = static_cast<double>(info.sample_rate_hz);
   total_ = info.frames;
-  staged_.assign(config_.block_len, 0.0F);
-  // Prime the reader once so its internal buffer is allocated now, not in the first read().
-  (void)reader_->read(config_.channel, std::span<float>(staged_.data(), staged_.size()));
+  staged_.assign(static_cast<std::size_t>(config_.block_len) * kReadAheadBlocks, 0.0F);
+  // Prime the reader once so its internal buffer is allocated now, not in the first read(). The
+  // reader sizes its buffer before it reads, so a file cut within the read-ahead still primes it; a
+  // file cut within its first block is refused here, as before the read-ahead.
+  try {
+    (void)reader_->read(config_.channel, std::span<float>(staged_.data(), staged_.size()));
+  } catch (const Error&) {
+    reader_->seek(0);
+    (void)reader_->read(config_.channel, std::span<float>(staged_.data(), config_.block_len));
+  }
   reader_->seek(0);
 }
 
@@ -43,7 +50,10 @@ void WavReplaySource::activate() {
   const std::int64_t origin_mono = config_.timeline.origin_mono_ns.value_or(clock_.now_ns());
   t0_mono_ns_ = origin_mono + (config_.start_unix_ns - origin_unix);
   next_index_ = 0;
-  staged_count_ = 0;
+  staged_pos_ = 0;
+  staged_end_ = 0;
+  single_block_ = false;
+  file_reads_ = 0;
   active_ = true;
 }
 
@@ -56,28 +66,47 @@ std::int64_t WavReplaySource::sample_time_ns(std::uint64_t index) const noexcept
          static_cast<std::int64_t>(std::llround(static_cast<double>(rest) * 1e9 / fs_hz_));
 }
 
-SourceStatus WavReplaySource::read(SampleBlock& out, std::int64_t timeout_ns) noexcept {
-  if (!active_) return SourceStatus::kNotActive;
-  if (staged_count_ == 0) {
-    if (next_index_ >= total_) {
-      stats_.end_of_stream.add();
-      return SourceStatus::kEndOfStream;
-    }
+SourceStatus WavReplaySource::refill() noexcept {
+  staged_pos_ = 0;
+  staged_end_ = 0;
+  if (next_index_ >= total_) return SourceStatus::kEndOfStream;
+  for (;;) {
+    const std::uint32_t want = config_.block_len * (single_block_ ? 1U : kReadAheadBlocks);
     try {
-      staged_count_ = static_cast<std::uint32_t>(
-          reader_->read(config_.channel, std::span<float>(staged_.data(), config_.block_len)));
+      ++file_reads_;
+      staged_end_ =
+          static_cast<std::uint32_t>(reader_->read(config_.channel, std::span<float>(staged_.data(), want)));
+      return staged_end_ == 0 ? SourceStatus::kEndOfStream : SourceStatus::kOk;
     } catch (const std::exception&) {  // a truncated or unreadable file: counted, never thrown
+      staged_end_ = 0;
+      if (single_block_) {
+        stats_.read_errors.add();
+        return SourceStatus::kError;
+      }
+    }
+    // The multi-block read failed somewhere in its blocks: read them again one by one from where it
+    // started, so the complete blocks before the cut still come out, then the error as before.
+    single_block_ = true;
+    try {
+      reader_->seek(next_index_);
+    } catch (const std::exception&) {
       stats_.read_errors.add();
       return SourceStatus::kError;
     }
-    if (staged_count_ == 0) {
-      stats_.end_of_stream.add();
-      return SourceStatus::kEndOfStream;
-    }
   }
+}
+
+SourceStatus WavReplaySource::read(SampleBlock& out, std::int64_t timeout_ns) noexcept {
+  if (!active_) return SourceStatus::kNotActive;
+  if (staged_pos_ == staged_end_) {
+    const SourceStatus s = refill();
+    if (s == SourceStatus::kEndOfStream) stats_.end_of_stream.add();
+    if (s != SourceStatus::kOk) return s;
+  }
+  const std::uint32_t count = std::min(config_.block_len, staged_end_ - staged_pos_);
   if (config_.pace == ReplayPace::kRealTime) {
-    // Released once the last sample of the block "has been acquired".
-    const std::int64_t due = sample_time_ns(next_index_ + staged_count_ - 1);
+    // Released once the last sample of the block "has been acquired" (read ahead or not).
+    const std::int64_t due = sample_time_ns(next_index_ + count - 1);
     std::int64_t now = clock_.now_ns();
     if (due > now) {
       if (timeout_ns <= 0) return SourceStatus::kTimeout;  // a poll (burst read): no wait, not counted
@@ -91,12 +120,13 @@ SourceStatus WavReplaySource::read(SampleBlock& out, std::int64_t timeout_ns) no
   }
   out.t_mono_ns = sample_time_ns(next_index_);
   out.first_index = next_index_;
-  out.count = staged_count_;
+  out.count = count;
   out.flags = 0;
   out.gap_samples = 0;
-  for (std::uint32_t i = 0; i < staged_count_; ++i) out.samples[i] = staged_[i] * config_.scale;
-  next_index_ += staged_count_;
-  staged_count_ = 0;
+  const float* in = staged_.data() + staged_pos_;
+  for (std::uint32_t i = 0; i < count; ++i) out.samples[i] = in[i] * config_.scale;
+  next_index_ += count;
+  staged_pos_ += count;
   stats_.blocks.add();
   stats_.samples.add(out.count);
   return SourceStatus::kOk;

@@ -1,7 +1,8 @@
 // Replay backend of SampleSource: one channel of a recording's WAV file (formats::WavReader, opened at
 // configure()), in blocks with synthetic timestamps t0 + index / fs on the daemon clock, paced at real
 // time (a block is released once the clock has passed its last sample, like a real ADC FIFO) or as
-// fast as the caller reads.
+// fast as the caller reads. The file is read up to kReadAheadBlocks blocks at a time into a buffer
+// allocated at configure(); the blocks are still handed out one by one, each when its time has come.
 #pragma once
 
 #include <cstdint>
@@ -30,6 +31,9 @@ struct WavReplayConfig {
 
 class WavReplaySource final : public SampleSource {
  public:
+  /// Blocks read from the file per read (the last read of a file may hold fewer).
+  static constexpr std::uint32_t kReadAheadBlocks = 16;
+
   /// `clock` must outlive the source.
   WavReplaySource(WavReplayConfig config, Clock& clock);
   ~WavReplaySource() override;
@@ -54,6 +58,9 @@ class WavReplaySource final : public SampleSource {
   [[nodiscard]] std::uint64_t total_samples() const noexcept { return total_; }
   /// Daemon-clock time of sample `index`. Thread: any after activate().
   [[nodiscard]] std::int64_t sample_time_ns(std::uint64_t index) const noexcept;
+  /// Reads from the file since activate() (a plain counter; tests check the read-ahead).
+  /// Thread: the reader's.
+  [[nodiscard]] std::uint64_t file_reads() const noexcept { return file_reads_; }
 
  private:
   WavReplayConfig config_;
@@ -63,9 +70,19 @@ class WavReplaySource final : public SampleSource {
   std::uint64_t total_ = 0;
   std::int64_t t0_mono_ns_ = 0;  ///< daemon time of sample 0
   std::uint64_t next_index_ = 0;
-  std::vector<float> staged_;  ///< the next block, read ahead of its release time
-  std::uint32_t staged_count_ = 0;
+  /// Up to kReadAheadBlocks blocks read ahead of their release times: samples [staged_pos_,
+  /// staged_end_) are not handed out yet, the first of them is sample next_index_.
+  std::vector<float> staged_;
+  std::uint32_t staged_pos_ = 0;
+  std::uint32_t staged_end_ = 0;
+  /// A multi-block read failed (a truncated or unreadable file): one block per read from then on,
+  /// so every complete block before the cut is still delivered. Cleared by activate().
+  bool single_block_ = false;
+  std::uint64_t file_reads_ = 0;
   bool active_ = false;
+
+  /// Refills staged_ at next_index_; kOk (at least one sample staged), kEndOfStream or kError.
+  SourceStatus refill() noexcept;
 };
 
 }  // namespace ptda::drivers

@@ -169,6 +169,116 @@ TEST_F(WavReplay, ConfigureErrorsNameTheFile) {
   EXPECT_EQ(missing.read(b, 0), SourceStatus::kNotActive);
 }
 
+// The file is read kReadAheadBlocks blocks at a time; the blocks that come out are the ones a
+// block-by-block read gives: the same boundaries (the last one short), samples and timestamps.
+TEST_F(WavReplay, ReadsSeveralBlocksPerFileReadWithTheSameBlocks) {
+  cfg_.pace = ReplayPace::kAsFastAsPossible;
+  cfg_.channel = 1;
+  cfg_.scale = 0.5F;
+  cfg_.block_len = 32;  // 1000 samples: 31 blocks of 32 and one of 8, 512 samples per file read
+  cfg_.timeline.origin_mono_ns = 1'000'000'000;
+  ManualClock clock(0);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  src.activate();
+  const std::vector<float> file = formats::read_wav_channel(wav_, 1);
+  ASSERT_EQ(file.size(), 1000u);
+  auto b = std::make_unique<SampleBlock>();
+  std::uint64_t next = 0;
+  for (std::uint64_t k = 0; k < 32; ++k) {
+    ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk) << k;
+    EXPECT_EQ(b->first_index, next) << k;
+    EXPECT_EQ(b->count, k < 31 ? 32u : 8u) << k;
+    EXPECT_EQ(b->t_mono_ns, 1'000'000'000 + static_cast<std::int64_t>(next) * 1'000'000) << k;
+    for (std::uint32_t i = 0; i < b->count; ++i)
+      ASSERT_EQ(b->samples[i], file[next + i] * 0.5F) << "block " << k << " sample " << i;
+    next += b->count;
+  }
+  EXPECT_EQ(next, 1000u);
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kEndOfStream);
+  EXPECT_EQ(src.counters().blocks, 32u);
+  EXPECT_EQ(src.counters().samples, 1000u);
+  // Two file reads (512 + 488 samples) instead of 32.
+  EXPECT_EQ(src.file_reads(), 2u);
+  // activate() rewinds and reads ahead again from sample 0.
+  src.activate();
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->first_index, 0u);
+  EXPECT_EQ(b->samples[31], file[31] * 0.5F);
+  EXPECT_EQ(src.file_reads(), 1u);
+}
+
+// A block read ahead is still released only when its last sample is due: the pacing is the one of
+// a block-by-block read, and a poll before that time finds nothing even with the block in memory.
+TEST_F(WavReplay, BlocksReadAheadAreReleasedOnTheirOwnTime) {
+  cfg_.block_len = 32;
+  ManualClock clock(50'000'000'000);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  src.activate();  // sample 0 at the clock's 50 s; block k's last sample at 50 s + (32 k + 31) ms
+  auto b = std::make_unique<SampleBlock>();
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kTimeout);  // block 0 is read ahead, due at 50.031 s
+  EXPECT_EQ(src.file_reads(), 1u);
+  clock.set_ns(50'031'000'000);
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->first_index, 0u);
+  // Block 1 is in memory but due at 50.063 s: a poll returns nothing, a short wait times out.
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kTimeout);
+  clock.set_ns(50'062'000'000);
+  EXPECT_EQ(src.read(*b, 999'999), SourceStatus::kTimeout);  // wakes 1 ns before it is due
+  EXPECT_EQ(clock.now_ns(), 50'062'999'999);
+  EXPECT_EQ(src.counters().timeouts, 1u);
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kTimeout);
+  clock.advance_ns(1);
+  ASSERT_EQ(src.read(*b, 0), SourceStatus::kOk);
+  EXPECT_EQ(b->first_index, 32u);
+  EXPECT_EQ(b->t_mono_ns, 50'032'000'000);
+  // The rest with waits: each block wakes the reader exactly at its due time.
+  for (std::uint64_t k = 2; k < 32; ++k) {
+    const std::uint32_t count = k < 31 ? 32u : 8u;
+    ASSERT_EQ(src.read(*b, 1'000'000'000), SourceStatus::kOk) << k;
+    EXPECT_EQ(b->first_index, 32 * k) << k;
+    EXPECT_EQ(b->count, count) << k;
+    EXPECT_EQ(b->t_mono_ns, 50'000'000'000 + static_cast<std::int64_t>(32 * k) * 1'000'000) << k;
+    EXPECT_EQ(clock.now_ns(), 50'000'000'000 + static_cast<std::int64_t>(32 * k + count - 1) * 1'000'000)
+        << k;
+  }
+  EXPECT_EQ(src.read(*b, 1'000'000'000), SourceStatus::kEndOfStream);
+  EXPECT_EQ(src.file_reads(), 2u);
+  EXPECT_EQ(src.counters().blocks, 32u);
+}
+
+// A file cut short while it is replayed (the reader refuses one already cut at open): the
+// multi-block read that meets the cut fails, and the source falls back to block by block from where
+// it started, so every complete block before the cut still comes out, then the read error of a
+// block-by-block replay.
+TEST_F(WavReplay, ATruncatedFileDeliversTheBlocksBeforeTheCut) {
+  cfg_.pace = ReplayPace::kAsFastAsPossible;
+  cfg_.block_len = 32;  // reads of 512: the second one (512..999) meets the cut, in block 21 (672..703)
+  ManualClock clock(0);
+  WavReplaySource src(cfg_, clock);
+  src.configure();
+  EXPECT_EQ(src.total_samples(), 1000u);  // the header's count
+  // Cut the data chunk (the file's last chunk; 2 x PCM16 = 4 bytes a frame) after frame 700.
+  fs::resize_file(wav_, fs::file_size(wav_) - 300 * 4);
+  src.activate();
+  auto b = std::make_unique<SampleBlock>();
+  std::uint64_t next = 0;
+  SourceStatus s = SourceStatus::kOk;
+  while ((s = src.read(*b, 0)) == SourceStatus::kOk) {
+    ASSERT_EQ(b->first_index, next);
+    ASSERT_EQ(b->count, 32u);
+    for (std::uint32_t i = 0; i < b->count; ++i)
+      ASSERT_EQ(b->samples[i], static_cast<float>(next + i)) << next + i;
+    next += b->count;
+  }
+  EXPECT_EQ(s, SourceStatus::kError);
+  EXPECT_EQ(next, 21u * 32u);  // blocks 0..20: all that end before frame 700
+  EXPECT_EQ(src.counters().read_errors, 1u);
+  EXPECT_EQ(src.read(*b, 0), SourceStatus::kError);  // and stays in error, as before
+  EXPECT_EQ(src.counters().blocks, 21u);
+}
+
 TEST_F(WavReplay, ReadNeverAllocates) {
   cfg_.pace = ReplayPace::kAsFastAsPossible;
   ManualClock clock(0);
