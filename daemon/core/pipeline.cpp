@@ -959,7 +959,12 @@ void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
   if (outputs_.empty()) return;
   const drivers::AlarmReport report = alarm_->report();
   const bool changed = report.level != last_output_level_ || report.causes != last_output_causes_;
-  if (!force && !changed && now - last_output_ns_ < output_period_ns_) return;
+  // At real-time pace an unchanged frame rides on this pass once half its period has passed
+  // (resend_due); processing_wait_ns() still wakes this thread for it at the full period. A fast
+  // replay passes all the time: there the period alone counts, as before.
+  const bool due = fast_ ? now - last_output_ns_ >= output_period_ns_
+                         : resend_due(now, last_output_ns_, output_period_ns_);
+  if (!force && !changed && !due) return;
   for (auto& o : outputs_) {
     if (o->set(report) != drivers::OutputStatus::kOk) output_errors_.add();
   }

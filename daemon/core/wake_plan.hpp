@@ -3,7 +3,9 @@
 // window can close (WindowSlicer::next_close_ns() + t0); each thread sleeps until that time plus its
 // own offset (the block that holds the window's last sample is complete; then the speed frame that
 // follows that block has arrived), and never longer than a maximum sleep that the rings, the device
-// buffers, the staleness checks and the watchdog allow.
+// buffers, the staleness checks and the watchdog allow. An unchanged CAN verdict frame rides on a
+// processing pass that happens anyway once half its period has passed (resend_due), so its own timed
+// wake-up at the full period is seldom needed.
 #pragma once
 
 #include <cstdint>
@@ -35,6 +37,16 @@ inline constexpr std::int64_t kNoDue = std::numeric_limits<std::int64_t>::max();
   const std::int64_t cap = now_ns + max_sleep_ns;
   if (t > cap) t -= ((t - cap + max_sleep_ns - 1) / max_sleep_ns) * max_sleep_ns;
   return t;
+}
+
+/// Whether an unchanged verdict frame last sent at `last_sent_ns` goes out again on a processing pass
+/// at `now_ns` (`[alarm.can] period_s` = `period_ns`, > 0): once at least half the period (rounded up)
+/// has passed. The processing thread still wakes on its own at `last_sent_ns + period_ns`, where this
+/// holds too, so a frame comes at most every period/2 and at least every period (docs/daemon.md).
+/// Thread: any. Pure.
+[[nodiscard]] constexpr bool resend_due(std::int64_t now_ns, std::int64_t last_sent_ns,
+                                        std::int64_t period_ns) noexcept {
+  return now_ns - last_sent_ns >= period_ns - period_ns / 2;
 }
 
 }  // namespace ptda::daemon

@@ -57,6 +57,28 @@ TEST(WakePlan, FollowsTheDueTimeAndNeverSleepsLongerThanMaxSleep) {
             plan_wake(1100 * kMs, kNoDue, 16 * kMs, 125 * kMs, 250 * kMs, origin));
 }
 
+// [alarm.can] period_s = 0.1 s: an unchanged verdict frame sent at 1.000 s rides on a processing pass
+// from 1.050 s on (half the period), not before; at 1.100 s (the processing thread's own wake-up for
+// it) it is due in any case. So frames come at most every 50 ms and at least every 100 ms.
+TEST(WakePlan, AnUnchangedVerdictRidesOnAPassOnceHalfItsPeriodHasPassed) {
+  constexpr std::int64_t kMs = 1'000'000;
+  const std::int64_t last = 1000 * kMs;
+  const std::int64_t period = 100 * kMs;
+  EXPECT_FALSE(resend_due(last, last, period));
+  EXPECT_FALSE(resend_due(1016 * kMs, last, period));  // a pass 16 ms later: too soon
+  EXPECT_FALSE(resend_due(1050 * kMs - 1, last, period));
+  EXPECT_TRUE(resend_due(1050 * kMs, last, period));  // half the period: rides on this pass
+  EXPECT_TRUE(resend_due(1075 * kMs, last, period));
+  EXPECT_TRUE(resend_due(1100 * kMs, last, period));  // the full period: the dedicated wake-up sends it
+  EXPECT_TRUE(resend_due(1350 * kMs, last, period));  // long overdue (a stalled pass): still sent
+  // An odd period: half of it rounded up (never sooner than period / 2).
+  EXPECT_FALSE(resend_due(last + 50, last, 101));
+  EXPECT_TRUE(resend_due(last + 51, last, 101));
+  // The smallest period_s (0.01 s).
+  EXPECT_FALSE(resend_due(last + 5 * kMs - 1, last, 10 * kMs));
+  EXPECT_TRUE(resend_due(last + 5 * kMs, last, 10 * kMs));
+}
+
 TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
   block_daemon_signals();
   const fs::path dir = scratch("burst");
