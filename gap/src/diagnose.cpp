@@ -732,9 +732,15 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
               {"accel_gain", {-0.4, -0.2, 0.0, 0.2, 0.4}},
               {"direction_gain", {0.9, 0.95, 1.05, 1.1}, true}};
     case EffectKind::kNoiseColor:
+      // The slope jointly with the corner, on a finer grid, after the level: one pole at a low corner
+      // and a double pole at a higher one draw much the same floor above the lowest probe band, and the
+      // poles searched alone after the corner kept the corner picked for one pole (gen2 development
+      // 1047, 1064: double-pole corners at 91 and 57 Hz named one pole at 28 and 9.8 Hz). The grid
+      // starts at 20 Hz: below the lowest floor band corner and level trade off (a relative grid went
+      // to 5 Hz on gen2 1030).
       return {{"corner_hz", {20, 50, 100, 200, 500, 1000, 2000}},
               {"rms_ms2", {0.05, 0.1, 0.2, 0.4, 0.8, 1.6}},
-              {"poles", {1, 2}},
+              {"corner_hz", {20, 35, 60, 100, 170, 300, 500, 1000, 2000}, false, "poles", {1, 2}},
               {"corner_hz", {0.7, 1.0, 1.4}, true},
               {"rms_ms2", {0.8, 1.0, 1.25}, true}};
   }
