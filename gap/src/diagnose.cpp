@@ -633,6 +633,16 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
     for (double x : f) v.push_back(std::clamp(g * x, 20.0, top));
     return v;
   };
+  // An absolute level grid (written for robot joints, floor rms 0.15-0.3 m/s^2) extended by multiples of
+  // the calibrated floor rms where those lie above it: on a loud rig (GFD, floor 5.9 m/s^2) injected
+  // coloured noise of 0.5-1.5 floor rms was out of the grid's reach (development case gfd-1005).
+  auto beyond = [&](std::initializer_list<double> grid, std::initializer_list<double> of_floor) {
+    std::vector<double> v(grid);
+    const double top_abs = v.back();
+    for (double x : of_floor)
+      if (x * nominal.vibration.noise_rms > top_abs) v.push_back(x * nominal.vibration.noise_rms);
+    return v;
+  };
   switch (k) {
     case EffectKind::kTransferPath:
       return {{"frequency_hz", around(q.floor_peak_const_hz, {0.8, 0.89, 1.0, 1.12, 1.25})},
@@ -685,7 +695,8 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       if (q.line_subharmonics && f / 3 >= 1.0) fr.push_back(f / 3);
       // Where and how strong jointly: at the default strength a weak line at the right frequency scored
       // worse than an invisible one at f / 3, and the strength was then searched at the wrong place.
-      return {{"frequency_hz", fr, false, "amplitude_ms2", {0.02, 0.05, 0.1, 0.2, 0.5, 1, 2}},
+      return {{"frequency_hz", fr, false, "amplitude_ms2",
+               beyond({0.02, 0.05, 0.1, 0.2, 0.5, 1, 2}, {0.25, 0.5})},
               {"harmonics", {1, 2, 3, 5, 8}, false, "odd_only", {0, 1}},
               {"harmonic_decay", {0.3, 0.5, 0.7, 0.9}},
               {"amplitude_ms2", {0.8, 1.0, 1.25}, true}};
@@ -739,7 +750,7 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       // starts at 20 Hz: below the lowest floor band corner and level trade off (a relative grid went
       // to 5 Hz on gen2 1030).
       return {{"corner_hz", {20, 50, 100, 200, 500, 1000, 2000}},
-              {"rms_ms2", {0.05, 0.1, 0.2, 0.4, 0.8, 1.6}},
+              {"rms_ms2", beyond({0.05, 0.1, 0.2, 0.4, 0.8, 1.6}, {0.5, 1, 2})},
               {"corner_hz", {20, 35, 60, 100, 170, 300, 500, 1000, 2000}, false, "poles", {1, 2}},
               {"corner_hz", {0.7, 1.0, 1.4}, true},
               {"rms_ms2", {0.8, 1.0, 1.25}, true}};

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <utility>
 
 namespace ptda::sim {
 
@@ -19,7 +20,17 @@ std::size_t block_for(double fs_hz) {
 }  // namespace
 
 TiltedNoise::TiltedNoise(double tilt_db_per_decade, double fs_hz)
-    : tilt_(tilt_db_per_decade), fs_hz_(fs_hz), n_(block_for(fs_hz)), fft_(n_) {
+    : TiltedNoise(tilt_db_per_decade, fs_hz, {}, {}) {}
+
+TiltedNoise::TiltedNoise(double tilt_db_per_decade, double fs_hz, std::vector<double> shape_hz,
+                         std::vector<double> shape_db)
+    : tilt_(tilt_db_per_decade),
+      fs_hz_(fs_hz),
+      shape_hz_(std::move(shape_hz)),
+      shape_db_(std::move(shape_db)),
+      n_(block_for(fs_hz)),
+      fft_(n_) {
+  if (shape_db_.size() != shape_hz_.size()) shape_hz_.clear(), shape_db_.clear();
   const std::size_t bins = n_ / 2 + 1;
   gain_.resize(bins);
   for (std::size_t k = 0; k < bins; ++k) gain_[k] = static_cast<float>(gain_at(k * fs_hz / n_));
@@ -33,9 +44,20 @@ TiltedNoise::TiltedNoise(double tilt_db_per_decade, double fs_hz)
   pos_ = n_ / 2;  // empty: the first next() refills
 }
 
+double TiltedNoise::shape_db(double f_hz) const noexcept {
+  if (shape_hz_.empty()) return 0.0;
+  if (f_hz <= shape_hz_.front()) return shape_db_.front();
+  if (f_hz >= shape_hz_.back()) return shape_db_.back();
+  const std::size_t i = static_cast<std::size_t>(std::upper_bound(shape_hz_.begin(), shape_hz_.end(), f_hz) -
+                                                 shape_hz_.begin());  // 1..size-1
+  const double u = std::log(f_hz / shape_hz_[i - 1]) / std::log(shape_hz_[i] / shape_hz_[i - 1]);
+  return shape_db_[i - 1] + u * (shape_db_[i] - shape_db_[i - 1]);
+}
+
 double TiltedNoise::gain_at(double f_hz) const noexcept {
   const double f = std::max(f_hz, 10.0);
-  return std::pow(f / noise_tilt_pivot_hz(fs_hz_), tilt_ / 20.0);
+  const double pivot = noise_tilt_pivot_hz(fs_hz_);
+  return std::pow(f / pivot, tilt_ / 20.0) * std::pow(10.0, (shape_db(f) - shape_db(pivot)) / 20.0);
 }
 
 void TiltedNoise::refill(Rng& rng) noexcept {

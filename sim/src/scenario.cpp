@@ -238,8 +238,9 @@ void parse_gearbox(Reader& r, GearboxSpec& g) {
 
 void parse_vibration(Reader& r, VibrationSpec& v, const GearboxSpec& g) {
   r.known_keys({"gmf_amplitudes", "gmf_phases_rad", "reference_speed_rad_s", "amplitude_speed_exponent",
-                "dmf_amplitudes", "noise_rms", "noise_tilt_db_per_decade", "cycle_amplitude_jitter_rel",
-                "cycle_noise_jitter_rel", "shaft_orders", "shaft_order_amplitudes"});
+                "dmf_amplitudes", "noise_rms", "noise_tilt_db_per_decade", "noise_shape_hz", "noise_shape_db",
+                "cycle_amplitude_jitter_rel", "cycle_noise_jitter_rel", "shaft_orders",
+                "shaft_order_amplitudes"});
   v.gmf_amplitudes = r.numbers("gmf_amplitudes");
   for (double a : v.gmf_amplitudes) require(a >= 0.0, r, "gmf_amplitudes", "amplitudes must be >= 0");
   v.gmf_phases_rad = r.numbers("gmf_phases_rad");
@@ -259,6 +260,17 @@ void parse_vibration(Reader& r, VibrationSpec& v, const GearboxSpec& g) {
   v.noise_tilt_db_per_decade = r.number("noise_tilt_db_per_decade", v.noise_tilt_db_per_decade);
   require(std::fabs(v.noise_tilt_db_per_decade) <= TiltedNoise::kMaxTiltDbPerDecade, r,
           "noise_tilt_db_per_decade", "must be in [-18, 18] dB per decade");
+  v.noise_shape_hz = r.numbers("noise_shape_hz");
+  v.noise_shape_db = r.numbers("noise_shape_db");
+  require(v.noise_shape_hz.size() == v.noise_shape_db.size(), r,
+          v.noise_shape_hz.empty() ? "noise_shape_db" : "noise_shape_hz",
+          "needs one level in noise_shape_db per entry of noise_shape_hz");
+  for (std::size_t i = 0; i < v.noise_shape_hz.size(); ++i) {
+    require(v.noise_shape_hz[i] > 0.0 && (i == 0 || v.noise_shape_hz[i] > v.noise_shape_hz[i - 1]), r,
+            "noise_shape_hz", "frequencies must be > 0 and increasing (entry " + std::to_string(i + 1) + ")");
+    require(std::fabs(v.noise_shape_db[i]) <= 60.0, r, "noise_shape_db",
+            "levels must be in [-60, 60] dB (entry " + std::to_string(i + 1) + ")");
+  }
   {
     const std::vector<double> orders = r.numbers("shaft_orders");
     v.shaft_order_amplitudes = r.numbers("shaft_order_amplitudes");

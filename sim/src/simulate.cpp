@@ -202,6 +202,10 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
   vb.insert("noise_rms", s.vibration.noise_rms);
   if (s.vibration.noise_tilt_db_per_decade != 0.0)
     vb.insert("noise_tilt_db_per_decade", s.vibration.noise_tilt_db_per_decade);
+  if (!s.vibration.noise_shape_hz.empty()) {
+    vb.insert("noise_shape_hz", to_array(s.vibration.noise_shape_hz));
+    vb.insert("noise_shape_db", to_array(s.vibration.noise_shape_db));
+  }
   if (!s.vibration.shaft_orders.empty()) {
     toml::array orders;
     for (int j : s.vibration.shaft_orders) orders.push_back(static_cast<std::int64_t>(j));

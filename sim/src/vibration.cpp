@@ -206,8 +206,8 @@ struct VibrationStream::Impl {
       }
       shaft_amp[static_cast<std::size_t>(mult - 1)] = vs.shaft_order_amplitudes[i];
     }
-    if (vs.noise_tilt_db_per_decade != 0.0 && vs.noise_rms > 0.0)
-      tilted.emplace(vs.noise_tilt_db_per_decade, m.fs_hz);
+    if ((vs.noise_tilt_db_per_decade != 0.0 || !vs.noise_shape_hz.empty()) && vs.noise_rms > 0.0)
+      tilted.emplace(vs.noise_tilt_db_per_decade, m.fs_hz, vs.noise_shape_hz, vs.noise_shape_db);
   }
 
   /// Enters cycle c (>= the current one): the per-cycle gains of the faults (severity is constant within

@@ -76,6 +76,44 @@ TEST(NoiseTilt, MadeNoiseFollowsThePowerLawInThirdOctaves) {
   }
 }
 
+TEST(NoiseTilt, KnownFloorShapeIsInterpolatedInLogFrequencyAndReferredToThePivot) {
+  // Shape 0 dB at 100 Hz rising to 20 dB at 1 kHz, tilt 0, fs 25.6 kHz: pivot 480 Hz, where the shape is
+  // 20 log10(4.8) = 13.62 dB; every gain is referred to it.
+  const TiltedNoise n(0.0, 25600.0, {100.0, 1000.0}, {0.0, 20.0});
+  const double at_pivot = 20.0 * std::log10(4.8);
+  EXPECT_NEAR(n.gain_at(480.0), 1.0, 1e-12);
+  EXPECT_NEAR(20.0 * std::log10(n.gain_at(1000.0)), 20.0 - at_pivot, 1e-9);
+  EXPECT_NEAR(20.0 * std::log10(n.gain_at(std::sqrt(1e5))), 10.0 - at_pivot, 1e-9);  // log midpoint
+  EXPECT_EQ(n.gain_at(5000.0), n.gain_at(1000.0));                                   // flat beyond the ends
+  EXPECT_EQ(n.gain_at(50.0), n.gain_at(100.0));
+  // With a tilt the two multiply: +6 dB per decade from the pivot on top of the shape.
+  const TiltedNoise t(6.0, 25600.0, {100.0, 1000.0}, {0.0, 20.0});
+  EXPECT_NEAR(20.0 * std::log10(t.gain_at(4800.0)), 6.0 + 20.0 - at_pivot, 1e-9);
+  // No shape: the plain tilted law.
+  EXPECT_EQ(TiltedNoise(6.0, 25600.0, {}, {}).gain_at(4800.0), TiltedNoise(6.0, 25600.0).gain_at(4800.0));
+}
+
+TEST(NoiseTilt, MadeNoiseFollowsTheKnownShape) {
+  // A 20 dB step between 300 Hz and 3 kHz (flat outside): the made noise's band levels below 200 Hz and
+  // above 4 kHz differ by 20 dB (Welch, 160 x 4096 samples: the band means are within a few tenths).
+  const double fs = 25600.0;
+  TiltedNoise n(0.0, fs, {300.0, 3000.0}, {0.0, 20.0});
+  Rng rng(12, 4);
+  const std::vector<double> p = psd_of(n, rng, 160);
+  const double df = fs / 4096.0;
+  auto band_db = [&](double lo, double hi) {
+    double sum = 0.0;
+    int m = 0;
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      const double f = static_cast<double>(k) * df;
+      if (f >= lo && f < hi) sum += p[k], ++m;
+    }
+    return 10.0 * std::log10(sum / m);
+  };
+  EXPECT_NEAR(band_db(4000.0, 11000.0) - band_db(60.0, 200.0), 20.0, 0.6);
+  EXPECT_NEAR(band_db(900.0, 1100.0) - band_db(60.0, 200.0), 20.0 * std::log10(1000.0 / 300.0), 0.8);
+}
+
 TEST(NoiseTilt, VarianceIsTheSameAtEverySampleOfTheOverlap) {
   // White shaping (tilt 0) gives unit variance; the sine-window overlap-add keeps it at block edges.
   TiltedNoise n(0.0, 20480.0);

@@ -110,6 +110,12 @@ TEST(ScenarioParse, WrongTypesAndValuesNameTheKey) {
                "vibration.shaft_orders: orders must be whole numbers");
   expect_error(std::string(kMinimal) + "[vibration]\nnoise_tilt_db_per_decade = 25.0\n",
                "t.toml:5:28: vibration.noise_tilt_db_per_decade: must be in [-18, 18]");
+  expect_error(std::string(kMinimal) + "[vibration]\nnoise_shape_hz = [100, 1000]\nnoise_shape_db = [0]\n",
+               "vibration.noise_shape_hz: needs one level in noise_shape_db per entry");
+  expect_error(std::string(kMinimal) + "[vibration]\nnoise_shape_hz = [100, 50]\nnoise_shape_db = [0, 1]\n",
+               "vibration.noise_shape_hz: frequencies must be > 0 and increasing (entry 2)");
+  expect_error(std::string(kMinimal) + "[vibration]\nnoise_shape_hz = [100, 200]\nnoise_shape_db = [0, 70]\n",
+               "vibration.noise_shape_db: levels must be in [-60, 60] dB (entry 2)");
 }
 
 // Issue 14 item 8: a 200 KB interface name once made an 836 MB can.log; names are limited (IFNAMSIZ)

@@ -30,6 +30,11 @@ class TiltedNoise {
 
   /// |tilt| must be <= kMaxTiltDbPerDecade and fs > 0 (the scenario reader checks both).
   TiltedNoise(double tilt_db_per_decade, double fs_hz);
+  /// With a known floor shape on top of the tilt ([vibration] noise_shape_hz/_db, same length, increasing
+  /// frequencies; the scenario reader checks): the gain at f is also multiplied by 10^((S(f) - S(pivot)) /
+  /// 20), S interpolated linearly in log f and flat beyond the ends.
+  TiltedNoise(double tilt_db_per_decade, double fs_hz, std::vector<double> shape_hz,
+              std::vector<double> shape_db);
 
   /// The next sample (unit density at the pivot). No allocation.
   double next(Rng& rng) noexcept;
@@ -40,8 +45,11 @@ class TiltedNoise {
  private:
   void refill(Rng& rng) noexcept;  // one new block: out_ = tail_ + head of the block
 
+  [[nodiscard]] double shape_db(double f_hz) const noexcept;
   double tilt_;
   double fs_hz_;
+  std::vector<double> shape_hz_;
+  std::vector<double> shape_db_;
   std::size_t n_;
   dsp::RealFft fft_;
   std::vector<float> gain_;  // per bin

@@ -90,6 +90,12 @@ struct VibrationSpec {
   /// Spectral tilt of the background: its PSD changes by this many dB per decade, with noise_rms kept
   /// as the white level at noise_tilt_pivot_hz(fs) (ptda/sim/noise_tilt.hpp). 0: white. |tilt| <= 18.
   double noise_tilt_db_per_decade = 0.0;
+  /// Known shape of the background's PSD on top of the tilt (a machine's or rig's own floor, read off a
+  /// healthy recording at commissioning): dB at the frequencies noise_shape_hz (increasing, > 0),
+  /// interpolated linearly in log frequency, flat beyond the ends; relative values (the shape is
+  /// referred to its value at the tilt's pivot, so noise_rms keeps its meaning). Empty: no shape.
+  std::vector<double> noise_shape_hz;
+  std::vector<double> noise_shape_db;  ///< one per entry of noise_shape_hz, each in [-60, 60]
   /// Lines at whole orders of the input shaft that are not GMF harmonics (unbalance, run-out, a second
   /// shaft or belt, the GFD rig's multiples of 5): sin(order * theta_in), amplitude at the reference
   /// speed with the mesh's speed law. Orders must be > 0, distinct and not multiples of z_in.
