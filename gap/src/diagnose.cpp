@@ -36,6 +36,10 @@ constexpr double kSpeedScaleMinPpm = 100.0;
 /// above the model (the strongest is always tried).
 constexpr std::size_t kLineGuesses = 3;
 constexpr double kLineGuessMinExcessDb = 10.0;
+// A further floor-excess peak starts its own transfer-path candidate when its band lies at least this far
+// above the calibrated model (a resonance of +6 dB or more at its peak raises its third-octave band by
+// a few dB).
+constexpr double kMinFloorPeakDb = 3.0;
 /// A line present in fewer of the fit part's frames is not steady pickup (`line_presence`; chosen
 /// a priori: pickup from the mains or a drive is on in every frame, up to the noise).
 constexpr double kSteadyLineShare = 0.85;
@@ -357,6 +361,10 @@ std::string where_words(const GapBreakdown& g) {
 /// Data-driven starting points for the fits, from the measured fit cycles vs the calibrated model.
 struct Guesses {
   double floor_peak_const_hz = 1000.0;
+  /// Further floor-excess peaks at constant speed (an octave apart, excess first): one more
+  /// `transfer_path` candidate each. The largest excess can be the machine's own floor mismatch, with
+  /// the unmodelled resonance a smaller peak elsewhere (gfd-1000: 57 Hz first, the path at 16.2 kHz).
+  std::vector<double> more_floor_peaks_const_hz;
   double floor_peak_accel_hz = 1000.0;
   double energy_peak_accel_hz = 1000.0;  ///< first resonance tried for knocks (transient octave excess)
   double line_still_hz = 50.0;           ///< strongest excess line where the mesh is silent (or off-order)
@@ -488,6 +496,8 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
   Guesses q;
   q.has_reversals = plan.accel_len > 0;
   q.floor_peak_const_hz = excess_peak_hz(r, m, SegmentType::kConstant, g.noise_offset_db);
+  q.more_floor_peaks_const_hz =
+      more_excess_peaks_hz(r, m, SegmentType::kConstant, g.noise_offset_db, kMinFloorPeakDb, 2);
   q.floor_peak_accel_hz = plan.accel_len > 0 ? excess_peak_hz(r, m, SegmentType::kAccel, g.noise_offset_db)
                                              : q.floor_peak_const_hz;
   // Knocks: the octave where the spectrum around the largest sample near segment boundaries exceeds the
@@ -1203,8 +1213,12 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     sr.gap_before_heldout = current_held;
     const Guesses q =
         make_guesses(cur_real_fit, cur_model, cur_fit_gap, current, plan, ev.context().nominal_orders);
+    std::string more_peaks;
+    for (double f : q.more_floor_peaks_const_hz)
+      more_peaks += (more_peaks.empty() ? " (then " : ", ") + fmt("%.0f", f);
+    if (!more_peaks.empty()) more_peaks += ")";
     log("round " + std::to_string(round + 1) + " guesses: floor peak " + fmt("%.0f", q.floor_peak_const_hz) +
-        " Hz, accel energy peak " + fmt("%.0f", q.energy_peak_accel_hz) + " Hz, line " +
+        more_peaks + " Hz, accel energy peak " + fmt("%.0f", q.energy_peak_accel_hz) + " Hz, line " +
         fmt("%.2f", q.line_still_hz) + " Hz" + more_lines_text(q) + ", other-mesh ratio " +
         fmt("%.3f", q.line_const_ratio) + ", sidebands " + fmt("%.2f", q.sideband_order) + " orders, " +
         fmt("%.0f", q.ppm) + " ppm, lag " + fmt("%.1f", q.lag_s * 1e3) + " ms, direction " +
@@ -1318,6 +1332,15 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       // harmonics are only searched after the screen, so lines in one grid would be compared as single
       // lines: a PWM sideband beat the 60 Hz mains whose odd harmonics held the gap, development case
       // gen2-1024).
+      if (k == EffectKind::kTransferPath) {
+        for (double f : q.more_floor_peaks_const_hz) {
+          Work wp = w;
+          wp.q.floor_peak_const_hz = f;
+          wp.e = initial_effect(k, wp.q);
+          clamp_params(wp.e);
+          work.push_back(wp);
+        }
+      }
       if (k == EffectKind::kElectricalInterference) {
         for (std::size_t j = 0; j < q.more_lines_still_hz.size(); ++j) {
           if (intermittent(j + 1)) continue;

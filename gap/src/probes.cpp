@@ -925,4 +925,37 @@ GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim, const Ele
   return g;
 }
 
+std::vector<double> more_excess_peaks_hz(const ProbeSet& r, const ProbeSet& m, SegmentType type,
+                                         double offset_db, double min_db, std::size_t max_peaks) {
+  std::map<std::string, double> sim_floor;
+  for (const ProbeElement& e : m.elements) {
+    if (e.probe == "noise_floor" && e.segment == type) sim_floor[e.key] = e.value;
+  }
+  std::vector<std::pair<double, double>> bands;  // (centre Hz, excess dB)
+  for (const ProbeElement& e : r.elements) {
+    if (e.probe != "noise_floor" || e.segment != type) continue;
+    auto it = sim_floor.find(e.key);
+    if (it == sim_floor.end() || e.f_lo_hz <= 0.0) continue;
+    bands.emplace_back(std::sqrt(e.f_lo_hz * e.f_hi_hz), e.value - it->second - offset_db);
+  }
+  std::sort(bands.begin(), bands.end());
+  std::vector<std::pair<double, double>> maxima;  // (excess, centre)
+  for (std::size_t i = 0; i < bands.size(); ++i) {
+    const bool left = i == 0 || bands[i].second > bands[i - 1].second;
+    const bool right = i + 1 == bands.size() || bands[i].second >= bands[i + 1].second;
+    if (left && right && bands[i].second >= min_db) maxima.emplace_back(bands[i].second, bands[i].first);
+  }
+  std::sort(maxima.begin(), maxima.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<double> taken, out;
+  for (const auto& [d, f] : maxima) {
+    bool near = false;
+    for (double t : taken) near = near || std::fabs(std::log2(f / t)) < 1.0;
+    if (near) continue;
+    taken.push_back(f);
+    if (taken.size() > 1) out.push_back(f);  // the first is excess_peak_hz's
+    if (out.size() >= max_peaks) break;
+  }
+  return out;
+}
+
 }  // namespace ptda::gap

@@ -57,6 +57,62 @@ double element(const ProbeSet& p, const std::string& probe, const std::string& k
   return NAN;
 }
 
+/// A noise_floor probe over third-octave-like bands from 100 Hz (band i: 100 * 2^(i/3) .. 100 * 2^((i+1)/3)),
+/// `db[i]` dB per band, at constant speed; a band of the accel type is added to check that it is ignored.
+ProbeSet floor_probe(const std::vector<double>& db) {
+  ProbeSet p;
+  for (std::size_t i = 0; i < db.size(); ++i) {
+    ProbeElement e;
+    e.probe = "noise_floor";
+    e.key = "constant.b" + std::to_string(i);
+    e.value = db[i];
+    e.f_lo_hz = 100.0 * std::pow(2.0, static_cast<double>(i) / 3.0);
+    e.f_hi_hz = 100.0 * std::pow(2.0, static_cast<double>(i + 1) / 3.0);
+    p.elements.push_back(e);
+  }
+  ProbeElement a;
+  a.probe = "noise_floor";
+  a.key = "acceleration.b0";
+  a.value = 99.0;
+  a.f_lo_hz = 50.0;
+  a.f_hi_hz = 60.0;
+  a.segment = SegmentType::kAccel;
+  p.elements.push_back(a);
+  return p;
+}
+
+double centre(std::size_t i) {
+  return 100.0 * std::pow(2.0, (static_cast<double>(i) + 0.5) / 3.0);
+}
+
+TEST(FloorExcessPeaks, FurtherMaximaAnOctaveApartByExcessAfterTheLargest) {
+  // Excess over the model: the largest at band 2 (+12 dB), further maxima at band 4 (+5, within an
+  // octave of band 2: skipped), band 9 (+8), band 14 (+4), band 18 (+2.5, below the 3 dB floor) and a
+  // rising edge at the top band 20 (+6).
+  std::vector<double> excess(21, 0.0);
+  excess[2] = 12.0;
+  excess[4] = 5.0;
+  excess[9] = 8.0;
+  excess[14] = 4.0;
+  excess[18] = 2.5;
+  excess[19] = 3.0;
+  excess[20] = 6.0;
+  const ProbeSet model = floor_probe(std::vector<double>(21, -30.0));
+  std::vector<double> measured(21);
+  for (std::size_t i = 0; i < 21; ++i) measured[i] = -30.0 + 1.5 + excess[i];  // offset 1.5 dB
+  const ProbeSet real = floor_probe(measured);
+  const std::vector<double> peaks = more_excess_peaks_hz(real, model, SegmentType::kConstant, 1.5, 3.0, 5);
+  ASSERT_EQ(peaks.size(), 3U);
+  EXPECT_NEAR(peaks[0], centre(9), 1e-9);
+  EXPECT_NEAR(peaks[1], centre(20), 1e-9);
+  EXPECT_NEAR(peaks[2], centre(14), 1e-9);
+  // At most max_peaks; nothing when only the largest stands out; the offset is taken off.
+  EXPECT_EQ(more_excess_peaks_hz(real, model, SegmentType::kConstant, 1.5, 3.0, 1).size(), 1U);
+  EXPECT_TRUE(more_excess_peaks_hz(real, model, SegmentType::kConstant, 1.5 + 8.5, 3.0, 5).empty());
+  // The other segment type's bands (only in the measured set here) are not read.
+  EXPECT_TRUE(more_excess_peaks_hz(real, model, SegmentType::kAccel, 0.0, 3.0, 5).empty());
+}
+
 TEST(Segmentation, FindsCyclesAndBothPlateaus) {
   const Measured m = measure(job(5), 11);
   EXPECT_EQ(m.plan.cycles, 5U);

@@ -138,4 +138,13 @@ using ElementVariance = std::map<std::string, double>;
                                                  const std::vector<Window>& windows, std::uint32_t cycles,
                                                  const ProbeContext& ctx);
 
+/// Floor-excess peaks after the largest: the local maxima over frequency of the measured − model − offset
+/// noise_floor band levels (dB) of segment type `type`, by excess descending; only maxima at least
+/// `min_db` above the model and at least an octave from every peak taken before (the largest included,
+/// which is not returned). Band centres in Hz, at most `max_peaks`. Elements of one side only are
+/// skipped. Any thread; allocates.
+[[nodiscard]] std::vector<double> more_excess_peaks_hz(const ProbeSet& real, const ProbeSet& sim,
+                                                       SegmentType type, double offset_db, double min_db,
+                                                       std::size_t max_peaks);
+
 }  // namespace ptda::gap
