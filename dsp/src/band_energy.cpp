@@ -24,7 +24,8 @@ std::vector<unsigned char> clean_floor_bins(std::span<const float> mean_magnitud
   const std::vector<float> floor = local_floor_medians(mean_magnitude);
   for (std::size_t k = 1; k < bins; ++k) {
     if (in_line[k] != 0) continue;
-    clean[k] = static_cast<double>(mean_magnitude[k]) <= kCleanOverFloor * static_cast<double>(floor[k]) ? 1 : 0;
+    clean[k] =
+        static_cast<double>(mean_magnitude[k]) <= kCleanOverFloor * static_cast<double>(floor[k]) ? 1 : 0;
   }
   return clean;
 }

@@ -304,8 +304,8 @@ TEST(LocalFloorMedians, EqualsThePerBinMedianAtEveryBin) {
   std::uniform_int_distribution<int> few(0, 4);
   std::vector<float> scratch;
   std::size_t compared = 0;
-  for (const std::size_t n : {0UL, 1UL, 2UL, 3UL, 33UL, 34UL, 65UL, 66UL, 67UL, 98UL, 99UL, 100UL, 131UL, 500UL,
-                              6401UL}) {
+  for (const std::size_t n :
+       {0UL, 1UL, 2UL, 3UL, 33UL, 34UL, 65UL, 66UL, 67UL, 98UL, 99UL, 100UL, 131UL, 500UL, 6401UL}) {
     for (int kind = 0; kind < 3; ++kind) {
       std::vector<float> a(n);
       for (float& x : a) x = kind == 0 ? u(rng) : static_cast<float>(few(rng));
