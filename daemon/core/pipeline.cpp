@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <span>
 
@@ -517,10 +518,18 @@ void Pipeline::wait_stage(WakeSignal& signal, std::int64_t offset_ns) noexcept {
 }
 
 SourceStatus Pipeline::acquire(std::int64_t timeout_ns) noexcept {
-  drivers::SampleBlock& block = *acq_block_;
+  // The source fills the ring's next free slot in place (a block is 4 KiB of which a 256-sample block
+  // uses 1 KiB: no copy of it); with the ring full, the spare block.
+  drivers::SampleBlock* const slot = sample_ring_->claim();
+  drivers::SampleBlock& block = slot != nullptr ? *slot : *acq_block_;
   const SourceStatus st = source_->read(block, timeout_ns);
   switch (st) {
     case SourceStatus::kOk:
+      if (slot != nullptr) {
+        sample_ring_->commit();
+        if (probe_ != nullptr) probe_->on_block_pushed(block);
+        break;
+      }
       // A full ring is an overrun for a real-time source (the block is dropped and counted; the
       // index jump becomes a gap downstream) and back-pressure for a fast replay.
       while (!sample_ring_->try_push(block)) {
@@ -822,7 +831,16 @@ void Pipeline::drain_windows(std::int64_t now) noexcept {
 
 bool Pipeline::process_step(std::int64_t now) noexcept {
   bool work = false;
-  if (!have_block_ && sample_ring_->try_pop(*held_block_)) {
+  // Only the valid samples of a block are copied out of the ring (a 256-sample block: 1 of 4 KiB).
+  if (!have_block_ && sample_ring_->pop_with([this](const drivers::SampleBlock& b) noexcept {
+        drivers::SampleBlock& h = *held_block_;
+        h.t_mono_ns = b.t_mono_ns;
+        h.first_index = b.first_index;
+        h.count = b.count;
+        h.flags = b.flags;
+        h.gap_samples = b.gap_samples;
+        std::memcpy(h.samples, b.samples, std::min<std::size_t>(b.count, drivers::kMaxBlock) * sizeof(float));
+      })) {
     if (probe_ != nullptr) probe_->on_block_popped(*held_block_);
     have_block_ = true;
     last_block_arrival_ns_ = now;

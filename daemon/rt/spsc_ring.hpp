@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <cstring>
 #include <type_traits>
+#include <utility>
 
 #include "ptda/common/cache_line.hpp"
 
@@ -79,6 +80,40 @@ class SpscRing {
     if (count > first) std::memcpy(&slots_[0], items + first, (count - first) * sizeof(T));
     head_.store(head + count, std::memory_order_release);
     return count;
+  }
+
+  /// The next free slot, for the producer to fill in place (no copy of the whole item), or nullptr
+  /// when the ring is full. Nothing is published until commit(); a slot claimed and not committed is
+  /// claimed again (the same slot) by the next claim(). Thread: the producer only. Never blocks or
+  /// allocates.
+  [[nodiscard]] T* claim() noexcept {
+    const std::uint64_t head = head_.load(std::memory_order_relaxed);  // only this thread writes it
+    if (head - tail_cache_ >= N) {
+      tail_cache_ = tail_.load(std::memory_order_acquire);  // orders the fill after the consumer's reads
+      if (head - tail_cache_ >= N) return nullptr;
+    }
+    return &slots_[static_cast<std::size_t>(head & kMask)];
+  }
+
+  /// Publishes the slot the last claim() returned (which must not have returned nullptr).
+  /// Thread: the producer only. Never blocks or allocates; one release store.
+  void commit() noexcept {
+    head_.store(head_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+  }
+
+  /// Removes the oldest item, handing it to take(const T&) in place before its slot is freed (the
+  /// consumer copies what it needs, e.g. only the valid part of a block). Returns false (take not
+  /// called) when empty. Thread: the consumer only. Never blocks or allocates unless take does.
+  template <typename F>
+  bool pop_with(F&& take) noexcept(noexcept(take(std::declval<const T&>()))) {
+    const std::uint64_t tail = tail_.load(std::memory_order_relaxed);  // only this thread writes it
+    if (head_cache_ == tail) {
+      head_cache_ = head_.load(std::memory_order_acquire);
+      if (head_cache_ == tail) return false;
+    }
+    take(static_cast<const T&>(slots_[static_cast<std::size_t>(tail & kMask)]));
+    tail_.store(tail + 1, std::memory_order_release);
+    return true;
   }
 
   /// Removes one item into `out` when there is one. Returns false (out untouched) when empty.

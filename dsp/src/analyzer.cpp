@@ -559,16 +559,42 @@ float local_floor_median(std::span<const float> a, std::size_t k, std::vector<fl
   return *mid;
 }
 
+std::vector<float> local_floor_medians(std::span<const float> a) {
+  const std::size_t bins = a.size();
+  std::vector<float> out(bins, 0.0F);
+  if (bins < 2) return out;
+  if (std::any_of(a.begin(), a.end(), [](float x) { return std::isnan(x); })) {
+    std::vector<float> scratch;
+    for (std::size_t k = 1; k < bins; ++k) out[k] = local_floor_median(a, k, scratch);
+    return out;
+  }
+  // The window of bin k is [lo(k), hi(k)) with lo = max(1, k - 32) and hi = min(bins, k + 33) (as in
+  // local_floor_median); both bounds move by at most one bin per step, so the sorted copy of the
+  // window loses at most one value and gains at most one.
+  constexpr std::size_t kHalf = 32;
+  std::vector<float> win;
+  win.reserve(2 * kHalf + 2);
+  std::size_t lo = 1;
+  std::size_t hi = 1;
+  for (std::size_t k = 1; k < bins; ++k) {
+    const std::size_t new_lo = k > kHalf + 1 ? k - kHalf : 1;
+    const std::size_t new_hi = std::min(bins, k + kHalf + 1);
+    for (; lo < new_lo; ++lo) win.erase(std::lower_bound(win.begin(), win.end(), a[lo]));
+    for (; hi < new_hi; ++hi) win.insert(std::upper_bound(win.begin(), win.end(), a[hi]), a[hi]);
+    out[k] = win[win.size() / 2];
+  }
+  return out;
+}
+
 std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
   std::vector<LineGroup> out;
   const std::size_t bins = mean_magnitude.size();
   if (bins < 3) return out;
   constexpr double kLineOverFloor = 4.0;  // 12 dB over the local floor (median of 65 bins around k)
-  std::vector<float> win;
+  const std::vector<float> floor = local_floor_medians(mean_magnitude);
   std::vector<bool> line(bins, false);
   for (std::size_t k = 1; k < bins; ++k) {
-    line[k] = static_cast<double>(mean_magnitude[k]) >
-              kLineOverFloor * static_cast<double>(local_floor_median(mean_magnitude, k, win));
+    line[k] = static_cast<double>(mean_magnitude[k]) > kLineOverFloor * static_cast<double>(floor[k]);
   }
   for (std::size_t k = 1; k < bins; ++k) {
     if (!line[k]) continue;

@@ -21,13 +21,11 @@ std::vector<unsigned char> clean_floor_bins(std::span<const float> mean_magnitud
     for (std::size_t k = g.begin; k < std::min<std::size_t>(g.end, bins); ++k) in_line[k] = 1;
   }
   constexpr double kCleanOverFloor = 2.0;  // 6 dB over find_line_groups()' local floor
-  std::vector<float> win;
+  const std::vector<float> floor = local_floor_medians(mean_magnitude);
   for (std::size_t k = 1; k < bins; ++k) {
     if (in_line[k] != 0) continue;
-    clean[k] = static_cast<double>(mean_magnitude[k]) <=
-                       kCleanOverFloor * static_cast<double>(local_floor_median(mean_magnitude, k, win))
-                   ? 1
-                   : 0;
+    clean[k] =
+        static_cast<double>(mean_magnitude[k]) <= kCleanOverFloor * static_cast<double>(floor[k]) ? 1 : 0;
   }
   return clean;
 }

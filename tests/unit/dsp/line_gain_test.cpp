@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -285,6 +287,61 @@ TEST(LineGain, PrepareAgainSkipsOnlyUnchangedClasses) {
   prepare_line_groups(b);
   EXPECT_EQ(b.classes[0].line_groups.size(), 1U);
   EXPECT_FALSE(b.classes[0].floor_gain);
+}
+
+}  // namespace
+}  // namespace ptda::dsp
+
+namespace ptda::dsp {
+namespace {
+
+// local_floor_medians() (one sliding sorted window) against local_floor_median() (one nth_element per
+// bin) at every bin: lengths around the 65-bin window, tie-heavy and continuous values, a real-length
+// spectrum (N/2 + 1 = 6401), and a NaN (the per-bin path).
+TEST(LocalFloorMedians, EqualsThePerBinMedianAtEveryBin) {
+  std::mt19937 rng(16);
+  std::uniform_real_distribution<float> u(0.0F, 10.0F);
+  std::uniform_int_distribution<int> few(0, 4);
+  std::vector<float> scratch;
+  std::size_t compared = 0;
+  for (const std::size_t n :
+       {0UL, 1UL, 2UL, 3UL, 33UL, 34UL, 65UL, 66UL, 67UL, 98UL, 99UL, 100UL, 131UL, 500UL, 6401UL}) {
+    for (int kind = 0; kind < 3; ++kind) {
+      std::vector<float> a(n);
+      for (float& x : a) x = kind == 0 ? u(rng) : static_cast<float>(few(rng));
+      if (kind == 2 && n > 40) a[40] = std::numeric_limits<float>::quiet_NaN();
+      const std::vector<float> m = local_floor_medians(a);
+      ASSERT_EQ(m.size(), n);
+      if (n > 0) {
+        EXPECT_EQ(m[0], 0.0F);
+      }
+      for (std::size_t k = 1; k < n; ++k) {
+        if (kind == 2 && n > 40) {
+          // With a NaN both give nth_element's answer; compare bits (NaN != NaN).
+          const float r = local_floor_median(a, k, scratch);
+          EXPECT_EQ(std::memcmp(&m[k], &r, sizeof r), 0) << "n " << n << " k " << k;
+        } else {
+          const float r = local_floor_median(a, k, scratch);
+          ASSERT_EQ(m[k], r) << "n " << n << " kind " << kind << " k " << k;
+        }
+        ++compared;
+      }
+    }
+  }
+  EXPECT_GT(compared, 20000U);
+}
+
+// Values by hand: a[k] = k for k = 1..99 (a[0] = 1000, never in a window). Bin 1's window is bins
+// 1..33 (median 17), bin 40's is 8..72 (median 40), bin 98's is 66..98 (median 82).
+TEST(LocalFloorMedians, KnownValuesOfARamp) {
+  std::vector<float> a(99);
+  a[0] = 1000.0F;
+  for (std::size_t k = 1; k < a.size(); ++k) a[k] = static_cast<float>(k);
+  const std::vector<float> m = local_floor_medians(a);
+  EXPECT_EQ(m[1], 17.0F);
+  EXPECT_EQ(m[33], 33.0F);
+  EXPECT_EQ(m[40], 40.0F);
+  EXPECT_EQ(m[98], 82.0F);
 }
 
 }  // namespace

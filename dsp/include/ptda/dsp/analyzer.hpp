@@ -171,6 +171,13 @@ inline constexpr std::size_t kSelectMinValues = 256;
 /// Thread: any. Allocates only when scratch grows (setup and training, never per window).
 [[nodiscard]] float local_floor_median(std::span<const float> a, std::size_t k, std::vector<float>& scratch);
 
+/// local_floor_median(a, k) of every bin at once: out[0] = 0 (DC has no floor), out[k] for 1 <= k <
+/// a.size() the same value local_floor_median() returns (compared with ==; for a NaN in a, the per-bin
+/// function is called for every bin). One sorted window of at most 65 values slides over a, one
+/// removal and one insertion per bin, instead of one std::nth_element per bin (about 30x less at
+/// N/2 = 6400 bins). Thread: any. Allocates (setup and training, never per window).
+[[nodiscard]] std::vector<float> local_floor_medians(std::span<const float> a);
+
 /// Fills every class's line_groups from its mean_magnitude when baseline.policy.ptda_line_gain is
 /// set, and clears them otherwise; and every class's tda_spectrum = DFT(tda_mean) (left empty when
 /// the length is not a RealFft length). Called by training and by the baseline reader. Thread: any.
