@@ -403,18 +403,10 @@ double mean_alarm_rate(const ProbeSet& p) {
 
 double excess_peak_hz(const ProbeSet& r, const ProbeSet& m, SegmentType type, double offset_db) {
   double best = -1e300, f = 1000.0;
-  std::map<std::string, double> sim_floor;
-  for (const ProbeElement& e : m.elements) {
-    if (e.probe == "noise_floor" && e.segment == type) sim_floor[e.key] = e.value;
-  }
-  for (const ProbeElement& e : r.elements) {
-    if (e.probe != "noise_floor" || e.segment != type) continue;
-    auto it = sim_floor.find(e.key);
-    if (it == sim_floor.end()) continue;
-    const double d = e.value - it->second - offset_db;
+  for (const auto& [centre_hz, d] : floor_excess_db(r, m, type, offset_db)) {
     if (d > best) {
       best = d;
-      f = std::sqrt(e.f_lo_hz * e.f_hi_hz);
+      f = centre_hz;
     }
   }
   return f;

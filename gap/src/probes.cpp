@@ -925,19 +925,26 @@ GapBreakdown compare_probes(const ProbeSet& real, const ProbeSet& sim, const Ele
   return g;
 }
 
-std::vector<double> more_excess_peaks_hz(const ProbeSet& r, const ProbeSet& m, SegmentType type,
-                                         double offset_db, double min_db, std::size_t max_peaks) {
+std::vector<std::pair<double, double>> floor_excess_db(const ProbeSet& r, const ProbeSet& m, SegmentType type,
+                                                       double offset_db) {
   std::map<std::string, double> sim_floor;
   for (const ProbeElement& e : m.elements) {
     if (e.probe == "noise_floor" && e.segment == type) sim_floor[e.key] = e.value;
   }
-  std::vector<std::pair<double, double>> bands;  // (centre Hz, excess dB)
+  std::vector<std::pair<double, double>> bands;
   for (const ProbeElement& e : r.elements) {
     if (e.probe != "noise_floor" || e.segment != type) continue;
     auto it = sim_floor.find(e.key);
-    if (it == sim_floor.end() || e.f_lo_hz <= 0.0) continue;
+    if (it == sim_floor.end()) continue;
     bands.emplace_back(std::sqrt(e.f_lo_hz * e.f_hi_hz), e.value - it->second - offset_db);
   }
+  return bands;
+}
+
+std::vector<double> more_excess_peaks_hz(const ProbeSet& r, const ProbeSet& m, SegmentType type,
+                                         double offset_db, double min_db, std::size_t max_peaks) {
+  std::vector<std::pair<double, double>> bands = floor_excess_db(r, m, type, offset_db);  // (centre Hz, dB)
+  std::erase_if(bands, [](const auto& b) { return !(b.first > 0.0); });
   std::sort(bands.begin(), bands.end());
   std::vector<std::pair<double, double>> maxima;  // (excess, centre)
   for (std::size_t i = 0; i < bands.size(); ++i) {

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ptda/gap/signals.hpp"
@@ -137,6 +138,12 @@ using ElementVariance = std::map<std::string, double>;
 [[nodiscard]] ElementVariance jackknife_variance(const GapRecording& rec, const std::vector<Segment>& segs,
                                                  const std::vector<Window>& windows, std::uint32_t cycles,
                                                  const ProbeContext& ctx);
+
+/// Per noise_floor band of segment type `type` present in both sets, in the measured set's order: (band
+/// centre Hz, measured − model − offset_db dB). Any thread; allocates.
+[[nodiscard]] std::vector<std::pair<double, double>> floor_excess_db(const ProbeSet& real,
+                                                                     const ProbeSet& sim, SegmentType type,
+                                                                     double offset_db);
 
 /// Floor-excess peaks after the largest: the local maxima over frequency of the measured − model − offset
 /// noise_floor band levels (dB) of segment type `type`, by excess descending; only maxima at least
