@@ -43,6 +43,14 @@ constexpr double kMinFloorPeakDb = 3.0;
 /// A line present in fewer of the fit part's frames is not steady pickup (`line_presence`; chosen
 /// a priori: pickup from the mains or a drive is on in every frame, up to the noise).
 constexpr double kSteadyLineShare = 0.85;
+/// The interference's drive form is tried when the highest excess line is at least this high and this
+/// many times the lowest (a switching carrier of kHz beside mains lines of 50/60 Hz and harmonics).
+constexpr double kDriveMinHz = 1000.0;
+constexpr double kDriveMinRatio = 8.0;
+/// The knock spectrum's fine excess peak (a resonance start for `impacts`): above the transient
+/// probe's lowest octave (500 Hz), and at least 3 dB (twice the model's power) to count.
+constexpr double kKnockMinHz = 500.0;
+constexpr double kKnockMinExcessDb = 3.0;
 /// Highest harmonic of a guessed line that is looked for.
 constexpr int kMaxGuessHarmonic = 9;
 
@@ -321,6 +329,7 @@ std::vector<std::string> effect_bands(const EffectSpec& e, double fs_hz) {
   } else if (e.kind == EffectKind::kElectricalInterference) {
     const int n = std::clamp(static_cast<int>(std::lround(e.get("harmonics"))), 1, 8);
     for (int k = 1; k <= n; ++k) f.push_back(k * e.get("frequency_hz"));
+    if (e.get("pwm_ms2") > 0.0) f.push_back(e.get("pwm_hz"));
   } else if (e.kind == EffectKind::kOtherAxis && e.get("own_frequency_hz") > 0.0) {
     // Another axis on its own program: a line (and its 2nd harmonic) at a place, like pickup.
     f.push_back(e.get("own_frequency_hz"));
@@ -367,7 +376,8 @@ struct Guesses {
   std::vector<double> more_floor_peaks_const_hz;
   double floor_peak_accel_hz = 1000.0;
   double energy_peak_accel_hz = 1000.0;  ///< first resonance tried for knocks (transient octave excess)
-  double line_still_hz = 50.0;           ///< strongest excess line where the mesh is silent (or off-order)
+  double knock_peak_hz = 0.0;   ///< the knock spectrum's excess peak at bin resolution (0: none); also tried
+  double line_still_hz = 50.0;  ///< strongest excess line where the mesh is silent (or off-order)
   /// Further excess lines there, strongest first, none within 2 % of a whole multiple of a stronger one
   /// (a drive's PWM carrier beside the mains: one interference candidate per line, issue 11).
   std::vector<double> more_lines_still_hz;
@@ -392,6 +402,13 @@ struct Guesses {
   /// and goes, `line_presence`), moving `own_axis_duty` of the time; 0: the lagged form.
   double own_axis_hz = 0.0;
   double own_axis_duty = 1.0;
+  /// The interference's second form (mains lines and a drive's switching carrier, one source): the
+  /// carrier and its sideband spacing found near the highest excess line, and which line guesses
+  /// (0: line_still_hz, i: more_lines_still_hz[i - 1]) are the mains and the drive line. Carrier 0: none.
+  double drive_carrier_hz = 0.0;
+  double drive_side_hz = 0.0;
+  int drive_mains_line = -1;
+  int drive_line = -1;
 };
 
 double mean_alarm_rate(const ProbeSet& p) {
@@ -510,6 +527,7 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
       }
     }
   }
+  q.knock_peak_hz = transient_excess_peak_hz(r, m, kKnockMinHz, kKnockMinExcessDb);
   const double fs = plan.fs_hz;
   // Lines: standstill if there is any (the mesh is silent), else acceleration, else class 0 off-order.
   std::vector<std::pair<double, double>> excl_const;
@@ -562,6 +580,22 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
           line_harmonics(pr, pm, df, q.line_still_hz, kLineGuessMinExcessDb);
       for (double f : q.more_lines_still_hz)
         q.more_line_harmonics.push_back(line_harmonics(pr, pm, df, f, kLineGuessMinExcessDb));
+      // A drive's carrier beside the mains: the lowest and the highest line, far apart (gen2-1024: 60 Hz
+      // mains and a 4 kHz carrier, whose sidebands were the excess lines; the carrier itself sits within
+      // 2 Hz of GMF order 26 and was left out as a possible mesh order).
+      std::vector<double> all{q.line_still_hz};
+      all.insert(all.end(), q.more_lines_still_hz.begin(), q.more_lines_still_hz.end());
+      const auto lo_it = std::min_element(all.begin(), all.end());
+      const auto hi_it = std::max_element(all.begin(), all.end());
+      if (all.size() >= 2 && *hi_it >= kDriveMinHz && *hi_it >= kDriveMinRatio * *lo_it) {
+        const DriveCarrier c = drive_carrier(pr, pm, df, *hi_it, kLineGuessMinExcessDb);
+        if (c.carrier_hz > 0.0) {
+          q.drive_carrier_hz = c.carrier_hz;
+          q.drive_side_hz = c.side_hz;
+          q.drive_mains_line = static_cast<int>(lo_it - all.begin());
+          q.drive_line = static_cast<int>(hi_it - all.begin());
+        }
+      }
     }
   }
   if (r.class_power.count(0) && m.class_power.count(0) && gmf0 > 0.0) {
@@ -670,6 +704,7 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       // Knocks are short: their band is not reliably the largest excess, so the screen also tries a
       // log grid of resonances.
       std::vector<double> res{std::clamp(q.energy_peak_accel_hz, 20.0, top)};
+      if (q.knock_peak_hz > 0.0) res.push_back(std::clamp(q.knock_peak_hz, 20.0, top));
       for (double f = 600.0; f < top; f *= 1.6) res.push_back(f);
       if (!q.has_reversals) {
         // No torque reversal to knock at: only Poisson knocks (rate_hz) can reproduce transients.
@@ -695,6 +730,21 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       std::vector<double> fr{f};
       if (q.line_subharmonics && f / 2 >= 1.0) fr.push_back(f / 2);
       if (q.line_subharmonics && f / 3 >= 1.0) fr.push_back(f / 3);
+      if (q.drive_carrier_hz > 0.0) {
+        // Mains and drive carrier: both places are measured, so the two strengths come first (jointly),
+        // then the mains' harmonics, then the carrier's sidebands.
+        std::vector<FitStage> st{{"amplitude_ms2", beyond({0.02, 0.05, 0.1, 0.2, 0.5, 1, 2}, {0.25, 0.5}),
+                                  false, "pwm_ms2", beyond({0.02, 0.05, 0.1, 0.2, 0.5, 1}, {0.25})}};
+        if (fr.size() > 1) st.push_back({"frequency_hz", fr});
+        st.push_back({"harmonics", {1, 2, 3, 5, 8}, false, "odd_only", {0, 1}});
+        st.push_back({"harmonic_decay", {0.3, 0.5, 0.7, 0.9}});
+        std::vector<double> side{0.0};
+        if (q.drive_side_hz > 0.0) side.push_back(q.drive_side_hz);
+        st.push_back({"pwm_side_hz", side, false, "pwm_side_rel", {0.25, 0.5, 1.0}});
+        st.push_back({"amplitude_ms2", {0.8, 1.0, 1.25}, true});
+        st.push_back({"pwm_ms2", {0.8, 1.0, 1.25}, true});
+        return st;
+      }
       // Where and how strong jointly: at the default strength a weak line at the right frequency scored
       // worse than an invisible one at f / 3, and the strength was then searched at the wrong place.
       return {{"frequency_hz", fr, false, "amplitude_ms2",
@@ -765,7 +815,11 @@ std::string more_lines_text(const Guesses& q) {
   std::string t;
   for (std::size_t i = 0; i < q.more_lines_still_hz.size(); ++i)
     t += (i == 0 ? ", then " : ", ") + fmt("%.2f", q.more_lines_still_hz[i]);
-  return t.empty() ? t : t + " Hz";
+  if (!t.empty()) t += " Hz";
+  if (q.drive_carrier_hz > 0.0)
+    t += " (drive carrier " + fmt("%.1f", q.drive_carrier_hz) + " Hz, sidebands +- " +
+         fmt("%.1f", q.drive_side_hz) + " Hz)";
+  return t;
 }
 
 /// Initial parameters: defaults with the data-driven guesses.
@@ -786,6 +840,12 @@ EffectSpec initial_effect(EffectKind k, const Guesses& q) {
       e.set("harmonics", static_cast<double>(q.line_still_harmonics));
       e.set("odd_only", q.line_still_odd ? 1.0 : 0.0);
       e.set("harmonic_decay", q.line_still_harmonics > 1 ? 0.7 : 0.5);
+      if (q.drive_carrier_hz > 0.0) {
+        e.set("pwm_hz", q.drive_carrier_hz);
+        e.set("pwm_ms2", 0.1);
+        e.set("pwm_side_hz", q.drive_side_hz);
+        e.set("pwm_side_rel", 0.5);
+      }
       break;
     case EffectKind::kMeshModulation:
       e.set("rate_order", q.sideband_order);
@@ -843,7 +903,11 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
                              : "knocks at torque reversals, ") +
              "ringing at " + fmt("%.0f", e.get("resonance_hz")) + " Hz";
     case EffectKind::kElectricalInterference:
-      return "lines at " + fmt("%.2f", e.get("frequency_hz")) + " Hz and harmonics";
+      return "lines at " + fmt("%.2f", e.get("frequency_hz")) + " Hz and harmonics" +
+             (e.get("pwm_ms2") > 0.0
+                  ? ", drive carrier at " + fmt("%.0f", e.get("pwm_hz")) + " Hz" +
+                        (e.get("pwm_side_hz") > 0.0 ? " +- " + fmt("%.0f", e.get("pwm_side_hz")) + " Hz" : "")
+                  : std::string());
     case EffectKind::kAdcClipping:
       return "clipping at +-" + fmt("%.3g", e.get("level_ms2")) + " m/s^2";
     case EffectKind::kSampleClockError:
@@ -1210,11 +1274,11 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       more_peaks += (more_peaks.empty() ? " (then " : ", ") + fmt("%.0f", f);
     if (!more_peaks.empty()) more_peaks += ")";
     log("round " + std::to_string(round + 1) + " guesses: floor peak " + fmt("%.0f", q.floor_peak_const_hz) +
-        more_peaks + " Hz, accel energy peak " + fmt("%.0f", q.energy_peak_accel_hz) + " Hz, line " +
-        fmt("%.2f", q.line_still_hz) + " Hz" + more_lines_text(q) + ", other-mesh ratio " +
-        fmt("%.3f", q.line_const_ratio) + ", sidebands " + fmt("%.2f", q.sideband_order) + " orders, " +
-        fmt("%.0f", q.ppm) + " ppm, lag " + fmt("%.1f", q.lag_s * 1e3) + " ms, direction " +
-        fmt("%.2f", q.direction_gain));
+        more_peaks + " Hz, accel energy peak " + fmt("%.0f", q.energy_peak_accel_hz) +
+        " Hz (knock spectrum " + fmt("%.0f", q.knock_peak_hz) + " Hz), line " + fmt("%.2f", q.line_still_hz) +
+        " Hz" + more_lines_text(q) + ", other-mesh ratio " + fmt("%.3f", q.line_const_ratio) +
+        ", sidebands " + fmt("%.2f", q.sideband_order) + " orders, " + fmt("%.0f", q.ppm) + " ppm, lag " +
+        fmt("%.1f", q.lag_s * 1e3) + " ms, direction " + fmt("%.2f", q.direction_gain));
     struct Work {
       EffectSpec e;
       Guesses q;  ///< the round's guesses; an interference candidate's own line (one per excess line)
@@ -1304,6 +1368,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       Work w;
       w.q = q;
       w.q.more_lines_still_hz.clear();
+      w.q.drive_carrier_hz = 0.0;  // the one-line form; the drive form is its own candidate below
       w.e = initial_effect(k, w.q);
       clamp_params(w.e);
       w.fit_gap = std::numeric_limits<double>::infinity();
@@ -1344,6 +1409,26 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
           wl.e = initial_effect(k, wl.q);
           clamp_params(wl.e);
           work.push_back(wl);
+        }
+        // The second form: the lowest line as mains (with its harmonics) and a drive's carrier near the
+        // highest, both steady, in one candidate (gen2's pickup has both parts; fitted one line at a time,
+        // the carrier's sideband was named first and the mains second: not where the source is).
+        const int mi = q.drive_mains_line, di = q.drive_line;
+        if (q.drive_carrier_hz > 0.0 && mi >= 0 && di >= 0 && !intermittent(static_cast<std::size_t>(mi)) &&
+            !intermittent(static_cast<std::size_t>(di))) {
+          Work wd = w;
+          wd.q.drive_carrier_hz = q.drive_carrier_hz;
+          wd.q.drive_side_hz = q.drive_side_hz;
+          if (mi > 0) {
+            wd.q.line_still_hz = q.more_lines_still_hz[static_cast<std::size_t>(mi - 1)];
+            wd.q.line_subharmonics = false;
+            if (static_cast<std::size_t>(mi - 1) < q.more_line_harmonics.size())
+              std::tie(wd.q.line_still_harmonics, wd.q.line_still_odd) =
+                  q.more_line_harmonics[static_cast<std::size_t>(mi - 1)];
+          }
+          wd.e = initial_effect(k, wd.q);
+          clamp_params(wd.e);
+          work.push_back(wd);
         }
       }
     }

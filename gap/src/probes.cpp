@@ -25,7 +25,6 @@ constexpr double kScaleSidebandDb = 2.0;
 constexpr double kScaleCoherenceDb = 1.0;
 constexpr double kScalePhaseCoherence = 0.05;
 constexpr int kLocalProbeNorm = 4;
-constexpr std::size_t kTransientLen = 512;
 constexpr int kHarmonicProbeNorm = 12;
 constexpr double kScaleFloorDb = 1.0;
 constexpr double kScaleLineDb = 3.0;
@@ -520,6 +519,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
       ++count;
     }
     if (count > 0) {
+      ps.transient_power = tpow;
+      for (double& v : ps.transient_power) v /= static_cast<double>(count);
       add(ps, "transients", "diff_crest_db", dcrest_sum / static_cast<double>(count), kScaleCrestDb, 0, 0,
           SegmentType::kAccel, Stage::kRaw);
       add(ps, "transients", "diff_log_kurtosis", dlk_sum / static_cast<double>(count), kScaleLogKurtosis, 0,
@@ -755,6 +756,7 @@ ProbeSet average_probes(const ProbeSet& a, const ProbeSet& b) {
   for (const auto& [c, p] : b.class_power) out.class_power.emplace(c, p);
   out.accel_power = mean_vec(a.accel_power, b.accel_power);
   out.still_power = mean_vec(a.still_power, b.still_power);
+  out.transient_power = mean_vec(a.transient_power, b.transient_power);
   out.max_abs_ms2 = std::max(a.max_abs_ms2, b.max_abs_ms2);
   out.lag_s = std::isfinite(a.lag_s) && std::isfinite(b.lag_s) ? 0.5 * (a.lag_s + b.lag_s)
               : std::isfinite(a.lag_s)                         ? a.lag_s
@@ -961,6 +963,72 @@ std::vector<double> more_excess_peaks_hz(const ProbeSet& r, const ProbeSet& m, S
     taken.push_back(f);
     if (taken.size() > 1) out.push_back(f);  // the first is excess_peak_hz's
     if (out.size() >= max_peaks) break;
+  }
+  return out;
+}
+
+double transient_excess_peak_hz(const ProbeSet& real, const ProbeSet& sim, double min_hz, double min_db) {
+  const std::vector<double>& pr = real.transient_power;
+  const std::vector<double>& pm = sim.transient_power;
+  if (pr.size() != pm.size() || pr.size() < 8 || !(real.fs_hz > 0.0)) return 0.0;
+  const double df = real.fs_hz / static_cast<double>(kTransientLen);
+  const auto lo = static_cast<std::size_t>(std::max(2.0, std::ceil(min_hz / df)));
+  const std::size_t hi = std::min(pr.size() - 3, static_cast<std::size_t>(0.45 * real.fs_hz / df));
+  double best = -1e300, f = 0.0;
+  for (std::size_t k = lo; k <= hi; ++k) {
+    double r = 0.0, m = 0.0;
+    for (std::size_t j = k - 2; j <= k + 2; ++j) {
+      r += pr[j];
+      m += pm[j];
+    }
+    if (!(r > 0.0 && m > 0.0)) continue;
+    const double e = db(r) - db(m);
+    if (e > best) {
+      best = e;
+      f = static_cast<double>(k) * df;
+    }
+  }
+  return best >= min_db ? f : 0.0;
+}
+
+DriveCarrier drive_carrier(const std::vector<double>& real_power, const std::vector<double>& model_power,
+                           double df_hz, double near_hz, double min_excess_db) {
+  DriveCarrier out;
+  const std::size_t n = std::min(real_power.size(), model_power.size());
+  if (n < 5 || !(df_hz > 0.0) || !(near_hz > 0.0)) return out;
+  const auto lo = static_cast<std::size_t>(std::max(2.0, std::floor((near_hz - kDriveSearchHz) / df_hz)));
+  const auto hi = std::min(n - 2, static_cast<std::size_t>(std::ceil((near_hz + kDriveSearchHz) / df_hz)));
+  struct Peak {
+    double hz, excess_db;
+  };
+  std::vector<Peak> peaks;
+  for (std::size_t k = lo; k <= hi; ++k) {
+    const double p = real_power[k];
+    if (!(p >= real_power[k - 1] && p >= real_power[k + 1] && p > 0.0 && model_power[k] > 0.0)) continue;
+    const double excess = db(p) - db(model_power[k]);
+    if (excess < min_excess_db) continue;
+    double f = static_cast<double>(k) * df_hz;
+    const double a = db(real_power[k - 1]), b = db(p), c = db(real_power[k + 1]);
+    const double den = a - 2 * b + c;
+    if (den < 0) f += 0.5 * (a - c) / den * df_hz;
+    peaks.push_back({f, excess});
+  }
+  if (peaks.empty()) return out;
+  const Peak carrier = *std::max_element(
+      peaks.begin(), peaks.end(), [](const Peak& x, const Peak& y) { return x.excess_db < y.excess_db; });
+  out.carrier_hz = carrier.hz;
+  double best = -1e300;
+  for (const Peak& p : peaks) {
+    const double d = p.hz - carrier.hz;
+    if (d < 2.0 * df_hz) continue;  // each pair once, from its upper member
+    const double tol = std::max(2.0 * df_hz, 0.02 * d);
+    for (const Peak& m : peaks) {
+      if (std::fabs(m.hz - (carrier.hz - d)) > tol) continue;
+      if (p.excess_db + m.excess_db > best) {
+        best = p.excess_db + m.excess_db;
+        out.side_hz = 0.5 * (p.hz - m.hz);
+      }
+    }
   }
   return out;
 }

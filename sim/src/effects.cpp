@@ -9,6 +9,9 @@
 namespace ptda::sim {
 namespace {
 
+/// electrical_interference: the parameters of its mains (one-source) form come first.
+constexpr std::size_t kElectricalMainsParams = 5;
+
 constexpr std::array<EffectParamInfo, 3> kTransferPath{{
     {"frequency_hz", 3000.0, 20.0, 100000.0, "resonance centre frequency (below fs/2)"},
     {"gain_db", 12.0, 0.0, 40.0, "peak gain at the centre"},
@@ -29,7 +32,7 @@ constexpr std::array<EffectParamInfo, 4> kImpacts{{
     {"damping_ratio", 0.05, 0.005, 0.5, "damping of that resonance"},
     {"rate_hz", 0.0, 0.0, 100.0, "extra random knocks per second (Poisson), besides the reversals"},
 }};
-constexpr std::array<EffectParamInfo, 5> kElectrical{{
+constexpr std::array<EffectParamInfo, 9> kElectrical{{
     {"frequency_hz", 50.0, 1.0, 100000.0, "fundamental (mains, drive switching)"},
     {"amplitude_ms2", 0.3, 0.0, 100.0, "amplitude of the fundamental"},
     {"harmonics", 3.0, 1.0, 50.0, "number of harmonics including the fundamental (rounded)"},
@@ -37,6 +40,12 @@ constexpr std::array<EffectParamInfo, 5> kElectrical{{
     {"odd_only", 0.0, 0.0, 1.0,
      "1: only odd harmonics (1, 3, 5, ...: mains pickup through a symmetric non-linearity); 0: all "
      "(rounded)"},
+    // The second form (issue 11): a servo drive's switching carrier beside the mains lines, one source of
+    // pickup with two parts. Off while pwm_ms2 = 0, so the one-line form is unchanged.
+    {"pwm_hz", 0.0, 0.0, 100000.0, "drive switching carrier (0: none)"},
+    {"pwm_ms2", 0.0, 0.0, 100.0, "amplitude of the carrier (0: the mains form alone)"},
+    {"pwm_side_hz", 0.0, 0.0, 5000.0, "sidebands at pwm_hz +- this (0: none)"},
+    {"pwm_side_rel", 0.5, 0.0, 2.0, "amplitude of each sideband / the carrier's"},
 }};
 constexpr std::array<EffectParamInfo, 1> kAdcClipping{{
     {"level_ms2", 5.0, 0.001, 1.0e5, "the acquisition saturates at +-level"},
@@ -139,7 +148,12 @@ void EffectSpec::set(std::string_view name, double value) {
 std::string describe(const EffectSpec& e) {
   const EffectInfo& info = effect_info(e.kind);
   std::string s = std::string(info.name) + "(";
-  for (std::size_t i = 0; i < info.params.size() && i < e.params.size(); ++i) {
+  std::size_t n = info.params.size();
+  // The interference's drive-carrier parameters only when that form is on: the one-line form reads as
+  // it always did.
+  if (e.kind == EffectKind::kElectricalInterference && e.params.size() == n && e.get("pwm_ms2") <= 0.0)
+    n = kElectricalMainsParams;
+  for (std::size_t i = 0; i < n && i < e.params.size(); ++i) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%s%s=%.4g", i == 0 ? "" : ", ", info.params[i].name, e.params[i]);
     s += buf;

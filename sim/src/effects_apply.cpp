@@ -222,6 +222,19 @@ SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uin
           if (f >= fs / 2.0 || amp <= 0.0) continue;
           st.tones.push_back({amp, kTwoPi * f / fs, phase});
         }
+        // The drive's carrier and its two sidebands (phases drawn after the mains lines', so a scenario
+        // without the carrier simulates as before).
+        const double pwm_amp = e.get("pwm_ms2"), pwm_hz = e.get("pwm_hz");
+        if (pwm_amp > 0.0 && pwm_hz > 0.0) {
+          const double side = e.get("pwm_side_hz"), side_amp = pwm_amp * e.get("pwm_side_rel");
+          const double lines[3][2] = {
+              {pwm_hz, pwm_amp}, {pwm_hz - side, side_amp}, {pwm_hz + side, side_amp}};
+          for (std::size_t j = 0; j < (side > 0.0 ? 3U : 1U); ++j) {
+            const double phase = kTwoPi * st.rng.uniform();
+            if (lines[j][0] <= 0.0 || lines[j][0] >= fs / 2.0 || lines[j][1] <= 0.0) continue;
+            st.tones.push_back({lines[j][1], kTwoPi * lines[j][0] / fs, phase});
+          }
+        }
         break;
       }
       case EffectKind::kAdcClipping:

@@ -552,6 +552,11 @@ void parse_effect(Reader& r, EffectSpec& e, const Scenario& s) {
     require(e.get("resonance_hz") < nyquist, r, "resonance_hz", "must be below fs_hz / 2");
   } else if (*k == EffectKind::kElectricalInterference) {
     require(e.get("frequency_hz") < nyquist, r, "frequency_hz", "must be below fs_hz / 2");
+    if (e.get("pwm_ms2") > 0.0) {
+      require(e.get("pwm_hz") > 0.0 && e.get("pwm_hz") < nyquist, r, "pwm_hz",
+              "must be in (0, fs_hz / 2) when pwm_ms2 > 0");
+      require(e.get("pwm_side_hz") < e.get("pwm_hz"), r, "pwm_side_hz", "must be below pwm_hz");
+    }
   } else if (*k == EffectKind::kSpeedLatency) {
     require(e.get("jitter_s") + s.can.jitter_s < s.can.period_s, r, "jitter_s",
             "plus [can] jitter_s must stay below [can] period_s (frames of one sender keep their order)");

@@ -113,6 +113,68 @@ TEST(FloorExcessPeaks, FurtherMaximaAnOctaveApartByExcessAfterTheLargest) {
   EXPECT_TRUE(more_excess_peaks_hz(real, model, SegmentType::kAccel, 0.0, 3.0, 5).empty());
 }
 
+// A power spectrum at 2 Hz per bin: a flat model floor of 1, measured lines as three-bin peaks.
+struct LineSpectrum {
+  std::vector<double> real = std::vector<double>(4000, 1.0), model = std::vector<double>(4000, 1.0);
+  void line(double f_hz, double level_db) {
+    const auto k = static_cast<std::size_t>(std::lround(f_hz / 2.0));
+    real[k] = std::pow(10.0, level_db / 10.0);
+    real[k - 1] = real[k + 1] = std::pow(10.0, (level_db - 6.0) / 10.0);
+  }
+};
+
+TEST(DriveCarrier, CarrierAndSidebandSpacingFoundFromASideband) {
+  LineSpectrum sp;
+  sp.line(4000.0, 30.0);  // the carrier
+  sp.line(3894.0, 24.0);  // its sidebands, 106 Hz apart
+  sp.line(4106.0, 24.0);
+  sp.line(4300.0, 20.0);  // a line without a mirror
+  sp.line(5000.0, 40.0);  // beyond the search span of 4106 +- 600 Hz
+  const DriveCarrier c = drive_carrier(sp.real, sp.model, 2.0, 4106.0, 10.0);
+  EXPECT_NEAR(c.carrier_hz, 4000.0, 1e-9);
+  EXPECT_NEAR(c.side_hz, 106.0, 1e-9);
+  // Below min_excess_db nothing counts: the sidebands (24 dB) drop out, the carrier stays.
+  const DriveCarrier strong = drive_carrier(sp.real, sp.model, 2.0, 4106.0, 25.0);
+  EXPECT_NEAR(strong.carrier_hz, 4000.0, 1e-9);
+  EXPECT_EQ(strong.side_hz, 0.0);
+  EXPECT_EQ(drive_carrier(sp.real, sp.model, 2.0, 4106.0, 45.0).carrier_hz, 0.0);
+  // The search is local: from 5000 Hz the 5000 Hz line is the carrier (4400-5600 Hz holds nothing else).
+  const DriveCarrier far = drive_carrier(sp.real, sp.model, 2.0, 5000.0, 10.0);
+  EXPECT_NEAR(far.carrier_hz, 5000.0, 1e-9);
+  EXPECT_EQ(far.side_hz, 0.0);
+  // An off-bin line is refined by the parabola through its bins (neighbours 24 and 20 dB against 30 dB):
+  // 0.5 (a - c) / (a - 2b + c) = -1/8 bin, toward the stronger neighbour.
+  LineSpectrum off;
+  off.line(3000.0, 30.0);
+  off.real[1501] = std::pow(10.0, 2.0);  // 20 dB above, 24 dB below
+  const double a = 24.0, b = 30.0, cc = 20.0;
+  EXPECT_NEAR(drive_carrier(off.real, off.model, 2.0, 3000.0, 10.0).carrier_hz,
+              3000.0 + 0.5 * (a - cc) / (a - 2 * b + cc) * 2.0, 1e-9);
+}
+
+TEST(TransientExcessPeak, AWideRingBeatsANarrowLineAtBinResolution) {
+  // fs 20480 Hz: bins 40 Hz apart. Model flat at 1. Measured: a ring over bins 44-50 (1760-2000 Hz,
+  // 4, 6, 9, 12, 9, 6, 4 x the model: its 5-bin mean peaks at bin 47 = 1880 Hz, 42 / 5 = 8.4x, 9.2 dB),
+  // a single-bin line 20x at bin 100 (4000 Hz), and a 50x ring at bins 5-9 (200-360 Hz), below min_hz.
+  ProbeSet real, model;
+  real.fs_hz = model.fs_hz = 20480.0;
+  model.transient_power.assign(kTransientLen / 2 + 1, 1.0);
+  real.transient_power = model.transient_power;
+  const double ring[] = {4, 6, 9, 12, 9, 6, 4};
+  for (std::size_t k = 0; k < 7; ++k) real.transient_power[44 + k] = ring[k];
+  real.transient_power[100] = 20.0;  // 5-bin mean (20 + 4) / 5 = 4.8: 6.8 dB, below the ring's 9.2
+  for (std::size_t k = 5; k <= 9; ++k) real.transient_power[k] = 50.0;
+  EXPECT_NEAR(transient_excess_peak_hz(real, model, 500.0, 3.0), 47 * 40.0, 1e-9);
+  // Nothing at or above 500 Hz reaches 10 dB.
+  EXPECT_EQ(transient_excess_peak_hz(real, model, 500.0, 10.0), 0.0);
+  // From 100 Hz the low ring is the peak (bin 7, the middle of five 50x bins).
+  EXPECT_NEAR(transient_excess_peak_hz(real, model, 100.0, 3.0), 7 * 40.0, 1e-9);
+  // A set without a knock spectrum, or of another length, gives none.
+  ProbeSet empty;
+  empty.fs_hz = 20480.0;
+  EXPECT_EQ(transient_excess_peak_hz(real, empty, 500.0, 3.0), 0.0);
+}
+
 TEST(Segmentation, FindsCyclesAndBothPlateaus) {
   const Measured m = measure(job(5), 11);
   EXPECT_EQ(m.plan.cycles, 5U);

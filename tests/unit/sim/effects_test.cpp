@@ -220,6 +220,80 @@ TEST(Effects, ElectricalInterferenceOddHarmonicsOnly) {
     EXPECT_LT(tone_amplitude(sig.vibration.accel_ms2, 8000, f, 0, n), 1e-6) << f << " Hz";
 }
 
+// The second form: a drive's switching carrier with two sidebands beside the mains lines, one source.
+TEST(Effects, ElectricalInterferenceDriveCarrierWithSidebands) {
+  Scenario s = rig();
+  s.vibration.gmf_amplitudes.clear();
+  s = with(s, EffectKind::kElectricalInterference,
+           {{"frequency_hz", 50.0},
+            {"amplitude_ms2", 0.3},
+            {"harmonics", 1.0},
+            {"pwm_hz", 3000.0},
+            {"pwm_ms2", 0.2},
+            {"pwm_side_hz", 120.0},
+            {"pwm_side_rel", 0.25}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  const auto n = static_cast<std::size_t>(s.sensor.fs_hz);
+  const std::vector<double>& x = sig.vibration.accel_ms2;
+  EXPECT_NEAR(tone_amplitude(x, 8000, 50, 0, n), 0.3, 1e-6);
+  EXPECT_NEAR(tone_amplitude(x, 8000, 3000, 0, n), 0.2, 1e-6);
+  EXPECT_NEAR(tone_amplitude(x, 8000, 2880, 0, n), 0.05, 1e-6);
+  EXPECT_NEAR(tone_amplitude(x, 8000, 3120, 0, n), 0.05, 1e-6);
+  for (double f : {100.0, 2760.0, 3240.0, 6000.0}) EXPECT_LT(tone_amplitude(x, 8000, f, 0, n), 1e-6) << f;
+  // No sidebands with a spacing of 0: the carrier alone.
+  s.effects[0].set("pwm_side_hz", 0.0);
+  const SimulatedSignals one = simulate_signals(s, 1);
+  EXPECT_NEAR(tone_amplitude(one.vibration.accel_ms2, 8000, 3000, 0, n), 0.2, 1e-6);
+  EXPECT_LT(tone_amplitude(one.vibration.accel_ms2, 8000, 2880, 0, n), 1e-6);
+}
+
+// With pwm_ms2 = 0 (the default) the mains form simulates sample for sample as before the drive form
+// existed (the carrier's phases are drawn after the mains lines'), and describes itself as before.
+TEST(Effects, ElectricalInterferenceWithoutCarrierIsTheMainsFormUnchanged) {
+  Scenario s = rig();
+  s.vibration.noise_rms = 0.2;
+  s = with(s, EffectKind::kElectricalInterference, {{"frequency_hz", 60.0}, {"amplitude_ms2", 0.3}});
+  Scenario carrier_off = s;
+  carrier_off.effects[0].set("pwm_hz", 2500.0);  // a frequency without strength adds nothing
+  const SimulatedSignals a = simulate_signals(s, 7), b = simulate_signals(carrier_off, 7);
+  ASSERT_EQ(a.vibration.accel_ms2.size(), b.vibration.accel_ms2.size());
+  EXPECT_EQ(a.vibration.accel_ms2, b.vibration.accel_ms2);
+  EXPECT_EQ(describe(s.effects[0]),
+            "electrical_interference(frequency_hz=60, amplitude_ms2=0.3, harmonics=3, harmonic_decay=0.5, "
+            "odd_only=0)");
+  s.effects[0].set("pwm_ms2", 0.1);
+  EXPECT_NE(describe(s.effects[0]).find("pwm_ms2=0.1"), std::string::npos) << describe(s.effects[0]);
+}
+
+TEST(EffectsScenario, DriveCarrierMustLieBelowNyquistAndAboveItsSidebands) {
+  const std::string head = R"([motion]
+via_points_rad = [0.0, 1.0]
+max_speed_rad_s = 1.0
+[sensor]
+fs_hz = 8000.0
+[[effects]]
+kind = "electrical_interference"
+pwm_ms2 = 0.1
+)";
+  auto error_of = [](const std::string& text) {
+    try {
+      (void)parse_scenario(text, "drive.toml");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error_of(head + "pwm_hz = 4000.0\n").find("pwm_hz"), std::string::npos);
+  EXPECT_NE(error_of(head + "pwm_hz = 0.0\n").find("pwm_hz"), std::string::npos);
+  EXPECT_NE(error_of(head + "pwm_hz = 3000.0\npwm_side_hz = 3000.0\n").find("pwm_side_hz"),
+            std::string::npos);
+  EXPECT_EQ(error_of(head + "pwm_hz = 3000.0\npwm_side_hz = 150.0\n"), "");
+  // Without strength the carrier's frequency is not checked (the mains form's default pwm_hz is 0).
+  EXPECT_EQ(error_of("[motion]\nvia_points_rad = [0.0, 1.0]\nmax_speed_rad_s = 1.0\n[[effects]]\n"
+                     "kind = \"electrical_interference\"\n"),
+            "");
+}
+
 TEST(Effects, OtherAxisAddsAnOffOrderMesh) {
   const Scenario s = with(rig(), EffectKind::kOtherAxis,
                           {{"amplitude_ms2", 0.4}, {"frequency_ratio", 1.25}, {"lag_s", 0.0}});

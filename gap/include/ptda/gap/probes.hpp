@@ -37,6 +37,9 @@ struct ClassReference {
   double rms_std = 0.0;
 };
 
+/// Samples of the spectrum taken around each segment boundary's knock (the `transients` probe).
+inline constexpr std::size_t kTransientLen = 512;
+
 struct ProbeSet {
   std::vector<ProbeElement> elements;
   std::vector<ClassReference> classes;  ///< indexed like AnalysisPlan::speeds
@@ -46,6 +49,9 @@ struct ProbeSet {
   std::map<int, std::vector<double>> class_power;  ///< per constant class
   std::vector<double> accel_power;
   std::vector<double> still_power;
+  /// Mean power spectrum of the kTransientLen samples around each segment boundary's largest difference
+  /// (the `transients` probe's knock spectrum, bins fs / kTransientLen apart); empty without boundaries.
+  std::vector<double> transient_power;
   double max_abs_ms2 = 0.0;
   double lag_s = 0.0;  ///< envelope-vs-CAN lag (NaN when the speed does not vary)
   /// Per constant class: share of windows whose PTDA residual rms is outside the reference's mean +- 3 sd
@@ -153,5 +159,30 @@ using ElementVariance = std::map<std::string, double>;
 [[nodiscard]] std::vector<double> more_excess_peaks_hz(const ProbeSet& real, const ProbeSet& sim,
                                                        SegmentType type, double offset_db, double min_db,
                                                        std::size_t max_peaks);
+
+/// Where the knock spectrum (ProbeSet::transient_power) exceeds the model's most, at bin resolution: the
+/// measured / model power ratio is averaged over 5 bins (a knock's ring is tens of bins wide, a mesh
+/// line 1-3), and the largest at or above `min_hz` (and below 0.45 fs) returned when it is at least
+/// `min_db` above 1. 0 when the sets have no such spectrum, or nothing reaches `min_db`. Finer than the
+/// probe's octaves: a ring at 1.83 kHz is the 1-2 kHz octave's excess, whose centre 1.41 kHz and the
+/// screen's log grid left the fit to settle at 3.5 kHz (gen2). Any thread; allocates.
+[[nodiscard]] double transient_excess_peak_hz(const ProbeSet& real, const ProbeSet& sim, double min_hz,
+                                              double min_db);
+
+/// A drive's switching carrier and its sidebands in a power spectrum: measured `real_power` against the
+/// model's `model_power` (same bins, `df_hz` apart). Near a line found at `near_hz` (it may be the carrier
+/// or one of its sidebands), the carrier is the local maximum of largest excess (dB) within
+/// +-kDriveSearchHz that is at least `min_excess_db` above the model; the sideband spacing is that of the
+/// strongest pair of such maxima mirrored about it (within max(2 bins, 2 %)), 0 when there is none.
+/// Peaks are refined by a parabola through their three bins. {0, 0} when nothing stands out. Any
+/// thread; allocates.
+struct DriveCarrier {
+  double carrier_hz = 0.0;
+  double side_hz = 0.0;
+};
+inline constexpr double kDriveSearchHz = 600.0;
+[[nodiscard]] DriveCarrier drive_carrier(const std::vector<double>& real_power,
+                                         const std::vector<double>& model_power, double df_hz, double near_hz,
+                                         double min_excess_db);
 
 }  // namespace ptda::gap
