@@ -560,6 +560,11 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
     // Further lines only away from every constant class's mesh harmonics (k GMF +- 3.6 f_in): there a
     // fixed line can stand in for a mesh order the nominal lacks (LocalAcceptance.ExactLineIsNamed...:
     // a standstill excess at 9 GMF was fitted at its third, 3 GMF of the only class, 16 % of the gap).
+    // Only up to twice the nominal's highest order (at least 10): a mesh order far beyond the nominal's
+    // is not a plausible stand-in, and with several classes the zones of high orders cover most of the
+    // kHz range (gen2-1024's 4 kHz drive carrier sat 2 Hz from order 26 of a class and was left out).
+    double max_mesh_order = 10.0;
+    for (int o : nominal_orders) max_mesh_order = std::max(max_mesh_order, 2.0 * o);
     for (std::size_t i = 1; i < still_lines.size(); ++i) {
       bool on_mesh = false;
       for (double w : plan.speeds) {
@@ -567,7 +572,8 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
         const double f_in = gmf / nominal.gearbox.z_in;
         if (gmf <= 0.0) continue;
         const double k = std::round(still_lines[i] / gmf);
-        on_mesh = on_mesh || (k >= 1.0 && std::fabs(still_lines[i] - k * gmf) <= 3.6 * f_in);
+        on_mesh =
+            on_mesh || (k >= 1.0 && k <= max_mesh_order && std::fabs(still_lines[i] - k * gmf) <= 3.6 * f_in);
       }
       if (!on_mesh) q.more_lines_still_hz.push_back(still_lines[i]);
     }

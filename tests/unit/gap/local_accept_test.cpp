@@ -112,5 +112,32 @@ TEST(LocalAcceptance, ADriveCarrierWithSidebandsIsNamedWithTheMains) {
   EXPECT_GT(d.total_shrink_pct, 70.0) << d.verdict;
 }
 
+// A drive line that sits on a high mesh order of the job's class (order 17, beyond twice the nominal's
+// highest order 8) is still a line guess, so the mains + carrier candidate exists. Before session 17 every
+// line within 3.6 input-shaft orders of any whole GMF multiple was left out (gen2-1024: a 4 kHz carrier
+// 2 Hz from order 26), and with one effect allowed the mains alone was named.
+TEST(LocalAcceptance, ADriveLineOnAHighMeshOrderIsStillACarrier) {
+  sim::Scenario truth = test::joint_rotation_job(6);
+  const double gmf = std::fabs(sim::gmf_hz(truth.gearbox, truth.motion.segment_speeds_rad_s[0]));
+  const double f_drive = 17.0 * gmf + 1.0;
+  ASSERT_LT(f_drive, 0.45 * truth.sensor.fs_hz) << gmf;
+  sim::EffectSpec e0 = sim::EffectSpec::with_defaults(sim::EffectKind::kElectricalInterference);
+  e0.set("frequency_hz", 50.0);
+  e0.set("amplitude_ms2", 0.12);
+  e0.set("harmonics", 2.0);  // 50, 150 Hz
+  e0.set("odd_only", 1.0);
+  e0.set("pwm_hz", f_drive);
+  e0.set("pwm_ms2", 0.2);
+  truth.effects = {e0};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 2027), truth);
+  DiagnoseOptions opt;
+  opt.candidates = {sim::EffectKind::kElectricalInterference};
+  opt.max_effects = 1;
+  const Diagnosis d = diagnose(test::joint_rotation_job(6), real, opt);
+  ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
+  EXPECT_NEAR(d.chosen[0].effect.get("frequency_hz"), 50.0, 0.5) << d.verdict;
+  EXPECT_NEAR(d.chosen[0].effect.get("pwm_hz"), f_drive, 0.002 * f_drive) << d.verdict;
+}
+
 }  // namespace
 }  // namespace ptda::gap
