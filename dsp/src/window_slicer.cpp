@@ -384,9 +384,10 @@ bool WindowSlicer::pop(WindowRef& ref, std::span<float> out) noexcept {
     const auto start = static_cast<std::size_t>(w.first_sample % h);
     const auto len = static_cast<std::size_t>(n);
     const std::size_t first_part = std::min(len, history_.size() - start);
+    // Every flag of the range is 1: no 0 byte in it. memchr is glibc's vectorised scan; a byte-wise
+    // std::all_of over the 12800 flags of a window was 2.3 % of `ptda monitor` (issue 13).
     const auto valid = [&](std::size_t from, std::size_t count) {
-      const auto* f = history_valid_.data() + from;
-      return std::all_of(f, f + count, [](std::uint8_t b) { return b != 0; });
+      return count == 0 || std::memchr(history_valid_.data() + from, 0, count) == nullptr;
     };
     pending_.pop();
     if (!valid(start, first_part) || !valid(0, len - first_part)) {

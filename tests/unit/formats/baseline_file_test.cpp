@@ -264,6 +264,26 @@ TEST(Crc32, MatchesZlib) {
   }
 }
 
+// crc32 takes eight bytes per step and the rest one by one: every start alignment, every length up to
+// a few steps, and every split point of a continued CRC against zlib's crc32.
+TEST(Crc32, EightBytesAtATimeMatchesZlibAtEveryAlignmentLengthAndSplit) {
+  std::mt19937 rng(11);
+  Bytes b(128);
+  for (auto& v : b) v = static_cast<std::uint8_t>(rng());
+  for (std::size_t off = 0; off < 9; ++off) {
+    for (std::size_t len = 0; off + len <= 80; ++len) {
+      const auto z = static_cast<std::uint32_t>(::crc32(0L, b.data() + off, static_cast<uInt>(len)));
+      EXPECT_EQ(crc32(b.data() + off, len), z) << off << " " << len;
+    }
+  }
+  const auto whole = static_cast<std::uint32_t>(::crc32(0L, b.data(), static_cast<uInt>(b.size())));
+  for (std::size_t cut = 0; cut <= b.size(); ++cut)
+    EXPECT_EQ(crc32(b.data() + cut, b.size() - cut, crc32(b.data(), cut)), whole) << cut;
+  // A start value other than 0 (a continued CRC) over a whole number of 8-byte steps.
+  const auto z = static_cast<std::uint32_t>(::crc32(0xDEADBEEFUL, b.data(), 64));
+  EXPECT_EQ(crc32(b.data(), 64, 0xDEADBEEFU), z);
+}
+
 TEST(BaselineFile, RoundTripIsExact) {
   const fs::path dir = temp_dir("roundtrip");
   for (const std::uint32_t n : {4U, 6U, 250U, 256U, 4096U}) {

@@ -571,3 +571,118 @@ TEST(Candump, ReaderEdgeCasesNameFileAndLine) {
             (dir / "nul.log").string() + ":2: odd number of hex digits in classic CAN data");
   fs::remove_all(dir);
 }
+
+namespace {
+
+std::string record_text(const CandumpRecord& r);
+
+// The full parser's outcome on one line: "error: <message>", "skipped", or the record's fields.
+std::string full_outcome(const std::string& line) {
+  CandumpRecord r;
+  try {
+    if (!ptda::formats::detail::parse_candump_line_full(line, "x.log", 3, r)) return "skipped";
+  } catch (const Error& e) {
+    return std::string("error: ") + e.what();
+  }
+  return record_text(r);
+}
+
+std::string record_text(const CandumpRecord& r) {
+  std::string s = std::to_string(r.frame.t_ns) + " " + r.iface + " " + std::to_string(r.frame.id) + " " +
+                  std::to_string(r.frame.flags) + " " + std::to_string(r.frame.len) + " " +
+                  std::to_string(static_cast<int>(r.direction)) + " ";
+  for (const std::uint8_t b : r.frame.data) s += std::to_string(b) + ",";
+  return s;
+}
+
+}  // namespace
+
+// The fast path decodes candump's classic frames to the values written out here by hand.
+TEST(Candump, CommonLineParserGivesTheFrameOfCandumpsClassicLines) {
+  using ptda::formats::detail::parse_common_candump_line;
+  CandumpRecord r;
+  r.frame.data.fill(0xEE);  // a reused record: bytes past len must come back as 0
+  ASSERT_TRUE(parse_common_candump_line("(1700000000.001824) can0 184#3E810B004A260000", r));
+  EXPECT_EQ(r.frame.t_ns, 1700000000001824000LL);
+  EXPECT_EQ(r.iface, "can0");
+  EXPECT_EQ(r.frame.id, 0x184U);
+  EXPECT_EQ(r.frame.flags, 0);
+  ASSERT_EQ(r.frame.len, 8);
+  const std::uint8_t want[8] = {0x3E, 0x81, 0x0B, 0x00, 0x4A, 0x26, 0x00, 0x00};
+  for (std::size_t k = 0; k < 8; ++k) EXPECT_EQ(r.frame.data[k], want[k]) << k;
+  EXPECT_EQ(r.direction, 0);
+
+  ASSERT_TRUE(parse_common_candump_line("(0.5) vcan12 1FFFFFFF#aB T", r));
+  EXPECT_EQ(r.frame.t_ns, 500000000);
+  EXPECT_EQ(r.iface, "vcan12");
+  EXPECT_EQ(r.frame.id, 0x1FFFFFFFU);
+  EXPECT_EQ(r.frame.flags, ptda::kCanExtended);
+  ASSERT_EQ(r.frame.len, 1);
+  EXPECT_EQ(r.frame.data[0], 0xAB);
+  for (std::size_t k = 1; k < r.frame.data.size(); ++k) EXPECT_EQ(r.frame.data[k], 0) << k;
+  EXPECT_EQ(r.direction, 'T');
+
+  ASSERT_TRUE(parse_common_candump_line("(9223372035.999999999) c 7FF# R", r));
+  EXPECT_EQ(r.frame.t_ns, 9223372035999999999LL);  // the largest seconds the full parser accepts
+  EXPECT_EQ(r.frame.id, 0x7FFU);
+  EXPECT_EQ(r.frame.len, 0);
+  EXPECT_EQ(r.direction, 'R');
+
+  // Other shapes are declined and leave the record as it was.
+  const std::string before = record_text(r);
+  for (const char* line : {"(9223372036.0) c 7FF#", "(1.5) can0 800#11", "(1.5) can0 20000080#11",
+                           "(1.5) can0 123#R", "(1.5) can0 123##011", "(1.5) can0 123#11.22",
+                           "(1.5) can0 123#1122334455667788_9", "(1.5)  can0 123#11", "(1.5) can0 123#11 ",
+                           "(1.5)\tcan0 123#11", "(1.5) can0 123#112", "(1.5) can0 1234#11", "(1.) c 123#",
+                           "(1.5) can0 123#112233445566778899", "(.5) c 123#", "(1.5) c 123#11 X"}) {
+    EXPECT_FALSE(parse_common_candump_line(line, r)) << line;
+    EXPECT_EQ(record_text(r), before) << line;
+  }
+}
+
+// Every line the fast path accepts, the full parser accepts with the same record; lines of every frame
+// kind and every one-character substitution, deletion and insertion of them (which the full parser
+// rejects, skips or accepts) are tried. The fast path must also take the classic lines themselves.
+TEST(Candump, CommonLineParserAgreesWithTheFullParser) {
+  using ptda::formats::detail::parse_common_candump_line;
+  const std::vector<std::string> bases = {
+      "(1700000000.001824) can0 184#3E810B004A260000",
+      "(1436509052.249713) vcan0 044#2A366C2BBA",
+      "(0000000001.5) c 123#",
+      "(1.123456789) can1 12345678#DEADBEEF R",
+      "(12.25) can0 7ff#0a T",
+      "(3.0) can0 20000080#0011223344556677",
+      "(1.5) can0 123#R7 T",
+      "(1.5) can0 123##1112233",
+      "(1.5) can0 123#11.22.33",
+      "(1.5) can0 123#1122334455667788_E",
+      "(1.5) can0 12345#00:11:22334455#AA",
+  };
+  const std::string alphabet = std::string(" \t#._RTGgFf09():\r\x80") + '\0';
+  std::vector<std::string> lines = bases;
+  for (const std::string& b : bases) {
+    for (std::size_t i = 0; i <= b.size(); ++i) {
+      if (i < b.size()) lines.push_back(b.substr(0, i) + b.substr(i + 1));
+      for (const char c : alphabet) {
+        lines.push_back(b.substr(0, i) + c + b.substr(i));
+        if (i < b.size()) {
+          std::string t = b;
+          t[i] = c;
+          lines.push_back(t);
+        }
+      }
+    }
+  }
+  std::size_t taken = 0;
+  for (const std::string& line : lines) {
+    CandumpRecord r;
+    if (!parse_common_candump_line(line, r)) continue;
+    ++taken;
+    EXPECT_EQ(record_text(r), full_outcome(line)) << line;
+  }
+  for (std::size_t k = 0; k < 5; ++k) {
+    CandumpRecord r;
+    EXPECT_TRUE(parse_common_candump_line(bases[k], r)) << bases[k];
+  }
+  EXPECT_GT(taken, 1000U);  // the mutations of the classic lines that are still classic lines
+}

@@ -36,6 +36,20 @@ struct CandumpRecord {
 bool parse_candump_line_into(std::string_view line, const std::string& source, long line_no,
                              CandumpRecord& out);
 
+namespace detail {
+/// The fast path of parse_candump_line_into (exposed for tests): a classic data frame in candump's own
+/// spelling, "(<1-18 digits>.<1-9 digits>) <iface> <3 or 8 hex digits>#<0-8 hex byte pairs>[ R|T]"
+/// with single spaces and a standard id up to 7FF or an extended one up to 1FFFFFFF. Fills `out` as
+/// parse_candump_line_full does and returns true for such a line; returns false, leaving `out`
+/// untouched, for any other line (which the full parser then accepts, skips or rejects). Expects the
+/// line ending already stripped. Thread: any. Allocates (and can throw std::bad_alloc) only when the
+/// iface name outgrows the capacity of `out.iface`, as parse_candump_line_into.
+bool parse_common_candump_line(std::string_view line, CandumpRecord& out);
+/// parse_candump_line_into without its fast path (exposed for tests). Throws like it.
+bool parse_candump_line_full(std::string_view line, const std::string& source, long line_no,
+                             CandumpRecord& out);
+}  // namespace detail
+
 /// Streaming reader: next() returns false at the end. Throws ptda::Error on a malformed line or a read
 /// error. Thread: the owner's. Blocks on file I/O; after warm-up next() does not allocate.
 class CandumpReader {
