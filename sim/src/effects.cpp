@@ -145,14 +145,19 @@ void EffectSpec::set(std::string_view name, double value) {
   params[i] = value;
 }
 
+std::size_t shown_param_count(const EffectSpec& e) {
+  const std::size_t n = effect_info(e.kind).params.size();
+  // The interference's drive-carrier parameters only when that form is on: the mains form reads as it
+  // always did.
+  if (e.kind == EffectKind::kElectricalInterference && e.params.size() == n && e.get("pwm_ms2") <= 0.0)
+    return kElectricalMainsParams;
+  return n;
+}
+
 std::string describe(const EffectSpec& e) {
   const EffectInfo& info = effect_info(e.kind);
   std::string s = std::string(info.name) + "(";
-  std::size_t n = info.params.size();
-  // The interference's drive-carrier parameters only when that form is on: the one-line form reads as
-  // it always did.
-  if (e.kind == EffectKind::kElectricalInterference && e.params.size() == n && e.get("pwm_ms2") <= 0.0)
-    n = kElectricalMainsParams;
+  const std::size_t n = shown_param_count(e);
   for (std::size_t i = 0; i < n && i < e.params.size(); ++i) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%s%s=%.4g", i == 0 ? "" : ", ", info.params[i].name, e.params[i]);

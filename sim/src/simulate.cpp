@@ -281,7 +281,7 @@ toml::table truth_table(const Scenario& s, const MotionProfile& m, const TruthCo
     const EffectInfo& info = effect_info(e.kind);
     toml::table t;
     t.insert("kind", info.name);
-    for (std::size_t i = 0; i < info.params.size() && i < e.params.size(); ++i)
+    for (std::size_t i = 0; i < shown_param_count(e) && i < e.params.size(); ++i)
       t.insert(info.params[i].name, e.params[i]);
     effects.push_back(std::move(t));
   }

@@ -67,4 +67,9 @@ struct EffectSpec {
 /// "kind(p1=v1, p2=v2)" for messages and reports. Any thread; allocates.
 [[nodiscard]] std::string describe(const EffectSpec& e);
 
+/// How many of `e`'s parameters (in catalog order) describe it: all, except for an
+/// `electrical_interference` without its drive carrier (pwm_ms2 = 0), whose drive-form keys are left out
+/// so that its description and a simulation's truth.toml read as before that form existed. Any thread.
+[[nodiscard]] std::size_t shown_param_count(const EffectSpec& e);
+
 }  // namespace ptda::sim
