@@ -432,7 +432,8 @@ double excess_peak_hz(const ProbeSet& r, const ProbeSet& m, SegmentType type, do
 /// Local maxima where the measured spectrum exceeds the model's, by excess (dB) descending, skipping
 /// [lo, hi] exclusions; each refined by a parabola through its three bins. At most `max_lines`; a line
 /// within 2 % of a whole multiple (1..16) of a stronger one is left out (a harmonic of it), as is one
-/// less than `min_excess_db` above the model.
+/// within kDriveSearchHz of a stronger line of at least kDriveMinHz (a sideband of a drive carrier) and
+/// one less than `min_excess_db` above the model.
 std::vector<double> excess_lines_hz(const std::vector<double>& pr, const std::vector<double>& pm, double df,
                                     const std::vector<std::pair<double, double>>& excl, std::size_t max_lines,
                                     double min_excess_db) {
@@ -458,6 +459,9 @@ std::vector<double> excess_lines_hz(const std::vector<double>& pr, const std::ve
     for (double g : out) {
       const double m = std::round(f / g);
       harmonic = harmonic || (m >= 1.0 && m <= 16.0 && std::fabs(f - m * g) < 0.02 * m * g);
+      // Within a drive carrier's sideband span of a stronger line of kHz: a sideband of it (the drive
+      // form's own search finds them), not a source of its own that should take a guess.
+      harmonic = harmonic || (g >= kDriveMinHz && std::fabs(f - g) <= kDriveSearchHz);
     }
     if (!harmonic) out.push_back(f);
   }
