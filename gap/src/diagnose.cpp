@@ -590,14 +590,16 @@ Guesses make_guesses(const ProbeSet& r, const ProbeSet& m, const GapBreakdown& g
           line_harmonics(pr, pm, df, q.line_still_hz, kLineGuessMinExcessDb);
       for (double f : q.more_lines_still_hz)
         q.more_line_harmonics.push_back(line_harmonics(pr, pm, df, f, kLineGuessMinExcessDb));
-      // A drive's carrier beside the mains: the lowest and the highest line, far apart (gen2-1024: 60 Hz
-      // mains and a 4 kHz carrier, whose sidebands were the excess lines; the carrier itself sits within
-      // 2 Hz of GMF order 26 and was left out as a possible mesh order).
+      // A drive's carrier beside the mains, far apart (gen2-1024: 60 Hz mains and a 4 kHz carrier, whose
+      // sidebands were the excess lines; the carrier itself sits within 2 Hz of GMF order 26 and was left
+      // out as a possible mesh order before the order bound above).
       std::vector<double> all{q.line_still_hz};
       all.insert(all.end(), q.more_lines_still_hz.begin(), q.more_lines_still_hz.end());
+      // The mains: the lowest line; the drive: the strongest (first) line of kHz far above it.
       const auto lo_it = std::min_element(all.begin(), all.end());
-      const auto hi_it = std::max_element(all.begin(), all.end());
-      if (all.size() >= 2 && *hi_it >= kDriveMinHz && *hi_it >= kDriveMinRatio * *lo_it) {
+      const auto hi_it = std::find_if(
+          all.begin(), all.end(), [&](double f) { return f >= kDriveMinHz && f >= kDriveMinRatio * *lo_it; });
+      if (all.size() >= 2 && hi_it != all.end()) {
         const DriveCarrier c = drive_carrier(pr, pm, df, *hi_it, kLineGuessMinExcessDb);
         if (c.carrier_hz > 0.0) {
           q.drive_carrier_hz = c.carrier_hz;
