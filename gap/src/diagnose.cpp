@@ -43,10 +43,6 @@ constexpr double kMinFloorPeakDb = 3.0;
 /// A line present in fewer of the fit part's frames is not steady pickup (`line_presence`; chosen
 /// a priori: pickup from the mains or a drive is on in every frame, up to the noise).
 constexpr double kSteadyLineShare = 0.85;
-/// The interference's drive form is tried when the highest excess line is at least this high and this
-/// many times the lowest (a switching carrier of kHz beside mains lines of 50/60 Hz and harmonics).
-constexpr double kDriveMinHz = 1000.0;
-constexpr double kDriveMinRatio = 8.0;
 /// The knock spectrum's fine excess peak (a resonance start for `impacts`): above the transient
 /// probe's lowest octave (500 Hz), and at least 3 dB (twice the model's power) to count.
 constexpr double kKnockMinHz = 500.0;
@@ -943,6 +939,36 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
   return "";
 }
 
+void merge_drive_pickup(std::vector<CandidateResult>& chosen, const sim::Scenario& nominal) {
+  auto plain = [](const CandidateResult& c) {
+    return c.effect.kind == EffectKind::kElectricalInterference && c.effect.get("pwm_ms2") <= 0.0;
+  };
+  for (std::size_t i = 0; i < chosen.size(); ++i) {
+    for (std::size_t j = 0; j < chosen.size(); ++j) {
+      if (i == j || !plain(chosen[i]) || !plain(chosen[j])) continue;
+      const EffectSpec& mains = chosen[i].effect;
+      const EffectSpec& line = chosen[j].effect;
+      const double f_line = line.get("frequency_hz");
+      if (std::lround(line.get("harmonics")) != 1 || f_line < kDriveMinHz ||
+          f_line < kDriveMinRatio * mains.get("frequency_hz"))
+        continue;
+      EffectSpec merged = mains;
+      merged.set("pwm_hz", f_line);
+      merged.set("pwm_ms2", line.get("amplitude_ms2"));
+      merged.set("pwm_side_hz", 0.0);
+      CandidateResult c = chosen[std::min(i, j)];
+      c.effect = merged;
+      c.location = effect_location(merged, nominal);
+      c.alternatives.clear();
+      for (const CandidateResult* from : {&chosen[i], &chosen[j]})
+        c.alternatives.insert(c.alternatives.end(), from->alternatives.begin(), from->alternatives.end());
+      chosen[std::min(i, j)] = std::move(c);
+      chosen.erase(chosen.begin() + static_cast<std::ptrdiff_t>(std::max(i, j)));
+      return;
+    }
+  }
+}
+
 std::vector<std::size_t> tied_candidates(const std::vector<CandidateResult>& ranked, double before_heldout,
                                          double before_replicate, double noise_sd, double min_gain_sd) {
   std::vector<std::size_t> out;
@@ -1563,6 +1589,8 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     d.rounds.push_back(std::move(sr));
     if (d.rounds.back().accepted < 0) break;
   }
+  // Mains and a drive's carrier named one line at a time are one pickup source (the drive form).
+  merge_drive_pickup(d.chosen, current);
   ProbeSet final_model, final_real;
   d.final_heldout = ev.gap(current, held, &final_model, &final_real);
   d.alarm_rate_final = mean_alarm_rate(final_real);

@@ -112,6 +112,47 @@ TEST(LocalAcceptance, ADriveCarrierWithSidebandsIsNamedWithTheMains) {
   EXPECT_GT(d.total_shrink_pct, 70.0) << d.verdict;
 }
 
+// Mains and a drive line named one at a time (a round each) are reported as one drive-form pickup at
+// the place of the first; a pair that is not mains + kHz line is left alone.
+TEST(DrivePickup, MainsAndAKhzLineNamedApartAreMergedIntoTheDriveForm) {
+  auto interference = [](double f, double a, double harmonics) {
+    CandidateResult c;
+    c.effect = sim::EffectSpec::with_defaults(sim::EffectKind::kElectricalInterference);
+    c.effect.set("frequency_hz", f);
+    c.effect.set("amplitude_ms2", a);
+    c.effect.set("harmonics", harmonics);
+    c.location = "lines at " + std::to_string(f);
+    c.shrink_pct = f;  // marks which entry survives
+    return c;
+  };
+  CandidateResult path;
+  path.effect = sim::EffectSpec::with_defaults(sim::EffectKind::kTransferPath);
+  const sim::Scenario nominal = test::joint_rotation_job(2);
+  std::vector<CandidateResult> chosen{interference(4000.0, 0.125, 1.0), path, interference(60.0, 0.06, 5.0)};
+  chosen[0].alternatives = {"a"};
+  merge_drive_pickup(chosen, nominal);
+  ASSERT_EQ(chosen.size(), 2U);
+  const sim::EffectSpec& e = chosen[0].effect;
+  EXPECT_EQ(e.kind, sim::EffectKind::kElectricalInterference);
+  EXPECT_EQ(e.get("frequency_hz"), 60.0);
+  EXPECT_EQ(e.get("harmonics"), 5.0);
+  EXPECT_EQ(e.get("pwm_hz"), 4000.0);
+  EXPECT_EQ(e.get("pwm_ms2"), 0.125);
+  EXPECT_EQ(e.get("pwm_side_hz"), 0.0);
+  EXPECT_EQ(chosen[0].shrink_pct, 4000.0);  // the first round's numbers, at its place
+  EXPECT_EQ(chosen[0].alternatives, std::vector<std::string>{"a"});
+  EXPECT_EQ(chosen[0].location, "lines at 60.00 Hz and harmonics, drive carrier at 4000 Hz");
+  EXPECT_EQ(chosen[1].effect.kind, sim::EffectKind::kTransferPath);
+  // Not merged: the kHz entry has harmonics; the line is below 8 x the mains; both are low.
+  for (const auto& pair : {std::pair{interference(4000.0, 0.1, 3.0), interference(60.0, 0.06, 5.0)},
+                           std::pair{interference(400.0, 0.1, 1.0), interference(60.0, 0.06, 5.0)},
+                           std::pair{interference(900.0, 0.1, 1.0), interference(50.0, 0.06, 5.0)}}) {
+    std::vector<CandidateResult> two{pair.first, pair.second};
+    merge_drive_pickup(two, nominal);
+    EXPECT_EQ(two.size(), 2U) << two[0].location;
+  }
+}
+
 // A drive line that sits on a high mesh order of the job's class (order 17, beyond twice the nominal's
 // highest order 8) is still a line guess, so the mains + carrier candidate exists. Before session 17 every
 // line within 3.6 input-shaft orders of any whole GMF multiple was left out (gen2-1024: a 4 kHz carrier

@@ -157,4 +157,14 @@ struct Diagnosis {
 /// Where an effect with these parameters acts, in words (for reports and the bench's location check).
 [[nodiscard]] std::string effect_location(const sim::EffectSpec& e, const sim::Scenario& nominal);
 
+/// Pickup named in two parts, one line at a time: a mains-form `electrical_interference` and another
+/// that is one line of at least kDriveMinHz, at least kDriveMinRatio times the first's frequency (no
+/// carrier in either). The pair is one source in the library's drive form: the mains entry takes the
+/// line as its carrier (`pwm_hz`, `pwm_ms2` = its amplitude, no sidebands) and its location words, at
+/// the position of the earlier of the two; the line's entry is removed. The model is the same sum of
+/// lines (only the phases' draws differ), so the gaps stay. At most one merge. Any thread; allocates.
+void merge_drive_pickup(std::vector<CandidateResult>& chosen, const sim::Scenario& nominal);
+inline constexpr double kDriveMinHz = 1000.0;
+inline constexpr double kDriveMinRatio = 8.0;
+
 }  // namespace ptda::gap
