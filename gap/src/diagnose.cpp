@@ -399,7 +399,8 @@ struct Guesses {
   double own_axis_hz = 0.0;
   double own_axis_duty = 1.0;
   /// The interference's second form (mains lines and a drive's switching carrier, one source): the
-  /// carrier and its sideband spacing found near the highest excess line, and which line guesses
+  /// carrier and its sideband spacing found near the strongest kHz excess line far above the lowest
+  /// (the mains), and which line guesses
   /// (0: line_still_hz, i: more_lines_still_hz[i - 1]) are the mains and the drive line. Carrier 0: none.
   double drive_carrier_hz = 0.0;
   double drive_side_hz = 0.0;
@@ -1449,8 +1450,8 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
           work.push_back(wl);
         }
         // The second form: the lowest line as mains (with its harmonics) and a drive's carrier near the
-        // highest, both steady, in one candidate (gen2's pickup has both parts; fitted one line at a time,
-        // the carrier's sideband was named first and the mains second: not where the source is).
+        // strongest kHz line, both steady, in one candidate (gen2's pickup has both parts; fitted one line at
+        // a time, the carrier's sideband was named first and the mains second: not where the source is).
         const int mi = q.drive_mains_line, di = q.drive_line;
         if (q.drive_carrier_hz > 0.0 && mi >= 0 && di >= 0 && !intermittent(static_cast<std::size_t>(mi)) &&
             !intermittent(static_cast<std::size_t>(di))) {
