@@ -2,6 +2,7 @@
 #include "ptda/sim/effects.hpp"
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 
 #include "ptda/common/error.hpp"
@@ -11,6 +12,8 @@ namespace {
 
 /// electrical_interference: the parameters of its mains (one-source) form come first.
 constexpr std::size_t kElectricalMainsParams = 5;
+/// impacts: the parameters of its one-mode form come first.
+constexpr std::size_t kImpactsOneModeParams = 4;
 
 constexpr std::array<EffectParamInfo, 3> kTransferPath{{
     {"frequency_hz", 3000.0, 20.0, 100000.0, "resonance centre frequency (below fs/2)"},
@@ -26,11 +29,17 @@ constexpr std::array<EffectParamInfo, 3> kMeshModulation{{
     {"am_depth", 0.3, 0.0, 1.0, "amplitude modulation depth"},
     {"pm_rad", 0.0, 0.0, 2.0, "phase modulation of GMF order 1 (order k: k times)"},
 }};
-constexpr std::array<EffectParamInfo, 4> kImpacts{{
+constexpr std::array<EffectParamInfo, 7> kImpacts{{
     {"amplitude_ms2", 5.0, 0.0, 500.0, "ringing amplitude of each knock"},
     {"resonance_hz", 4000.0, 20.0, 100000.0, "resonance the knocks excite (below fs/2)"},
     {"damping_ratio", 0.05, 0.005, 0.5, "damping of that resonance"},
     {"rate_hz", 0.0, 0.0, 100.0, "extra random knocks per second (Poisson), besides the reversals"},
+    // A knock rings more than one structural mode (issue 11): one higher mode, same damping ratio. Off
+    // while mode2_ratio = 0, so the one-mode form is unchanged.
+    {"mode2_ratio", 0.0, 0.0, 6.0, "a second, higher mode at this multiple of resonance_hz (0: one mode)"},
+    {"mode2_share", 0.4, 0.0, 2.0, "amplitude of the second mode / the first's"},
+    {"knock_events", 0.0, 0.0, 2.0,
+     "where the motion knocks: 0 torque reversals; 1 every start from rest and every stop; 2 both (rounded)"},
 }};
 constexpr std::array<EffectParamInfo, 9> kElectrical{{
     {"frequency_hz", 50.0, 1.0, 100000.0, "fundamental (mains, drive switching)"},
@@ -147,10 +156,13 @@ void EffectSpec::set(std::string_view name, double value) {
 
 std::size_t shown_param_count(const EffectSpec& e) {
   const std::size_t n = effect_info(e.kind).params.size();
-  // The interference's drive-carrier parameters only when that form is on: the mains form reads as it
-  // always did.
+  // The interference's drive-carrier parameters only when that form is on, the knocks' second mode only
+  // when it rings: the one-part forms read as they always did.
   if (e.kind == EffectKind::kElectricalInterference && e.params.size() == n && e.get("pwm_ms2") <= 0.0)
     return kElectricalMainsParams;
+  if (e.kind == EffectKind::kImpacts && e.params.size() == n && e.get("mode2_ratio") <= 0.0 &&
+      std::lround(e.get("knock_events")) == 0)
+    return kImpactsOneModeParams;
   return n;
 }
 

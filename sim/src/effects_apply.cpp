@@ -15,6 +15,7 @@ namespace ptda::sim {
 namespace {
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kRestShare = 0.1;  // knock_events: at rest below this share of the fastest speed so far
 
 double sign_of(double v) {
   return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
@@ -112,6 +113,11 @@ struct SignalEffects::Step {
   bool active = false;
   // impacts: knocks at torque reversals (pieces in order), then random (Poisson) knocks
   double amp = 0.0, f_res = 0.0, zeta = 0.0, rate = 0.0;
+  double mode2_ratio = 0.0, mode2_share = 0.0;  // impacts: the second mode (0: one mode)
+  int knock_events = 0;  // 0 torque reversals, 1 starts from rest and stops, 2 both
+  double prev_sign = 0.0;  // the last piece's acceleration sign (0 included)
+  bool prev_rest = true;    // the last piece was at rest
+  double top_speed = 0.0;   // the fastest |speed| of the pieces walked
   std::optional<PieceCursor> rev;  // the next piece to look at for a reversal
   bool rev_done = false;
   double last_sign = 0.0;
@@ -155,6 +161,9 @@ SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uin
         st.f_res = e.get("resonance_hz");
         st.zeta = e.get("damping_ratio");
         st.rate = e.get("rate_hz");
+        st.mode2_ratio = e.get("mode2_ratio");
+        st.mode2_share = e.get("mode2_share");
+        st.knock_events = static_cast<int>(std::lround(e.get("knock_events")));
         st.active = st.amp > 0.0;
         if (st.active) st.rev.emplace(m);
         if (st.active && st.rate > 0.0) {
@@ -260,12 +269,25 @@ void SignalEffects::schedule(std::size_t i_end) {
     while (!st.rev_done) {
       const MotionPiece p = st.rev->current();
       const double sg = sign_of(p.accel_rad_s2);
-      if (sg != 0.0 && sg != st.last_sign) {
+      const bool reversal = sg != 0.0 && sg != st.last_sign;
+      // A start (acceleration after a constant-speed piece at rest) or a stop (a constant-speed piece at rest
+      // after acceleration). "At rest": below kRestShare of the fastest speed so far. A measured trace's
+      // first accelerating piece may already move a little (one CAN period of acceleration), so the start
+      // is judged by the piece before it.
+      st.top_speed = std::max(st.top_speed, std::fabs(p.speed0_rad_s));
+      const double rest_rad_s = std::max(kRestShare * st.top_speed, 1e-3);
+      const bool start = sg != 0.0 && st.prev_sign == 0.0 && st.prev_rest;
+      const bool stop = sg == 0.0 && st.prev_sign != 0.0 && std::fabs(p.speed0_rad_s) < rest_rad_s;
+      const bool start_stop = start || stop;
+      const bool knock = (st.knock_events != 1 && reversal) || (st.knock_events >= 1 && start_stop);
+      if (knock) {
         if (start_of(p.t0_s) >= i_end) break;
-        st.reversals.add(make_ringing(fs, p.t0_s, st.amp, st.f_res, st.zeta));
+        st.reversals.add(make_ringing(fs, p.t0_s, st.amp, st.f_res, st.zeta, st.mode2_ratio, st.mode2_share));
         ++impacts_;
       }
       if (sg != 0.0) st.last_sign = sg;
+      st.prev_sign = sg;
+      st.prev_rest = std::fabs(p.speed0_rad_s) < rest_rad_s;
       if (st.rev->has_next()) {
         st.rev->advance();
       } else {
@@ -273,7 +295,7 @@ void SignalEffects::schedule(std::size_t i_end) {
       }
     }
     while (st.random_pending && start_of(st.t_random) < i_end) {
-      st.random.add(make_ringing(fs, st.t_random, st.amp, st.f_res, st.zeta));
+      st.random.add(make_ringing(fs, st.t_random, st.amp, st.f_res, st.zeta, st.mode2_ratio, st.mode2_share));
       ++impacts_;
       st.t_random += -std::log(1.0 - st.rng.uniform()) / st.rate;
       st.random_pending = st.t_random < m_->duration_s;

@@ -67,10 +67,16 @@ struct Ringing {
   double amplitude = 0.0;
   double sigma = 0.0;  ///< zeta wn
   double wd = 0.0;     ///< damped angular frequency
+  double amplitude2 = 0.0;  ///< a second, higher mode (impacts' mode2); 0: none
+  double sigma2 = 0.0;
+  double wd2 = 0.0;
   double t_end_s = 0.0;
 };
+/// mode2_ratio > 0: a second mode at mode2_ratio * resonance_hz with amplitude mode2_share * amplitude and
+/// the same damping ratio; left out at or above 0.49 fs_hz (the anti-alias filter's side).
 [[nodiscard]] Ringing make_ringing(double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
-                                   double damping_ratio) noexcept;
+                                   double damping_ratio, double mode2_ratio = 0.0,
+                                   double mode2_share = 0.0) noexcept;
 
 /// The ringings of one source (a tooth fault, the reversal knocks, the random knocks), added to each
 /// sample in the order they were scheduled, as the whole-signal code adds them one after the other.

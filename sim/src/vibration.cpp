@@ -61,12 +61,18 @@ CycleVariation draw_cycle_variation(const VibrationSpec& v, std::uint32_t cycles
 }
 
 Ringing make_ringing(double fs_hz, double t_imp_s, double amplitude, double resonance_hz,
-                     double damping_ratio) noexcept {
+                     double damping_ratio, double mode2_ratio, double mode2_share) noexcept {
   Ringing r;
   const double wn = kTwoPi * resonance_hz;
   r.sigma = damping_ratio * wn;
   r.wd = wn * std::sqrt(1.0 - damping_ratio * damping_ratio);
   r.t_end_s = t_imp_s + kRingDecay / r.sigma;
+  if (mode2_ratio > 0.0 && mode2_share > 0.0 && mode2_ratio * resonance_hz < 0.49 * fs_hz) {
+    r.amplitude2 = amplitude * mode2_share;
+    r.sigma2 = r.sigma * mode2_ratio;
+    r.wd2 = r.wd * mode2_ratio;
+    r.t_end_s = std::max(r.t_end_s, t_imp_s + kRingDecay / r.sigma2);
+  }
   r.n0 = static_cast<std::size_t>(std::ceil(t_imp_s * fs_hz));
   r.t_imp_s = t_imp_s;
   r.amplitude = amplitude;
@@ -82,7 +88,9 @@ void RingingSet::apply(std::size_t i0, std::span<double> x, double fs_hz, std::s
       const double t = static_cast<double>(n) / fs_hz;
       if (t > r.t_end_s) break;
       const double tau = t - r.t_imp_s;
-      x[n - i0] += r.amplitude * std::exp(-r.sigma * tau) * std::sin(r.wd * tau);
+      double v = r.amplitude * std::exp(-r.sigma * tau) * std::sin(r.wd * tau);
+      if (r.amplitude2 != 0.0) v += r.amplitude2 * std::exp(-r.sigma2 * tau) * std::sin(r.wd2 * tau);
+      x[n - i0] += v;
     }
     if (n < i1 || n >= n_total) {  // ended (or beyond the recording)
       r.amplitude = 0.0;

@@ -339,6 +339,82 @@ TEST(Effects, ImpactsAtTorqueReversals) {
   EXPECT_GT(after, 3.0);
 }
 
+TEST(Effects, ImpactsAtStartsAndStopsOrBoth) {
+  // Issue 11: a generator (or a machine) may knock where the motion starts from rest and where it stops,
+  // not only where the torque reverses. reciprocating(2): each cycle starts from rest, reverses at pi
+  // without resting, and stops back at 0 (the dwell).
+  auto knocks = [](double events) {
+    Scenario s = reciprocating(2);
+    s.vibration.gmf_amplitudes.clear();
+    s = with(s, EffectKind::kImpacts,
+             {{"amplitude_ms2", 4.0}, {"resonance_hz", 3000.0}, {"damping_ratio", 0.05}, {"knock_events", events}});
+    return simulate_signals(s, 1).vibration.effect_impacts;
+  };
+  EXPECT_EQ(knocks(0.0), 5U);  // torque reversals (ImpactsAtTorqueReversals)
+  EXPECT_EQ(knocks(1.0), 4U);  // one start and one stop per cycle
+  // Both: per cycle the start (a reversal in the first cycle, counted once), the braking at pi, the
+  // braking back and the stop.
+  EXPECT_EQ(knocks(2.0), 8U);
+}
+
+TEST(Effects, ImpactsRingASecondModeAtItsRatioAndShare) {
+  Scenario s = reciprocating(1);
+  s.vibration.gmf_amplitudes.clear();
+  const double fn_hz = 2000.0, zeta = 0.05, amp = 4.0;
+  const Scenario one =
+      with(s, EffectKind::kImpacts, {{"amplitude_ms2", amp}, {"resonance_hz", fn_hz}, {"damping_ratio", zeta}});
+  const Scenario two = with(s, EffectKind::kImpacts,
+                            {{"amplitude_ms2", amp},
+                             {"resonance_hz", fn_hz},
+                             {"damping_ratio", zeta},
+                             {"mode2_ratio", 2.5},
+                             {"mode2_share", 0.5}});
+  const SimulatedSignals a = simulate_signals(one, 1);
+  const SimulatedSignals b = simulate_signals(two, 1);
+  ASSERT_EQ(a.vibration.effect_impacts, b.vibration.effect_impacts);
+  // The difference is the second mode alone: 0.5 amp exp(-zeta w2 t) sin(w2 sqrt(1 - zeta^2) t), w2 = 2.5
+  // x 2 pi fn, from the first knock (the start of the motion after the 0.2 s lead-in; no mesh, no noise).
+  const double fs = s.sensor.fs_hz;
+  const double t_imp = 0.2;
+  const auto i0 = static_cast<std::size_t>(std::ceil(t_imp * fs));
+  const double w2 = 2.5 * 2.0 * kPi * fn_hz;
+  double worst = 0.0, peak = 0.0;
+  for (std::size_t i = i0; i < i0 + 200; ++i) {
+    const double tau = static_cast<double>(i) / fs - t_imp;
+    const double want = 0.5 * amp * std::exp(-zeta * w2 * tau) * std::sin(w2 * std::sqrt(1.0 - zeta * zeta) * tau);
+    const double got = b.vibration.accel_ms2[i] - a.vibration.accel_ms2[i];
+    worst = std::max(worst, std::fabs(got - want));
+    peak = std::max(peak, std::fabs(got));
+  }
+  EXPECT_GT(peak, 1.5);  // the second mode rings (0.5 x 4 m/s^2 at most)
+  EXPECT_LT(worst, 1e-9);
+  // Above 0.49 fs the second mode is not simulated.
+  Scenario high = two;
+  high.effects.back().set("mode2_ratio", 0.49 * fs / fn_hz + 0.01);
+  EXPECT_EQ(simulate_signals(high, 1).vibration.accel_ms2, a.vibration.accel_ms2);
+}
+
+TEST(EffectsScenario, ImpactsSecondModeMustBeHigherAndItsKeysShowOnlyWhenOn) {
+  const std::string head = "[motion]\nvia_points_rad = [0.0, 1.0]\nmax_speed_rad_s = 1.0\n[[effects]]\n"
+                           "kind = \"impacts\"\n";
+  auto error_of = [](const std::string& text) {
+    try {
+      (void)parse_scenario(text, "knock.toml");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error_of(head + "mode2_ratio = 0.8\n").find("mode2_ratio"), std::string::npos);
+  EXPECT_EQ(error_of(head + "mode2_ratio = 1.8\n"), "");
+  EXPECT_NE(error_of(head + "knock_events = 3\n").find("knock_events"), std::string::npos);
+  // describe() keeps the one-mode text unless the second mode or other knock places are on.
+  EffectSpec e = EffectSpec::with_defaults(EffectKind::kImpacts);
+  EXPECT_EQ(describe(e), "impacts(amplitude_ms2=5, resonance_hz=4000, damping_ratio=0.05, rate_hz=0)");
+  e.set("knock_events", 1.0);
+  EXPECT_NE(describe(e).find("knock_events=1"), std::string::npos);
+}
+
 TEST(Effects, LoadDependenceScalesTheMeshByDirection) {
   const Scenario s =
       with(reciprocating(1), EffectKind::kLoadDependence, {{"direction_gain", 0.5}, {"accel_gain", 0.0}});
