@@ -59,15 +59,17 @@ import sys
 
 import numpy as np
 
+sys.dont_write_bytecode = True  # no scripts/__pycache__ from the import below
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import feature_study_gen2 as fs2  # noqa: E402  (recording reader, window positions, PTDA residual)
 
 NB_ENV = 8          # equal bands of 1..N/2 for the band-passed envelope
 MIN_REV = 2.0       # shaft features need at least this many input-shaft revolutions in the window
+F_SCALE = 1.0       # control (--f-scale): the shaft frequency multiplied by a wrong factor
 MAX_LAGS = 2        # ac: lags of 1..MAX_LAGS revolutions (each with at least one revolution of overlap)
 SYNC_BINS = 32      # angle bins per revolution of the synchronous average
 HARMONICS = (1, 2, 3)
-FAMILIES = ["mi", "ac", "sync", "kurt"]
+FAMILIES = ["mi", "ac", "sync", "kurt", "am", "pm"]
 BANDS = ["all"] + [f"e{b}" for b in range(NB_ENV)]
 K, H = 1.0, 10.0
 
@@ -90,6 +92,56 @@ def squared_envelope(R, mask, n):
     return b, b * b + h * h
 
 
+def ac_at_revolutions(x, f_in_hz, fs):
+    """Autocorrelation of x - mean x at lags of 1..MAX_LAGS input-shaft revolutions (each with at least
+    one revolution of overlap), unbiased per lag, over the zero-lag mean square; their mean."""
+    n = x.size
+    xc = x - x.mean()
+    nfft = 1 << int(math.ceil(math.log2(2 * n)))
+    E = np.fft.rfft(xc, nfft)
+    acf = np.fft.irfft(E * np.conj(E), nfft)[:n]
+    lags = [int(round(m * fs / f_in_hz)) for m in range(1, MAX_LAGS + 1) if m * fs / f_in_hz <= n - fs / f_in_hz]
+    if not lags or acf[0] <= 0:
+        return float("nan")
+    return float(np.mean([float(acf[lag] / (n - lag)) / float(acf[0] / n) for lag in lags]))
+
+
+def mesh_demodulation(X, cm, f_in_hz, fs, n, z_in):
+    """am, pm: the mesh's own amplitude and phase modulation at the input-shaft rate. Per mesh harmonic h
+    (GMF = z_in f_in; h GMF inside a line group of the class mean, (h + 1/2) GMF below fs/2, h <= 6)
+    the window's spectrum X over (h - 1/2 .. h + 1/2) GMF (carrier and sidebands; the raw window, not
+    the residual) gives an analytic signal z_h; am_h = |z_h| / mean |z_h| - 1, pm_h = (unwrapped phase,
+    linear trend removed) / h. am, pm average them over the harmonics, and the features are their
+    autocorrelation at one (two) revolutions (ac_at_revolutions). Gain-invariant. NaN below MIN_REV."""
+    nan = {"am": float("nan"), "pm": float("nan")}
+    if z_in <= 0 or f_in_hz / F_SCALE * n / fs < MIN_REV:
+        return nan
+    gmf, df = z_in * f_in_hz / F_SCALE, fs / n  # the control (--f-scale) moves the lag, not the mesh
+    ams, pms = [], []
+    t = np.arange(n)
+    for h in range(1, 7):
+        if (h + 0.5) * gmf >= 0.5 * fs:
+            break
+        kc = int(round(h * gmf / df))
+        if not cm.in_group[max(1, kc - 1):kc + 2].any():
+            continue
+        lo, hi = int(round((h - 0.5) * gmf / df)), int(round((h + 0.5) * gmf / df))
+        Z = np.zeros(n, complex)
+        Z[max(1, lo):hi] = X[max(1, lo):hi]
+        z = np.fft.ifft(Z)
+        a = np.abs(z)
+        if a.mean() <= 0:
+            continue
+        ams.append(a / a.mean() - 1.0)
+        ph = np.unwrap(np.angle(z))
+        ph = ph - np.polyval(np.polyfit(t, ph, 1), t)
+        pms.append(ph / h)
+    if not ams:
+        return nan
+    return {"am": ac_at_revolutions(np.mean(ams, axis=0), f_in_hz, fs),
+            "pm": ac_at_revolutions(np.mean(pms, axis=0), f_in_hz, fs)}
+
+
 def shaft_features(b, e, f_in_hz, fs):
     """mi, ac, sync, kurt of one band-passed residual b with squared envelope e (dict; shaft features
     are NaN when the window holds fewer than MIN_REV input-shaft revolutions)."""
@@ -108,15 +160,7 @@ def shaft_features(b, e, f_in_hz, fs):
     mis = [abs(np.sum(w * ec * np.exp(-2j * math.pi * m * f_in_hz * t))) / np.sum(w * e) for m in HARMONICS]
     out["mi"] = math.log(max(1e-12, float(np.mean(mis))))
     # Autocorrelation at one (and two) revolutions, by the FFT (zero-padded: linear, not circular).
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    E = np.fft.rfft(ec, nfft)
-    acf = np.fft.irfft(E * np.conj(E), nfft)[:n]
-    lags = [int(round(m * fs / f_in_hz)) for m in range(1, MAX_LAGS + 1) if m * fs / f_in_hz <= n - fs / f_in_hz]
-    vals = []
-    for lag in lags:
-        # unbiased per lag (sum over n - lag products), normalised by the zero-lag mean square
-        vals.append(float(acf[lag] / (n - lag)) / float(acf[0] / n))
-    out["ac"] = float(np.mean(vals)) if vals else float("nan")
+    out["ac"] = ac_at_revolutions(e, f_in_hz, fs)
     # Synchronous average of e over the whole revolutions the window holds.
     whole = int(math.floor(n_rev))
     nn = int(round(whole * fs / f_in_hz))
@@ -127,10 +171,10 @@ def shaft_features(b, e, f_in_hz, fs):
     return out
 
 
-def window_features(cm, masks, x, f_in_hz, fs, loo=False):
+def window_features(cm, masks, x, f_in_hz, fs, z_in, loo=False):
     n = x.size
     R = fs2.residual_spectrum(cm, x, loo)
-    out = {}
+    out = {f"{k}_all": v for k, v in mesh_demodulation(np.fft.fft(x), cm, f_in_hz, fs, n, z_in).items()}
     for name, mask in masks.items():
         if not mask.any():
             continue
@@ -164,8 +208,8 @@ def machine(args, d):
     classes = sorted({w[0] for ws in train.values() for w in ws})
     models = {c: fs2.ClassModel([w[2] for ws in train.values() for w in ws if w[0] == c], n) for c in classes}
     masks = {c: band_masks(models[c].floor_bins, models[c].a.size) for c in classes}
-    f_in = lambda v: ratio * abs(v) / (2 * math.pi)  # noqa: E731
-    tr = [(w[0], window_features(models[w[0]], masks[w[0]], w[2], f_in(w[1]), fs, loo=True))
+    f_in = lambda v: F_SCALE * ratio * abs(v) / (2 * math.pi)  # noqa: E731
+    tr = [(w[0], window_features(models[w[0]], masks[w[0]], w[2], f_in(w[1]), fs, z_in, loo=True))
           for ws in train.values() for w in ws]
     stats = {}
     for c in classes:
@@ -189,7 +233,7 @@ def machine(args, d):
         for c, v, x, _ in ws:
             if c not in models:
                 continue
-            fv = window_features(models[c], masks[c], x, f_in(v), fs)
+            fv = window_features(models[c], masks[c], x, f_in(v), fs, z_in)
             for key in set(fv) | set(stats[c]):
                 mu_sd = stats[c].get(key)
                 val = fv.get(key, float("nan"))
@@ -265,7 +309,11 @@ def report(allres, allinfo, sets, product):
                 for s in sets[1:]:
                     if win[ref].size and win[s].size:
                         aucs[s].append(fs2.auc(win[ref], win[s]))
+            if not scored:
+                continue
             name = f"{fam} ({'all floor bins' if variant == 'all' else f'largest of {NB_ENV} bands'})"
+            if fam in ("am", "pm"):
+                name = f"{fam} (mesh harmonics demodulated)"
             rows[(fam, variant)] = (alarms, aucs, scored, per_machine)
             cells = [f"{alarms[s]}" for s in sets]
             cells += [f"{np.median(aucs[s]):.2f} ({min(aucs[s]):.2f}-{max(aucs[s]):.2f})" if aucs[s] else "-"
@@ -288,6 +336,21 @@ def report(allres, allinfo, sets, product):
                 cells.append(str(sum(1 for t in tags if product.get((t, s)) == "yes" or pm.get(t, {}).get(s, 0) > H)))
             lines.append(f"| {fam} {variant} | " + " | ".join(cells) + " |")
         lines.append("")
+    # Combinations: a machine is alarmed when any of the named detectors alarms (each its own CUSUM).
+    combos = [[("pm", "all"), ("am", "all")], [("pm", "all"), ("am", "all"), ("ac", "max")]]
+    lines.append("Combinations (any detector alarms), machines alarmed; with the product too in brackets:")
+    lines.append("| detectors | " + " | ".join(sets) + " |")
+    lines.append("|---" * (1 + len(sets)) + "|")
+    for combo in combos:
+        if not all(c in rows for c in combo):
+            continue
+        cells = []
+        for s_ in sets:
+            alone = [t for t in tags if any(rows[c][3].get(t, {}).get(s_, 0) > H for c in combo)]
+            withp = [t for t in tags if t in alone or product.get((t, s_)) == "yes"]
+            cells.append(f"{len(alone)} ({len(withp)})" if product else f"{len(alone)}")
+        lines.append("| " + " + ".join(f"{f} {v}" for f, v in combo) + " | " + " | ".join(cells) + " |")
+    lines.append("")
     # Per-machine detail: revolutions per window and the largest CUSUM of each set.
     lines.append("Per machine: input-shaft revolutions per window by class; largest CUSUM (max over bands) "
                  "per set for ac / sync / mi / kurt; product verdict")
@@ -298,7 +361,7 @@ def report(allres, allinfo, sets, product):
         nrev = ", ".join(f"{c['n_rev']:.1f}" for c in allinfo[t]["classes"].values())
         cells = []
         for fam in FAMILIES:
-            pm = rows[(fam, "max")][3].get(t)
+            pm = rows.get((fam, "max"), rows.get((fam, "all")))[3].get(t)
             cells += [f"{pm[s]:.1f}" if pm else "-" for s in sets]
         prod = "/".join(product.get((t, s), "?")[0] for s in sets) if product else "-"
         lines.append(f"| {t} | {nrev} | " + " | ".join(cells) + f" | {prod} |")
@@ -348,7 +411,24 @@ def self_check():
         print(f"self-check {name}: " + ", ".join(f"{k} {v:+.3f}" for k, v in res[name].items()))
     ok = (res["burst"]["ac"] > res["noise"]["ac"] + 0.2 and res["burst"]["mi"] > res["noise"]["mi"] + 0.7
           and res["burst"]["sync"] > res["noise"]["sync"] + 0.5
-          and all(abs(res["burst"][k] - res["burst x3"][k]) < 1e-9 for k in FAMILIES))
+          and all(abs(res["burst"][k] - res["burst x3"][k]) < 1e-9 for k in res["burst"]))
+    # Mesh demodulation: a 24-tooth mesh at 12 Hz shaft rate whose amplitude dips by 30 % (or whose
+    # phase slips by 0.3 rad) over 1.5 pitches once per revolution, in noise.
+    cm = type("Cm", (), {})()
+    gmf = 24 * f_in
+    cm.in_group = np.zeros(n // 2 + 1, bool)
+    kc = int(round(gmf * n / fs))
+    cm.in_group[kc - 1:kc + 2] = True
+    d = np.mod(2 * math.pi * f_in * t + math.pi, 2 * math.pi) - math.pi
+    half = 0.75 * 2 * math.pi / 24
+    bump = np.where(np.abs(d) < half, 0.5 * (1 + np.cos(math.pi * d / half)), 0.0)
+    mesh = np.sin(2 * math.pi * gmf * t)
+    slip = np.sin(2 * math.pi * gmf * t - 0.3 * bump)
+    for name, x in (("mesh", mesh + 0.1 * noise), ("mesh with dip", mesh * (1 - 0.3 * bump) + 0.1 * noise),
+                    ("mesh with slip", slip + 0.1 * noise)):
+        res[name] = mesh_demodulation(np.fft.fft(x), cm, f_in, fs, n, 24)
+        print(f"self-check {name}: " + ", ".join(f"{k} {v:+.3f}" for k, v in res[name].items()))
+    ok = ok and res["mesh with dip"]["am"] > res["mesh"]["am"] + 0.2 and res["mesh with slip"]["pm"] > res["mesh"]["pm"] + 0.2
     # Below MIN_REV revolutions the shaft features are not defined.
     b, e = squared_envelope(np.fft.rfft(noise), np.ones(n // 2 + 1, bool), n)
     ok = ok and not np.isfinite(shaft_features(b, e, 1.0, fs)["ac"])
@@ -357,7 +437,7 @@ def self_check():
 
 
 def main():
-    global NB_ENV, MIN_REV, MAX_LAGS, BANDS
+    global NB_ENV, MIN_REV, MAX_LAGS, BANDS, F_SCALE
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ptda")
     ap.add_argument("--dirs", nargs="+")
@@ -371,11 +451,15 @@ def main():
     ap.add_argument("--env-bands", type=int, default=NB_ENV, help="equal bands of the envelope features (8)")
     ap.add_argument("--min-rev", type=float, default=MIN_REV, help="input-shaft revolutions a window needs (2)")
     ap.add_argument("--max-lags", type=int, default=MAX_LAGS, help="ac: lags of 1..L revolutions (2)")
+    ap.add_argument("--f-scale", type=float, default=1.0, help="control: take F times the input-shaft "
+                    "frequency (a wrong rate: a feature that still detects does not see the shaft rate)")
     args = ap.parse_args()
-    NB_ENV, MIN_REV, MAX_LAGS = args.env_bands, args.min_rev, args.max_lags
+    NB_ENV, MIN_REV, MAX_LAGS, F_SCALE = args.env_bands, args.min_rev, args.max_lags, args.f_scale
     BANDS = ["all"] + [f"e{b}" for b in range(NB_ENV)]
+    F_SCALE = 1.0  # the self-check runs at the true rate
     if not self_check():
         return 1
+    F_SCALE = args.f_scale
     if args.self_check:
         return 0
     if not (args.work and (args.from_json or (args.ptda and args.dirs))):
