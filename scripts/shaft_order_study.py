@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Shaft-synchronous features of the PTDA residual (docs/method.md §8, "Session 18"; prototype, numpy).
+"""Shaft-synchronous features of the PTDA residual and of the mesh (docs/method.md §8, "Session 18";
+prototype, numpy).
 
 A local tooth defect repeats once per revolution of the shaft that carries the tooth. On the second
 generator (tests/gen2/g2robot.py `tooth_defect`) that is the input pinion: once per input-shaft
@@ -27,13 +28,20 @@ Per machine directory (the layout of scripts/detection_study_gen2.py --train-day
              |sum_n w[n] (e[n] - mean e) exp(-j 2 pi m f_in n / fs)| / sum_n w[n] e[n] (Hann w),
              i.e. the envelope spectrum at exactly m f_in (not at the nearest bin) over its DC
        ac    autocorrelation of e - mean e at a lag of one input-shaft revolution (and of two, where the
-             window holds three; --max-lags), normalised by the zero-lag value: near 0 for a stationary residual,
-             towards 1 for a burst that comes back every revolution
+             window holds three; --max-lags), normalised by the zero-lag value: near 0 for a
+             stationary residual, towards 1 for a burst that comes back every revolution
        sync  ln peak-to-mean of the synchronous average of e over the window's whole input-shaft
              revolutions (32 angle bins per revolution)
        kurt  ln kurtosis of b (impulsiveness)
-     Shaft features (mi, ac, sync) need n_rev >= MIN_REV; windows with fewer revolutions are not scored
-     for them (counted in the report).
+       am, pm  (not residual features) the mesh's own amplitude and phase modulation: per mesh harmonic
+             h <= 6 that is a line of the class mean (GMF = z_in f_in), the window's spectrum over
+             (h -+ 1/2) GMF gives an analytic signal; its envelope over its mean minus 1 (am) and its
+             detrended unwrapped phase / h (pm), averaged over the harmonics; feature: their
+             autocorrelation at one (two) revolutions, as ac (mesh_demodulation)
+     Shaft features (mi, ac, sync, am, pm) need n_rev >= MIN_REV (--min-rev); windows with fewer
+     revolutions are not scored for them (the report lists n_rev per class).
+     Control: --f-scale F takes F f_in for every lag and shaft harmonic (am/pm keep the true GMF); a
+     feature that still detects at a wrong rate does not see the shaft rate.
   4. standardisation per machine, class and band from the training days only: z = (v - mean) / sd over
      all training windows of the class (leave-one-out residuals; sd pooled over the days, so it holds the
      between-day spread the training days show);
@@ -44,7 +52,8 @@ Per machine directory (the layout of scripts/detection_study_gen2.py --train-day
      counted. The product's own verdicts (results.tsv of the detection study) are tabulated beside.
 
   /usr/bin/python3 scripts/shaft_order_study.py --ptda build/release/cli/ptda \
-      --dirs out/dev_a/m20* out/dev_b/m20* --work out/shaft [--results out/dev_a/results.tsv,...]
+      --dirs out/dev_a/m20* out/dev_b/m20* --work out/shaft2 [--results out/dev_a/results.tsv,...]
+      [--sets healthy=healthy.jsonl,q=faulty_0.25.jsonl,h=faulty_0.5.jsonl] [--from-json WORK/features.json]
   /usr/bin/python3 scripts/shaft_order_study.py --self-check
 
 Needs python3-numpy. Development seeds only; the evaluation seeds are never run with this script.
@@ -297,7 +306,8 @@ def report(allres, allinfo, sets, product):
                     stat = {s: cusum_max(r[s].get(key, [])) for s in sets}
                     win = {s: finite(r[s].get(key, [])) for s in sets}
                 else:
-                    keys = [f"{fam}_{b}" for b in BANDS[1:] if f"{fam}_{b}" in r[ref] and finite(r[ref][f"{fam}_{b}"]).size]
+                    keys = [f"{fam}_{b}" for b in BANDS[1:]
+                            if f"{fam}_{b}" in r[ref] and finite(r[ref][f"{fam}_{b}"]).size]
                     if not keys:
                         continue
                     stat = {s: max(cusum_max(r[s].get(k, [])) for k in keys) for s in sets}
@@ -428,7 +438,8 @@ def self_check():
                     ("mesh with slip", slip + 0.1 * noise)):
         res[name] = mesh_demodulation(np.fft.fft(x), cm, f_in, fs, n, 24)
         print(f"self-check {name}: " + ", ".join(f"{k} {v:+.3f}" for k, v in res[name].items()))
-    ok = ok and res["mesh with dip"]["am"] > res["mesh"]["am"] + 0.2 and res["mesh with slip"]["pm"] > res["mesh"]["pm"] + 0.2
+    ok = (ok and res["mesh with dip"]["am"] > res["mesh"]["am"] + 0.2
+          and res["mesh with slip"]["pm"] > res["mesh"]["pm"] + 0.2)
     # Below MIN_REV revolutions the shaft features are not defined.
     b, e = squared_envelope(np.fft.rfft(noise), np.ones(n // 2 + 1, bool), n)
     ok = ok and not np.isfinite(shaft_features(b, e, 1.0, fs)["ac"])
