@@ -940,10 +940,12 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
                                 : events == 2 ? "knocks at torque reversals, starts and stops"
                                               : "knocks at torque reversals";
       return where +
-             (e.get("rate_hz") > 0.0 ? " and " + fmt("%.1f", e.get("rate_hz")) + " per second at random" : "") +
+             (e.get("rate_hz") > 0.0 ? " and " + fmt("%.1f", e.get("rate_hz")) + " per second at random"
+                                     : "") +
              ", ringing at " + fmt("%.0f", e.get("resonance_hz")) + " Hz" +
-             (e.get("mode2_ratio") > 0.0 ? " and " + fmt("%.0f", e.get("mode2_ratio") * e.get("resonance_hz")) + " Hz"
-                                         : std::string());
+             (e.get("mode2_ratio") > 0.0
+                  ? " and " + fmt("%.0f", e.get("mode2_ratio") * e.get("resonance_hz")) + " Hz"
+                  : std::string());
     }
     case EffectKind::kElectricalInterference:
       return "lines at " + fmt("%.2f", e.get("frequency_hz")) + " Hz and harmonics" +

@@ -114,11 +114,11 @@ struct SignalEffects::Step {
   // impacts: knocks at torque reversals (pieces in order), then random (Poisson) knocks
   double amp = 0.0, f_res = 0.0, zeta = 0.0, rate = 0.0;
   double mode2_ratio = 0.0, mode2_share = 0.0;  // impacts: the second mode (0: one mode)
-  int knock_events = 0;  // 0 torque reversals, 1 starts from rest and stops, 2 both
-  double prev_sign = 0.0;  // the last piece's acceleration sign (0 included)
-  bool prev_rest = true;    // the last piece was at rest
-  double top_speed = 0.0;   // the fastest |speed| of the pieces walked
-  std::optional<PieceCursor> rev;  // the next piece to look at for a reversal
+  int knock_events = 0;                         // 0 torque reversals, 1 starts from rest and stops, 2 both
+  double prev_sign = 0.0;                       // the last piece's acceleration sign (0 included)
+  bool prev_rest = true;                        // the last piece was at rest
+  double top_speed = 0.0;                       // the fastest |speed| of the pieces walked
+  std::optional<PieceCursor> rev;               // the next piece to look at for a reversal
   bool rev_done = false;
   double last_sign = 0.0;
   bool random_pending = false;

@@ -553,7 +553,8 @@ void parse_effect(Reader& r, EffectSpec& e, const Scenario& s) {
     if (e.get("mode2_ratio") > 0.0) {
       // A second mode at or above 0.49 fs_hz is not simulated (the anti-alias filter's side), as a fit may
       // propose it; it is not an error.
-      require(e.get("mode2_ratio") > 1.0, r, "mode2_ratio", "must be 0 (one mode) or above 1 (a higher mode)");
+      require(e.get("mode2_ratio") > 1.0, r, "mode2_ratio",
+              "must be 0 (one mode) or above 1 (a higher mode)");
     }
   } else if (*k == EffectKind::kElectricalInterference) {
     require(e.get("frequency_hz") < nyquist, r, "frequency_hz", "must be below fs_hz / 2");

@@ -65,8 +65,8 @@ struct Ringing {
   std::size_t n0 = 0;  ///< first sample, ceil(t_imp_s * fs)
   double t_imp_s = 0.0;
   double amplitude = 0.0;
-  double sigma = 0.0;  ///< zeta wn
-  double wd = 0.0;     ///< damped angular frequency
+  double sigma = 0.0;       ///< zeta wn
+  double wd = 0.0;          ///< damped angular frequency
   double amplitude2 = 0.0;  ///< a second, higher mode (impacts' mode2); 0: none
   double sigma2 = 0.0;
   double wd2 = 0.0;

@@ -347,7 +347,10 @@ TEST(Effects, ImpactsAtStartsAndStopsOrBoth) {
     Scenario s = reciprocating(2);
     s.vibration.gmf_amplitudes.clear();
     s = with(s, EffectKind::kImpacts,
-             {{"amplitude_ms2", 4.0}, {"resonance_hz", 3000.0}, {"damping_ratio", 0.05}, {"knock_events", events}});
+             {{"amplitude_ms2", 4.0},
+              {"resonance_hz", 3000.0},
+              {"damping_ratio", 0.05},
+              {"knock_events", events}});
     return simulate_signals(s, 1).vibration.effect_impacts;
   };
   EXPECT_EQ(knocks(0.0), 5U);  // torque reversals (ImpactsAtTorqueReversals)
@@ -361,8 +364,8 @@ TEST(Effects, ImpactsRingASecondModeAtItsRatioAndShare) {
   Scenario s = reciprocating(1);
   s.vibration.gmf_amplitudes.clear();
   const double fn_hz = 2000.0, zeta = 0.05, amp = 4.0;
-  const Scenario one =
-      with(s, EffectKind::kImpacts, {{"amplitude_ms2", amp}, {"resonance_hz", fn_hz}, {"damping_ratio", zeta}});
+  const Scenario one = with(s, EffectKind::kImpacts,
+                            {{"amplitude_ms2", amp}, {"resonance_hz", fn_hz}, {"damping_ratio", zeta}});
   const Scenario two = with(s, EffectKind::kImpacts,
                             {{"amplitude_ms2", amp},
                              {"resonance_hz", fn_hz},
@@ -381,7 +384,8 @@ TEST(Effects, ImpactsRingASecondModeAtItsRatioAndShare) {
   double worst = 0.0, peak = 0.0;
   for (std::size_t i = i0; i < i0 + 200; ++i) {
     const double tau = static_cast<double>(i) / fs - t_imp;
-    const double want = 0.5 * amp * std::exp(-zeta * w2 * tau) * std::sin(w2 * std::sqrt(1.0 - zeta * zeta) * tau);
+    const double want =
+        0.5 * amp * std::exp(-zeta * w2 * tau) * std::sin(w2 * std::sqrt(1.0 - zeta * zeta) * tau);
     const double got = b.vibration.accel_ms2[i] - a.vibration.accel_ms2[i];
     worst = std::max(worst, std::fabs(got - want));
     peak = std::max(peak, std::fabs(got));
@@ -395,8 +399,9 @@ TEST(Effects, ImpactsRingASecondModeAtItsRatioAndShare) {
 }
 
 TEST(EffectsScenario, ImpactsSecondModeMustBeHigherAndItsKeysShowOnlyWhenOn) {
-  const std::string head = "[motion]\nvia_points_rad = [0.0, 1.0]\nmax_speed_rad_s = 1.0\n[[effects]]\n"
-                           "kind = \"impacts\"\n";
+  const std::string head =
+      "[motion]\nvia_points_rad = [0.0, 1.0]\nmax_speed_rad_s = 1.0\n[[effects]]\n"
+      "kind = \"impacts\"\n";
   auto error_of = [](const std::string& text) {
     try {
       (void)parse_scenario(text, "knock.toml");
