@@ -105,6 +105,15 @@ def read_recording(rec):
     return start, v.astype(float) * scale, float(rate)
 
 
+def monitor_once(ptda, d, rec_name, cfg_path, jsonl):
+    """`ptda monitor` of machine dir d's recording rec_name against its baseline.bin into jsonl (once:
+    an existing jsonl is reused). Gives the window positions of a recording, training days included."""
+    if not os.path.exists(jsonl):
+        subprocess.run([ptda, "monitor", "--recording", os.path.join(d, rec_name), "--config", cfg_path,
+                        "--baseline", os.path.join(d, "baseline.bin"), "--jsonl", jsonl],
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+
+
 def windows(rec, jsonl, fs, n):
     start, x, wav_fs = read_recording(rec)
     fs = fs or wav_fs
@@ -305,10 +314,7 @@ def machine(args, d):
         fs = fs or read_recording(os.path.join(d, name_to_dir(d, name, spec)))[2]
     for t in train_dirs:
         j = os.path.join(wd, t + ".jsonl")
-        if not os.path.exists(j):
-            subprocess.run([args.ptda, "monitor", "--recording", os.path.join(d, t), "--config", cfg_path,
-                            "--baseline", os.path.join(d, "baseline.bin"), "--jsonl", j],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+        monitor_once(args.ptda, d, t, cfg_path, j)
         train[t] = windows(os.path.join(d, t), j, fs, n)
     classes = sorted({w[0] for ws in train.values() for w in ws})
     models = {c: ClassModel([w[2] for ws in train.values() for w in ws if w[0] == c], n) for c in classes}

@@ -63,7 +63,6 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 
 import numpy as np
@@ -209,10 +208,7 @@ def machine(args, d):
     train = {}
     for t in train_dirs:
         j = os.path.join(wd, t + ".jsonl")
-        if not os.path.exists(j):
-            subprocess.run([args.ptda, "monitor", "--recording", os.path.join(d, t), "--config", cfg_path,
-                            "--baseline", os.path.join(d, "baseline.bin"), "--jsonl", j],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+        fs2.monitor_once(args.ptda, d, t, cfg_path, j)
         train[t] = fs2.windows(os.path.join(d, t), j, fs, n)
     classes = sorted({w[0] for ws in train.values() for w in ws})
     models = {c: fs2.ClassModel([w[2] for ws in train.values() for w in ws if w[0] == c], n) for c in classes}

@@ -400,8 +400,8 @@ struct Guesses {
   double own_axis_duty = 1.0;
   /// The interference's second form (mains lines and a drive's switching carrier, one source): the
   /// carrier and its sideband spacing found near the strongest kHz excess line far above the lowest
-  /// (the mains), and which line guesses
-  /// (0: line_still_hz, i: more_lines_still_hz[i - 1]) are the mains and the drive line. Carrier 0: none.
+  /// (the mains), and which line guesses (0: line_still_hz, i: more_lines_still_hz[i - 1]) are the mains
+  /// and the drive line. Carrier 0: none.
   double drive_carrier_hz = 0.0;
   double drive_side_hz = 0.0;
   int drive_mains_line = -1;
@@ -723,21 +723,12 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       std::vector<double> res{std::clamp(q.energy_peak_accel_hz, 20.0, top)};
       if (q.knock_peak_hz > 0.0) res.push_back(std::clamp(q.knock_peak_hz, 20.0, top));
       for (double f = 600.0; f < top; f *= 1.6) res.push_back(f);
-      // A knock rings more than one mode (issue 11). One mode fitted to a two-mode knock sits far above
-      // both, to match the differenced signal's peaks (gen2-1040: 11.4 kHz for modes at 3.0 and 6.2 kHz),
-      // where neither the resonance nor the amplitude alone can leave. So the resonance is searched again
-      // on the whole grid with a second mode, the amplitude following it at the same ring energy
-      // (amplitude^2 / resonance) and searched around that.
-      FitStage modes{"resonance_hz", res, false, "mode2_ratio", {0.0, 1.5, 2.0, 2.6}};
-      modes.follow = "amplitude_ms2";
-      modes.follow_exp = 0.5;
-      modes.follow_values = {0.5, 1.0, 2.0};
       if (!q.has_reversals) {
         // No torque reversal to knock at: only Poisson knocks (rate_hz) can reproduce transients.
         // The screen runs the first two stages from rate 4/s: resonance, then amplitude.
         // The second mode is not searched here: random knock times make the fit part's few knocks a
-        // sample of their own, and the extra stages fitted it (Diagnose.KnocksOnAConstantSpeedRigAreFitted-
-        // AtAPoissonRate: held-out gap 5.4-5.8 with them, 3.4-4.7 without).
+        // sample of their own, and the extra stages fitted it (held-out gap 5.4-5.8 with them, 3.4-4.7
+        // without, in Diagnose.KnocksOnAConstantSpeedRigAreFittedAtAPoissonRate).
         return {{"resonance_hz", res},
                 {"amplitude_ms2", {1, 2, 4, 8, 16, 32, 64}},
                 {"rate_hz", {1, 2, 4, 8, 16}},
@@ -747,6 +738,15 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
                 {"amplitude_ms2", {0.8, 1.0, 1.25}, true},
                 {"resonance_hz", {0.96, 1.0, 1.04}, true}};
       }
+      // A knock rings more than one mode (issue 11). One mode fitted to a two-mode knock sits far above
+      // both, to match the differenced signal's peaks (gen2-1040: 11.4 kHz for modes at 3.0 and 6.2 kHz),
+      // where neither the resonance nor the amplitude alone can leave. So the resonance is searched again
+      // on the whole grid with a second mode, the amplitude following it at the same ring energy
+      // (amplitude^2 / resonance) and searched around that.
+      FitStage modes{"resonance_hz", res, false, "mode2_ratio", {0.0, 1.5, 2.0, 2.6}};
+      modes.follow = "amplitude_ms2";
+      modes.follow_exp = 0.5;
+      modes.follow_values = {0.5, 1.0, 2.0};
       // Where the motion knocks (torque reversals, starts and stops, both) changes which transitions ring,
       // and so every transient statistic: it is searched with the resonance (gen2 knocks at every start
       // and stop).

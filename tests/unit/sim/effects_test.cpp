@@ -88,6 +88,16 @@ ppm = -800
   EXPECT_DOUBLE_EQ(s.effects[1].get("ppm"), -800.0);
 }
 
+/// The parse error of a scenario text ("" when it parses).
+std::string error_of(const std::string& text) {
+  try {
+    (void)parse_scenario(text, "t.toml");
+  } catch (const Error& e) {
+    return std::string(e.what());
+  }
+  return std::string();
+}
+
 void expect_error(const std::string& text, const std::string& needle) {
   try {
     (void)parse_scenario(text, "t.toml");
@@ -275,14 +285,6 @@ fs_hz = 8000.0
 kind = "electrical_interference"
 pwm_ms2 = 0.1
 )";
-  auto error_of = [](const std::string& text) {
-    try {
-      (void)parse_scenario(text, "drive.toml");
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
   EXPECT_NE(error_of(head + "pwm_hz = 4000.0\n").find("pwm_hz"), std::string::npos);
   EXPECT_NE(error_of(head + "pwm_hz = 0.0\n").find("pwm_hz"), std::string::npos);
   EXPECT_NE(error_of(head + "pwm_hz = 3000.0\npwm_side_hz = 3000.0\n").find("pwm_side_hz"),
@@ -402,14 +404,6 @@ TEST(EffectsScenario, ImpactsSecondModeMustBeHigherAndItsKeysShowOnlyWhenOn) {
   const std::string head =
       "[motion]\nvia_points_rad = [0.0, 1.0]\nmax_speed_rad_s = 1.0\n[[effects]]\n"
       "kind = \"impacts\"\n";
-  auto error_of = [](const std::string& text) {
-    try {
-      (void)parse_scenario(text, "knock.toml");
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
   EXPECT_NE(error_of(head + "mode2_ratio = 0.8\n").find("mode2_ratio"), std::string::npos);
   EXPECT_EQ(error_of(head + "mode2_ratio = 1.8\n"), "");
   EXPECT_NE(error_of(head + "knock_events = 3\n").find("knock_events"), std::string::npos);
