@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -15,6 +16,7 @@
 #include "ptda/common/error.hpp"
 #include "ptda/dsp/analyzer.hpp"
 #include "ptda/dsp/decision.hpp"
+#include "ptda/dsp/mesh_modulation.hpp"
 
 namespace ptda::dsp {
 namespace {
@@ -219,6 +221,10 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
     std::vector<std::array<Features, kMethodCount>> held;  // features of the held-out windows, in cut order
     std::size_t held_windows = 0;
     std::size_t class_windows = 0;  // windows matching the class (fit and held out)
+    // Mesh detector (policy.mesh_stats): the class's demodulator and its fit windows' am, pm values.
+    std::optional<MeshDemodulator> mesh;
+    std::array<std::vector<double>, kMeshFeatureCount> mesh_values;
+    std::array<std::vector<std::uint32_t>, kMeshFeatureCount> mesh_recording;
   };
   std::vector<Plan> plans;
   constexpr std::int32_t kNoClass = -1;
@@ -248,7 +254,7 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
     const std::uint64_t first_held = n_hold == 0 ? ~std::uint64_t{0} : distinct[distinct.size() - n_hold];
     SegmentClass renumbered = seg;
     renumbered.id = static_cast<std::uint32_t>(plans.size());
-    Plan plan{ClassBaselineBuilder(renumbered, n, policy), {}, {}, {}, {}, 0, 0};
+    Plan plan{ClassBaselineBuilder(renumbered, n, policy), {}, {}, {}, {}, 0, 0, {}, {}, {}};
     for (std::size_t j = 0; j < members[k].windows.size(); ++j) {
       const std::size_t i = members[k].windows[j];
       plan_of[i] = static_cast<std::int32_t>(plans.size());
@@ -287,15 +293,25 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
       plans[static_cast<std::size_t>(plan_of[i])].builder.add_to_mean(x);
   });
   check_complete("pass 1");
+  if (policy.mesh_stats && (gearbox.z_in == 0 || !(gearbox.ratio > 0.0))) {
+    throw Error("train_baseline: [decision] mesh_cusum needs the gearbox's input pinion teeth and ratio "
+                "([gearbox] z_in, z_spur, z_pin or ratio); this gearbox has z_in = " +
+                std::to_string(gearbox.z_in) + ", ratio = " + num(gearbox.ratio));
+  }
   for (Plan& p : plans) {
     p.builder.finish_mean();
     p.next_group = p.group_size.cbegin();
+    if (policy.mesh_stats) {
+      const ClassBaseline& c = p.builder.means();
+      p.mesh.emplace(mesh_geometry(fs_hz, n, gearbox, c.segment), c.mean_magnitude);
+    }
   }
 
   // Pass 2: each fit window's leave-one-group-out features, a group at a time in group order (a group is
   // held until all its windows have come), and the held-out windows' features against the class means.
   expected = 0;
   WindowAnalyzer analyzer(n);
+  std::vector<float> mesh_mag(n / 2 + 1);
   std::vector<std::span<const float>> group_windows;
   std::vector<std::uint32_t> group_recordings;
   pass([&](std::size_t i, std::span<const float> x) {
@@ -308,6 +324,16 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
         f[mi] = analyzer.analyze(x, p.builder.means(), static_cast<Method>(mi));
       p.held.push_back(f);
       return;
+    }
+    if (p.mesh) {
+      // The mesh features need no leave-one-out (the class mean only names the mesh lines).
+      analyzer.magnitude(x, mesh_mag);
+      const MeshValues v = p.mesh->compute(analyzer.spectrum(), data.refs[i].speed_rad_s);
+      for (std::size_t fi = 0; fi < kMeshFeatureCount; ++fi) {
+        if (!std::isfinite(v.v[fi])) continue;
+        p.mesh_values[fi].push_back(v.v[fi]);
+        p.mesh_recording[fi].push_back(data.recording.empty() ? 0U : data.recording[i]);
+      }
     }
     p.pending[group[i]].emplace_back(std::vector<float>(x.begin(), x.end()),
                                      data.recording.empty() ? 0U : data.recording[i]);
@@ -337,6 +363,24 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
     }
     ClassBaseline cb = p.builder.finish();
     cb.windows_per_hour = hours > 0.0 ? static_cast<double>(p.class_windows) / hours : 0.0;
+    if (p.mesh) {
+      // As the band statistics: the random-effects split with the recordings as groups, the between-day
+      // sd floored at day_sd_floor x within sd. Too few windows with the features (a class too slow for
+      // two input-shaft revolutions per window, or without mesh lines): windows = 0, no detector.
+      cb.mesh_stats.assign(kMeshFeatureCount, MeshFeatureStats{});
+      for (std::size_t fi = 0; fi < kMeshFeatureCount; ++fi) {
+        if (p.mesh_values[fi].size() < kMeshMinTrainingWindows) continue;
+        const VarianceComponents v = variance_components(p.mesh_values[fi], p.mesh_recording[fi]);
+        MeshFeatureStats& st = cb.mesh_stats[fi];
+        st.mean = v.mean;
+        st.within_sd = std::sqrt(v.within_var);
+        st.between_est = std::sqrt(v.between_var);
+        st.between_sd = std::max(st.between_est, policy.day_sd_floor * st.within_sd);
+        st.windows = static_cast<std::uint32_t>(p.mesh_values[fi].size());
+        cb.mesh_recordings = std::max(cb.mesh_recordings, v.groups);
+        if (!(st.within_sd > 0.0)) st = MeshFeatureStats{};  // a constant feature cannot be standardised
+      }
+    }
     if (!p.held.empty()) {
       for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
         HoldoutStats& h = cb.holdout[mi];

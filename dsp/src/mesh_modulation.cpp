@@ -42,6 +42,11 @@ double input_shaft_hz(double ratio, double speed_rad_s) noexcept {
   return ratio * std::fabs(speed_rad_s) / kTwoPi;
 }
 
+MeshGeometry mesh_geometry(double fs_hz, std::size_t window_len, const GearboxInfo& g,
+                           const SegmentClass& seg) noexcept {
+  return MeshGeometry{window_len, fs_hz, g.z_in, g.ratio, seg.speed_rad_s, seg.speed_rad_s + seg.speed_tol_rad_s};
+}
+
 double revolution_autocorrelation(std::span<const double> x, double samples_per_rev) noexcept {
   const std::size_t n = x.size();
   if (n < 2 || !(samples_per_rev > 0.0) || !std::isfinite(samples_per_rev)) return kNaN;

@@ -18,6 +18,7 @@
 #include "ptda/common/error.hpp"
 #include "ptda/common/file_check.hpp"
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/mesh_modulation.hpp"
 #include "ptda/dsp/real_fft.hpp"
 
 namespace ptda::formats {
@@ -151,7 +152,12 @@ void check_baseline(const dsp::Baseline& b, const std::string& where) {
     if (c.band_stats.size() != b.policy.band_count)
       throw Error(cls + ": " + std::to_string(c.band_stats.size()) +
                   " band statistics, the policy's band_count is " + std::to_string(b.policy.band_count));
+    if (c.mesh_stats.size() != (b.policy.mesh_stats ? dsp::kMeshFeatureCount : 0U))
+      throw Error(cls + ": " + std::to_string(c.mesh_stats.size()) + " mesh statistics, the policy " +
+                  (b.policy.mesh_stats ? "has" : "has no") + " mesh detector");
   }
+  if (b.policy.mesh_stats && b.domain != dsp::Domain::kTime)
+    throw Error(where + ": mesh statistics need a time-domain baseline");
   if (b.policy.band_count > dsp::kMaxBands || b.policy.band_count > b.window_len / 2)
     throw Error(where + ": band_count " + std::to_string(b.policy.band_count) +
                 " must be <= " + std::to_string(dsp::kMaxBands) + " and <= window_len / 2");
@@ -370,6 +376,18 @@ void validate_baseline(const dsp::Baseline& b, const std::string& where) {
         throw Error(cls + ": band " + std::to_string(k) + " has " + std::to_string(st.clean_bins) +
                     " clean bins, more than N/2");
     }
+    for (std::size_t k = 0; k < c.mesh_stats.size(); ++k) {
+      const dsp::MeshFeatureStats& st = c.mesh_stats[k];
+      if (!(std::isfinite(st.mean) && std::isfinite(st.within_sd) && st.within_sd >= 0.0 &&
+            std::isfinite(st.between_est) && st.between_est >= 0.0 && std::isfinite(st.between_sd) &&
+            st.between_sd >= 0.0))
+        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " statistics (mean " + num(st.mean) +
+                    ", sds " + num(st.within_sd) + ", " + num(st.between_est) + ", " + num(st.between_sd) +
+                    "): need finite values and sds >= 0");
+      if (st.windows > 0 && !(st.within_sd > 0.0))
+        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " has " + std::to_string(st.windows) +
+                    " training windows and a within sd of " + num(st.within_sd) + ", needs > 0");
+    }
   }
   for (std::size_t i = 0; i < b.training.size(); ++i) {
     const dsp::TrainingRecording& t = b.training[i];
@@ -408,7 +426,9 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   // order-domain baseline needs (and gets) version 5.
   const bool order = b.domain == dsp::Domain::kOrder;
   const bool bands = b.policy.band_count > 0;
-  w.u32(bands ? kBaselineFormatVersion : (order ? kBaselineOrderDomainVersion : kBaselineTimeDomainVersion));
+  const bool mesh = b.policy.mesh_stats;
+  w.u32(mesh ? kBaselineFormatVersion
+             : (bands ? kBaselineBandVersion : (order ? kBaselineOrderDomainVersion : kBaselineTimeDomainVersion)));
   w.u64(0);  // total size, patched below
   w.f64(b.fs_hz);
   w.u32(b.window_len);
@@ -478,7 +498,7 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
     }
   }
   // Version 5: the domain and the order windows' S and R; version 6: the speed law.
-  if (order || bands) {
+  if (order || bands || mesh) {
     w.u8(static_cast<std::uint8_t>(b.domain));
     w.u32(b.samples_per_rev);
     w.u32(b.revolutions);
@@ -488,9 +508,10 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
     w.f64(b.speed_law_fit);
     w.f64(b.speed_law_se);
   }
-  // Version 7: the band CUSUM's statistics (written only when trained with them).
+  // Version 7: the band CUSUM's statistics (written only when trained with them; version 8 may say 0
+  // bands, and then has no per-class band records).
+  if (bands || mesh) w.u32(b.policy.band_count);
   if (bands) {
-    w.u32(b.policy.band_count);
     for (const auto& c : b.classes) {
       w.u32(c.band_recordings);
       for (const dsp::BandEnergyStats& st : c.band_stats) {
@@ -499,6 +520,19 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
         w.f64(st.between_est);
         w.f64(st.between_sd);
         w.u32(st.clean_bins);
+      }
+    }
+  }
+  // Version 8: the mesh detector's statistics.
+  if (mesh) {
+    for (const auto& c : b.classes) {
+      w.u32(c.mesh_recordings);
+      for (const dsp::MeshFeatureStats& st : c.mesh_stats) {
+        w.f64(st.mean);
+        w.f64(st.within_sd);
+        w.f64(st.between_est);
+        w.f64(st.between_sd);
+        w.u32(st.windows);
       }
     }
   }
@@ -686,15 +720,17 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   }
   if (version >= 7) {
     const std::uint32_t count = body.u32();
-    if (count == 0 || count > dsp::kMaxBands || count > b.window_len / 2)
-      body.fail("band_count " + std::to_string(count) + " must be 1.." + std::to_string(dsp::kMaxBands) +
-                " and <= window_len / 2");
+    const std::uint32_t least = version >= 8 ? 0U : 1U;  // version 8 may carry mesh statistics alone
+    if (count < least || count > dsp::kMaxBands || count > b.window_len / 2)
+      body.fail("band_count " + std::to_string(count) + " must be " + std::to_string(least) + ".." +
+                std::to_string(dsp::kMaxBands) + " and <= window_len / 2");
     // Per class: u32 + count x (4 f64 + u32).
     if (std::uint64_t{n_classes} * (4U + std::uint64_t{count} * 36U) > body.left())
       body.fail("the band statistics of " + std::to_string(n_classes) +
                 " classes cannot fit in the remaining " + std::to_string(body.left()) + " bytes");
     b.policy.band_count = count;
     for (auto& c : b.classes) {
+      if (count == 0) break;
       c.band_recordings = body.u32();
       c.band_stats.resize(count);
       for (dsp::BandEnergyStats& st : c.band_stats) {
@@ -703,6 +739,25 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
         st.between_est = body.f64();
         st.between_sd = body.f64();
         st.clean_bins = body.u32();
+      }
+    }
+  }
+  if (version >= 8) {
+    // Per class: u32 + 2 x (4 f64 + u32).
+    if (std::uint64_t{n_classes} * (4U + dsp::kMeshFeatureCount * 36U) > body.left())
+      body.fail("the mesh statistics of " + std::to_string(n_classes) + " classes cannot fit in the remaining " +
+                std::to_string(body.left()) + " bytes");
+    if (b.domain != dsp::Domain::kTime) body.fail("mesh statistics in an order-domain baseline");
+    b.policy.mesh_stats = true;
+    for (auto& c : b.classes) {
+      c.mesh_recordings = body.u32();
+      c.mesh_stats.resize(dsp::kMeshFeatureCount);
+      for (dsp::MeshFeatureStats& st : c.mesh_stats) {
+        st.mean = body.f64();
+        st.within_sd = body.f64();
+        st.between_est = body.f64();
+        st.between_sd = body.f64();
+        st.windows = body.u32();
       }
     }
   }

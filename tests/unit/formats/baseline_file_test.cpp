@@ -152,6 +152,15 @@ void expect_equal(const Baseline& a, const Baseline& b) {
       EXPECT_TRUE(same_bits(x.band_stats[k].between_sd, y.band_stats[k].between_sd));
       EXPECT_EQ(x.band_stats[k].clean_bins, y.band_stats[k].clean_bins);
     }
+    EXPECT_EQ(x.mesh_recordings, y.mesh_recordings);
+    ASSERT_EQ(x.mesh_stats.size(), y.mesh_stats.size());
+    for (std::size_t k = 0; k < x.mesh_stats.size(); ++k) {
+      EXPECT_TRUE(same_bits(x.mesh_stats[k].mean, y.mesh_stats[k].mean));
+      EXPECT_TRUE(same_bits(x.mesh_stats[k].within_sd, y.mesh_stats[k].within_sd));
+      EXPECT_TRUE(same_bits(x.mesh_stats[k].between_est, y.mesh_stats[k].between_est));
+      EXPECT_TRUE(same_bits(x.mesh_stats[k].between_sd, y.mesh_stats[k].between_sd));
+      EXPECT_EQ(x.mesh_stats[k].windows, y.mesh_stats[k].windows);
+    }
     for (std::size_t m = 0; m < ptda::dsp::kMethodCount; ++m) {
       EXPECT_TRUE(same_bits(x.log_rms_stats[m].mean, y.log_rms_stats[m].mean));
       EXPECT_TRUE(same_bits(x.log_rms_stats[m].stddev, y.log_rms_stats[m].stddev));
@@ -441,11 +450,11 @@ TEST(BaselineFile, EveryCorruptionIsReported) {
   EXPECT_EQ(message_of(longer), "b.bin: corrupt: header says " + n + " bytes, file has " +
                                     std::to_string(good.size() + 1) + " (trailing bytes)");
   Bytes version = good;
-  // Version 7 (session 12, the band CUSUM's statistics) is the newest readable one.
-  version[8] = 8;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 8 (this build reads 1 to 7)");
+  // Version 8 (session 19, the mesh detector's statistics) is the newest readable one.
+  version[8] = 9;
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 9 (this build reads 1 to 8)");
   version[8] = 0;
-  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 7)");
+  EXPECT_EQ(message_of(version), "b.bin: unsupported baseline format version 0 (this build reads 1 to 8)");
   Bytes flipped = good;
   flipped[good.size() / 2] ^= 0x01;
   const std::string crc_msg = message_of(flipped);
@@ -884,3 +893,66 @@ TEST(BaselineFile, Version7BandStatisticsRoundTripAndOnlyWhenPresent) {
 }
 
 }  // namespace
+
+namespace ptda::formats {
+namespace {
+
+TEST(BaselineFile, Version8MeshStatisticsRoundTripWithAndWithoutBands) {
+  Baseline b = make_baseline(16, 5);
+  const Bytes v4 = serialize_baseline(b);
+  b.policy.mesh_stats = true;
+  std::uint32_t seed = 1;
+  for (auto& c : b.classes) {
+    c.mesh_recordings = 2;
+    c.mesh_stats = {{0.1 * seed, 0.2, 0.05, 0.06, 40 + seed}, {-0.05 * seed, 0.3, 0.0, 0.09, 41 + seed}};
+    ++seed;
+  }
+  b.classes[0].mesh_stats[1] = {};  // a class without pm (too slow, or no mesh line): windows 0
+  const Bytes v8 = serialize_baseline(b);
+  EXPECT_EQ(v8[8], 8U);
+  // After the version-4 body: domain u8 + S u32 + R u32, band_count u32 (0, no band records), then per
+  // class u32 + 2 x 36 bytes.
+  EXPECT_EQ(v8.size(), v4.size() + 9 + 4 + b.classes.size() * (4 + 2 * 36));
+  const Baseline back = parse_baseline(v8, "v8.bin");
+  EXPECT_TRUE(back.policy.mesh_stats);
+  EXPECT_EQ(back.policy.band_count, 0U);
+  expect_equal(back, b);
+  // With band statistics as well: both blocks come back.
+  b.policy.band_count = 2;
+  for (auto& c : b.classes) {
+    c.band_recordings = 2;
+    c.band_stats = {{-3.0, 0.5, 0.1, 0.15, 3}, {-2.0, 0.4, 0.0, 0.12, 4}};
+  }
+  const Bytes v8b = serialize_baseline(b);
+  EXPECT_EQ(v8b.size(), v8.size() + b.classes.size() * (4 + 2 * 36));
+  expect_equal(parse_baseline(v8b, "v8b.bin"), b);
+  // A mesh count that disagrees with the policy, and a zero within sd with windows, are refused.
+  Baseline bad = b;
+  bad.classes[1].mesh_stats.pop_back();
+  try {
+    (void)serialize_baseline(bad);
+    FAIL() << "short mesh statistics written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("1 mesh statistics, the policy has mesh detector"), std::string::npos)
+        << e.what();
+  }
+  bad = b;
+  bad.classes[1].mesh_stats[0].within_sd = 0.0;
+  try {
+    (void)serialize_baseline(bad);
+    FAIL() << "zero mesh sd written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("class 1 (id 8): mesh feature am has"), std::string::npos) << e.what();
+  }
+  // A truncated mesh block is reported, not read past.
+  Bytes cut(v8.begin(), v8.end() - 4 - 36);
+  try {
+    (void)parse_baseline(cut, "cut.bin");
+    FAIL() << "truncated file read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cut.bin"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace ptda::formats

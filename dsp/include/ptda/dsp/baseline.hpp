@@ -83,6 +83,11 @@ struct ThresholdPolicy {
   /// in this many equal bands of bins 1..N/2 (clean floor bins only; dsp/band_energy.hpp) and stores
   /// them (baseline format 7). 0 = none (format <= 6, byte-identical to before).
   std::uint32_t band_count = 0;
+  /// Mesh-modulation statistics for the mesh CUSUM (`[decision] mesh_cusum`, docs/method.md §6 "Mesh
+  /// detector"): training computes, per class, the am and pm features of every fit window
+  /// (dsp/mesh_modulation.hpp; needs the gearbox's z_in and ratio) and stores their day spread (baseline
+  /// format 8). false = none (format <= 7, byte-identical to before).
+  bool mesh_stats = false;
 };
 
 /// Largest band count of the band CUSUM (fixed capacity of its run-time state).
@@ -110,6 +115,15 @@ struct DaySpread {
   double entropy_within_sd = 0.0;
   double entropy_between_est = 0.0;
   double entropy_between_sd = 0.0;
+};
+
+/// One mesh feature's healthy distribution in one class (format >= 8): am or pm (mesh_modulation.hpp).
+struct MeshFeatureStats {
+  double mean = 0.0;          ///< grand mean over the training windows that have the feature
+  double within_sd = 0.0;     ///< pooled within-recording sd (one recording: the sample sd)
+  double between_est = 0.0;   ///< random-effects estimate of the between-day sd (0 for 1 recording)
+  double between_sd = 0.0;    ///< the one used: max(between_est, day_sd_floor * within_sd)
+  std::uint32_t windows = 0;  ///< training windows with the feature (0: the class has no mesh detector)
 };
 
 /// Bins [begin, end) of one spectral line of the healthy mean magnitude (with its leakage skirt).
@@ -161,6 +175,10 @@ struct ClassBaseline {
   /// Band-energy statistics (policy.band_count entries; empty when the baseline has none, format <= 6).
   std::vector<BandEnergyStats> band_stats;
   std::uint32_t band_recordings = 0;  ///< training recordings (days) behind band_stats
+  /// Mesh-modulation statistics, am then pm (2 entries when policy.mesh_stats, else empty). A class
+  /// too slow for two input-shaft revolutions per window, or without a mesh line, has windows = 0.
+  std::vector<MeshFeatureStats> mesh_stats;
+  std::uint32_t mesh_recordings = 0;  ///< training recordings (days) behind mesh_stats
   /// Runtime only (not stored): the line groups of mean_magnitude when the policy asks for PTDA line
   /// gains (find_line_groups(), filled by prepare_line_groups()), else empty = the paper's PTDA.
   std::vector<LineGroup> line_groups;

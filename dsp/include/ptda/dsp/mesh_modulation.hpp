@@ -21,6 +21,8 @@
 #include <span>
 #include <vector>
 
+#include "ptda/dsp/baseline.hpp"
+
 namespace ptda::dsp {
 
 inline constexpr std::uint32_t kMeshMaxHarmonics = 6;  ///< mesh harmonics demodulated, at most
@@ -86,6 +88,15 @@ class MeshDemodulator {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// The geometry of class `seg` of a baseline with sample rate fs_hz, window length window_len and gearbox
+/// g: speeds up to the class's speed plus its tolerance. Thread: any. Never throws (the demodulator
+/// checks it).
+[[nodiscard]] MeshGeometry mesh_geometry(double fs_hz, std::size_t window_len, const GearboxInfo& g,
+                                         const SegmentClass& seg) noexcept;
+
+/// Fewest training windows with mesh features for a class's mesh statistics (fewer: windows = 0).
+inline constexpr std::uint32_t kMeshMinTrainingWindows = 5;
 
 /// Autocorrelation of x - mean(x) at lags round(m samples_per_rev), m = 1..kMeshMaxLags with
 /// m samples_per_rev <= x.size() - samples_per_rev, each the mean lag product over its overlap, over the

@@ -31,7 +31,13 @@ namespace ptda::formats {
 /// for the order domain) u32 band_count, then per class u32 recordings and per band f64 mean, within sd,
 /// between-day estimate, between-day sd used, u32 clean bins (dsp::BandEnergyStats). Versions 1 to 6
 /// read with no band statistics; other baselines are written as before (4 or 6), byte for byte.
-inline constexpr std::uint32_t kBaselineFormatVersion = 7;
+/// Version 8 (session 19) is written only for a baseline with mesh-modulation statistics
+/// (policy.mesh_stats, `[decision] mesh_cusum`): the version-7 block (band_count may then be 0, with no
+/// per-class band records), then per class u32 recordings and, for am then pm, f64 mean, within sd,
+/// between-day estimate, between-day sd used, u32 windows (dsp::MeshFeatureStats). Versions 1 to 7
+/// read with no mesh statistics; other baselines are written as before, byte for byte.
+inline constexpr std::uint32_t kBaselineFormatVersion = 8;
+inline constexpr std::uint32_t kBaselineBandVersion = 7;
 inline constexpr std::uint32_t kBaselineOrderDomainVersion = 6;
 inline constexpr std::uint32_t kBaselineTimeDomainVersion = 4;
 inline constexpr std::uint32_t kBaselineOldestReadableVersion = 1;
