@@ -16,6 +16,7 @@
 #include "ptda/common/time.hpp"
 #include "ptda/config/pipeline_config.hpp"
 #include "ptda/dsp/baseline_training.hpp"
+#include "ptda/dsp/mesh_modulation.hpp"
 #include "ptda/dsp/monitor_engine.hpp"
 #include "ptda/dsp/training.hpp"
 #include "ptda/formats/baseline_file.hpp"
@@ -157,6 +158,28 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
       out << "  band CUSUM: " << used << " of " << c.band_stats.size() << " bands with clean floor bins ("
           << clean << " bins), " << c.band_recordings << " training recording(s), largest between-day / "
           << "within-day sd " << general(between, 3) << "\n";
+    }
+    if (!c.mesh_stats.empty()) {
+      // The mesh CUSUM's statistics ([decision] mesh_cusum, docs/method.md §6 "Mesh detector").
+      const double f_in = dsp::input_shaft_hz(baseline.gearbox.ratio, c.segment.speed_rad_s);
+      const double revs = f_in * static_cast<double>(baseline.window_len) / baseline.fs_hz;
+      out << "  mesh CUSUM: input shaft " << general(f_in, 4) << " Hz, " << general(revs, 3)
+          << " revolutions per window";
+      if (c.mesh_stats[0].windows == 0 && c.mesh_stats[1].windows == 0) {
+        out << ": no mesh detector for this class ("
+            << (revs < dsp::kMeshMinRevolutions ? "fewer than 2 revolutions per window: a longer window_len "
+                                                  "or a faster segment would have them"
+                                                : "no mesh harmonic is a line of the class mean")
+            << ")\n";
+      } else {
+        for (std::size_t f = 0; f < c.mesh_stats.size(); ++f) {
+          const dsp::MeshFeatureStats& m = c.mesh_stats[f];
+          out << "; " << dsp::mesh_feature_name(f) << " " << general(m.mean, 3) << " +- "
+              << general(std::sqrt(m.within_sd * m.within_sd + m.between_sd * m.between_sd), 3) << " ("
+              << m.windows << " windows)";
+        }
+        out << ", " << c.mesh_recordings << " training recording(s)\n";
+      }
     }
   }
   for (const std::string& w : dsp::training_warnings(baseline)) out << "warning: " << w << "\n";

@@ -322,6 +322,12 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "band_cusum_h", cfg_.decision.band.h, 1000.0)) note(r, "band_cusum_h");
     get(r, "band_cusum_day_allowance", cfg_.decision.band.day_allowance, 0.0, 10.0);
     get(r, "band_count", cfg_.decision.band.band_count, std::uint32_t{1}, dsp::kMaxBands);
+    // The mesh detector (off by default; docs/method.md §6 "Mesh detector"): training stores the mesh
+    // statistics only when it is on, and monitoring then requires them.
+    if (r.read("mesh_cusum", cfg_.decision.mesh.enabled)) note(r, "mesh_cusum");
+    if (read_positive(r, "mesh_cusum_k", cfg_.decision.mesh.k, 10.0)) note(r, "mesh_cusum_k");
+    if (read_positive(r, "mesh_cusum_h", cfg_.decision.mesh.h, 1000.0)) note(r, "mesh_cusum_h");
+    get(r, "mesh_cusum_day_allowance", cfg_.decision.mesh.day_allowance, 0.0, 10.0);
     r.finish();
   }
 
@@ -512,6 +518,19 @@ PipelineConfig PipelineConfigBuilder::finish() const {
   } else {
     g.ratio = from_teeth;
   }
+  // The mesh detector demodulates the mesh at z_in x the input-shaft rate, ratio x the joint speed.
+  if (cfg.decision.mesh.enabled) {
+    if (cfg.domain != dsp::Domain::kTime) {
+      fail_key("decision.mesh_cusum", "[decision] mesh_cusum = true runs in the time domain only ([extraction] "
+                                      "domain = \"time\"); the order domain has not been measured with it");
+    }
+    if (g.z_in == 0 || !(g.ratio > 0.0)) {
+      fail_key("decision.mesh_cusum",
+               "[decision] mesh_cusum = true needs the input pinion's teeth and the gearbox ratio: set [gearbox] "
+               "kind with z_in, z_spur, z_pin (cycloidal) or z_in, z_spur (parallel), or z_in and ratio");
+    }
+  }
+  cfg.thresholds.mesh_stats = cfg.decision.mesh.enabled;
   if (cfg.domain == dsp::Domain::kOrder) {
     if (!(g.ratio > 0.0)) {
       fail_key("extraction.domain",
@@ -664,6 +683,10 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "band_cusum_h = " << shortest(cfg.decision.band.h) << "\n"
      << "band_cusum_day_allowance = " << shortest(cfg.decision.band.day_allowance) << "\n"
      << "band_count = " << cfg.decision.band.band_count << "\n"
+     << "mesh_cusum = " << (cfg.decision.mesh.enabled ? "true" : "false") << "\n"
+     << "mesh_cusum_k = " << shortest(cfg.decision.mesh.k) << "\n"
+     << "mesh_cusum_h = " << shortest(cfg.decision.mesh.h) << "\n"
+     << "mesh_cusum_day_allowance = " << shortest(cfg.decision.mesh.day_allowance) << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
      << "line_gain = " << (cfg.thresholds.ptda_line_gain ? "true" : "false") << "\n"
      << "floor_gain = " << (cfg.thresholds.ptda_floor_gain ? "true" : "false") << "\n"

@@ -47,6 +47,31 @@ MeshGeometry mesh_geometry(double fs_hz, std::size_t window_len, const GearboxIn
   return MeshGeometry{window_len, fs_hz, g.z_in, g.ratio, seg.speed_rad_s, seg.speed_rad_s + seg.speed_tol_rad_s};
 }
 
+void check_mesh_cusum(const MeshCusumConfig& cfg) {
+  if (!(cfg.k > 0.0 && cfg.k <= 10.0))
+    throw Error("decision.mesh_cusum_k: must be > 0 and <= 10 standard deviations, got " + std::to_string(cfg.k));
+  if (!(cfg.h > 0.0 && cfg.h <= 1000.0))
+    throw Error("decision.mesh_cusum_h: must be > 0 and <= 1000, got " + std::to_string(cfg.h));
+  if (!(cfg.day_allowance >= 0.0 && cfg.day_allowance <= 10.0))
+    throw Error("decision.mesh_cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
+                std::to_string(cfg.day_allowance));
+}
+
+MeshScale mesh_scale(const ClassBaseline& c, double day_allowance) noexcept {
+  MeshScale s;
+  const double days =
+      c.mesh_recordings > 0 ? std::sqrt(1.0 + 1.0 / static_cast<double>(c.mesh_recordings)) : 1.0;
+  for (std::size_t i = 0; i < kMeshFeatureCount && i < c.mesh_stats.size(); ++i) {
+    const MeshFeatureStats& st = c.mesh_stats[i];
+    const double sd = std::sqrt(st.within_sd * st.within_sd + st.between_sd * st.between_sd);
+    s.mean[i] = st.mean;
+    s.sd[i] = sd;
+    s.active[i] = st.windows > 0 && sd > 0.0 && std::isfinite(sd) && std::isfinite(st.mean);
+    s.allowance[i] = s.active[i] ? day_allowance * st.between_sd * days / sd : 0.0;
+  }
+  return s;
+}
+
 double revolution_autocorrelation(std::span<const double> x, double samples_per_rev) noexcept {
   const std::size_t n = x.size();
   if (n < 2 || !(samples_per_rev > 0.0) || !std::isfinite(samples_per_rev)) return kNaN;

@@ -145,6 +145,35 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
   for (const ClassBaseline& c : baseline_.classes) {
     z_scale_.push_back(sequential_scale(c, method, baseline_.policy, decision.sequential.day_allowance));
   }
+  if (decision.mesh.enabled) {
+    // Asked for explicitly (off by default): a baseline without mesh statistics is an error, not a
+    // silent fallback. A class too slow for two input-shaft revolutions, or without mesh lines, runs
+    // without it (mesh_classes() counts the others).
+    check_mesh_cusum(decision.mesh);
+    if (!baseline_.policy.mesh_stats) {
+      throw Error("monitor: [decision] mesh_cusum = true needs a baseline with mesh statistics (format 8, "
+                  "trained with mesh_cusum = true); this baseline has none: retrain it with [decision] "
+                  "mesh_cusum = true");
+    }
+    for (const ClassBaseline& c : baseline_.classes) {
+      mesh_scale_.push_back(mesh_scale(c, decision.mesh.day_allowance));
+      if (!mesh_scale_.back().any()) {
+        mesh_demod_.emplace_back();
+        continue;
+      }
+      try {
+        mesh_demod_.emplace_back(std::in_place,
+                                 mesh_geometry(baseline_.fs_hz, baseline_.window_len, baseline_.gearbox, c.segment),
+                                 c.mean_magnitude);
+      } catch (const Error& e) {
+        throw Error("monitor: baseline class " + std::to_string(c.segment.id) + ": " + e.what());
+      }
+      if (mesh_demod_.back()->line_harmonics() == 0) {
+        mesh_demod_.back().reset();
+        mesh_scale_.back() = MeshScale{};
+      }
+    }
+  }
   if (decision.band.enabled && !decision.band.required)
     band_off_reason_ = band_cusum_unusable(decision, baseline_, method);
   if (decision.band.enabled && band_off_reason_.empty()) {
@@ -168,8 +197,23 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
   }
 }
 
+std::size_t MonitorEngine::mesh_classes() const noexcept {
+  std::size_t n = 0;
+  for (const auto& d : mesh_demod_) n += d.has_value() ? 1U : 0U;
+  return n;
+}
+
 DecisionState::DecisionState(const DecisionConfig& decision, std::size_t classes)
-    : debouncer_(decision.k, decision.n), seq_(decision.sequential), cusum_(classes), band_(decision.band) {
+    : debouncer_(decision.k, decision.n),
+      seq_(decision.sequential),
+      cusum_(classes),
+      band_(decision.band),
+      mesh_(decision.mesh) {
+  if (mesh_.enabled) {
+    check_mesh_cusum(mesh_);
+    mesh_cap_ = mesh_.h + static_cast<double>(decision.n - std::min(decision.k, decision.n)) * mesh_.k;
+    mesh_s_.assign(classes, std::array<double, kMeshFeatureCount>{});
+  }
   check_sequential(seq_);
   cap_ = seq_.h_alarm + static_cast<double>(decision.n - std::min(decision.k, decision.n)) * seq_.k;
   if (band_.enabled) {
@@ -215,6 +259,22 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     w.band_statistic = top;
     w.band_index = top_b;
   }
+  if (mesh_.enabled && cls < mesh_s_.size()) {
+    // S <- min(cap, max(0, S + x - k)); a feature the window does not have (NaN) leaves S as it was:
+    // slow windows and classes without mesh lines are not evidence either way.
+    std::array<double, kMeshFeatureCount>& s = mesh_s_[cls];
+    double top = 0.0;
+    std::int32_t top_f = -1;
+    for (std::size_t f = 0; f < kMeshFeatureCount; ++f) {
+      if (std::isfinite(w.mesh_excess[f])) s[f] = std::min(mesh_cap_, std::max(0.0, s[f] + w.mesh_excess[f] - mesh_.k));
+      if (s[f] > top) {
+        top = s[f];
+        top_f = static_cast<std::int32_t>(f);
+      }
+    }
+    w.mesh_statistic = top;
+    w.mesh_feature = top_f;
+  }
   fill(w);
 }
 
@@ -257,8 +317,26 @@ void DecisionState::fill(WindowResult& w) const noexcept {
           static_cast<double>(band_edge(band_.half_bins, band_.band_count, b + 1) - 1) * band_.bin_hz;
     }
   }
-  w.alarm = w.kofn_alarm || w.seq_alarm || w.band_alarm;
-  const unsigned bits = (w.kofn_alarm ? 1U : 0U) | (w.seq_alarm ? 2U : 0U) | (w.band_alarm ? 4U : 0U);
+  w.mesh_on = mesh_.enabled;
+  if (mesh_.enabled) {
+    double top = 0.0;
+    w.mesh_max_feature = -1;
+    w.mesh_max_class = -1;
+    for (std::size_t c = 0; c < mesh_s_.size(); ++c) {
+      for (std::size_t f = 0; f < kMeshFeatureCount; ++f) {
+        if (mesh_s_[c][f] > top) {
+          top = mesh_s_[c][f];
+          w.mesh_max_feature = static_cast<std::int32_t>(f);
+          w.mesh_max_class = static_cast<std::int32_t>(c);
+        }
+      }
+    }
+    w.mesh_max_statistic = top;
+    w.mesh_alarm = top > mesh_.h;
+  }
+  w.alarm = w.kofn_alarm || w.seq_alarm || w.band_alarm || w.mesh_alarm;
+  const unsigned bits = (w.kofn_alarm ? 1U : 0U) | (w.seq_alarm ? 2U : 0U) | (w.band_alarm ? 4U : 0U) |
+                        (w.mesh_alarm ? 8U : 0U);
   w.detector = static_cast<AlarmDetector>(bits);
 }
 
@@ -338,6 +416,15 @@ void MonitorEngine::score(const WindowRef& ref, WindowResult& out) noexcept {
       top = std::max(top, x);
     }
     out.band_z_max = bs.count > 0 ? top : 0.0;
+  }
+  if (!mesh_scale_.empty() && mesh_demod_[ci].has_value()) {
+    // The window's own spectrum, which the analyzer just formed (no extra forward transform).
+    const MeshValues v = mesh_demod_[ci]->compute(analyzer_.spectrum(), ref.speed_rad_s);
+    const MeshScale& ms = mesh_scale_[ci];
+    for (std::size_t f = 0; f < kMeshFeatureCount; ++f) {
+      out.mesh_value[f] = v.v[f];
+      if (ms.active[f] && std::isfinite(v.v[f])) out.mesh_excess[f] = (v.v[f] - ms.mean[f]) / ms.sd[f] - ms.allowance[f];
+    }
   }
   decision_.scored(out, ci);
 }

@@ -98,6 +98,32 @@ class MeshDemodulator {
 /// Fewest training windows with mesh features for a class's mesh statistics (fewer: windows = 0).
 inline constexpr std::uint32_t kMeshMinTrainingWindows = 5;
 
+/// Parameters of the mesh CUSUM ([decision] mesh_* keys, config/README.md). Off by default: it needs a
+/// baseline trained with it (format 8) and the gearbox's tooth counts.
+struct MeshCusumConfig {
+  bool enabled = false;         ///< `mesh_cusum`
+  double k = 1.0;               ///< `mesh_cusum_k`: reference value in total sds per window
+  double h = 10.0;              ///< `mesh_cusum_h`: alarm when a feature's statistic exceeds h
+  double day_allowance = 0.0;   ///< `mesh_cusum_day_allowance`: extra k in between-day sds
+};
+
+/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h <= 1000 and
+/// 0 <= day_allowance <= 10. Thread: any. Allocates only the message.
+void check_mesh_cusum(const MeshCusumConfig& cfg);
+
+/// How one class standardises its mesh features (as BandScale): z = (v - mean) / sd with
+/// sd = sqrt(within_sd^2 + between_sd^2), minus allowance = day_allowance x between_sd x sqrt(1 + 1/R)
+/// / sd. active = 0 where the class has no statistics for the feature (windows 0).
+struct MeshScale {
+  double mean[kMeshFeatureCount] = {};
+  double sd[kMeshFeatureCount] = {};
+  double allowance[kMeshFeatureCount] = {};
+  bool active[kMeshFeatureCount] = {};
+  [[nodiscard]] bool any() const noexcept { return active[0] || active[1]; }
+};
+/// The MeshScale of class c (all inactive when c has no mesh statistics). Thread: any. Never throws.
+[[nodiscard]] MeshScale mesh_scale(const ClassBaseline& c, double day_allowance) noexcept;
+
 /// Autocorrelation of x - mean(x) at lags round(m samples_per_rev), m = 1..kMeshMaxLags with
 /// m samples_per_rev <= x.size() - samples_per_rev, each the mean lag product over its overlap, over the
 /// mean square; their mean. NaN when no lag fits or x is constant. Thread: any. Never allocates.

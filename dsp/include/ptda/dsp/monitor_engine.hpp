@@ -3,7 +3,9 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -12,6 +14,7 @@
 #include "ptda/dsp/band_energy.hpp"
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/dsp/decision.hpp"
+#include "ptda/dsp/mesh_modulation.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 
 namespace ptda::dsp {
@@ -21,13 +24,15 @@ struct DecisionConfig {
   std::uint32_t n = 5;          ///< ... out of the last n scored windows raise the alarm
   SequentialConfig sequential;  ///< per-class CUSUM beside k-of-n (either raises the alarm)
   BandCusumConfig band;         ///< per-class, per-band CUSUM on band energies (opt-in; any raises it)
+  MeshCusumConfig mesh;         ///< per-class CUSUM on the mesh's am and pm (opt-in; either raises it)
 };
 
 /// `decision` with band.half_bins and band.bin_hz set from the baseline (window_len / 2 and
 /// fs_hz / window_len), so the alarm record can name a band's frequency range. Thread: any.
 [[nodiscard]] DecisionConfig with_band_geometry(DecisionConfig decision, const Baseline& baseline) noexcept;
 
-/// Which detectors hold the alarm (WindowResult::detector): a bit set, k-of-n 1, sequential 2, band 4.
+/// Which detectors hold the alarm (WindowResult::detector): a bit set, k-of-n 1, sequential 2, band 4,
+/// mesh 8 (the combinations with mesh have no enumerator of their own; alarm_detector_name() names them).
 enum class AlarmDetector : std::uint8_t {
   kNone = 0,
   kKOfN = 1,
@@ -37,27 +42,27 @@ enum class AlarmDetector : std::uint8_t {
   kKOfNBand = 5,
   kSequentialBand = 6,
   kAll = 7,
+  kMesh = 8,
 };
 [[nodiscard]] constexpr const char* alarm_detector_name(AlarmDetector d) noexcept {
-  switch (d) {
-    case AlarmDetector::kNone:
-      return "none";
-    case AlarmDetector::kKOfN:
-      return "k_of_n";
-    case AlarmDetector::kSequential:
-      return "sequential";
-    case AlarmDetector::kBoth:
-      return "k_of_n+sequential";
-    case AlarmDetector::kBand:
-      return "band";
-    case AlarmDetector::kKOfNBand:
-      return "k_of_n+band";
-    case AlarmDetector::kSequentialBand:
-      return "sequential+band";
-    case AlarmDetector::kAll:
-      return "k_of_n+sequential+band";
-  }
-  return "?";
+  constexpr const char* kNames[16] = {"none",
+                                      "k_of_n",
+                                      "sequential",
+                                      "k_of_n+sequential",
+                                      "band",
+                                      "k_of_n+band",
+                                      "sequential+band",
+                                      "k_of_n+sequential+band",
+                                      "mesh",
+                                      "k_of_n+mesh",
+                                      "sequential+mesh",
+                                      "k_of_n+sequential+mesh",
+                                      "band+mesh",
+                                      "k_of_n+band+mesh",
+                                      "sequential+band+mesh",
+                                      "k_of_n+sequential+band+mesh"};
+  const auto i = static_cast<unsigned>(d);
+  return i < 16 ? kNames[i] : "?";
 }
 
 enum class WindowStatus : std::uint8_t {
@@ -102,6 +107,22 @@ struct WindowResult {
   std::int32_t band_max_class = -1;  ///< its class (the decision's class index)
   double band_lo_hz = 0.0;           ///< band_max_index's first bin's frequency (0 when unknown)
   double band_hi_hz = 0.0;           ///< its last bin's frequency
+  // Mesh detector (docs/method.md §6 "Mesh detector"; only when DecisionConfig::mesh.enabled).
+  bool mesh_on = false;  ///< the mesh CUSUM runs (the mesh_* fields below mean something)
+  /// This window's am and pm (mesh_modulation.hpp); NaN when it has none (not scored, fewer than two
+  /// input-shaft revolutions, no mesh line, or a class without mesh statistics).
+  double mesh_value[kMeshFeatureCount] = {std::numeric_limits<double>::quiet_NaN(),
+                                          std::numeric_limits<double>::quiet_NaN()};
+  /// Per feature: z minus the class's day allowance (the CUSUM's increment before k); NaN when the
+  /// feature did not enter the CUSUM.
+  double mesh_excess[kMeshFeatureCount] = {std::numeric_limits<double>::quiet_NaN(),
+                                           std::numeric_limits<double>::quiet_NaN()};
+  bool mesh_alarm = false;              ///< some class's mesh CUSUM > mesh_cusum_h
+  double mesh_statistic = 0.0;          ///< this window's class: largest mesh CUSUM after it (scored)
+  std::int32_t mesh_feature = -1;       ///< its feature (0 am, 1 pm; -1 when both are 0)
+  double mesh_max_statistic = 0.0;      ///< largest mesh CUSUM over all classes and features
+  std::int32_t mesh_max_feature = -1;   ///< its feature
+  std::int32_t mesh_max_class = -1;     ///< its class (the decision's class index)
 };
 
 /// The decision after the verdicts: k-of-n over all scored windows and one CUSUM per class (fixed
@@ -111,7 +132,8 @@ class DecisionState {
  public:
   DecisionState(const DecisionConfig& decision, std::size_t classes);
   /// A scored window of class index `cls` (< classes): reads w.verdict, w.z_rms, w.z_entropy,
-  /// w.seq_allowance_rms and w.seq_allowance_entropy (band CUSUM: w.band_count, w.band_excess) and fills
+  /// w.seq_allowance_rms and w.seq_allowance_entropy (band CUSUM: w.band_count, w.band_excess; mesh
+  /// CUSUM: w.mesh_excess, where a NaN feature leaves its statistic as it was) and fills
   /// the decision fields of w. Thread: the owner's. Never allocates or blocks.
   void scored(WindowResult& w, std::size_t cls) noexcept;
   /// A window not judged: its decision fields repeat the current state. Never allocates or blocks.
@@ -132,6 +154,9 @@ class DecisionState {
   /// equal statistics (e.g. all at the cap) the band that crossed first is reported.
   std::vector<std::array<std::uint64_t, kMaxBands>> band_since_;
   std::uint64_t band_order_ = 0;
+  MeshCusumConfig mesh_;
+  double mesh_cap_ = 0.0;                                        ///< as band_cap_
+  std::vector<std::array<double, kMeshFeatureCount>> mesh_s_;  ///< per class, per feature (empty when off)
 
   void fill(WindowResult& w) const noexcept;
 };
@@ -184,6 +209,9 @@ class MonitorEngine {
   /// was switched off by the configuration). Thread: any. Never allocates.
   [[nodiscard]] bool band_cusum_on() const noexcept { return !band_scale_.empty(); }
   [[nodiscard]] const std::string& band_off_reason() const noexcept { return band_off_reason_; }
+  /// Whether the mesh CUSUM runs, and on how many classes (those with mesh statistics and mesh lines).
+  [[nodiscard]] bool mesh_cusum_on() const noexcept { return !mesh_scale_.empty(); }
+  [[nodiscard]] std::size_t mesh_classes() const noexcept;
 
  private:
   void score(const WindowRef& ref, WindowResult& out) noexcept;  ///< window_ holds the samples
@@ -197,6 +225,8 @@ class MonitorEngine {
   std::vector<BandScale> band_scale_;                   ///< per class (band CUSUM on)
   std::vector<std::vector<unsigned char>> band_clean_;  ///< per class: clean_floor_bins()
   std::array<double, kMaxBands> band_tmp_{};
+  std::vector<std::optional<MeshDemodulator>> mesh_demod_;  ///< per class (mesh CUSUM on; empty: none)
+  std::vector<MeshScale> mesh_scale_;                         ///< per class (mesh CUSUM on)
   std::vector<float> window_;
   std::string band_off_reason_;  ///< default-on band detector switched off: why (empty otherwise)
 };
