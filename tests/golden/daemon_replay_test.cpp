@@ -11,6 +11,8 @@
 // window cutter against `ptda monitor`'s: a healthy run stays normal, the spur-tooth run alarms.
 // A second test runs the built `ptdad` binary on the same replay (--exit-at-end) and checks its
 // status.json counts, and --check-config's exit codes and located error message.
+#include <cstdio>
+#include <cmath>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -43,20 +45,21 @@ class Collector final : public daemon::WindowSink {
   std::vector<dsp::WindowResult> windows;
 };
 
-// The job's example configuration, with `band_cusum = true` in its [decision] table when `band` is set.
-std::string job_config_text(const std::string& job, bool band) {
+// The job's example configuration, with `decision` (e.g. "band_cusum = true\n") added to its [decision]
+// table.
+std::string job_config_text(const std::string& job, const std::string& decision) {
   std::ifstream in(source_dir() / "config" / "examples" / (job + ".toml"));
   std::string line, out;
   while (std::getline(in, line)) {
     out += line + "\n";
-    if (band && line == "[decision]") out += "band_cusum = true\n";
+    if (line == "[decision]") out += decision;
   }
   return out;
 }
 
-std::string job_pipeline(const std::string& job, bool band = false) {
+std::string job_pipeline(const std::string& job, const std::string& decision = "") {
   // The job's pipeline tables without [can] (the daemon file has its own [can] table below).
-  std::istringstream in(job_config_text(job, band));
+  std::istringstream in(job_config_text(job, decision));
   std::string line, out;
   bool skip = false;
   while (std::getline(in, line)) {
@@ -67,14 +70,14 @@ std::string job_pipeline(const std::string& job, bool band = false) {
 }
 
 fs::path write_daemon_config(const fs::path& dir, const std::string& job, const fs::path& recording,
-                             const fs::path& baseline, bool band = false) {
+                             const fs::path& baseline, const std::string& decision = "") {
   const fs::path path = dir / "ptdad.toml";
   std::ofstream out(path);
   out << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << (dir / "status").string()
       << "\"\nstatus_period_s = 0.05\n\n[adc]\nbackend = \"wav\"\nrecording = \"" << recording.string()
       << "\"\npace = \"fast\"\nblock_len = 1000\n\n[can]\nbackend = \"candump\"\npace = \"fast\"\n"
       << "speed_latency_s = 0.0\n\n[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n"
-      << job_pipeline(job, band);
+      << job_pipeline(job, decision);
   return path;
 }
 
@@ -85,14 +88,14 @@ struct Prepared {
 
 // `tag` keeps each test's scratch directory its own: ctest runs the tests of this binary as separate
 // processes in parallel, and a shared directory would be wiped by the other test mid-run.
-Prepared prepare(const std::string& job, const std::string& tag = "threads", bool band = false) {
+Prepared prepare(const std::string& job, const std::string& tag = "threads", const std::string& decision = "") {
   Prepared p;
   p.dir = scratch_dir("daemon_replay_" + tag + "_" + job);
   const std::string scen = (source_dir() / "config" / "scenarios").string() + "/" + job;
   std::string cfg = (source_dir() / "config" / "examples" / (job + ".toml")).string();
-  if (band) {
-    cfg = (p.dir / (job + "_band.toml")).string();
-    std::ofstream(cfg) << job_config_text(job, true);
+  if (!decision.empty()) {
+    cfg = (p.dir / (job + "_" + tag + ".toml")).string();
+    std::ofstream(cfg) << job_config_text(job, decision);
   }
   p.faulty = p.dir / "faulty";
   p.baseline = p.dir / "baseline.bin";
@@ -119,7 +122,7 @@ Prepared prepare(const std::string& job, const std::string& tag = "threads", boo
   std::ifstream in(p.jsonl);
   std::string line;
   while (std::getline(in, line)) p.lines.push_back(line);
-  p.config = write_daemon_config(p.dir, job, p.faulty, p.baseline, band);
+  p.config = write_daemon_config(p.dir, job, p.faulty, p.baseline, decision);
   return p;
 }
 
@@ -218,7 +221,7 @@ INSTANTIATE_TEST_SUITE_P(PaperJobs, DaemonReplay, ::testing::ValuesIn(kJobs),
 // daemon's windows still give `ptda monitor`'s JSONL line for line, band evidence included. Pinned from
 // this run (seeds 1001 / 3003): spot welding's 20 faulty windows, the band detector's first alarm.
 TEST(DaemonReplayBandCusum, ThreadsReproduceMonitorJsonlWithBandCusum) {
-  const Prepared p = prepare("spot_welding", "band", true);
+  const Prepared p = prepare("spot_welding", "band", "band_cusum = true\n");
   ASSERT_FALSE(p.lines.empty());
   const std::string cfg = (p.dir / "spot_welding_band.toml").string();
   const std::vector<dsp::WindowResult> windows = expect_daemon_equals_monitor(p, "spot_welding", cfg);
@@ -234,6 +237,35 @@ TEST(DaemonReplayBandCusum, ThreadsReproduceMonitorJsonlWithBandCusum) {
   EXPECT_EQ(windows[first_band_alarm].detector, dsp::AlarmDetector::kSequentialBand);  // k-of-n needs 3
   EXPECT_NE(p.lines[first_band_alarm].find("\"detector\":\"sequential+band\""), std::string::npos)
       << p.lines[first_band_alarm];
+}
+
+// The mesh CUSUM on (`[decision] mesh_cusum = true`, session 19): trained and monitored with it, the
+// daemon's windows give `ptda monitor`'s JSONL line for line, mesh evidence included. Spot welding's
+// plateau holds 2.8 input-shaft revolutions per window (1.29 rad/s x 33.86 / 2 pi = 6.96 Hz, 0.4 s), so
+// every scored window has am and pm.
+TEST(DaemonReplayMeshCusum, ThreadsReproduceMonitorJsonlWithMeshCusum) {
+  const Prepared p = prepare("spot_welding", "mesh", "mesh_cusum = true\n");
+  ASSERT_FALSE(p.lines.empty());
+  const std::string cfg = (p.dir / "spot_welding_mesh.toml").string();
+  const std::vector<dsp::WindowResult> windows = expect_daemon_equals_monitor(p, "spot_welding", cfg);
+  ASSERT_EQ(windows.size(), 20U);
+  std::size_t first_mesh_alarm = windows.size();
+  double top = 0.0;
+  for (std::size_t i = 0; i < windows.size(); ++i) {
+    top = std::max(top, windows[i].mesh_max_statistic);
+    EXPECT_TRUE(windows[i].mesh_on) << i;
+    EXPECT_TRUE(std::isfinite(windows[i].mesh_value[0])) << i;
+    EXPECT_TRUE(std::isfinite(windows[i].mesh_value[1])) << i;
+    EXPECT_NE(p.lines[i].find("\"mesh_cusum_max\":"), std::string::npos) << p.lines[i];
+    if (windows[i].mesh_alarm && first_mesh_alarm == windows.size()) first_mesh_alarm = i;
+  }
+  // Pinned from this run (seeds 1001 / 3003): the project simulator's spot-welding fault is not a
+  // once-per-revolution modulation of the mesh, and the mesh CUSUM stays low (largest 1.03 of h = 10)
+  // while the other detectors hold the alarm.
+  EXPECT_EQ(first_mesh_alarm, windows.size());
+  EXPECT_LT(top, 2.0);
+  EXPECT_GT(top, 0.5);
+  EXPECT_EQ(windows.back().detector, dsp::AlarmDetector::kAll);
 }
 
 // ---- order domain ----------------------------------------------------------------------------------
