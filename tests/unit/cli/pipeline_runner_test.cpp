@@ -218,7 +218,7 @@ TEST(Redebounce, RecomputesKOfNOverTheSubsetAndSkipsUnclassified) {
     w[i].verdict.rms_out = pattern[i] == 1;
     w[i].alarm = true;  // stale state from the full run
   }
-  redebounce(w, dsp::DecisionConfig{2, 3, {}, {}});
+  redebounce(w, dsp::DecisionConfig{2, 3, {}, {}, {}});
   // scored history: a, ok, (skip), a -> 2 of last 3 -> alarm; a -> ok,a,a alarm; ok -> a,a,ok alarm;
   // ok -> a,ok,ok no; ok -> no
   const std::vector<bool> expected = {false, false, false, true, true, true, false, false};
@@ -297,7 +297,7 @@ TEST(Redebounce, RestartsTheCusumOverTheSubset) {
     r.seq_statistic = 13.0;
     r.seq_alarm = true;
   }
-  redebounce(w, dsp::DecisionConfig{3, 5, {}, {}});  // cusum_warn 4, cusum_alarm 7
+  redebounce(w, dsp::DecisionConfig{3, 5, {}, {}, {}});  // cusum_warn 4, cusum_alarm 7
   // The cap is cusum_alarm + (n - k) cusum_k = 7 + 2 = 9 (docs/method.md §6), so the fifth is 9, not 10.
   const std::vector<double> s = {2.0, 4.0, 6.0, 8.0, 9.0};
   for (std::size_t i = 0; i < w.size(); ++i) {

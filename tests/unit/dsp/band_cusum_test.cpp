@@ -87,14 +87,14 @@ ExtractionConfig extraction() {
 
 // `band_cusum = true` said in the configuration: required (errors instead of the default's fallback).
 DecisionConfig band_on() {
-  DecisionConfig d{3, 5, {}, {}};
+  DecisionConfig d{3, 5, {}, {}, {}};
   d.band.enabled = true;
   d.band.required = true;
   return d;
 }
 
 DecisionConfig band_off() {
-  DecisionConfig d{3, 5, {}, {}};
+  DecisionConfig d{3, 5, {}, {}, {}};
   d.band.enabled = false;
   return d;
 }
@@ -353,7 +353,7 @@ TEST(BandCusumEngine, ABaselineWithoutBandStatisticsIsAClearError) {
 // <= 6, another band count, TDA or raw) the band detector is off with a reason, never an error; where it
 // can, it runs.
 TEST(BandCusumEngine, OnByDefaultItRunsWhereItCanAndSaysWhyNotElsewhere) {
-  DecisionConfig def{3, 5, {}, {}};
+  DecisionConfig def{3, 5, {}, {}, {}};
   ASSERT_TRUE(def.band.enabled);
   ASSERT_FALSE(def.band.required);
   const Baseline old = band_baseline(0);

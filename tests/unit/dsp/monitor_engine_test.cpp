@@ -149,7 +149,7 @@ class MonitorEngineTest : public ::testing::Test {
   }
   static std::vector<WindowResult> monitor(const Stream& s, std::size_t block = 700, Method m = Method::kPtda,
                                            double day_allowance = 3.0) {
-    DecisionConfig d{3, 5, {}, {}};
+    DecisionConfig d{3, 5, {}, {}, {}};
     d.sequential.day_allowance = day_allowance;
     MonitorEngine e(*baseline_, extraction(), d, m, kFs, kT0);
     std::vector<WindowResult> out;
@@ -235,7 +235,7 @@ TEST_F(MonitorEngineTest, HealthyCyclesRaiseNoAlarmImpulsesDo) {
 // repaired part is about 8 windows long).
 TEST(DecisionStateTest, CusumCapBoundsTheRecoveryToKOfNs) {
   for (const auto& [k, n] : {std::pair<std::uint32_t, std::uint32_t>{3, 5}, {5, 5}, {2, 8}}) {
-    DecisionConfig cfg{k, n, {}, {}};
+    DecisionConfig cfg{k, n, {}, {}, {}};
     DecisionState d(cfg, 1);
     WindowResult w;
     for (int i = 0; i < 20; ++i) {  // a large fault: z = 50 per window, abnormal
@@ -317,7 +317,7 @@ TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeature
     EXPECT_EQ(seq_alarm_seen, q == 0.0) << "q " << q;
   }
   // Switched off, the same data leaves every sequential field at rest and the alarm to k-of-n.
-  DecisionConfig off{3, 5, {}, {}};
+  DecisionConfig off{3, 5, {}, {}, {}};
   off.sequential.enabled = false;
   MonitorEngine e(*baseline_, extraction(), off, Method::kPtda, kFs, kT0);
   WindowResult r;
@@ -405,7 +405,7 @@ TEST_F(MonitorEngineTest, BlockSizeDoesNotChangeResults) {
 
 TEST_F(MonitorEngineTest, PollDoesNotAllocateAfterWarmUp) {
   const Stream s = make_stream(8, 5, 2.0);
-  MonitorEngine e(*baseline_, extraction(), DecisionConfig{3, 5, {}, {}}, Method::kPtda, kFs, kT0);
+  MonitorEngine e(*baseline_, extraction(), DecisionConfig{3, 5, {}, {}, {}}, Method::kPtda, kFs, kT0);
   WindowResult r;
   std::size_t polled = 0;
   std::size_t k = 0;
@@ -450,7 +450,7 @@ TEST_F(MonitorEngineTest, RejectsMismatchedBaselineAndDecision) {
                "extraction.window_len");
   expect_error(
       [] {
-        MonitorEngine e(*baseline_, extraction(), {6, 5, {}, {}}, Method::kPtda, kFs, kT0);
+        MonitorEngine e(*baseline_, extraction(), {6, 5, {}, {}, {}}, Method::kPtda, kFs, kT0);
       },
       "");
   Baseline empty = *baseline_;
