@@ -327,7 +327,7 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (r.read("mesh_cusum", cfg_.decision.mesh.enabled)) note(r, "mesh_cusum");
     if (read_positive(r, "mesh_cusum_k", cfg_.decision.mesh.k, 10.0)) note(r, "mesh_cusum_k");
     if (read_positive(r, "mesh_cusum_h", cfg_.decision.mesh.h, 1000.0)) note(r, "mesh_cusum_h");
-    get(r, "mesh_cusum_day_allowance", cfg_.decision.mesh.day_allowance, 0.0, 10.0);
+    get(r, "mesh_cusum_one_day_allowance", cfg_.decision.mesh.one_day_allowance, 0.0, 10.0);
     r.finish();
   }
 
@@ -686,7 +686,7 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "mesh_cusum = " << (cfg.decision.mesh.enabled ? "true" : "false") << "\n"
      << "mesh_cusum_k = " << shortest(cfg.decision.mesh.k) << "\n"
      << "mesh_cusum_h = " << shortest(cfg.decision.mesh.h) << "\n"
-     << "mesh_cusum_day_allowance = " << shortest(cfg.decision.mesh.day_allowance) << "\n"
+     << "mesh_cusum_one_day_allowance = " << shortest(cfg.decision.mesh.one_day_allowance) << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
      << "line_gain = " << (cfg.thresholds.ptda_line_gain ? "true" : "false") << "\n"
      << "floor_gain = " << (cfg.thresholds.ptda_floor_gain ? "true" : "false") << "\n"

@@ -52,13 +52,14 @@ void check_mesh_cusum(const MeshCusumConfig& cfg) {
     throw Error("decision.mesh_cusum_k: must be > 0 and <= 10 standard deviations, got " + std::to_string(cfg.k));
   if (!(cfg.h > 0.0 && cfg.h <= 1000.0))
     throw Error("decision.mesh_cusum_h: must be > 0 and <= 1000, got " + std::to_string(cfg.h));
-  if (!(cfg.day_allowance >= 0.0 && cfg.day_allowance <= 10.0))
-    throw Error("decision.mesh_cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
-                std::to_string(cfg.day_allowance));
+  if (!(cfg.one_day_allowance >= 0.0 && cfg.one_day_allowance <= 10.0))
+    throw Error("decision.mesh_cusum_one_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
+                std::to_string(cfg.one_day_allowance));
 }
 
-MeshScale mesh_scale(const ClassBaseline& c, double day_allowance) noexcept {
+MeshScale mesh_scale(const ClassBaseline& c, double one_day_allowance) noexcept {
   MeshScale s;
+  const double q = c.mesh_recordings <= 1 ? one_day_allowance : 0.0;
   const double days =
       c.mesh_recordings > 0 ? std::sqrt(1.0 + 1.0 / static_cast<double>(c.mesh_recordings)) : 1.0;
   for (std::size_t i = 0; i < kMeshFeatureCount && i < c.mesh_stats.size(); ++i) {
@@ -67,7 +68,7 @@ MeshScale mesh_scale(const ClassBaseline& c, double day_allowance) noexcept {
     s.mean[i] = st.mean;
     s.sd[i] = sd;
     s.active[i] = st.windows > 0 && sd > 0.0 && std::isfinite(sd) && std::isfinite(st.mean);
-    s.allowance[i] = s.active[i] ? day_allowance * st.between_sd * days / sd : 0.0;
+    s.allowance[i] = s.active[i] ? q * st.between_sd * days / sd : 0.0;
   }
   return s;
 }

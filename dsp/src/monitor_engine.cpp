@@ -156,7 +156,7 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
                   "mesh_cusum = true");
     }
     for (const ClassBaseline& c : baseline_.classes) {
-      mesh_scale_.push_back(mesh_scale(c, decision.mesh.day_allowance));
+      mesh_scale_.push_back(mesh_scale(c, decision.mesh.one_day_allowance));
       if (!mesh_scale_.back().any()) {
         mesh_demod_.emplace_back();
         continue;

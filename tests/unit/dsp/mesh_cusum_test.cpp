@@ -97,22 +97,27 @@ TEST(MeshCusumDecision, ParametersAreCheckedByName) {
   c.h = 2000.0;
   EXPECT_THROW(check_mesh_cusum(c), Error);
   c = MeshCusumConfig{};
-  c.day_allowance = -1.0;
+  c.one_day_allowance = -1.0;
   EXPECT_THROW(check_mesh_cusum(c), Error);
 }
 
-TEST(MeshScale, StandardisesWithTheTotalSdAndSkipsFeaturesWithoutWindows) {
+TEST(MeshScale, StandardisesWithTheTotalSdAndAddsTheAllowanceOnlyForOneTrainingDay) {
   ClassBaseline c;
-  c.mesh_recordings = 3;
+  c.mesh_recordings = 1;
   c.mesh_stats = {{0.2, 0.3, 0.1, 0.4, 50}, {0.1, 0.2, 0.0, 0.06, 0}};
-  const MeshScale s = mesh_scale(c, 1.0);
+  MeshScale s = mesh_scale(c, 1.5);
   EXPECT_TRUE(s.active[0]);
   EXPECT_FALSE(s.active[1]);
   EXPECT_DOUBLE_EQ(s.mean[0], 0.2);
   EXPECT_DOUBLE_EQ(s.sd[0], 0.5);  // sqrt(0.3^2 + 0.4^2)
-  // allowance = 1.0 x 0.4 x sqrt(1 + 1/3) / 0.5
-  EXPECT_NEAR(s.allowance[0], 0.4 * std::sqrt(4.0 / 3.0) / 0.5, 1e-12);
+  // One recording: allowance = 1.5 x 0.4 x sqrt(1 + 1/1) / 0.5
+  EXPECT_NEAR(s.allowance[0], 1.5 * 0.4 * std::sqrt(2.0) / 0.5, 1e-12);
   EXPECT_EQ(s.allowance[1], 0.0);
+  // Three recordings: the between-day sd is estimated and in the total sd; nothing is added.
+  c.mesh_recordings = 3;
+  s = mesh_scale(c, 1.5);
+  EXPECT_DOUBLE_EQ(s.sd[0], 0.5);
+  EXPECT_EQ(s.allowance[0], 0.0);
   EXPECT_FALSE(mesh_scale(ClassBaseline{}, 1.0).any());
 }
 

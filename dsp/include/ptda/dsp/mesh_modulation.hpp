@@ -104,16 +104,21 @@ struct MeshCusumConfig {
   bool enabled = false;         ///< `mesh_cusum`
   double k = 1.0;               ///< `mesh_cusum_k`: reference value in total sds per window
   double h = 10.0;              ///< `mesh_cusum_h`: alarm when a feature's statistic exceeds h
-  double day_allowance = 0.0;   ///< `mesh_cusum_day_allowance`: extra k in between-day sds
+  /// `mesh_cusum_one_day_allowance`: extra k in between-day sds for a class trained on one recording,
+  /// whose between-day sd is only the day_sd_floor prior (docs/method.md §8 "Session 19": one day of
+  /// training under-states the mesh features' day-to-day spread). With two or more recordings the
+  /// estimated between-day sd is in the total sd and nothing is added.
+  double one_day_allowance = 1.0;
 };
 
 /// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h <= 1000 and
-/// 0 <= day_allowance <= 10. Thread: any. Allocates only the message.
+/// 0 <= one_day_allowance <= 10. Thread: any. Allocates only the message.
 void check_mesh_cusum(const MeshCusumConfig& cfg);
 
 /// How one class standardises its mesh features (as BandScale): z = (v - mean) / sd with
-/// sd = sqrt(within_sd^2 + between_sd^2), minus allowance = day_allowance x between_sd x sqrt(1 + 1/R)
-/// / sd. active = 0 where the class has no statistics for the feature (windows 0).
+/// sd = sqrt(within_sd^2 + between_sd^2), minus allowance = q x between_sd x sqrt(1 + 1/R) / sd with
+/// q = one_day_allowance for a class trained on one recording (R <= 1), else 0. active = 0 where the
+/// class has no statistics for the feature (windows 0).
 struct MeshScale {
   double mean[kMeshFeatureCount] = {};
   double sd[kMeshFeatureCount] = {};
@@ -122,7 +127,7 @@ struct MeshScale {
   [[nodiscard]] bool any() const noexcept { return active[0] || active[1]; }
 };
 /// The MeshScale of class c (all inactive when c has no mesh statistics). Thread: any. Never throws.
-[[nodiscard]] MeshScale mesh_scale(const ClassBaseline& c, double day_allowance) noexcept;
+[[nodiscard]] MeshScale mesh_scale(const ClassBaseline& c, double one_day_allowance) noexcept;
 
 /// Autocorrelation of x - mean(x) at lags round(m samples_per_rev), m = 1..kMeshMaxLags with
 /// m samples_per_rev <= x.size() - samples_per_rev, each the mean lag product over its overlap, over the
