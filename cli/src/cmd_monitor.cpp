@@ -14,6 +14,7 @@
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
 #include "ptda/config/pipeline_config.hpp"
+#include "ptda/dsp/mesh_modulation.hpp"
 #include "ptda/formats/baseline_file.hpp"
 
 namespace ptda::cli {
@@ -422,6 +423,27 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
     if (const std::string why = dsp::band_cusum_unusable(in.cfg.decision, in.baseline, method);
         !why.empty() && !in.cfg.decision.band.required) {
       std::cerr << "note: band detector off: " << why << " (k-of-n and the feature CUSUM still judge)\n";
+    }
+  }
+
+  if (in.cfg.decision.mesh.enabled && in.baseline.policy.mesh_stats) {
+    // Say which classes the mesh detector cannot watch (too slow for two input-shaft revolutions per
+    // window, or no mesh line): a commissioning engineer should not take its silence there as health.
+    std::string without;
+    std::size_t with = 0;
+    for (const dsp::ClassBaseline& c : in.baseline.classes) {
+      const bool on = c.mesh_stats.size() == dsp::kMeshFeatureCount &&
+                      (c.mesh_stats[0].windows > 0 || c.mesh_stats[1].windows > 0);
+      if (on) {
+        ++with;
+      } else {
+        without += (without.empty() ? "" : ", ") + std::to_string(c.segment.id);
+      }
+    }
+    if (!without.empty()) {
+      std::cerr << "note: mesh detector on for " << with << " of " << in.baseline.classes.size()
+                << " classes; none for class(es) " << without
+                << " (fewer than 2 input-shaft revolutions per window, or no mesh line: see ptda train)\n";
     }
   }
 
