@@ -160,7 +160,8 @@ std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std
     if (w.mesh_alarm) {
       if (w.kofn_alarm || w.seq_alarm || w.band_alarm) s += "; ";
       s += "mesh CUSUM " + general(w.mesh_max_statistic, 3) + " on " +
-           (w.mesh_max_feature >= 0 ? dsp::mesh_feature_name(static_cast<std::size_t>(w.mesh_max_feature)) : "?") +
+           (w.mesh_max_feature >= 0 ? dsp::mesh_feature_name(static_cast<std::size_t>(w.mesh_max_feature))
+                                    : "?") +
            " (the mesh's " + (w.mesh_max_feature == 0 ? "amplitude" : "phase") +
            " modulation repeats once per input-shaft revolution)";
     }

@@ -521,13 +521,15 @@ PipelineConfig PipelineConfigBuilder::finish() const {
   // The mesh detector demodulates the mesh at z_in x the input-shaft rate, ratio x the joint speed.
   if (cfg.decision.mesh.enabled) {
     if (cfg.domain != dsp::Domain::kTime) {
-      fail_key("decision.mesh_cusum", "[decision] mesh_cusum = true runs in the time domain only ([extraction] "
-                                      "domain = \"time\"); the order domain has not been measured with it");
+      fail_key("decision.mesh_cusum",
+               "[decision] mesh_cusum = true runs in the time domain only ([extraction] "
+               "domain = \"time\"); the order domain has not been measured with it");
     }
     if (g.z_in == 0 || !(g.ratio > 0.0)) {
-      fail_key("decision.mesh_cusum",
-               "[decision] mesh_cusum = true needs the input pinion's teeth and the gearbox ratio: set [gearbox] "
-               "kind with z_in, z_spur, z_pin (cycloidal) or z_in, z_spur (parallel), or z_in and ratio");
+      fail_key(
+          "decision.mesh_cusum",
+          "[decision] mesh_cusum = true needs the input pinion's teeth and the gearbox ratio: set [gearbox] "
+          "kind with z_in, z_spur, z_pin (cycloidal) or z_in, z_spur (parallel), or z_in and ratio");
     }
   }
   cfg.thresholds.mesh_stats = cfg.decision.mesh.enabled;

@@ -294,9 +294,10 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
   });
   check_complete("pass 1");
   if (policy.mesh_stats && (gearbox.z_in == 0 || !(gearbox.ratio > 0.0))) {
-    throw Error("train_baseline: [decision] mesh_cusum needs the gearbox's input pinion teeth and ratio "
-                "([gearbox] z_in, z_spur, z_pin or ratio); this gearbox has z_in = " +
-                std::to_string(gearbox.z_in) + ", ratio = " + num(gearbox.ratio));
+    throw Error(
+        "train_baseline: [decision] mesh_cusum needs the gearbox's input pinion teeth and ratio "
+        "([gearbox] z_in, z_spur, z_pin or ratio); this gearbox has z_in = " +
+        std::to_string(gearbox.z_in) + ", ratio = " + num(gearbox.ratio));
   }
   for (Plan& p : plans) {
     p.builder.finish_mean();

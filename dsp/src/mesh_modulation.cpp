@@ -44,17 +44,21 @@ double input_shaft_hz(double ratio, double speed_rad_s) noexcept {
 
 MeshGeometry mesh_geometry(double fs_hz, std::size_t window_len, const GearboxInfo& g,
                            const SegmentClass& seg) noexcept {
-  return MeshGeometry{window_len, fs_hz, g.z_in, g.ratio, seg.speed_rad_s, seg.speed_rad_s + seg.speed_tol_rad_s};
+  return MeshGeometry{window_len, fs_hz,           g.z_in,
+                      g.ratio,    seg.speed_rad_s, seg.speed_rad_s + seg.speed_tol_rad_s};
 }
 
 void check_mesh_cusum(const MeshCusumConfig& cfg) {
   if (!(cfg.k > 0.0 && cfg.k <= 10.0))
-    throw Error("decision.mesh_cusum_k: must be > 0 and <= 10 standard deviations, got " + std::to_string(cfg.k));
+    throw Error("decision.mesh_cusum_k: must be > 0 and <= 10 standard deviations, got " +
+                std::to_string(cfg.k));
   if (!(cfg.h > 0.0 && cfg.h <= 1000.0))
     throw Error("decision.mesh_cusum_h: must be > 0 and <= 1000, got " + std::to_string(cfg.h));
   if (!(cfg.one_day_allowance >= 0.0 && cfg.one_day_allowance <= 10.0))
-    throw Error("decision.mesh_cusum_one_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
-                std::to_string(cfg.one_day_allowance));
+    throw Error(
+        "decision.mesh_cusum_one_day_allowance: must be >= 0 and <= 10 between-day standard deviations, "
+        "got " +
+        std::to_string(cfg.one_day_allowance));
 }
 
 MeshScale mesh_scale(const ClassBaseline& c, double one_day_allowance) noexcept {
@@ -99,8 +103,8 @@ double revolution_autocorrelation(std::span<const double> x, double samples_per_
 
 struct MeshDemodulator::Impl {
   MeshGeometry g;
-  std::size_t half = 0;  // N/2
-  std::size_t m = 0;     // decimated length
+  std::size_t half = 0;                // N/2
+  std::size_t m = 0;                   // decimated length
   std::vector<unsigned char> in_line;  // per bin k = 0..N/2: inside a line group of the class mean
   std::unique_ptr<unsigned char[]> plan_mem;
   kiss_fft_cfg plan = nullptr;
@@ -114,7 +118,8 @@ struct MeshDemodulator::Impl {
 
   bool harmonic_is_line(std::int64_t kc) const noexcept {
     for (std::int64_t k = std::max<std::int64_t>(1, kc - 1); k <= kc + 1; ++k) {
-      if (k >= 0 && static_cast<std::size_t>(k) <= half && in_line[static_cast<std::size_t>(k)] != 0) return true;
+      if (k >= 0 && static_cast<std::size_t>(k) <= half && in_line[static_cast<std::size_t>(k)] != 0)
+        return true;
     }
     return false;
   }
@@ -133,8 +138,9 @@ MeshDemodulator::MeshDemodulator(const MeshGeometry& geometry, std::span<const f
   if (!(g.ratio > 0.0) || !std::isfinite(g.ratio))
     throw Error("mesh detector: the gearbox ratio " + std::to_string(g.ratio) + " must be > 0");
   if (!(g.speed_rad_s > 0.0) || !std::isfinite(g.speed_max_rad_s) || g.speed_max_rad_s < g.speed_rad_s)
-    throw Error("mesh detector: the class's speed " + std::to_string(g.speed_rad_s) + " rad/s must be > 0 and " +
-                "its largest speed " + std::to_string(g.speed_max_rad_s) + " rad/s not below it");
+    throw Error("mesh detector: the class's speed " + std::to_string(g.speed_rad_s) +
+                " rad/s must be > 0 and " + "its largest speed " + std::to_string(g.speed_max_rad_s) +
+                " rad/s not below it");
   s.half = g.window_len / 2;
   if (mean_magnitude.size() != s.half + 1)
     throw Error("mesh detector: the class mean has " + std::to_string(mean_magnitude.size()) +
@@ -181,7 +187,8 @@ std::uint32_t MeshDemodulator::line_harmonics() const noexcept {
   return impl_ ? impl_->line_harmonics : 0;
 }
 
-MeshValues MeshDemodulator::compute(std::span<const std::complex<float>> spectrum, double speed_rad_s) noexcept {
+MeshValues MeshDemodulator::compute(std::span<const std::complex<float>> spectrum,
+                                    double speed_rad_s) noexcept {
   MeshValues out;
   if (!impl_) return out;
   Impl& s = *impl_;
@@ -205,8 +212,8 @@ MeshValues MeshDemodulator::compute(std::span<const std::complex<float>> spectru
     const std::int64_t kc = round_bin(h * gmf / df);
     if (!s.harmonic_is_line(kc)) continue;
     const std::int64_t lo = std::max<std::int64_t>(1, round_bin((h - 0.5) * gmf / df));
-    const std::int64_t hi = std::min<std::int64_t>(static_cast<std::int64_t>(s.half) + 1,
-                                                   round_bin((h + 0.5) * gmf / df));
+    const std::int64_t hi =
+        std::min<std::int64_t>(static_cast<std::int64_t>(s.half) + 1, round_bin((h + 0.5) * gmf / df));
     if (hi - lo > m) return MeshValues{};  // faster than the class was sized for
     std::fill(s.band.begin(), s.band.end(), kiss_fft_cpx{0.0F, 0.0F});
     for (std::int64_t k = lo; k < hi; ++k) {

@@ -151,9 +151,10 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
     // without it (mesh_classes() counts the others).
     check_mesh_cusum(decision.mesh);
     if (!baseline_.policy.mesh_stats) {
-      throw Error("monitor: [decision] mesh_cusum = true needs a baseline with mesh statistics (format 8, "
-                  "trained with mesh_cusum = true); this baseline has none: retrain it with [decision] "
-                  "mesh_cusum = true");
+      throw Error(
+          "monitor: [decision] mesh_cusum = true needs a baseline with mesh statistics (format 8, "
+          "trained with mesh_cusum = true); this baseline has none: retrain it with [decision] "
+          "mesh_cusum = true");
     }
     for (const ClassBaseline& c : baseline_.classes) {
       mesh_scale_.push_back(mesh_scale(c, decision.mesh.one_day_allowance));
@@ -162,9 +163,9 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
         continue;
       }
       try {
-        mesh_demod_.emplace_back(std::in_place,
-                                 mesh_geometry(baseline_.fs_hz, baseline_.window_len, baseline_.gearbox, c.segment),
-                                 c.mean_magnitude);
+        mesh_demod_.emplace_back(
+            std::in_place, mesh_geometry(baseline_.fs_hz, baseline_.window_len, baseline_.gearbox, c.segment),
+            c.mean_magnitude);
       } catch (const Error& e) {
         throw Error("monitor: baseline class " + std::to_string(c.segment.id) + ": " + e.what());
       }
@@ -266,7 +267,8 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     double top = 0.0;
     std::int32_t top_f = -1;
     for (std::size_t f = 0; f < kMeshFeatureCount; ++f) {
-      if (std::isfinite(w.mesh_excess[f])) s[f] = std::min(mesh_cap_, std::max(0.0, s[f] + w.mesh_excess[f] - mesh_.k));
+      if (std::isfinite(w.mesh_excess[f]))
+        s[f] = std::min(mesh_cap_, std::max(0.0, s[f] + w.mesh_excess[f] - mesh_.k));
       if (s[f] > top) {
         top = s[f];
         top_f = static_cast<std::int32_t>(f);
@@ -423,7 +425,8 @@ void MonitorEngine::score(const WindowRef& ref, WindowResult& out) noexcept {
     const MeshScale& ms = mesh_scale_[ci];
     for (std::size_t f = 0; f < kMeshFeatureCount; ++f) {
       out.mesh_value[f] = v.v[f];
-      if (ms.active[f] && std::isfinite(v.v[f])) out.mesh_excess[f] = (v.v[f] - ms.mean[f]) / ms.sd[f] - ms.allowance[f];
+      if (ms.active[f] && std::isfinite(v.v[f]))
+        out.mesh_excess[f] = (v.v[f] - ms.mean[f]) / ms.sd[f] - ms.allowance[f];
     }
   }
   decision_.scored(out, ci);

@@ -381,12 +381,13 @@ void validate_baseline(const dsp::Baseline& b, const std::string& where) {
       if (!(std::isfinite(st.mean) && std::isfinite(st.within_sd) && st.within_sd >= 0.0 &&
             std::isfinite(st.between_est) && st.between_est >= 0.0 && std::isfinite(st.between_sd) &&
             st.between_sd >= 0.0))
-        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " statistics (mean " + num(st.mean) +
-                    ", sds " + num(st.within_sd) + ", " + num(st.between_est) + ", " + num(st.between_sd) +
-                    "): need finite values and sds >= 0");
+        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " statistics (mean " +
+                    num(st.mean) + ", sds " + num(st.within_sd) + ", " + num(st.between_est) + ", " +
+                    num(st.between_sd) + "): need finite values and sds >= 0");
       if (st.windows > 0 && !(st.within_sd > 0.0))
-        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " has " + std::to_string(st.windows) +
-                    " training windows and a within sd of " + num(st.within_sd) + ", needs > 0");
+        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " has " +
+                    std::to_string(st.windows) + " training windows and a within sd of " + num(st.within_sd) +
+                    ", needs > 0");
     }
   }
   for (std::size_t i = 0; i < b.training.size(); ++i) {
@@ -428,7 +429,8 @@ std::vector<std::uint8_t> serialize_baseline(const dsp::Baseline& b) {
   const bool bands = b.policy.band_count > 0;
   const bool mesh = b.policy.mesh_stats;
   w.u32(mesh ? kBaselineFormatVersion
-             : (bands ? kBaselineBandVersion : (order ? kBaselineOrderDomainVersion : kBaselineTimeDomainVersion)));
+             : (bands ? kBaselineBandVersion
+                      : (order ? kBaselineOrderDomainVersion : kBaselineTimeDomainVersion)));
   w.u64(0);  // total size, patched below
   w.f64(b.fs_hz);
   w.u32(b.window_len);
@@ -676,9 +678,9 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   b.policy.ptda_floor_gain = false;
   if (version >= 3) {
     const std::uint32_t options = body.u32();
-    constexpr std::uint32_t known = kOptionLineGain | kOptionFloorGain;
-    if ((options & ~known) != 0U)
-      body.fail("unknown option bits " + hex32(options & ~known) +
+    constexpr std::uint32_t kKnown = kOptionLineGain | kOptionFloorGain;
+    if ((options & ~kKnown) != 0U)
+      body.fail("unknown option bits " + hex32(options & ~kKnown) +
                 " (this build knows bit 0, line_gain, and bit 1, floor_gain)");
     b.policy.ptda_line_gain = (options & kOptionLineGain) != 0U;
     b.policy.ptda_floor_gain = (options & kOptionFloorGain) != 0U;
@@ -745,8 +747,8 @@ dsp::Baseline parse_baseline(std::span<const std::uint8_t> bytes, const std::str
   if (version >= 8) {
     // Per class: u32 + 2 x (4 f64 + u32).
     if (std::uint64_t{n_classes} * (4U + dsp::kMeshFeatureCount * 36U) > body.left())
-      body.fail("the mesh statistics of " + std::to_string(n_classes) + " classes cannot fit in the remaining " +
-                std::to_string(body.left()) + " bytes");
+      body.fail("the mesh statistics of " + std::to_string(n_classes) +
+                " classes cannot fit in the remaining " + std::to_string(body.left()) + " bytes");
     if (b.domain != dsp::Domain::kTime) body.fail("mesh statistics in an order-domain baseline");
     b.policy.mesh_stats = true;
     for (auto& c : b.classes) {

@@ -11,12 +11,12 @@
 // window cutter against `ptda monitor`'s: a healthy run stays normal, the spur-tooth run alarms.
 // A second test runs the built `ptdad` binary on the same replay (--exit-at-end) and checks its
 // status.json counts, and --check-config's exit codes and located error message.
-#include <cstdio>
-#include <cmath>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -88,7 +88,8 @@ struct Prepared {
 
 // `tag` keeps each test's scratch directory its own: ctest runs the tests of this binary as separate
 // processes in parallel, and a shared directory would be wiped by the other test mid-run.
-Prepared prepare(const std::string& job, const std::string& tag = "threads", const std::string& decision = "") {
+Prepared prepare(const std::string& job, const std::string& tag = "threads",
+                 const std::string& decision = "") {
   Prepared p;
   p.dir = scratch_dir("daemon_replay_" + tag + "_" + job);
   const std::string scen = (source_dir() / "config" / "scenarios").string() + "/" + job;

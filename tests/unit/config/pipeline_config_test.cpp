@@ -759,8 +759,10 @@ TEST(PipelineConfigMeshCusum, OffByDefaultAndOnNeedsTheGearboxAndTheTimeDomain) 
   EXPECT_EQ(def.decision.mesh.one_day_allowance, 1.0);
   const std::string gearbox = "[gearbox]\nkind = \"cycloidal\"\nz_in = 28\nz_spur = 23\nz_pin = 40\n";
   const PipelineConfig on = parse_pipeline_config(
-      "[extraction]\nwindow_len = 4096\n[decision]\nmesh_cusum = true\nmesh_cusum_k = 1.5\nmesh_cusum_h = 12\n"
-      "mesh_cusum_one_day_allowance = 0.5\n" + gearbox,
+      "[extraction]\nwindow_len = 4096\n[decision]\nmesh_cusum = true\nmesh_cusum_k = 1.5\nmesh_cusum_h = "
+      "12\n"
+      "mesh_cusum_one_day_allowance = 0.5\n" +
+          gearbox,
       "cfg.toml");
   EXPECT_TRUE(on.decision.mesh.enabled);
   EXPECT_TRUE(on.thresholds.mesh_stats);  // training stores the mesh statistics
@@ -774,13 +776,16 @@ TEST(PipelineConfigMeshCusum, OffByDefaultAndOnNeedsTheGearboxAndTheTimeDomain) 
   EXPECT_EQ(back.decision.mesh.one_day_allowance, 0.5);
   // Without tooth counts there is no mesh frequency: an error at the key that asked for it.
   const std::string no_teeth = error_of("[extraction]\nwindow_len = 4096\n[decision]\nmesh_cusum = true\n");
-  EXPECT_EQ(no_teeth.rfind("cfg.toml:4:14: [decision] mesh_cusum = true needs the input pinion's teeth", 0), 0U)
+  EXPECT_EQ(no_teeth.rfind("cfg.toml:4:14: [decision] mesh_cusum = true needs the input pinion's teeth", 0),
+            0U)
       << no_teeth;
   // The order domain has not been measured with it.
   const std::string order =
       error_of("[extraction]\ndomain = \"order\"\n[decision]\nmesh_cusum = true\n" + gearbox);
-  EXPECT_NE(order.find("[decision] mesh_cusum = true runs in the time domain only"), std::string::npos) << order;
-  EXPECT_EQ(error_of("[decision]\nmesh_cusum_h = 2000\n"), "cfg.toml:2:16: decision.mesh_cusum_h = 2000 is outside 0..1000");
+  EXPECT_NE(order.find("[decision] mesh_cusum = true runs in the time domain only"), std::string::npos)
+      << order;
+  EXPECT_EQ(error_of("[decision]\nmesh_cusum_h = 2000\n"),
+            "cfg.toml:2:16: decision.mesh_cusum_h = 2000 is outside 0..1000");
   EXPECT_EQ(error_of("[decision]\nmesh_cusum_one_day_allowance = 11\n"),
             "cfg.toml:2:32: decision.mesh_cusum_one_day_allowance = 11 is outside 0..10");
 }

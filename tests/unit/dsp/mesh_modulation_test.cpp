@@ -25,10 +25,10 @@ constexpr std::uint32_t kZin = 20;
 constexpr double kSpeed = 2.0 * std::numbers::pi * 10.0 / kRatio;
 
 struct Disturbance {
-  double pm_rad = 0.0;    // phase slip at the bump (times h on harmonic h)
-  double am = 0.0;        // relative amplitude dip at the bump
-  double rate = 1.0;      // bump rate in units of f_in (1 = the input shaft)
-  double noise = 0.05;    // uniform noise half-width
+  double pm_rad = 0.0;  // phase slip at the bump (times h on harmonic h)
+  double am = 0.0;      // relative amplitude dip at the bump
+  double rate = 1.0;    // bump rate in units of f_in (1 = the input shaft)
+  double noise = 0.05;  // uniform noise half-width
   double gain = 1.0;
   double speed = kSpeed;
 };
@@ -75,7 +75,8 @@ struct Fixture {
     for (std::size_t k = 0; k < s.size(); ++k) a[k] = std::abs(s[k]);
     return a;
   }
-  Fixture() : mean(healthy_mean(fft)), demod(MeshGeometry{kN, kFs, kZin, kRatio, kSpeed, 1.1 * kSpeed}, mean) {}
+  Fixture()
+      : mean(healthy_mean(fft)), demod(MeshGeometry{kN, kFs, kZin, kRatio, kSpeed, 1.1 * kSpeed}, mean) {}
 
   MeshValues run(const Disturbance& d) {
     const std::vector<float> x = mesh_window(d);
@@ -86,7 +87,8 @@ struct Fixture {
 
 TEST(RevolutionAutocorrelation, APeriodicSignalCorrelatesFullyAtItsPeriod) {
   std::vector<double> x(500);
-  for (std::size_t i = 0; i < x.size(); ++i) x[i] = std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / 100.0);
+  for (std::size_t i = 0; i < x.size(); ++i)
+    x[i] = std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / 100.0);
   // Lags 100 and 200, both exact periods: each lag product averages cos^2 over whole periods.
   EXPECT_NEAR(revolution_autocorrelation(x, 100.0), 1.0, 1e-9);
   // Lags of half a period and a whole one: -1 and +1 average to 0.
@@ -94,7 +96,8 @@ TEST(RevolutionAutocorrelation, APeriodicSignalCorrelatesFullyAtItsPeriod) {
   // 250 samples and 100 per revolution: only the lag of one revolution leaves one of overlap; with a
   // period of 200 it is half a period, -1.
   std::vector<double> y(250);
-  for (std::size_t i = 0; i < y.size(); ++i) y[i] = std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / 200.0);
+  for (std::size_t i = 0; i < y.size(); ++i)
+    y[i] = std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / 200.0);
   EXPECT_NEAR(revolution_autocorrelation(y, 100.0), -1.0, 0.02);
   EXPECT_TRUE(std::isnan(revolution_autocorrelation(x, 300.0)));  // no lag leaves a period of overlap
   const std::vector<double> flat(100, 2.5);
@@ -159,7 +162,8 @@ TEST(MeshDemodulator, RefusesAGeometryItCannotUse) {
   EXPECT_THROW(MeshDemodulator(MeshGeometry{kN, kFs, kZin, 0.0, kSpeed, kSpeed}, a), Error);
   EXPECT_THROW(MeshDemodulator(MeshGeometry{kN, kFs, kZin, kRatio, 0.0, 0.0}, a), Error);
   EXPECT_THROW(MeshDemodulator(MeshGeometry{kN, 0.0, kZin, kRatio, kSpeed, kSpeed}, a), Error);
-  EXPECT_THROW(MeshDemodulator(MeshGeometry{kN, kFs, kZin, kRatio, kSpeed, kSpeed}, std::span<const float>(a).first(7)),
+  EXPECT_THROW(MeshDemodulator(MeshGeometry{kN, kFs, kZin, kRatio, kSpeed, kSpeed},
+                               std::span<const float>(a).first(7)),
                Error);
 }
 

@@ -933,7 +933,8 @@ TEST(BaselineFile, Version8MeshStatisticsRoundTripWithAndWithoutBands) {
     (void)serialize_baseline(bad);
     FAIL() << "short mesh statistics written";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("1 mesh statistics, the policy has mesh detector"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("1 mesh statistics, the policy has mesh detector"),
+              std::string::npos)
         << e.what();
   }
   bad = b;
@@ -942,7 +943,8 @@ TEST(BaselineFile, Version8MeshStatisticsRoundTripWithAndWithoutBands) {
     (void)serialize_baseline(bad);
     FAIL() << "zero mesh sd written";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("class 1 (id 8): mesh feature am has"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("class 1 (id 8): mesh feature am has"), std::string::npos)
+        << e.what();
   }
   // A truncated mesh block is reported, not read past.
   Bytes cut(v8.begin(), v8.end() - 4 - 36);

@@ -47,10 +47,10 @@ struct MeshValues {
 
 /// What a class's demodulator is sized for.
 struct MeshGeometry {
-  std::size_t window_len = 0;   ///< N
-  double fs_hz = 0.0;           ///< sample rate
-  std::uint32_t z_in = 0;       ///< teeth of the input pinion (the mesh frequency is z_in f_in)
-  double ratio = 0.0;           ///< input-shaft speed / joint speed (GearboxInfo::ratio)
+  std::size_t window_len = 0;    ///< N
+  double fs_hz = 0.0;            ///< sample rate
+  std::uint32_t z_in = 0;        ///< teeth of the input pinion (the mesh frequency is z_in f_in)
+  double ratio = 0.0;            ///< input-shaft speed / joint speed (GearboxInfo::ratio)
   double speed_rad_s = 0.0;      ///< the class's |joint speed| (its line harmonics are counted there)
   double speed_max_rad_s = 0.0;  ///< largest |joint speed| a window of the class may have
 };
@@ -101,9 +101,9 @@ inline constexpr std::uint32_t kMeshMinTrainingWindows = 5;
 /// Parameters of the mesh CUSUM ([decision] mesh_* keys, config/README.md). Off by default: it needs a
 /// baseline trained with it (format 8) and the gearbox's tooth counts.
 struct MeshCusumConfig {
-  bool enabled = false;         ///< `mesh_cusum`
-  double k = 1.0;               ///< `mesh_cusum_k`: reference value in total sds per window
-  double h = 10.0;              ///< `mesh_cusum_h`: alarm when a feature's statistic exceeds h
+  bool enabled = false;  ///< `mesh_cusum`
+  double k = 1.0;        ///< `mesh_cusum_k`: reference value in total sds per window
+  double h = 10.0;       ///< `mesh_cusum_h`: alarm when a feature's statistic exceeds h
   /// `mesh_cusum_one_day_allowance`: extra k in between-day sds for a class trained on one recording,
   /// whose between-day sd is only the day_sd_floor prior (docs/method.md §8 "Session 19": one day of
   /// training under-states the mesh features' day-to-day spread). With two or more recordings the

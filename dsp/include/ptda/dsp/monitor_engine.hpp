@@ -3,9 +3,9 @@
 #pragma once
 
 #include <array>
-#include <optional>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -45,22 +45,11 @@ enum class AlarmDetector : std::uint8_t {
   kMesh = 8,
 };
 [[nodiscard]] constexpr const char* alarm_detector_name(AlarmDetector d) noexcept {
-  constexpr const char* kNames[16] = {"none",
-                                      "k_of_n",
-                                      "sequential",
-                                      "k_of_n+sequential",
-                                      "band",
-                                      "k_of_n+band",
-                                      "sequential+band",
-                                      "k_of_n+sequential+band",
-                                      "mesh",
-                                      "k_of_n+mesh",
-                                      "sequential+mesh",
-                                      "k_of_n+sequential+mesh",
-                                      "band+mesh",
-                                      "k_of_n+band+mesh",
-                                      "sequential+band+mesh",
-                                      "k_of_n+sequential+band+mesh"};
+  constexpr const char* kNames[16] = {
+      "none",      "k_of_n",           "sequential",           "k_of_n+sequential",
+      "band",      "k_of_n+band",      "sequential+band",      "k_of_n+sequential+band",
+      "mesh",      "k_of_n+mesh",      "sequential+mesh",      "k_of_n+sequential+mesh",
+      "band+mesh", "k_of_n+band+mesh", "sequential+band+mesh", "k_of_n+sequential+band+mesh"};
   const auto i = static_cast<unsigned>(d);
   return i < 16 ? kNames[i] : "?";
 }
@@ -117,12 +106,12 @@ struct WindowResult {
   /// feature did not enter the CUSUM.
   double mesh_excess[kMeshFeatureCount] = {std::numeric_limits<double>::quiet_NaN(),
                                            std::numeric_limits<double>::quiet_NaN()};
-  bool mesh_alarm = false;              ///< some class's mesh CUSUM > mesh_cusum_h
-  double mesh_statistic = 0.0;          ///< this window's class: largest mesh CUSUM after it (scored)
-  std::int32_t mesh_feature = -1;       ///< its feature (0 am, 1 pm; -1 when both are 0)
-  double mesh_max_statistic = 0.0;      ///< largest mesh CUSUM over all classes and features
-  std::int32_t mesh_max_feature = -1;   ///< its feature
-  std::int32_t mesh_max_class = -1;     ///< its class (the decision's class index)
+  bool mesh_alarm = false;             ///< some class's mesh CUSUM > mesh_cusum_h
+  double mesh_statistic = 0.0;         ///< this window's class: largest mesh CUSUM after it (scored)
+  std::int32_t mesh_feature = -1;      ///< its feature (0 am, 1 pm; -1 when both are 0)
+  double mesh_max_statistic = 0.0;     ///< largest mesh CUSUM over all classes and features
+  std::int32_t mesh_max_feature = -1;  ///< its feature
+  std::int32_t mesh_max_class = -1;    ///< its class (the decision's class index)
 };
 
 /// The decision after the verdicts: k-of-n over all scored windows and one CUSUM per class (fixed
@@ -155,7 +144,7 @@ class DecisionState {
   std::vector<std::array<std::uint64_t, kMaxBands>> band_since_;
   std::uint64_t band_order_ = 0;
   MeshCusumConfig mesh_;
-  double mesh_cap_ = 0.0;                                        ///< as band_cap_
+  double mesh_cap_ = 0.0;                                      ///< as band_cap_
   std::vector<std::array<double, kMeshFeatureCount>> mesh_s_;  ///< per class, per feature (empty when off)
 
   void fill(WindowResult& w) const noexcept;
@@ -226,7 +215,7 @@ class MonitorEngine {
   std::vector<std::vector<unsigned char>> band_clean_;  ///< per class: clean_floor_bins()
   std::array<double, kMaxBands> band_tmp_{};
   std::vector<std::optional<MeshDemodulator>> mesh_demod_;  ///< per class (mesh CUSUM on; empty: none)
-  std::vector<MeshScale> mesh_scale_;                         ///< per class (mesh CUSUM on)
+  std::vector<MeshScale> mesh_scale_;                       ///< per class (mesh CUSUM on)
   std::vector<float> window_;
   std::string band_off_reason_;  ///< default-on band detector switched off: why (empty otherwise)
 };
