@@ -165,6 +165,63 @@ TEST(DaemonAlloc, BandCusumSteadyStateMakesNoAllocations) {
   EXPECT_NE(text.find("\"band_cusum_max\":"), std::string::npos);
 }
 
+// The mesh detector on (session 19): its demodulators and CUSUM state are sized at configure, the
+// features come from the analyzer's spectrum, and the history log writes the mesh evidence, all without
+// a heap allocation. Arc welding's plateau holds enough input-shaft revolutions for every window.
+TEST(DaemonAlloc, MeshCusumSteadyStateMakesNoAllocations) {
+  block_daemon_signals();
+  const fs::path dir = scratch("alloc_mesh");
+  write_sim_baseline(dir / "baseline.bin", false, true);
+  write_text(dir / "ptdad.toml",
+             sim_config(dir / "baseline.bin", dir / "status", "fast", "joint = \"j4\"\n",
+                        "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[history]\ndir = \"" +
+                            (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n",
+                        false, true));
+  drivers::MonotonicClock clock;
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  auto daemon = std::make_unique<Daemon>(opt, clock);
+  Daemon& d = *daemon;
+  d.configure();
+  d.activate();
+  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+  const std::uint64_t pass = 1'626'483;  // samples of one pass of the scenario (as above)
+  ASSERT_TRUE(wait_for([&] { return d.view().pipeline.samples > pass + 200'000; }, std::chrono::seconds(60)));
+  const DaemonView before = d.view();
+  std::uint64_t allocations = 0;
+  {
+    ptda::test::AllocScope scope;
+    wait_for(
+        [&] {
+          const DaemonView v = d.view();
+          return v.pipeline.samples > before.pipeline.samples + 2 * pass &&
+                 v.status_writes > before.status_writes + 1;
+        },
+        std::chrono::seconds(120));
+    allocations = scope.count();
+  }
+  const DaemonView after = d.view();
+  d.request_stop();
+  runner.join();
+  daemon.reset();
+  EXPECT_EQ(allocations, 0U);
+  EXPECT_GE(after.pipeline.scored - before.pipeline.scored, 190U);
+  EXPECT_TRUE(after.pipeline.last_window.mesh_on);  // the mesh CUSUM ran
+  std::ifstream in(dir / "history" / "history.jsonl");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"mesh_cusum_max\":"), std::string::npos);
+  // The 4.1 rad/s class (2.76 input-shaft revolutions per window) had a pm to judge; the slow classes
+  // (0.34 and 0.67 revolutions) have none (null).
+  std::size_t judged = 0;
+  std::size_t none = 0;
+  for (std::size_t at = text.find("\"mesh_pm\":"); at != std::string::npos;
+       at = text.find("\"mesh_pm\":", at + 1))
+    (text.compare(at + 10, 4, "null") == 0 ? none : judged) += 1;
+  EXPECT_GT(judged, 0U);
+  EXPECT_GT(none, 0U);
+}
+
 // ---- order domain (issue 16) ----------------------------------------------------------------------
 
 /// The simulator backends on the joint-rotation job at fast pace, looping, order domain; the simulator's

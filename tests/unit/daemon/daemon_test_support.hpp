@@ -56,8 +56,9 @@ inline void write_text(const fs::path& p, const std::string& text) {
 }
 
 /// The arc-welding job's pipeline (config/examples/arc_welding.toml) without its [can] table.
-/// band: with `band_cusum = true` in its [decision] table (the band CUSUM, session 12).
-inline std::string arc_pipeline(bool band = false) {
+/// band: with `band_cusum = true` in its [decision] table (the band CUSUM, session 12); mesh: with
+/// `mesh_cusum = true` (the mesh detector, session 19).
+inline std::string arc_pipeline(bool band = false, bool mesh = false) {
   std::ifstream in(source_dir() / "config" / "examples" / "arc_welding.toml");
   std::string line, out;
   bool skip = false;
@@ -65,6 +66,7 @@ inline std::string arc_pipeline(bool band = false) {
     if (!line.empty() && line[0] == '[') skip = line.rfind("[can", 0) == 0;
     if (!skip) out += line + "\n";
     if (band && line == "[decision]") out += "band_cusum = true\n";
+    if (mesh && line == "[decision]") out += "mesh_cusum = true\n";
   }
   return out;
 }
@@ -122,14 +124,14 @@ inline std::size_t temp_files(const fs::path& dir) {
 /// A daemon configuration for the simulator backends (arc-welding healthy scenario).
 inline std::string sim_config(const fs::path& baseline, const fs::path& status_dir, const std::string& pace,
                               const std::string& extra_daemon = "", const std::string& extra = "",
-                              bool band = false) {
+                              bool band = false, bool mesh = false) {
   std::ostringstream s;
   s << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << status_dir.string()
     << "\"\nstatus_period_s = 0.05\n"
     << extra_daemon << "\n[adc]\nbackend = \"sim\"\nscenario = \"" << arc_scenario().string()
     << "\"\nseed = 7\npace = \"" << pace << "\"\n\n[can]\nbackend = \"sim\"\npace = \"" << pace << "\"\n\n"
     << extra << "\n"
-    << arc_pipeline(band);
+    << arc_pipeline(band, mesh);
   return s.str();
 }
 
@@ -137,13 +139,16 @@ inline std::string sim_config(const fs::path& baseline, const fs::path& status_d
 /// per process (later calls copy the first file). Allocates; takes ~1 s.
 /// band: trained with `[decision] band_cusum = true` said (required); without it the default (on since
 /// session 13) also stores band statistics (format 7).
-inline void write_sim_baseline(const fs::path& path, bool band = false) {
-  static fs::path first[2];
-  if (!first[band ? 1 : 0].empty()) {
-    fs::copy_file(first[band ? 1 : 0], path, fs::copy_options::overwrite_existing);
+/// mesh: trained with `[decision] mesh_cusum = true` (format 8).
+inline void write_sim_baseline(const fs::path& path, bool band = false, bool mesh = false) {
+  static fs::path first[4];
+  const int slot = (band ? 1 : 0) + (mesh ? 2 : 0);
+  if (!first[slot].empty()) {
+    fs::copy_file(first[slot], path, fs::copy_options::overwrite_existing);
     return;
   }
-  const DaemonConfig cfg = parse_daemon_config(sim_config(path, "", "fast", "", "", band), "baseline.toml");
+  const DaemonConfig cfg =
+      parse_daemon_config(sim_config(path, "", "fast", "", "", band, mesh), "baseline.toml");
   const config::PipelineConfig& pc = cfg.pipeline;
   const auto rec = make_sim_recording(arc_scenario(), 7);
   dsp::WindowSlicer slicer(pc.extraction, rec->fs_hz, 0);
@@ -177,7 +182,7 @@ inline void write_sim_baseline(const fs::path& path, bool band = false) {
   dsp::Baseline b = dsp::train_baseline(data, pc.classes, pc.thresholds, rec->fs_hz, pc.gearbox);
   b.source = "daemon tests: simulated arc welding, seed 7";
   formats::write_baseline(path, b);
-  first[band ? 1 : 0] = path;
+  first[slot] = path;
 }
 
 // ---- order domain (issue 16) ----------------------------------------------------------------------
