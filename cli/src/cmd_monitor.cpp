@@ -433,8 +433,19 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
     std::string without;
     std::size_t with = 0;
     for (const dsp::ClassBaseline& c : in.baseline.classes) {
-      const bool on = c.mesh_stats.size() == dsp::kMeshFeatureCount &&
-                      (c.mesh_stats[0].windows > 0 || c.mesh_stats[1].windows > 0);
+      bool on = c.mesh_stats.size() == dsp::kMeshFeatureCount &&
+                (c.mesh_stats[0].windows > 0 || c.mesh_stats[1].windows > 0);
+      if (on) {
+        // As the engine decides: no mesh line at the class's speed also leaves the class without it.
+        try {
+          const dsp::MeshDemodulator d(
+              dsp::mesh_geometry(in.baseline.fs_hz, in.baseline.window_len, in.baseline.gearbox, c.segment),
+              c.mean_magnitude);
+          on = d.line_harmonics() > 0;
+        } catch (const Error&) {
+          on = false;  // the engine reports the reason when it is built
+        }
+      }
       if (on) {
         ++with;
       } else {

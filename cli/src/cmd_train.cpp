@@ -167,9 +167,12 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
           << " revolutions per window";
       if (c.mesh_stats[0].windows == 0 && c.mesh_stats[1].windows == 0) {
         out << ": no mesh detector for this class ("
-            << (revs < dsp::kMeshMinRevolutions ? "fewer than 2 revolutions per window: a longer window_len "
-                                                  "or a faster segment would have them"
-                                                : "no mesh harmonic is a line of the class mean")
+            << (revs < dsp::kMeshMinRevolutions
+                    ? "fewer than 2 revolutions per window: a longer window_len or a faster segment would "
+                      "have them"
+                    : "fewer than 5 training windows with mesh features: no mesh harmonic is a line of the "
+                      "class "
+                      "mean, or the windows' speeds are outside the class, or the features did not vary")
             << ")\n";
       } else {
         for (std::size_t f = 0; f < c.mesh_stats.size(); ++f) {

@@ -582,6 +582,8 @@ void redebounce(std::vector<dsp::WindowResult>& windows, const dsp::DecisionConf
     w.seq_feature = dsp::SeqFeature::kNone;
     w.band_statistic = 0.0;
     w.band_index = -1;
+    w.mesh_statistic = 0.0;
+    w.mesh_feature = -1;
     if (w.status == dsp::WindowStatus::kScored) {
       state.scored(w, static_cast<std::size_t>(w.class_id));
     } else {

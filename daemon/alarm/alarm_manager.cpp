@@ -88,6 +88,11 @@ AlarmLevel AlarmManager::on_window(const dsp::WindowResult& w, std::int64_t t_mo
   info.band_index = w.band_max_index;
   info.band_lo_hz = w.band_lo_hz;
   info.band_hi_hz = w.band_hi_hz;
+  info.mesh_on = w.mesh_on;
+  info.mesh_alarm = w.mesh_alarm;
+  info.mesh_statistic = w.mesh_max_statistic;
+  info.mesh_feature = w.mesh_max_feature;
+  info.mesh_class = w.mesh_max_class;
 
   if (w.alarm && !state_.alarm_active) {
     state_.alarm_active = true;

@@ -78,6 +78,12 @@ struct TripInfo {
   std::int32_t band_index = -1;  ///< its band (-1: none)
   double band_lo_hz = 0.0;       ///< its frequency range
   double band_hi_hz = 0.0;
+  // The mesh CUSUM's evidence at that window (mesh_on: [decision] mesh_cusum is on).
+  bool mesh_on = false;
+  bool mesh_alarm = false;
+  double mesh_statistic = 0.0;     ///< largest mesh CUSUM over classes and features
+  std::int32_t mesh_feature = -1;  ///< its feature (0 am, 1 pm; -1: none)
+  std::int32_t mesh_class = -1;    ///< its class (the decision's class index)
 };
 
 /// The manager's state, trivially copyable (the owner may hand copies to the status writer).

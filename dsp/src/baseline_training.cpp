@@ -120,6 +120,12 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
   if (!(policy.holdout_fraction >= 0.0 && policy.holdout_fraction <= 0.9)) {
     throw Error("thresholds.holdout_fraction: must be in [0, 0.9], got " + num(policy.holdout_fraction));
   }
+  if (policy.mesh_stats && (gearbox.z_in == 0 || !(gearbox.ratio > 0.0))) {
+    throw Error(
+        "train_baseline: [decision] mesh_cusum needs the gearbox's input pinion teeth and ratio "
+        "([gearbox] z_in, z_spur, z_pin or ratio); this gearbox has z_in = " +
+        std::to_string(gearbox.z_in) + ", ratio = " + num(gearbox.ratio));
+  }
   if (!data.recording.empty() && data.recording.size() != data.refs.size()) {
     throw Error("train_baseline: " + std::to_string(data.recording.size()) + " recording ids but " +
                 std::to_string(data.refs.size()) + " windows");
@@ -293,12 +299,6 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
       plans[static_cast<std::size_t>(plan_of[i])].builder.add_to_mean(x);
   });
   check_complete("pass 1");
-  if (policy.mesh_stats && (gearbox.z_in == 0 || !(gearbox.ratio > 0.0))) {
-    throw Error(
-        "train_baseline: [decision] mesh_cusum needs the gearbox's input pinion teeth and ratio "
-        "([gearbox] z_in, z_spur, z_pin or ratio); this gearbox has z_in = " +
-        std::to_string(gearbox.z_in) + ", ratio = " + num(gearbox.ratio));
-  }
   for (Plan& p : plans) {
     p.builder.finish_mean();
     p.next_group = p.group_size.cbegin();
@@ -378,8 +378,11 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
         st.between_est = std::sqrt(v.between_var);
         st.between_sd = std::max(st.between_est, policy.day_sd_floor * st.within_sd);
         st.windows = static_cast<std::uint32_t>(p.mesh_values[fi].size());
+        if (!(st.within_sd > 0.0)) {
+          st = MeshFeatureStats{};  // a constant feature cannot be standardised
+          continue;
+        }
         cb.mesh_recordings = std::max(cb.mesh_recordings, v.groups);
-        if (!(st.within_sd > 0.0)) st = MeshFeatureStats{};  // a constant feature cannot be standardised
       }
     }
     if (!p.held.empty()) {

@@ -153,8 +153,9 @@ MeshDemodulator::MeshDemodulator(const MeshGeometry& geometry, std::span<const f
   // the carrier's own drift and the modulation sit well inside the decimated rate.
   const double df = g.fs_hz / static_cast<double>(g.window_len);
   const double gmf_max = static_cast<double>(g.z_in) * input_shaft_hz(g.ratio, g.speed_max_rad_s);
-  const auto width = static_cast<std::size_t>(std::ceil(gmf_max / df)) + 2;
-  s.m = smooth_length(std::min(2 * width, g.window_len));
+  // Clamped in double first: a forged speed tolerance must not overflow the conversion.
+  const double width = std::min(std::ceil(gmf_max / df) + 2.0, static_cast<double>(g.window_len));
+  s.m = smooth_length(std::min(2 * static_cast<std::size_t>(width), g.window_len));
   std::size_t len_bytes = 0;
   kiss_fft_alloc(static_cast<int>(s.m), 1, nullptr, &len_bytes);
   if (len_bytes == 0) throw Error("mesh detector: KissFFT reported no plan size for " + std::to_string(s.m));
@@ -232,7 +233,7 @@ MeshValues MeshDemodulator::compute(std::span<const std::complex<float>> spectru
     }
     mag_mean /= static_cast<double>(s.m);
     if (!(mag_mean > 0.0) || !std::isfinite(mag_mean)) continue;
-    // Unwrap: each step taken to (-pi, pi].
+    // Unwrap: each step taken to [-pi, pi).
     double offset = 0.0;
     double prev = s.phase[0];
     for (std::size_t i = 1; i < s.m; ++i) {

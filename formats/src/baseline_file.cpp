@@ -388,6 +388,15 @@ void validate_baseline(const dsp::Baseline& b, const std::string& where) {
         throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " has " +
                     std::to_string(st.windows) + " training windows and a within sd of " + num(st.within_sd) +
                     ", needs > 0");
+      // am and pm are autocorrelations (about -1..1): a mean or sd far outside is not from training.
+      if (!(std::fabs(st.mean) <= 2.0 && st.within_sd <= 10.0 && st.between_sd <= 10.0 &&
+            st.between_est <= 10.0))
+        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " statistics (mean " +
+                    num(st.mean) + ", sds " + num(st.within_sd) + ", " + num(st.between_sd) +
+                    ") are outside what an autocorrelation gives (|mean| <= 2, sds <= 10)");
+      if (st.windows > 0 && c.mesh_recordings == 0)
+        throw Error(cls + ": mesh feature " + dsp::mesh_feature_name(k) + " has " +
+                    std::to_string(st.windows) + " training windows from 0 recordings");
     }
   }
   for (std::size_t i = 0; i < b.training.size(); ++i) {

@@ -261,11 +261,11 @@ TEST(DaemonReplayMeshCusum, ThreadsReproduceMonitorJsonlWithMeshCusum) {
     if (windows[i].mesh_alarm && first_mesh_alarm == windows.size()) first_mesh_alarm = i;
   }
   // Pinned from this run (seeds 1001 / 3003): the project simulator's spot-welding fault is not a
-  // once-per-revolution modulation of the mesh, and the mesh CUSUM stays low (largest 1.03 of h = 10)
-  // while the other detectors hold the alarm.
+  // once-per-revolution modulation of the mesh, and the mesh CUSUM stays low (largest 0.219 of h = 10,
+  // with the one-day allowance: one training recording; 1.03 without it) while the other detectors
+  // hold the alarm.
   EXPECT_EQ(first_mesh_alarm, windows.size());
-  EXPECT_LT(top, 2.0);
-  EXPECT_GT(top, 0.5);
+  EXPECT_NEAR(top, 0.219, 0.02);
   EXPECT_EQ(windows.back().detector, dsp::AlarmDetector::kAll);
 }
 

@@ -152,6 +152,15 @@ TEST(MeshDemodulator, TooFewRevolutionsOrNoMeshLinesGiveNoFeatures) {
   std::vector<std::complex<float>> s(kN / 2 + 1);
   f.fft.forward(mesh_window(Disturbance{.pm_rad = 0.3}), s);
   EXPECT_FALSE(none.compute(s, kSpeed).valid());
+  // A window far faster than the class was sized for (3 x its largest speed: GMF 600 Hz, whose first
+  // harmonic sits on the class mean's 600 Hz line): its band (300 bins) does not fit the decimated
+  // length, so no features rather than aliased ones; a demodulator sized for that speed has them.
+  MeshDemodulator sized(MeshGeometry{kN, kFs, kZin, kRatio, kSpeed, kSpeed}, f.mean);
+  EXPECT_EQ(sized.decimated_len(), 216U);  // 2 x (200 Hz / 2 Hz + 2) = 204 -> 216 = 2^3 3^3
+  f.fft.forward(mesh_window(Disturbance{.pm_rad = 0.3, .speed = 3.0 * kSpeed}), s);
+  EXPECT_FALSE(sized.compute(s, 3.0 * kSpeed).valid());
+  MeshDemodulator wide(MeshGeometry{kN, kFs, kZin, kRatio, kSpeed, 3.1 * kSpeed}, f.mean);
+  EXPECT_TRUE(wide.compute(s, 3.0 * kSpeed).valid());
   // Wrong spectrum size.
   EXPECT_FALSE(f.demod.compute(std::span<const std::complex<float>>(s).first(10), kSpeed).valid());
 }

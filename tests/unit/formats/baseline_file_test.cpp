@@ -946,13 +946,29 @@ TEST(BaselineFile, Version8MeshStatisticsRoundTripWithAndWithoutBands) {
     EXPECT_NE(std::string(e.what()).find("class 1 (id 8): mesh feature am has"), std::string::npos)
         << e.what();
   }
-  // A truncated mesh block is reported, not read past.
+  // A mesh block cut short (size and CRC re-sealed, so only the block's own bound can catch it) is
+  // reported, not read past.
   Bytes cut(v8.begin(), v8.end() - 4 - 36);
+  put_u32(cut, 12, static_cast<std::uint32_t>(cut.size() + 4));
+  cut.resize(cut.size() + 4);
+  fix_crc(cut);
   try {
     (void)parse_baseline(cut, "cut.bin");
-    FAIL() << "truncated file read";
+    FAIL() << "truncated mesh block read";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("cut.bin"), std::string::npos) << e.what();
+    EXPECT_NE(
+        std::string(e.what()).find("the mesh statistics of 3 classes cannot fit in the remaining 192 bytes"),
+        std::string::npos)
+        << e.what();
+  }
+  // Forged statistics an autocorrelation cannot have are refused.
+  bad = b;
+  bad.classes[2].mesh_stats[1].mean = 40.0;
+  try {
+    (void)serialize_baseline(bad);
+    FAIL() << "forged mesh mean written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("mesh feature pm statistics"), std::string::npos) << e.what();
   }
 }
 
