@@ -99,10 +99,7 @@ std::string window_json(const dsp::WindowResult& w, dsp::Method method, dsp::Dom
       o.add_null("band_hz");
     }
   }
-  if (w.mesh_on) {  // the mesh CUSUM (only when [decision] mesh_cusum is on)
-    const auto feature = [](std::int32_t f) {
-      return f >= 0 ? dsp::mesh_feature_name(static_cast<std::size_t>(f)) : "none";
-    };
+  if (w.mesh_on) {                      // the mesh CUSUM (only when [decision] mesh_cusum is on)
     o.add("mesh_alarm", w.mesh_alarm);  // NaN values below are written as null
     o.add("mesh_am", w.mesh_value[0]);
     o.add("mesh_pm", w.mesh_value[1]);
@@ -110,12 +107,12 @@ std::string window_json(const dsp::WindowResult& w, dsp::Method method, dsp::Dom
     o.add("mesh_excess_pm", w.mesh_excess[1]);
     if (scored) {
       o.add("mesh_cusum", w.mesh_statistic);
-      o.add("mesh_cusum_feature", feature(w.mesh_feature));
+      o.add("mesh_cusum_feature", dsp::mesh_feature_label(w.mesh_feature));
     } else {
       o.add_null("mesh_cusum").add_null("mesh_cusum_feature");
     }
     o.add("mesh_cusum_max", w.mesh_max_statistic);
-    o.add("mesh_feature", feature(w.mesh_max_feature));
+    o.add("mesh_feature", dsp::mesh_feature_label(w.mesh_max_feature));
   }
   return o.str();
 }
@@ -160,9 +157,8 @@ std::string window_table_row(const dsp::WindowResult& w, std::int64_t t0_ns, std
     if (w.mesh_alarm) {
       if (w.kofn_alarm || w.seq_alarm || w.band_alarm) s += "; ";
       s += "mesh CUSUM " + general(w.mesh_max_statistic, 3) + " on " +
-           (w.mesh_max_feature >= 0 ? dsp::mesh_feature_name(static_cast<std::size_t>(w.mesh_max_feature))
-                                    : "?") +
-           " (the mesh's " + (w.mesh_max_feature == 0 ? "amplitude" : "phase") +
+           dsp::mesh_feature_label(w.mesh_max_feature) + " (the mesh's " +
+           (w.mesh_max_feature == 0 ? "amplitude" : "phase") +
            " modulation repeats once per input-shaft revolution)";
     }
     s += ")";

@@ -891,11 +891,10 @@ void Daemon::report_level_change(const LevelChange& c, const PipelineStatus& ps,
     const std::size_t used2 = std::strlen(evidence);
     if (episode && c.window.mesh_on && c.window.mesh_alarm && used2 < sizeof evidence) {
       // The mesh CUSUM's evidence (only with [decision] mesh_cusum on and its alarm held).
-      const std::int32_t f = c.window.mesh_feature;
       std::snprintf(evidence + used2, sizeof evidence - used2, "; detector %s, mesh %s CUSUM %.3g (class %d)",
                     dsp::alarm_detector_name(c.window.detector),
-                    f >= 0 ? dsp::mesh_feature_name(static_cast<std::size_t>(f)) : "none",
-                    c.window.mesh_statistic, static_cast<int>(c.window.mesh_class));
+                    dsp::mesh_feature_label(c.window.mesh_feature), c.window.mesh_statistic,
+                    static_cast<int>(c.window.mesh_class));
     }
   } else {
     std::snprintf(evidence, sizeof evidence, "no verdict (%s); cause %s", phase_name(ps.phase), causes);

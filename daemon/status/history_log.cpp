@@ -252,9 +252,6 @@ void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) no
     }
   }
   if (w.mesh_on) {  // as ptda monitor --jsonl writes them (only with [decision] mesh_cusum on)
-    const auto feature = [](std::int32_t f) {
-      return f >= 0 ? dsp::mesh_feature_name(static_cast<std::size_t>(f)) : "none";
-    };
     o.boolean("mesh_alarm", w.mesh_alarm);
     o.num("mesh_am", w.mesh_value[0]);
     o.num("mesh_pm", w.mesh_value[1]);
@@ -262,13 +259,13 @@ void HistoryLog::window(const dsp::WindowResult& w, std::int64_t end_unix_ns) no
     o.num("mesh_excess_pm", w.mesh_excess[1]);
     if (scored) {
       o.num("mesh_cusum", w.mesh_statistic);
-      o.str("mesh_cusum_feature", feature(w.mesh_feature));
+      o.str("mesh_cusum_feature", dsp::mesh_feature_label(w.mesh_feature));
     } else {
       o.null("mesh_cusum");
       o.null("mesh_cusum_feature");
     }
     o.num("mesh_cusum_max", w.mesh_max_statistic);
-    o.str("mesh_feature", feature(w.mesh_max_feature));
+    o.str("mesh_feature", dsp::mesh_feature_label(w.mesh_max_feature));
   }
   finish_line(b, o);
 }

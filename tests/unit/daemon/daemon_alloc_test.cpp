@@ -114,6 +114,48 @@ TEST(DaemonAlloc, SteadyStateMakesNoAllocations) {
   EXPECT_NE(status.find(R"("handoff":0,)"), std::string::npos) << status;
 }
 
+// Runs the daemon of dir/ptdad.toml (simulator backends, fast pace) past one pass of the scenario, then
+// counts the heap allocations of every thread over two more passes and a status write.
+struct SteadyRun {
+  bool started = false;  // the first pass was reached
+  std::uint64_t allocations = 0;
+  DaemonView before;
+  DaemonView after;
+};
+SteadyRun run_steady_state(const fs::path& dir) {
+  SteadyRun r;
+  drivers::MonotonicClock clock;
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  auto daemon = std::make_unique<Daemon>(opt, clock);
+  Daemon& d = *daemon;
+  d.configure();
+  d.activate();
+  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+  const std::uint64_t pass = 1'626'483;  // samples of one pass of the scenario (as above)
+  r.started = wait_for([&] { return d.view().pipeline.samples > pass + 200'000; }, std::chrono::seconds(60));
+  if (r.started) {
+    r.before = d.view();
+    {
+      ptda::test::AllocScope scope;
+      wait_for(
+          [&] {
+            const DaemonView v = d.view();
+            return v.pipeline.samples > r.before.pipeline.samples + 2 * pass &&
+                   v.status_writes > r.before.status_writes + 1;
+          },
+          std::chrono::seconds(120));
+      r.allocations = scope.count();
+    }
+    r.after = d.view();
+  }
+  d.request_stop();
+  runner.join();
+  daemon.reset();
+  return r;
+}
+
 // The band CUSUM on (session 12): its per-class, per-band state is sized at configure, the band energies
 // come from the analyzer's residual, and the history log writes the band evidence, all without a heap
 // allocation on the real-time threads or the supervisor.
@@ -128,34 +170,11 @@ TEST(DaemonAlloc, BandCusumSteadyStateMakesNoAllocations) {
                  "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[history]\ndir = \"" +
                      (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n",
                  true));
-  drivers::MonotonicClock clock;
-  DaemonOptions opt;
-  opt.config_file = dir / "ptdad.toml";
-  opt.config_dir = fs::path();
-  auto daemon = std::make_unique<Daemon>(opt, clock);
-  Daemon& d = *daemon;
-  d.configure();
-  d.activate();
-  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
-  const std::uint64_t pass = 1'626'483;  // samples of one pass of the scenario (as above)
-  ASSERT_TRUE(wait_for([&] { return d.view().pipeline.samples > pass + 200'000; }, std::chrono::seconds(60)));
-  const DaemonView before = d.view();
-  std::uint64_t allocations = 0;
-  {
-    ptda::test::AllocScope scope;
-    wait_for(
-        [&] {
-          const DaemonView v = d.view();
-          return v.pipeline.samples > before.pipeline.samples + 2 * pass &&
-                 v.status_writes > before.status_writes + 1;
-        },
-        std::chrono::seconds(120));
-    allocations = scope.count();
-  }
-  const DaemonView after = d.view();
-  d.request_stop();
-  runner.join();
-  daemon.reset();
+  const SteadyRun run = run_steady_state(dir);
+  ASSERT_TRUE(run.started);
+  const std::uint64_t allocations = run.allocations;
+  const DaemonView& before = run.before;
+  const DaemonView& after = run.after;
   EXPECT_EQ(allocations, 0U);
   EXPECT_GE(after.pipeline.scored - before.pipeline.scored, 190U);
   EXPECT_TRUE(after.pipeline.last_window.band_on);  // the band CUSUM ran
@@ -177,34 +196,11 @@ TEST(DaemonAlloc, MeshCusumSteadyStateMakesNoAllocations) {
                         "[alarm]\nmin_hold_s = 0.5\nlatch = false\n[history]\ndir = \"" +
                             (dir / "history").string() + "\"\nmax_file_mib = 0.05\nfiles = 3\n",
                         false, true));
-  drivers::MonotonicClock clock;
-  DaemonOptions opt;
-  opt.config_file = dir / "ptdad.toml";
-  opt.config_dir = fs::path();
-  auto daemon = std::make_unique<Daemon>(opt, clock);
-  Daemon& d = *daemon;
-  d.configure();
-  d.activate();
-  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
-  const std::uint64_t pass = 1'626'483;  // samples of one pass of the scenario (as above)
-  ASSERT_TRUE(wait_for([&] { return d.view().pipeline.samples > pass + 200'000; }, std::chrono::seconds(60)));
-  const DaemonView before = d.view();
-  std::uint64_t allocations = 0;
-  {
-    ptda::test::AllocScope scope;
-    wait_for(
-        [&] {
-          const DaemonView v = d.view();
-          return v.pipeline.samples > before.pipeline.samples + 2 * pass &&
-                 v.status_writes > before.status_writes + 1;
-        },
-        std::chrono::seconds(120));
-    allocations = scope.count();
-  }
-  const DaemonView after = d.view();
-  d.request_stop();
-  runner.join();
-  daemon.reset();
+  const SteadyRun run = run_steady_state(dir);
+  ASSERT_TRUE(run.started);
+  const std::uint64_t allocations = run.allocations;
+  const DaemonView& before = run.before;
+  const DaemonView& after = run.after;
   EXPECT_EQ(allocations, 0U);
   EXPECT_GE(after.pipeline.scored - before.pipeline.scored, 190U);
   EXPECT_TRUE(after.pipeline.last_window.mesh_on);  // the mesh CUSUM ran

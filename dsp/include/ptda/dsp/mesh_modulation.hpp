@@ -35,6 +35,11 @@ inline constexpr std::size_t kMeshFeatureCount = 2;  ///< am, pm (indices of Mes
   return i == 0 ? "am" : (i == 1 ? "pm" : "?");
 }
 
+/// The name of feature index f of the decision's fields (WindowResult::mesh_feature): "none" for -1.
+[[nodiscard]] constexpr const char* mesh_feature_label(std::int32_t f) noexcept {
+  return f >= 0 ? mesh_feature_name(static_cast<std::size_t>(f)) : "none";
+}
+
 /// One window's mesh features: v[0] = am, v[1] = pm; NaN when the window holds fewer than
 /// kMeshMinRevolutions input-shaft revolutions, no mesh harmonic is a line of the class mean, or the
 /// window's speed is outside the range the demodulator was sized for.
