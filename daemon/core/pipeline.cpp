@@ -223,6 +223,9 @@ void Pipeline::configure_can(const RecordingLink& link) {
     }
   channel_->configure();
   fast_ = source_fast_ && can_fast_;
+  // Both inputs at real-time pace: the processing thread reads them when a window can close. Three
+  // threads would cost three wake-ups per due time (docs/daemon.md, "One thread at real-time pace").
+  single_thread_ = !source_fast_ && !can_fast_;
 }
 
 void Pipeline::configure_outputs() {
@@ -396,6 +399,7 @@ void Pipeline::configure_rings_and_timing() {
   // frame period for as long as a speed gap may last before it breaks the run (then the due time moves).
   wake_.retry_ns = frame_ns + 1'000'000;
   wake_.late_window_ns = seconds_to_ns(pc.extraction.max_speed_gap_s) + hold_ns_;
+  wake_.single_thread = single_thread_;
   next_due_ns_.store(kNoDue, std::memory_order_relaxed);
   due_late_.store(false, std::memory_order_relaxed);
   st_ = PipelineStatus{};
@@ -434,11 +438,13 @@ void Pipeline::activate() {
   last_block_arrival_ns_ = clock_.now_ns();
   burst_origin_ns_ = last_block_arrival_ns_;
   active_ = true;
-  acq_thread_ = std::thread([this] { acquisition_loop(); });
-  can_thread_ = std::thread([this] { can_loop(); });
+  if (!single_thread_) {
+    acq_thread_ = std::thread([this] { acquisition_loop(); });
+    can_thread_ = std::thread([this] { can_loop(); });
+    pthread_setname_np(acq_thread_.native_handle(), "ptdad-acq");
+    pthread_setname_np(can_thread_.native_handle(), "ptdad-can");
+  }
   proc_thread_ = std::thread([this] { processing_loop(); });
-  pthread_setname_np(acq_thread_.native_handle(), "ptdad-acq");
-  pthread_setname_np(can_thread_.native_handle(), "ptdad-can");
   pthread_setname_np(proc_thread_.native_handle(), "ptdad-proc");
 }
 
@@ -682,6 +688,31 @@ void Pipeline::can_loop() noexcept {
 }
 
 // ---- processing thread --------------------------------------------------------------------------
+
+bool Pipeline::serve_inputs() noexcept {
+  acq_beat_.fetch_add(1, std::memory_order_relaxed);
+  can_beat_.fetch_add(1, std::memory_order_relaxed);
+  bool more = false;
+  // CAN first: its speed samples let process_step() release the blocks read next. The socket's receive
+  // queue (kernel receive stamps) and the device's buffer hold what arrived since the last pass.
+  if (!can_end_.load(std::memory_order_relaxed)) {
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < kSpeedRingSamples / kCanBatch; ++i) {
+      if (speed_ring_->size_approx() > kSpeedRingSamples / 2) {  // this thread must empty it first
+        more = true;
+        break;
+      }
+      if (receive_batch(0, n) != CanStatus::kOk || n < kCanBatch) break;
+    }
+  }
+  if (acq_end_.load(std::memory_order_relaxed)) return more;
+  for (std::size_t i = 0; i < kSampleRingBlocks; ++i) {
+    // Past 3/4 process_step() releases blocks without their speed sample; stop there and let it.
+    if (sample_ring_->size_approx() > kSampleRingBlocks * 3 / 4) return true;
+    if (acquire(0) != SourceStatus::kOk) return more;
+  }
+  return true;
+}
 
 std::int64_t Pipeline::sample_time(std::uint64_t index) const noexcept {
   // ceil(index * 1e12 / fs_mhz), exact (the slicer's convention for sample times), in 64 bits (no
@@ -1032,8 +1063,8 @@ void Pipeline::publish_due(std::int64_t now) noexcept {
                                                    wake_.max_sleep_ns, burst_origin_ns_, late_now,
                                                    wake_.retry_ns);
     };
-    if (sooner(wake_.acq_offset_ns)) acq_signal_.ring();
-    if (sooner(wake_.can_offset_ns)) can_signal_.ring();
+    if (!single_thread_ && sooner(wake_.acq_offset_ns)) acq_signal_.ring();
+    if (!single_thread_ && sooner(wake_.can_offset_ns)) can_signal_.ring();
   }
   // Late: both stages have served the due time (this pass follows the CAN thread's) and the window is
   // still open. The stages planned one spacing ahead; ring them to retry every frame period instead.
@@ -1041,7 +1072,7 @@ void Pipeline::publish_due(std::int64_t now) noexcept {
                     now < due + wake_.can_offset_ns + wake_.late_window_ns;
   if (late != due_late_.load(std::memory_order_relaxed)) {
     due_late_.store(late, std::memory_order_relaxed);
-    if (late) {
+    if (late && !single_thread_) {
       acq_signal_.ring();
       can_signal_.ring();
     }
@@ -1056,7 +1087,18 @@ std::int64_t Pipeline::processing_wait_ns(std::int64_t now, bool unpublished) co
   if (!outputs_.empty() && output_period_ns_ > 0)
     wait_ns = std::min(wait_ns, last_output_ns_ + output_period_ns_ - now);
   if (unpublished) wait_ns = std::min(wait_ns, last_publish_ns_ + kPublishPeriodNs - now);
-  if (have_block_) {
+  if (single_thread_) {
+    // This thread reads the inputs: when the speed frame after the block that can close a window has
+    // arrived (the CAN thread's schedule), or on the grid of max sleeps.
+    wait_ns = std::min(wait_ns, plan_wake(now, next_due_ns_.load(std::memory_order_relaxed), wake_.can_offset_ns,
+                                          wake_.spacing_ns, wake_.max_sleep_ns, burst_origin_ns_,
+                                          due_late_.load(std::memory_order_relaxed), wake_.retry_ns) -
+                                    now);
+  }
+  if (have_block_ && !single_thread_) {
+    // (One thread: the block waits for the next input pass instead, which brings its speed sample or
+    // releases it once the hold time has passed; a window's last block is never held then, as the pass
+    // comes after the speed frame that follows it. Waking for it would double the wake-ups.)
     const drivers::SampleBlock& b = *held_block_;
     const std::uint64_t end_index = b.first_index >= base_index_ ? b.first_index - base_index_ + b.count : 0;
     wait_ns = std::min(wait_ns, st_.t0_mono_ns + sample_time(end_index) + hold_ns_ + 1 - now);
@@ -1079,10 +1121,16 @@ void Pipeline::processing_loop() noexcept {
     // The ticket is taken before looking at the rings, so work published from here on ends the wait.
     const std::uint32_t ticket = work_signal_.ticket();
     now = clock_.now_ns();
+    bool more_input = single_thread_ && serve_inputs();
     bool work = false;
-    for (int i = 0; i < 64; ++i) {
-      if (!process_step(now)) break;
-      work = true;
+    for (std::size_t round = 0;; ++round) {
+      for (int i = 0; i < 64; ++i) {
+        if (!process_step(now)) break;
+        work = true;
+      }
+      // A long burst (after a stall) is read in ring-sized parts, each processed before the next.
+      if (!more_input || round + 1 >= kSampleRingBlocks) break;
+      more_input = serve_inputs();
     }
     update_phase(now);
     alarm_->tick(alarm_time(fast_ ? st_.data_time_ns : now));

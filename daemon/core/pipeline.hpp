@@ -213,6 +213,9 @@ struct WakeSchedule {
   std::int64_t late_window_ns = 0;  ///< ... for at most this long after due + can_offset_ns
   std::int64_t next_due_ns = kNoDue;
   bool late = false;  ///< the due window is still open after the stages served it
+  /// Both inputs at real-time pace: the processing thread reads them itself when a window can close
+  /// (due + can_offset_ns), and the acquisition and CAN threads are not started (docs/daemon.md).
+  bool single_thread = false;
 };
 
 struct StageHeartbeats {
@@ -342,6 +345,11 @@ class Pipeline {
   /// Receives one batch of frames with the given timeout and handles them; `received` = frames taken.
   /// Thread: CAN.
   drivers::CanStatus receive_batch(std::int64_t timeout_ns, std::size_t& received) noexcept;
+  /// Both inputs at real-time pace (single_thread_): drains the CAN channel, then reads every block the
+  /// source has ready, without waiting, into the rings this same thread consumes. Returns true when it
+  /// stopped because a ring is full enough that the caller should process before it reads on. Beats the
+  /// acquisition and CAN heartbeats. Thread: processing. Never blocks or allocates.
+  bool serve_inputs() noexcept;
   /// Sleeps until plan_wake() with the stage's offset (the stage's one wait; deactivate() rings
   /// `signal` to end it at once). Thread: acquisition or CAN, real-time pace.
   void wait_stage(WakeSignal& signal, std::int64_t offset_ns) noexcept;
@@ -391,6 +399,7 @@ class Pipeline {
   WakeSignal acq_signal_, can_signal_;             ///< rung by deactivate() to end a stage's sleep
   std::vector<std::unique_ptr<drivers::AlarmOutput>> outputs_;
   bool source_fast_ = false, can_fast_ = false, fast_ = false;
+  bool single_thread_ = false;  ///< !source_fast_ && !can_fast_: one thread reads and processes
   double fs_hz_ = 0.0;
   std::int64_t fs_mhz_ = 0;
 

@@ -1,13 +1,18 @@
 // At real-time pace the daemon sleeps until a window can close (docs/daemon.md, "Sleeping until a window
-// can close"): the acquisition and CAN threads wake when the processing thread's next_close_ns() (plus
-// their offsets) comes, or at most every max sleep, and the processing thread when the CAN thread rings
-// or the CAN verdict frame is due, instead of once per 256-sample block (100/s), per CAN frame (250/s)
-// or per 20 ms burst (50/s). Every sample and frame still arrives, and the run state makes no
-// allocation.
+// can close", "One thread at real-time pace"): with both inputs at real-time pace one thread wakes when
+// next_close_ns() plus the CAN offset comes (or at most every max sleep), reads both inputs and
+// processes, and also wakes when the CAN verdict frame is due, instead of once per 256-sample block
+// (100/s), per CAN frame (250/s), per 20 ms burst (50/s) or three threads per due time (~50/s). Every
+// sample and frame still arrives, and the run state makes no allocation.
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
 #include <thread>
 
 #include "alloc_counter.hpp"
@@ -26,6 +31,28 @@ Rates rates(const DaemonView& a, const DaemonView& b, double wall_s) {
           static_cast<double>(b.heartbeats.processing - a.heartbeats.processing) / wall_s,
           static_cast<double>(b.pipeline.samples - a.pipeline.samples) / wall_s,
           static_cast<double>(b.pipeline.speeds - a.pipeline.speeds) / wall_s};
+}
+
+// Voluntary context switches (a sleep that blocked: one wake-up each) of this process's threads, by
+// thread name (/proc/self/task/<tid>/status). Allocates: call it outside an AllocScope.
+std::map<std::string, std::uint64_t> sleeps_by_thread() {
+  std::map<std::string, std::uint64_t> out;
+  for (const auto& t : fs::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(t.path() / "comm");
+    std::string name;
+    std::getline(comm, name);
+    std::ifstream status(t.path() / "status");
+    std::string line;
+    while (std::getline(status, line)) {
+      if (line.rfind("voluntary_ctxt_switches:", 0) == 0) {
+        std::istringstream in(line.substr(24));
+        std::uint64_t v = 0;
+        in >> v;
+        out[name] += v;
+      }
+    }
+  }
+  return out;
 }
 
 TEST(WakePlan, FollowsTheDueTimeAndNeverSleepsLongerThanMaxSleep) {
@@ -99,6 +126,7 @@ TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
 
   // Warm-up: data flows and the first window was judged (every path of the run state was taken once).
   ASSERT_TRUE(wait_for([&] { return d.view().pipeline.scored > 0; }, std::chrono::seconds(60)));
+  const auto sleeps_before = sleeps_by_thread();
   const DaemonView before = d.view();
   const auto t0 = std::chrono::steady_clock::now();
   std::uint64_t allocations = 0;
@@ -109,19 +137,35 @@ TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
   }
   const DaemonView after = d.view();
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto sleeps_after = sleeps_by_thread();
   d.request_stop();
   runner.join();
 
   const Rates r = rates(before, after, wall_s);
   const WakeSchedule& w = after.wake;
+  const auto wakes_per_s = [&](const std::string& thread) {
+    const auto a = sleeps_before.find(thread);
+    const auto b = sleeps_after.find(thread);
+    if (b == sleeps_after.end()) return 0.0;
+    return static_cast<double>(b->second - (a == sleeps_before.end() ? 0 : a->second)) / wall_s;
+  };
+  const double wakes_acq = wakes_per_s("ptdad-acq");
+  const double wakes_can = wakes_per_s("ptdad-can");
+  const double wakes_proc = wakes_per_s("ptdad-proc");
   std::printf(
-      "wake-ups per second: acquisition %.1f, can %.1f, processing %.1f; %.0f samples/s, %.0f speeds/s; "
-      "max sleep %.0f ms, spacing %.1f ms, offsets %.1f / %.1f ms\n",
-      r.acquisition, r.can, r.processing, r.samples, r.speeds, w.max_sleep_ns / 1e6, w.spacing_ns / 1e6,
-      w.acq_offset_ns / 1e6, w.can_offset_ns / 1e6);
+      "passes per second: acquisition %.1f, can %.1f, processing %.1f; wake-ups per second: ptdad-acq %.1f, "
+      "ptdad-can %.1f, ptdad-proc %.1f; %.0f samples/s, %.0f speeds/s; max sleep %.0f ms, spacing %.1f ms, "
+      "offsets %.1f / %.1f ms\n",
+      r.acquisition, r.can, r.processing, wakes_acq, wakes_can, wakes_proc, r.samples, r.speeds,
+      w.max_sleep_ns / 1e6, w.spacing_ns / 1e6, w.acq_offset_ns / 1e6, w.can_offset_ns / 1e6);
   // The schedule from the design (arc-welding job: 3200-sample windows and hop, min_duration 0.13 s,
   // guard 5 ms; 256-sample blocks at 25.6 kHz, 4 ms speed frames, no speed latency):
   ASSERT_TRUE(w.follows_windows);
+  ASSERT_TRUE(w.single_thread);  // both inputs at real-time pace
+  // One thread reads and processes: the acquisition and CAN threads were not started.
+  EXPECT_EQ(sleeps_after.count("ptdad-acq"), 0U);
+  EXPECT_EQ(sleeps_after.count("ptdad-can"), 0U);
+  ASSERT_EQ(sleeps_after.count("ptdad-proc"), 1U);
   EXPECT_EQ(w.max_sleep_ns, kMaxSleepNs);  // rings, staleness (1 s) and stall (2 s) allow 250 ms
   EXPECT_EQ(w.spacing_ns, 125'000'000);    // min(hop 0.125 s, max(0.13 s, 5 ms + 0.125 s) - 1 ns)
   EXPECT_EQ(w.acq_offset_ns, 11'000'000);  // one 10 ms block + 1 ms
@@ -134,11 +178,15 @@ TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
   // window closes. (20 ms bursts: 50/s; per block or frame: 100/s and ~250/s.)
   const double due_and_grid_per_s =
       1e9 / static_cast<double>(w.spacing_ns) + 1e9 / static_cast<double>(w.max_sleep_ns);
-  EXPECT_LE(r.acquisition, 1.5 * due_and_grid_per_s);
-  EXPECT_LE(r.can, 1.5 * due_and_grid_per_s);
-  // Processing: each CAN ring (a pass with work and the one that finds none) and the 0.1 s CAN verdict
-  // frame.
-  EXPECT_LE(r.processing, 2.0 * 1.5 * due_and_grid_per_s + 10.0 + 2.0);
+  // The one thread's real wake-ups (sleeps that blocked): those, with the 0.1 s CAN verdict frame riding
+  // on them or standing in for them (each pass reads the inputs), and 4/s of slack: 11.3/s measured
+  // here. Three threads woke ~50 times a second; one thread that also woke for each held block's hold
+  // time, 18/s (docs/benchmarks.md, session 20).
+  EXPECT_LE(wakes_acq + wakes_can + wakes_proc, due_and_grid_per_s + 4.0);
+  EXPECT_GT(wakes_proc, 0.0);
+  // Its passes (a wake-up with work makes a second pass that finds none) read both inputs each time.
+  EXPECT_LE(r.processing, 2.0 * (1.5 * due_and_grid_per_s + 10.0 + 2.0));
+  EXPECT_DOUBLE_EQ(r.acquisition, r.can);
   // Nothing is lost: the samples keep up with the clock (25.6 kHz; a loaded machine delays, not drops).
   EXPECT_GT(r.samples, 0.8 * 25600.0);
   EXPECT_GT(r.speeds, 0.8 * 250.0);
