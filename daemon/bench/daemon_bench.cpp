@@ -231,8 +231,9 @@ fs::path write_replay_config(const Prepared& p, const std::string& job, const st
   // status.json where PTDA_BENCH_STATUS_ROOT says (scripts/bench_daemon.sh: a tmpfs, as the production
   // /run/ptda), else beside the configuration.
   const char* status_root = std::getenv("PTDA_BENCH_STATUS_ROOT");
-  const fs::path status_dir =
-      status_root != nullptr && *status_root != '\0' ? fs::path(status_root) / tag / "status" : dir / "status";
+  const fs::path status_dir = status_root != nullptr && *status_root != '\0'
+                                  ? fs::path(status_root) / tag / "status"
+                                  : dir / "status";
   out << "[daemon]\nbaseline = \"" << baseline.string() << "\"\nstatus_dir = \"" << status_dir.string()
       << "\"\nlog_level = \"warn\"\nstatus_period_s = " << (pace == "fast" ? "0.05" : "1.0")
       << "\n\n[adc]\nbackend = \"wav\"\nrecording = \"" << p.faulty.string() << "\"\npace = \"" << pace

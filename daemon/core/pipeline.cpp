@@ -692,15 +692,22 @@ void Pipeline::can_loop() noexcept {
 bool Pipeline::serve_inputs() noexcept {
   acq_beat_.fetch_add(1, std::memory_order_relaxed);
   can_beat_.fetch_add(1, std::memory_order_relaxed);
+  last_serve_ns_ = clock_.now_ns();
   bool more = false;
   // CAN first: its speed samples let process_step() release the blocks read next. The socket's receive
   // queue (kernel receive stamps) and the device's buffer hold what arrived since the last pass.
   if (!can_end_.load(std::memory_order_relaxed)) {
     std::size_t n = 0;
     for (std::size_t i = 0; i < kSpeedRingSamples / kCanBatch; ++i) {
-      if (speed_ring_->size_approx() > kSpeedRingSamples / 2) {  // this thread must empty it first
-        more = true;
-        break;
+      if (speed_ring_->size_approx() > kSpeedRingSamples / 2) {
+        if (st_.have_t0) {  // this thread must empty it first
+          more = true;
+          break;
+        }
+        // No block yet: keep the newest half (as process_step() does), and read on.
+        dsp::SpeedSample dropped;
+        while (speed_ring_->size_approx() > kSpeedRingSamples / 2 && speed_ring_->try_pop(dropped))
+          ++st_.speeds_before_t0;
       }
       if (receive_batch(0, n) != CanStatus::kOk || n < kCanBatch) break;
     }
@@ -885,7 +892,7 @@ bool Pipeline::process_step(std::int64_t now) noexcept {
   }
   if (!st_.have_t0) {
     // Speed samples wait in their ring for t0. A real-time source that never delivers must not stall
-    // the CAN thread: keep the newest half of the ring.
+    // the CAN stage: keep the newest half of the ring.
     if (!fast_ && speed_ring_->size_approx() > kSpeedRingSamples / 2) {
       dsp::SpeedSample dropped;
       if (speed_ring_->try_pop(dropped)) ++st_.speeds_before_t0;
@@ -1066,8 +1073,9 @@ void Pipeline::publish_due(std::int64_t now) noexcept {
     if (!single_thread_ && sooner(wake_.acq_offset_ns)) acq_signal_.ring();
     if (!single_thread_ && sooner(wake_.can_offset_ns)) can_signal_.ring();
   }
-  // Late: both stages have served the due time (this pass follows the CAN thread's) and the window is
-  // still open. The stages planned one spacing ahead; ring them to retry every frame period instead.
+  // Late: both stages have served the due time (this pass follows the CAN thread's, or is the one
+  // thread's own input pass) and the window is still open. The stages planned one spacing ahead; ring them to
+  // retry every frame period instead.
   const bool late = wake_.follows_windows && due != kNoDue && now >= due + wake_.can_offset_ns &&
                     now < due + wake_.can_offset_ns + wake_.late_window_ns;
   if (late != due_late_.load(std::memory_order_relaxed)) {
@@ -1082,7 +1090,8 @@ void Pipeline::publish_due(std::int64_t now) noexcept {
 std::int64_t Pipeline::processing_wait_ns(std::int64_t now, bool unpublished) const noexcept {
   // The CAN thread rings after every pass it makes (at most max_sleep_ns apart); the timeout covers what
   // depends on time alone: the CAN verdict frame's period, the publication of work done, a held block's
-  // hold time (it waits for the speed sample after it).
+  // hold time (it waits for the speed sample after it). One thread: its own input schedule instead of
+  // the CAN thread's rings, and no hold-time wake-up (below).
   std::int64_t wait_ns = wake_.max_sleep_ns + wake_.can_offset_ns;
   if (!outputs_.empty() && output_period_ns_ > 0)
     wait_ns = std::min(wait_ns, last_output_ns_ + output_period_ns_ - now);
@@ -1090,10 +1099,11 @@ std::int64_t Pipeline::processing_wait_ns(std::int64_t now, bool unpublished) co
   if (single_thread_) {
     // This thread reads the inputs: when the speed frame after the block that can close a window has
     // arrived (the CAN thread's schedule), or on the grid of max sleeps.
-    wait_ns = std::min(wait_ns, plan_wake(now, next_due_ns_.load(std::memory_order_relaxed), wake_.can_offset_ns,
-                                          wake_.spacing_ns, wake_.max_sleep_ns, burst_origin_ns_,
-                                          due_late_.load(std::memory_order_relaxed), wake_.retry_ns) -
-                                    now);
+    wait_ns =
+        std::min(wait_ns, plan_wake(now, next_due_ns_.load(std::memory_order_relaxed), wake_.can_offset_ns,
+                                    wake_.spacing_ns, wake_.max_sleep_ns, burst_origin_ns_,
+                                    due_late_.load(std::memory_order_relaxed), wake_.retry_ns) -
+                              now);
   }
   if (have_block_ && !single_thread_) {
     // (One thread: the block waits for the next input pass instead, which brings its speed sample or
@@ -1127,9 +1137,14 @@ void Pipeline::processing_loop() noexcept {
       for (int i = 0; i < 64; ++i) {
         if (!process_step(now)) break;
         work = true;
+        // One thread: a long pass (several windows judged, a slow machine) reads the inputs again
+        // between steps, so the device's and the socket's buffers are read at least this often.
+        if (single_thread_ && clock_.now_ns() - last_serve_ns_ >= kInputServeBudgetNs)
+          more_input = serve_inputs() || more_input;
       }
       // A long burst (after a stall) is read in ring-sized parts, each processed before the next.
-      if (!more_input || round + 1 >= kSampleRingBlocks) break;
+      if (!more_input || round + 1 >= kSampleRingBlocks || stop_.load(std::memory_order_relaxed)) break;
+      proc_beat_.fetch_add(1, std::memory_order_relaxed);
       more_input = serve_inputs();
     }
     update_phase(now);

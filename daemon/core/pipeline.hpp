@@ -1,5 +1,7 @@
 // The run-time half of ptdad: three real-time threads joined by two SPSC rings, built from a
-// DaemonConfig.
+// DaemonConfig. When both inputs are at real-time pace, one thread does all three stages' work (the
+// processing thread reads both inputs on the CAN thread's schedule: serve_inputs(); docs/daemon.md,
+// "One thread at real-time pace"), so each due time costs one wake-up instead of three.
 //
 //   acquisition ── SampleSource::read ──▶ SampleRing (kSampleRingBlocks blocks of ≤ 1024 samples) ──┐
 //   can ── CanChannel::receive ─ decode_speed ─ latency ──▶ SpeedRing (kSpeedRingSamples) ───────────┤
@@ -16,7 +18,7 @@
 //                  is missing, corrupt or does not match puts the pipeline in "refused": it runs, judges
 //                  nothing and shows kFault with cause "baseline"), built the engine, allocated the rings
 //                  and every buffer. Throws ptda::Error for everything else (device, recording, scenario).
-//   active       - activate() started the devices and the three threads. From here on nothing
+//   active       - activate() started the devices and the three threads (or the one). From here on nothing
 //                  allocates, throws, logs or blocks except each thread's one wait.
 //   deactivated  - deactivate() stopped and joined the threads (each checks the stop flag at least every
 //                  kStageWaitNs, or is rung out of its real-time sleep), drove the outputs fail-safe and
@@ -73,7 +75,8 @@ inline constexpr std::int64_t kStageWaitNs = 50'000'000;  ///< longest wait of a
 /// close"): the processing thread publishes the earliest time the next window can close
 /// (WindowSlicer::next_close_ns()); the acquisition thread wakes once the block holding that window's
 /// last sample is complete, the CAN thread once the speed frame after that block has arrived, each takes
-/// everything ready without waiting, and the CAN thread rings the processing thread. When no window can
+/// everything ready without waiting, and the CAN thread rings the processing thread (one thread: it reads
+/// both inputs itself at the CAN thread's time, serve_inputs()). When no window can
 /// close (speed changing, standstill) they sleep for at most kMaxSleepNs, or less when the rings, an IIO
 /// buffer, the staleness checks or the watchdog need it (Pipeline::wake_schedule()).
 inline constexpr std::int64_t kMaxSleepNs = 250'000'000;
@@ -83,8 +86,13 @@ inline constexpr std::int64_t kBurstPeriodNs = 20'000'000;
 /// Fast replays: the processing thread sleeps on its doorbell (rt/wake_signal.hpp) at most this long
 /// when it has no work (every block and frame batch rings it). At real-time pace it sleeps until the
 /// CAN thread rings, the CAN verdict frame's period, a held block's hold time, or wake_schedule()'s
-/// max sleep + CAN offset.
+/// max sleep + CAN offset; one thread: until its own input time (the CAN thread's), the verdict frame's
+/// period or unpublished work's publication (no hold-time wake-up: docs/daemon.md).
 inline constexpr std::int64_t kProcessingIdleWaitNs = 50'000'000;
+/// One thread (both inputs at real-time pace): a pass that has worked this long since it last read the
+/// inputs reads them again between two steps, so a slow pass does not leave the device's buffer and the
+/// socket's receive queue unread for longer than this plus one step.
+inline constexpr std::int64_t kInputServeBudgetNs = 10'000'000;
 /// The processing thread publishes its status (seqlock) at most this often, and at most this long
 /// after it did some work.
 inline constexpr std::int64_t kPublishPeriodNs = 10'000'000;
@@ -140,7 +148,7 @@ class WindowSink {
 class PipelineProbe {
  public:
   virtual ~PipelineProbe() = default;
-  /// Acquisition thread: `b` was just pushed into the sample ring.
+  /// Acquisition thread (processing, with one thread): `b` was just pushed into the sample ring.
   virtual void on_block_pushed(const drivers::SampleBlock& b) noexcept = 0;
   /// Processing thread: `b` was just popped from the sample ring (it may still wait for speed).
   virtual void on_block_popped(const drivers::SampleBlock& b) noexcept = 0;
@@ -200,9 +208,9 @@ struct PipelineStatus {
   dsp::CoverageState coverage;  ///< judged/unmatched windows, motion since the last judgement
 };
 
-/// How the acquisition and CAN threads schedule their wake-ups at real-time pace (plan_wake()). Fixed
-/// at configure() (max_sleep_ns also by set_liveness_period_ns()); next_due_ns is the processing
-/// thread's latest publication.
+/// How the acquisition and CAN threads (or the one thread) schedule their wake-ups at real-time pace
+/// (plan_wake()). Fixed at configure() (max_sleep_ns also by set_liveness_period_ns()); next_due_ns is the
+/// processing thread's latest publication.
 struct WakeSchedule {
   bool follows_windows = false;  ///< time domain, monitoring: wake-ups follow next_close_ns()
   std::int64_t max_sleep_ns = 0;
@@ -222,7 +230,8 @@ struct StageHeartbeats {
   std::uint64_t acquisition = 0, can = 0, processing = 0;
 };
 
-/// Counters of the acquisition and CAN threads (single writer each; read by any thread).
+/// Counters of the acquisition and CAN stages (single writer each: their threads, or the processing
+/// thread when it reads both inputs; read by any thread).
 struct PipelineCounters {
   std::uint64_t acq_ring_full_blocks = 0, acq_ring_full_samples = 0, acq_read_errors = 0;
   bool acq_end = false;
@@ -278,7 +287,8 @@ class Pipeline {
   /// reload. Only after deactivate() (no thread adds to it then). Thread: main.
   [[nodiscard]] std::unique_ptr<FieldTrainer> release_trainer() noexcept { return std::move(trainer_); }
   /// Test-only fault injection: while true the processing thread stops working and stops beating
-  /// (it still honours stop). Thread: any. Never blocks.
+  /// (it still honours stop); with one thread the acquisition and CAN heartbeats stop with it. Thread:
+  /// any. Never blocks.
   void set_processing_stall(bool stall) noexcept { stall_.store(stall, std::memory_order_relaxed); }
   /// The longest a stage may sleep so that a liveness check sees its heartbeat (e.g. half the
   /// watchdog ping period); 0 = none. Set before configure(). Thread: main.
@@ -340,10 +350,10 @@ class Pipeline {
   void acquisition_loop() noexcept;
   void can_loop() noexcept;
   /// Reads one block with the given timeout and pushes it (back-pressure for fast sources). Thread:
-  /// acquisition.
+  /// acquisition (processing, with timeout 0, in single_thread_ mode).
   drivers::SourceStatus acquire(std::int64_t timeout_ns) noexcept;
   /// Receives one batch of frames with the given timeout and handles them; `received` = frames taken.
-  /// Thread: CAN.
+  /// Thread: CAN (processing, with timeout 0, in single_thread_ mode).
   drivers::CanStatus receive_batch(std::int64_t timeout_ns, std::size_t& received) noexcept;
   /// Both inputs at real-time pace (single_thread_): drains the CAN channel, then reads every block the
   /// source has ready, without waiting, into the rings this same thread consumes. Returns true when it
@@ -399,7 +409,8 @@ class Pipeline {
   WakeSignal acq_signal_, can_signal_;             ///< rung by deactivate() to end a stage's sleep
   std::vector<std::unique_ptr<drivers::AlarmOutput>> outputs_;
   bool source_fast_ = false, can_fast_ = false, fast_ = false;
-  bool single_thread_ = false;  ///< !source_fast_ && !can_fast_: one thread reads and processes
+  bool single_thread_ = false;      ///< !source_fast_ && !can_fast_: one thread reads and processes
+  std::int64_t last_serve_ns_ = 0;  ///< when serve_inputs() last ran (processing thread)
   double fs_hz_ = 0.0;
   std::int64_t fs_mhz_ = 0;
 
@@ -434,13 +445,13 @@ class Pipeline {
   std::unique_ptr<SampleRing> sample_ring_;
   std::unique_ptr<SpeedRing> speed_ring_;
 
-  // Acquisition thread state.
+  // Acquisition stage state (its thread, or processing with one thread).
   std::unique_ptr<drivers::SampleBlock> acq_block_;
   std::atomic<bool> acq_end_{false};
   drivers::Counter acq_ring_full_blocks_, acq_ring_full_samples_, acq_read_errors_;
   std::atomic<std::uint64_t> acq_beat_{0};
 
-  // CAN thread state.
+  // CAN stage state (its thread, or processing with one thread).
   std::array<CanFrame, kCanBatch> can_frames_{};
   std::atomic<bool> can_end_{false};
   drivers::Counter can_frames_n_, can_speed_, can_other_id_, can_wrong_dlc_, can_rtr_, can_error_frames_,
@@ -478,7 +489,8 @@ class Pipeline {
 
   Seqlock<PipelineStatus> published_;
   std::atomic<bool> stop_{false};
-  WakeSignal work_signal_;  ///< rung by the acquisition and CAN threads, waited on by processing
+  WakeSignal
+      work_signal_;  ///< rung by the acquisition and CAN threads (and deactivate()), waited on by processing
   std::thread acq_thread_, can_thread_, proc_thread_;
   bool configured_ = false;
   bool active_ = false;

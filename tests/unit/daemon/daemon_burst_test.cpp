@@ -186,7 +186,8 @@ TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
   EXPECT_GT(wakes_proc, 0.0);
   // Its passes (a wake-up with work makes a second pass that finds none) read both inputs each time.
   EXPECT_LE(r.processing, 2.0 * (1.5 * due_and_grid_per_s + 10.0 + 2.0));
-  EXPECT_DOUBLE_EQ(r.acquisition, r.can);
+  // (Beaten one after the other: a view may fall between the two at either end.)
+  EXPECT_NEAR(r.acquisition, r.can, 2.0 / wall_s);
   // Nothing is lost: the samples keep up with the clock (25.6 kHz; a loaded machine delays, not drops).
   EXPECT_GT(r.samples, 0.8 * 25600.0);
   EXPECT_GT(r.speeds, 0.8 * 250.0);

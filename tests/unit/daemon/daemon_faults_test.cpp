@@ -310,6 +310,48 @@ CanFrame error_frame(std::int64_t t_ns, std::uint32_t cls, std::uint8_t d1) {
   return f;
 }
 
+// Both inputs at real-time pace: one thread reads them (docs/daemon.md, "One thread at real-time
+// pace"). A bus that delivers a backlog of frames before the first vibration block must be drained
+// whole: the oldest half of the speed ring is dropped (speeds_before_t0), never the newest frames
+// (can_ring_full). Read in ring-halves with one sample dropped per round, the backlog overflowed.
+TEST_F(Faults, OneThreadDrainsASpeedBacklogBeforeTheFirstBlock) {
+  const fs::path dir = scratch("faults_one_thread_backlog");
+  write_sim_baseline(dir / "baseline.bin");
+  std::string cfg = fake_config(dir);
+  for (std::size_t at = cfg.find("pace = \"fast\""); at != std::string::npos;
+       at = cfg.find("pace = \"fast\""))
+    cfg.replace(at, 13, "pace = \"realtime\"");
+  write_text(dir / "ptdad.toml", cfg);
+  const auto source = std::make_shared<SourcePlan>(plan_blocks(*healthy(), kBlock));
+  const auto frames = clean_frames();
+  const std::size_t n = frames->frames.size();
+  ASSERT_GT(n, 2 * daemon::kSpeedRingSamples);  // a backlog larger than the ring
+  FakeDevices dev(source, frames);
+  dev.gate.t_ns = -1;                       // no block is ever released
+  dev.gate.can_lead_ns = INT64_C(1) << 60;  // every frame is there at once
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  drivers::MonotonicClock clock;
+  Daemon d(opt, clock);
+  d.set_device_factory(&dev);
+  d.configure();
+  d.activate();
+  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+  const bool drained = wait_for([&] { return d.view().counters.can_frames >= n; }, std::chrono::seconds(10));
+  const DaemonView v = d.view();
+  d.request_stop();
+  runner.join();
+  ASSERT_TRUE(v.wake.single_thread);
+  EXPECT_TRUE(drained) << v.counters.can_frames << " of " << n << " frames received";
+  EXPECT_EQ(v.counters.can_ring_full, 0U);
+  ASSERT_GT(v.counters.can_speed, 2 * daemon::kSpeedRingSamples);  // (the plan has other frames too)
+  EXPECT_FALSE(v.pipeline.have_t0);
+  // All but at most a ring's worth (the newest) were dropped as too early for any block.
+  EXPECT_GE(v.pipeline.speeds_before_t0, v.counters.can_speed - daemon::kSpeedRingSamples);
+  EXPECT_LE(v.pipeline.speeds_before_t0, v.counters.can_speed);
+}
+
 TEST_F(Faults, MalformedAndUnexpectedFramesAreCountedAndIgnored) {
   const fs::path dir = scratch("faults_can_frames");
   write_sim_baseline(dir / "baseline.bin");
