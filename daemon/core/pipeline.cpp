@@ -223,9 +223,6 @@ void Pipeline::configure_can(const RecordingLink& link) {
     }
   channel_->configure();
   fast_ = source_fast_ && can_fast_;
-  // Both inputs at real-time pace: the processing thread reads them when a window can close. Three
-  // threads would cost three wake-ups per due time (docs/daemon.md, "One thread at real-time pace").
-  single_thread_ = !source_fast_ && !can_fast_;
 }
 
 void Pipeline::configure_outputs() {
@@ -399,7 +396,9 @@ void Pipeline::configure_rings_and_timing() {
   // frame period for as long as a speed gap may last before it breaks the run (then the due time moves).
   wake_.retry_ns = frame_ns + 1'000'000;
   wake_.late_window_ns = seconds_to_ns(pc.extraction.max_speed_gap_s) + hold_ns_;
-  wake_.single_thread = single_thread_;
+  // Both inputs at real-time pace: the processing thread reads them when a window can close. Three
+  // threads would cost three wake-ups per due time (docs/daemon.md, "One thread at real-time pace").
+  wake_.single_thread = !source_fast_ && !can_fast_;
   next_due_ns_.store(kNoDue, std::memory_order_relaxed);
   due_late_.store(false, std::memory_order_relaxed);
   st_ = PipelineStatus{};
@@ -438,7 +437,7 @@ void Pipeline::activate() {
   last_block_arrival_ns_ = clock_.now_ns();
   burst_origin_ns_ = last_block_arrival_ns_;
   active_ = true;
-  if (!single_thread_) {
+  if (!wake_.single_thread) {
     acq_thread_ = std::thread([this] { acquisition_loop(); });
     can_thread_ = std::thread([this] { can_loop(); });
     pthread_setname_np(acq_thread_.native_handle(), "ptdad-acq");
@@ -689,6 +688,12 @@ void Pipeline::can_loop() noexcept {
 
 // ---- processing thread --------------------------------------------------------------------------
 
+void Pipeline::prune_speeds_before_t0() noexcept {
+  dsp::SpeedSample dropped;
+  while (speed_ring_->size_approx() > kSpeedRingSamples / 2 && speed_ring_->try_pop(dropped))
+    ++st_.speeds_before_t0;
+}
+
 bool Pipeline::serve_inputs() noexcept {
   acq_beat_.fetch_add(1, std::memory_order_relaxed);
   can_beat_.fetch_add(1, std::memory_order_relaxed);
@@ -704,10 +709,7 @@ bool Pipeline::serve_inputs() noexcept {
           more = true;
           break;
         }
-        // No block yet: keep the newest half (as process_step() does), and read on.
-        dsp::SpeedSample dropped;
-        while (speed_ring_->size_approx() > kSpeedRingSamples / 2 && speed_ring_->try_pop(dropped))
-          ++st_.speeds_before_t0;
+        prune_speeds_before_t0();  // no block yet: read on
       }
       if (receive_batch(0, n) != CanStatus::kOk || n < kCanBatch) break;
     }
@@ -893,10 +895,7 @@ bool Pipeline::process_step(std::int64_t now) noexcept {
   if (!st_.have_t0) {
     // Speed samples wait in their ring for t0. A real-time source that never delivers must not stall
     // the CAN stage: keep the newest half of the ring.
-    if (!fast_ && speed_ring_->size_approx() > kSpeedRingSamples / 2) {
-      dsp::SpeedSample dropped;
-      if (speed_ring_->try_pop(dropped)) ++st_.speeds_before_t0;
-    }
+    if (!fast_) prune_speeds_before_t0();
     return work;
   }
   if (!have_speed_ && speed_ring_->try_pop(next_speed_)) {
@@ -1070,8 +1069,8 @@ void Pipeline::publish_due(std::int64_t now) noexcept {
                                                    wake_.max_sleep_ns, burst_origin_ns_, late_now,
                                                    wake_.retry_ns);
     };
-    if (!single_thread_ && sooner(wake_.acq_offset_ns)) acq_signal_.ring();
-    if (!single_thread_ && sooner(wake_.can_offset_ns)) can_signal_.ring();
+    if (!wake_.single_thread && sooner(wake_.acq_offset_ns)) acq_signal_.ring();
+    if (!wake_.single_thread && sooner(wake_.can_offset_ns)) can_signal_.ring();
   }
   // Late: both stages have served the due time (this pass follows the CAN thread's, or is the one
   // thread's own input pass) and the window is still open. The stages planned one spacing ahead; ring them to
@@ -1080,7 +1079,7 @@ void Pipeline::publish_due(std::int64_t now) noexcept {
                     now < due + wake_.can_offset_ns + wake_.late_window_ns;
   if (late != due_late_.load(std::memory_order_relaxed)) {
     due_late_.store(late, std::memory_order_relaxed);
-    if (late && !single_thread_) {
+    if (late && !wake_.single_thread) {
       acq_signal_.ring();
       can_signal_.ring();
     }
@@ -1096,7 +1095,7 @@ std::int64_t Pipeline::processing_wait_ns(std::int64_t now, bool unpublished) co
   if (!outputs_.empty() && output_period_ns_ > 0)
     wait_ns = std::min(wait_ns, last_output_ns_ + output_period_ns_ - now);
   if (unpublished) wait_ns = std::min(wait_ns, last_publish_ns_ + kPublishPeriodNs - now);
-  if (single_thread_) {
+  if (wake_.single_thread) {
     // This thread reads the inputs: when the speed frame after the block that can close a window has
     // arrived (the CAN thread's schedule), or on the grid of max sleeps.
     wait_ns =
@@ -1105,7 +1104,7 @@ std::int64_t Pipeline::processing_wait_ns(std::int64_t now, bool unpublished) co
                                     due_late_.load(std::memory_order_relaxed), wake_.retry_ns) -
                               now);
   }
-  if (have_block_ && !single_thread_) {
+  if (have_block_ && !wake_.single_thread) {
     // (One thread: the block waits for the next input pass instead, which brings its speed sample or
     // releases it once the hold time has passed; a window's last block is never held then, as the pass
     // comes after the speed frame that follows it. Waking for it would double the wake-ups.)
@@ -1131,7 +1130,7 @@ void Pipeline::processing_loop() noexcept {
     // The ticket is taken before looking at the rings, so work published from here on ends the wait.
     const std::uint32_t ticket = work_signal_.ticket();
     now = clock_.now_ns();
-    bool more_input = single_thread_ && serve_inputs();
+    bool more_input = wake_.single_thread && serve_inputs();
     bool work = false;
     for (std::size_t round = 0;; ++round) {
       for (int i = 0; i < 64; ++i) {
@@ -1139,7 +1138,7 @@ void Pipeline::processing_loop() noexcept {
         work = true;
         // One thread: a long pass (several windows judged, a slow machine) reads the inputs again
         // between steps, so the device's and the socket's buffers are read at least this often.
-        if (single_thread_ && clock_.now_ns() - last_serve_ns_ >= kInputServeBudgetNs)
+        if (wake_.single_thread && clock_.now_ns() - last_serve_ns_ >= kInputServeBudgetNs)
           more_input = serve_inputs() || more_input;
       }
       // A long burst (after a stall) is read in ring-sized parts, each processed before the next.

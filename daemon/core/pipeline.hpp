@@ -350,14 +350,14 @@ class Pipeline {
   void acquisition_loop() noexcept;
   void can_loop() noexcept;
   /// Reads one block with the given timeout and pushes it (back-pressure for fast sources). Thread:
-  /// acquisition (processing, with timeout 0, in single_thread_ mode).
+  /// acquisition (processing, with timeout 0, with WakeSchedule::single_thread).
   drivers::SourceStatus acquire(std::int64_t timeout_ns) noexcept;
   /// Receives one batch of frames with the given timeout and handles them; `received` = frames taken.
-  /// Thread: CAN (processing, with timeout 0, in single_thread_ mode).
+  /// Thread: CAN (processing, with timeout 0, with WakeSchedule::single_thread).
   drivers::CanStatus receive_batch(std::int64_t timeout_ns, std::size_t& received) noexcept;
-  /// Both inputs at real-time pace (single_thread_): drains the CAN channel, then reads every block the
-  /// source has ready, without waiting, into the rings this same thread consumes. Returns true when it
-  /// stopped because a ring is full enough that the caller should process before it reads on. Beats the
+  /// Both inputs at real-time pace (WakeSchedule::single_thread): drains the CAN channel, then reads every
+  /// block the source has ready, without waiting, into the rings this same thread consumes. Returns true when
+  /// it stopped because a ring is full enough that the caller should process before it reads on. Beats the
   /// acquisition and CAN heartbeats. Thread: processing. Never blocks or allocates.
   bool serve_inputs() noexcept;
   /// Sleeps until plan_wake() with the stage's offset (the stage's one wait; deactivate() rings
@@ -373,6 +373,9 @@ class Pipeline {
 
   // Processing helpers (processing thread only).
   bool process_step(std::int64_t now) noexcept;
+  /// Before the first block (no t0): drops the oldest speed samples down to half the ring, counted in
+  /// speeds_before_t0, so a source that never delivers does not stall the CAN stage.
+  void prune_speeds_before_t0() noexcept;
   void push_block(const drivers::SampleBlock& b) noexcept;
   void push_speed(const dsp::SpeedSample& s) noexcept;
   void drain_windows(std::int64_t now) noexcept;
@@ -409,7 +412,6 @@ class Pipeline {
   WakeSignal acq_signal_, can_signal_;             ///< rung by deactivate() to end a stage's sleep
   std::vector<std::unique_ptr<drivers::AlarmOutput>> outputs_;
   bool source_fast_ = false, can_fast_ = false, fast_ = false;
-  bool single_thread_ = false;      ///< !source_fast_ && !can_fast_: one thread reads and processes
   std::int64_t last_serve_ns_ = 0;  ///< when serve_inputs() last ran (processing thread)
   double fs_hz_ = 0.0;
   std::int64_t fs_mhz_ = 0;

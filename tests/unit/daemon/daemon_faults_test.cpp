@@ -337,11 +337,9 @@ TEST_F(Faults, OneThreadDrainsASpeedBacklogBeforeTheFirstBlock) {
   d.set_device_factory(&dev);
   d.configure();
   d.activate();
-  std::thread runner([&] { EXPECT_EQ(d.run(), 0); });
+  DaemonRunThread runner(d);
   const bool drained = wait_for([&] { return d.view().counters.can_frames >= n; }, std::chrono::seconds(10));
   const DaemonView v = d.view();
-  d.request_stop();
-  runner.join();
   ASSERT_TRUE(v.wake.single_thread);
   EXPECT_TRUE(drained) << v.counters.can_frames << " of " << n << " frames received";
   EXPECT_EQ(v.counters.can_ring_full, 0U);
