@@ -5,6 +5,7 @@
 # recording's duration, then
 #   replay   ptdad --exit-at-end on it (WAV + candump replay, pace "fast"),
 #   monitor  ptda monitor on it,
+#   fieldtrain  ptdad --train --exit-at-end on it (field training from the same replay),
 #   train    ptda train on it,
 #   simulate ptda simulate of the same job (config/scenarios/arc_welding_faulty.toml, seed 3003) with
 #            its cycle count scaled to HOURS (written to out_dir, deleted at the end),
@@ -42,7 +43,7 @@ fi
 rec=$out/long-${hours}h
 mkdir -p "$out"
 need_rec=0
-for c in replay monitor train; do [[ " ${SKIP:-} " == *" $c "* ]] || need_rec=1; done
+for c in replay monitor fieldtrain train; do [[ " ${SKIP:-} " == *" $c "* ]] || need_rec=1; done
 if [[ $need_rec == 1 && ! -f $rec/recording.toml ]]; then
   mkdir -p "$rec"
   /usr/bin/python3 - "$src" "$rec" "$hours" <<'EOF'
@@ -118,6 +119,16 @@ measure() {  # name, command...
 printf 'command\thours\tpeak_rss_mib\twall_s\tcpu_s\n' >"$out/results.tsv"
 measure replay "$ptdad" --config "$out/ptdad/ptdad.toml" --config-dir '' --exit-at-end --foreground
 measure monitor "$ptda" monitor --recording "$rec" --config "$cfg" --baseline "$base" --quiet
+# fieldtrain: ptdad --train on the same replay; it collects every window (max_windows = FIELD_MAX_WINDOWS,
+# default 8192: 1 h of this job cuts 5757), trains at the end of the replay and exits.
+{
+  sed -n '1,/^\[can\]/p' "$out/ptdad/ptdad.toml" | sed '$d'
+  printf '[can]\nbackend = "candump"\npace = "fast"\nspeed_latency_s = 0.0\n\n'
+  printf '[training]\ntarget_cycles = 100000\nmax_duration_s = 1e7\noutput = "%s"\nmax_windows = %s\nmax_regions = %s\n\n' \
+    "$out/ptdad/field.bin" "${FIELD_MAX_WINDOWS:-8192}" "${FIELD_MAX_WINDOWS:-8192}"
+  awk '/^\[/{skip = ($0 == "[can]")} !skip' "$cfg"
+} >"$out/ptdad/fieldtrain.toml"
+measure fieldtrain "$ptdad" --config "$out/ptdad/fieldtrain.toml" --config-dir '' --train --exit-at-end --foreground
 train_args=()
 for ((i = 0; i < ${TRAIN_COPIES:-1}; ++i)); do train_args+=(--recording "$rec"); done
 signal_h_one=$signal_h

@@ -938,8 +938,23 @@ void Daemon::check_training(std::int64_t now) {
   snapshot_.training_classes_complete = progress.classes_complete;
   snapshot_.training_target_cycles = progress.target_cycles;
   snapshot_.training_dropped = progress.windows_dropped + progress.regions_dropped;
+  const FieldTrainerCounters tk = trainer.counters();
+  if (tk.windows_write_failed + tk.windows_queue_full < training_spill_problems_)
+    training_spill_problems_ = 0;
+  if (tk.windows_write_failed + tk.windows_queue_full > training_spill_problems_) {
+    // Counted by the writer and the processing thread; reported here, once per status period at most.
+    spdlog::warn(
+        "field training: {} window(s) not kept: {} failed writes to the spill file in {} (last: {}), "
+        "{} while the writer was behind",
+        tk.windows_write_failed + tk.windows_queue_full - training_spill_problems_, tk.windows_write_failed,
+        training_spill_dir(cfg_).string(),
+        tk.last_write_errno != 0 ? std::strerror(tk.last_write_errno) : "none", tk.windows_queue_full);
+    training_spill_problems_ = tk.windows_write_failed + tk.windows_queue_full;
+  }
   const bool timed_out = now - training_started_ns_ > seconds_to_ns(cfg_.training.max_duration_s);
-  const bool ended = pipeline_->status().ended;
+  // At the end of a replay the last windows may still be on their way to the spill file.
+  const bool ended = pipeline_->status().ended && trainer.queued() == 0;
+  training_end_seen_ = ended;
   if (!progress.ready && !((timed_out || ended) && progress.can_finish)) return;
   if (baseline_health_.failing && now < baseline_retry_ns_) return;  // backoff after a failed write
   const fs::path out = cfg_.training.output.empty() ? cfg_.daemon.baseline : cfg_.training.output;
@@ -1041,7 +1056,9 @@ void Daemon::supervise(std::int64_t now) noexcept {
         static_cast<unsigned long long>(ps.abnormal), drivers::alarm_level_name(ps.report.level).data(),
         snapshot_.reason.len > 0 ? "; " : "", snapshot_.reason.text.data());
     notifier_.status(status_text_);
-    if (options_.exit_at_end && ps.ended) {
+    // Field training: the last windows may still be on their way to the spill file; exit once
+    // check_training has seen the end with all of them written (and trained, when it could).
+    if (options_.exit_at_end && ps.ended && (p->trainer() == nullptr || training_end_seen_)) {
       spdlog::info("replay ended: {} windows processed, stopping (--exit-at-end)", ps.windows);
       stop_requested_.store(true);
     }

@@ -187,6 +187,8 @@ class Daemon {
   std::int64_t beat_changed_ns_[3] = {0, 0, 0};
   bool stalled_logged_ = false;
   std::int64_t training_started_ns_ = 0;
+  bool training_end_seen_ = false;  ///< check_training saw the replay's end with every window written
+  std::uint64_t training_spill_problems_ = 0;  ///< spill write failures and queue-full drops logged so far
   std::unique_ptr<FieldTrainer> carried_trainer_;   ///< the pool across a reload during training
   FixedString<kStatusTextBytes> training_note_;     ///< what the last reload did to the pool
   StateFileHealth baseline_health_;                 ///< field training's baseline writes

@@ -355,6 +355,7 @@ class DaemonTablesBuilder {
     get_path(r, "output", training_.output);
     get(r, "max_windows", training_.max_windows, std::uint32_t{16}, std::uint32_t{1000000});
     get(r, "max_regions", training_.max_regions, std::uint32_t{16}, std::uint32_t{1000000});
+    get_path(r, "spill_dir", training_.spill_dir);
     r.finish();
   }
 
@@ -457,6 +458,12 @@ DaemonConfig parse_daemon_config(std::string_view toml_text, const std::string& 
   return out;
 }
 
+fs::path training_spill_dir(const DaemonConfig& cfg) {
+  if (!cfg.training.spill_dir.empty()) return cfg.training.spill_dir;
+  const fs::path out = cfg.training.output.empty() ? cfg.daemon.baseline : cfg.training.output;
+  return out.has_parent_path() ? out.parent_path() : fs::path(".");
+}
+
 std::vector<std::string> check_config_paths(const DaemonConfig& cfg, bool train) {
   std::vector<std::string> problems;
   std::error_code ec;
@@ -471,6 +478,10 @@ std::vector<std::string> check_config_paths(const DaemonConfig& cfg, bool train)
     if (!fs::is_directory(dir, ec)) {
       problems.push_back("[training] output / [daemon] baseline " + out.string() + ": the directory " +
                          dir.string() + " does not exist, so field training could not write the baseline");
+    }
+    if (!cfg.training.spill_dir.empty() && !fs::is_directory(cfg.training.spill_dir, ec)) {
+      problems.push_back("[training] spill_dir " + cfg.training.spill_dir.string() +
+                         ": not a directory, so field training has nowhere to keep its windows");
     }
   } else {
     try {

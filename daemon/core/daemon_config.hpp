@@ -112,8 +112,9 @@ struct TrainingSection {
   std::uint32_t target_cycles = 20;  ///< windows per segment class before the baseline is written
   double max_duration_s = 3600.0;    ///< training gives up after this long
   std::filesystem::path output;      ///< baseline written here ("" = [daemon] baseline)
-  std::uint32_t max_windows = 4096;  ///< window pool (max_windows x window_len floats, allocated at start)
+  std::uint32_t max_windows = 4096;  ///< windows kept at most (on disk: max_windows x window_len floats)
   std::uint32_t max_regions = 4096;
+  std::filesystem::path spill_dir;  ///< the windows' spill file ("" = the baseline's directory)
 };
 
 /// [history]: the event history on the cabinet (docs/fleet.md, "Event history").
@@ -171,6 +172,10 @@ struct DaemonConfig {
 /// directory. Does not open devices, recordings or the baseline. Thread: any. Allocates, reads files.
 [[nodiscard]] DaemonConfig load_daemon_config(const std::filesystem::path& main_file,
                                               const std::vector<std::filesystem::path>& dropins = {});
+
+/// Where field training spills its windows: [training] spill_dir, else the directory of the baseline
+/// it will write ([training] output, else [daemon] baseline). Thread: any. Allocates.
+[[nodiscard]] std::filesystem::path training_spill_dir(const DaemonConfig& cfg);
 
 /// What `ptdad --check-config` adds to the syntax check: opens every path the configuration names and
 /// returns one sentence per problem (empty = ready to run). Monitoring (train = false): the baseline

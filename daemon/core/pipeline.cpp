@@ -320,10 +320,17 @@ void Pipeline::configure_training() {
   tc.classes = pc.classes;
   tc.thresholds = pc.thresholds;
   tc.gearbox = pc.gearbox;
+  tc.spill_dir = training_spill_dir(cfg_);
   trainer_ = std::make_unique<FieldTrainer>(tc);
   if (previous_trainer_ != nullptr) carry_ = trainer_->take_over(*previous_trainer_);
   previous_trainer_ = nullptr;
   train_window_.assign(window_len, 0.0F);
+  // A fast replay waits for the trainer's writer instead of dropping windows: a block is released only
+  // when the queue has room for every window it can complete (one per hop of its samples, plus one).
+  const auto hop = static_cast<std::uint64_t>(std::max<std::int64_t>(train_slicer_->hop_samples(), 1));
+  const std::uint64_t per_block = drivers::kMaxBlock / hop + 2;
+  train_block_windows_ =
+      static_cast<std::size_t>(std::min<std::uint64_t>(per_block, FieldTrainer::kSpillSlots));
 }
 
 void Pipeline::configure_alarm_manager() {
@@ -443,6 +450,7 @@ void Pipeline::activate() {
     pthread_setname_np(acq_thread_.native_handle(), "ptdad-acq");
     pthread_setname_np(can_thread_.native_handle(), "ptdad-can");
   }
+  if (trainer_) trainer_->start(&work_signal_);
   proc_thread_ = std::thread([this] { processing_loop(); });
   pthread_setname_np(proc_thread_.native_handle(), "ptdad-proc");
 }
@@ -456,6 +464,7 @@ void Pipeline::deactivate() noexcept {
   if (acq_thread_.joinable()) acq_thread_.join();
   if (can_thread_.joinable()) can_thread_.join();
   if (proc_thread_.joinable()) proc_thread_.join();
+  if (trainer_) trainer_->stop();  // after the processing thread: every queued window is written
   for (auto& o : outputs_) o->deactivate();
   channel_->deactivate();
   source_->deactivate();
@@ -916,7 +925,9 @@ bool Pipeline::process_step(std::int64_t now) noexcept {
     const bool release =
         have_speed_ || can_end ||
         (!fast_ && (now - block_end > hold_ns_ || sample_ring_->size_approx() > kSampleRingBlocks * 3 / 4));
-    if (release) {
+    // Field training from a fast replay: wait (the writer rings work_signal_) rather than drop windows.
+    const bool trainer_room = !source_fast_ || !trainer_ || trainer_->free_slots() >= train_block_windows_;
+    if (release && trainer_room) {
       push_block(b);
       have_block_ = false;
       work = true;

@@ -430,6 +430,7 @@ class Pipeline {
   std::vector<float> order_nan_;                  ///< NaN chunk for gaps and invalid blocks
   std::unique_ptr<dsp::WindowSlicer> train_slicer_;
   std::unique_ptr<FieldTrainer> trainer_;
+  std::size_t train_block_windows_ = 1;  ///< queue slots a fast replay keeps free before releasing a block
   const FieldTrainer* previous_trainer_ = nullptr;
   std::optional<TrainingCarryOver> carry_;
   std::vector<float> train_window_;

@@ -1,7 +1,13 @@
 #include "training/field_trainer.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "ptda/common/error.hpp"
@@ -10,7 +16,59 @@
 namespace ptda::daemon {
 namespace {
 
-constexpr std::uint64_t kMaxPoolBytes = std::uint64_t{2} << 30;
+constexpr std::uint64_t kMaxSpillBytes = std::uint64_t{64} << 30;
+constexpr std::int64_t kWriterIdleWaitNs = 100'000'000;
+
+/// Creates an anonymous file in `dir`: O_TMPFILE where the file system has it, else a named file
+/// unlinked at once. Either way nothing is left in `dir` once the descriptor is closed.
+int create_spill_file(const std::filesystem::path& dir) {
+  int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  if (fd >= 0) return fd;
+  if (errno != EOPNOTSUPP && errno != EISDIR && errno != EINVAL) {
+    throw Error("training.spill_dir: cannot create the field-training spill file in " + dir.string() + ": " +
+                std::strerror(errno));
+  }
+  std::string name = (dir / ".ptdad-training-XXXXXX").string();
+  fd = ::mkostemp(name.data(), O_CLOEXEC);
+  if (fd < 0) {
+    throw Error("training.spill_dir: cannot create the field-training spill file " + name + ": " +
+                std::strerror(errno));
+  }
+  ::unlink(name.c_str());
+  return fd;
+}
+
+/// pwrite/pread of exactly `n` bytes at `off` (retried on EINTR and short transfers); errno on failure.
+int write_all(int fd, const void* data, std::size_t n, std::uint64_t off) noexcept {
+  const auto* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t w = ::pwrite(fd, p, n, static_cast<off_t>(off));
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return errno;
+    }
+    p += w;
+    n -= static_cast<std::size_t>(w);
+    off += static_cast<std::uint64_t>(w);
+  }
+  return 0;
+}
+
+int read_all(int fd, void* data, std::size_t n, std::uint64_t off) noexcept {
+  auto* p = static_cast<char*>(data);
+  while (n > 0) {
+    const ssize_t r = ::pread(fd, p, n, static_cast<off_t>(off));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return errno;
+    }
+    if (r == 0) return EIO;  // the file is shorter than the windows it published: never expected
+    p += r;
+    n -= static_cast<std::size_t>(r);
+    off += static_cast<std::uint64_t>(r);
+  }
+  return 0;
+}
 
 std::string fmt_speed(double v) {
   char buf[32];
@@ -56,14 +114,76 @@ FieldTrainer::FieldTrainer(const FieldTrainerConfig& cfg) : cfg_(cfg) {
   }
   (void)dsp::learn_segment_classes({}, cfg.classes);  // throws on a bad [classes] table, naming the key
   const std::uint64_t bytes = std::uint64_t{cfg.max_windows} * cfg.window_len * sizeof(float);
-  if (bytes > kMaxPoolBytes) {
+  if (bytes > kMaxSpillBytes) {
     throw Error("training.max_windows: " + std::to_string(cfg.max_windows) + " windows of " +
                 std::to_string(cfg.window_len) + " samples need " + std::to_string(bytes >> 20) +
-                " MiB, more than the 2048 MiB limit");
+                " MiB of disk, more than the 65536 MiB limit");
   }
-  samples_.assign(static_cast<std::size_t>(cfg.max_windows) * cfg.window_len, 0.0F);
+  slots_.assign(kSpillSlots * cfg.window_len, 0.0F);
   refs_.assign(cfg.max_windows, dsp::WindowRef{});
   regions_.assign(cfg.max_regions, dsp::RegionInfo{});
+  fd_ = create_spill_file(cfg.spill_dir.empty() ? std::filesystem::path(".") : cfg.spill_dir);
+}
+
+FieldTrainer::~FieldTrainer() {
+  stop();
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void FieldTrainer::start(WakeSignal* on_space) {
+  if (writer_.joinable()) return;
+  on_space_ = on_space;
+  stop_.store(false, std::memory_order_relaxed);
+  writer_ = std::thread([this] { writer_loop(); });
+  pthread_setname_np(writer_.native_handle(), "ptdad-train");
+}
+
+void FieldTrainer::stop() noexcept {
+  if (!writer_.joinable()) return;
+  stop_.store(true, std::memory_order_release);
+  work_.ring();
+  writer_.join();
+}
+
+void FieldTrainer::flush() noexcept {
+  while (write_queued() > 0) {
+  }
+}
+
+void FieldTrainer::writer_loop() noexcept {
+  for (;;) {
+    const std::uint32_t ticket = work_.ticket();
+    if (write_queued() > 0) {
+      if (on_space_ != nullptr) on_space_->ring();
+      continue;
+    }
+    // Stop only with the queue empty: the processing thread has stopped adding before stop().
+    if (stop_.load(std::memory_order_acquire)) return;
+    work_.wait(ticket, kWriterIdleWaitNs);
+  }
+}
+
+std::size_t FieldTrainer::write_queued() noexcept {
+  std::size_t taken = 0;
+  const std::uint64_t bytes = window_bytes();
+  for (;;) {
+    const std::uint64_t index = queue_.popped_index();
+    const bool got = queue_.pop_with([&](const Queued& q) noexcept {
+      const float* x = slots_.data() + (index % kSpillSlots) * cfg_.window_len;
+      const std::uint64_t n = window_count_.load(std::memory_order_relaxed);  // only this thread writes it
+      const int err = write_all(fd_, x, bytes, n * bytes);
+      if (err != 0) {
+        last_write_errno_.store(err, std::memory_order_relaxed);
+        write_failed_.add();
+        return;
+      }
+      refs_[n] = q.ref;
+      window_count_.store(n + 1, std::memory_order_release);
+      windows_.add();
+    });
+    if (!got) return taken;
+    ++taken;
+  }
 }
 
 bool FieldTrainer::add_window(const dsp::WindowRef& ref, std::span<const float> samples) noexcept {
@@ -77,18 +197,26 @@ bool FieldTrainer::add_window(const dsp::WindowRef& ref, std::span<const float> 
       return false;
     }
   }
-  const std::uint64_t n = window_count_.load(std::memory_order_relaxed);  // single writer
-  if (n >= cfg_.max_windows) {
+  if (taken_ >= cfg_.max_windows) {
     windows_dropped_.add();
     return false;
   }
+  // The slot of the next queue index is free while the queue has room (the writer frees a slot only
+  // after it wrote the window).
+  Queued* const q = queue_.claim();
+  if (q == nullptr) {
+    queue_full_.add();
+    return false;
+  }
+  const std::uint64_t index = queue_.pushed_index();
   std::copy(samples.begin(), samples.end(),
-            samples_.begin() + static_cast<std::ptrdiff_t>(n * cfg_.window_len));
-  refs_[n] = ref;
-  refs_[n].region_seq += region_seq_offset_;
-  refs_[n].first_sample += sample_offset_;
-  window_count_.store(n + 1, std::memory_order_release);
-  windows_.add();
+            slots_.begin() + static_cast<std::ptrdiff_t>((index % kSpillSlots) * cfg_.window_len));
+  q->ref = ref;
+  q->ref.region_seq += region_seq_offset_;
+  q->ref.first_sample += sample_offset_;
+  queue_.commit();
+  ++taken_;
+  work_.ring();
   return true;
 }
 
@@ -120,9 +248,11 @@ TrainingProgress FieldTrainer::progress() const {
   p.windows = snap.windows;
   p.window_capacity = cfg_.max_windows;
   p.regions = snap.regions;
-  p.windows_dropped = windows_dropped_.get();
-  p.regions_dropped = regions_dropped_.get();
-  p.windows_rejected = windows_rejected_.get();
+  const FieldTrainerCounters counts = counters();
+  p.windows_dropped = counts.windows_dropped;
+  p.windows_queued = queued();
+  p.regions_dropped = counts.regions_dropped;
+  p.windows_rejected = counts.windows_rejected;
 
   const std::vector<dsp::RegionInfo> regions(regions_.begin(),
                                              regions_.begin() + static_cast<std::ptrdiff_t>(snap.regions));
@@ -184,21 +314,31 @@ dsp::Baseline FieldTrainer::finish(const std::filesystem::path& path, FinishMode
     throw Error("field training: not enough data: no class has enough" + needs + per_class);
   }
 
-  // The pooled entries [0, count) are immutable once published: copy them.
+  // The published entries [0, count) are immutable: copy their places, and stream their samples from
+  // the spill file (each pass reads it in order, one window at a time, as `ptda train` reads a
+  // recording).
   const Snapshot snap{p.windows, p.regions};
-  dsp::CollectedWindows data;
-  data.refs.assign(refs_.begin(), refs_.begin() + static_cast<std::ptrdiff_t>(snap.windows));
-  data.regions.assign(regions_.begin(), regions_.begin() + static_cast<std::ptrdiff_t>(snap.regions));
-  data.windows.reserve(snap.windows);
-  for (std::size_t i = 0; i < snap.windows; ++i) {
-    const auto first = samples_.begin() + static_cast<std::ptrdiff_t>(i * cfg_.window_len);
-    data.windows.emplace_back(first, first + cfg_.window_len);
-  }
+  dsp::CollectedWindows index;
+  index.refs.assign(refs_.begin(), refs_.begin() + static_cast<std::ptrdiff_t>(snap.windows));
+  index.regions.assign(regions_.begin(), regions_.begin() + static_cast<std::ptrdiff_t>(snap.regions));
+  std::vector<float> x(cfg_.window_len);
+  const dsp::TrainingWindowPass pass = [&](const dsp::TrainingWindowVisitor& visit) {
+    for (std::size_t i = 0; i < snap.windows; ++i) {
+      const int err = read_all(fd_, x.data(), window_bytes(), i * window_bytes());
+      if (err != 0) {
+        throw Error("field training: reading window " + std::to_string(i) + " back from the spill file in " +
+                    cfg_.spill_dir.string() + " failed: " + std::strerror(err));
+      }
+      visit(i, x);
+    }
+  };
   dsp::Baseline b;
   try {
-    b = dsp::train_baseline(data, cfg_.classes, cfg_.thresholds, cfg_.fs_hz, cfg_.gearbox);
+    b = dsp::train_baseline_streamed(index, cfg_.window_len, pass, cfg_.classes, cfg_.thresholds, cfg_.fs_hz,
+                                     cfg_.gearbox);
   } catch (const Error& e) {
-    throw Error(std::string("field training: ") + e.what());
+    const std::string what = e.what();
+    throw Error(what.rfind("field training: ", 0) == 0 ? what : "field training: " + what);
   }
   b.source = cfg_.source + ": " + summary;
   formats::write_baseline(path, b);
@@ -220,13 +360,18 @@ TrainingCarryOver FieldTrainer::take_over(const FieldTrainer& previous) {
     r.regions_lost = old.regions;
     return r;
   }
+  const int shared = ::fcntl(previous.fd_, F_DUPFD_CLOEXEC, 0);
+  if (shared < 0) {
+    throw Error("field training: cannot share the spill file with the reloaded pipeline: " +
+                std::string(std::strerror(errno)));
+  }
+  ::close(fd_);
+  fd_ = shared;
   r.kept = true;
   r.windows = std::min<std::uint64_t>(old.windows, cfg_.max_windows);
   r.regions = std::min<std::uint64_t>(old.regions, cfg_.max_regions);
   r.windows_lost = old.windows - r.windows;
   r.regions_lost = old.regions - r.regions;
-  std::copy_n(previous.samples_.begin(), static_cast<std::ptrdiff_t>(r.windows * cfg_.window_len),
-              samples_.begin());
   std::copy_n(previous.refs_.begin(), static_cast<std::ptrdiff_t>(r.windows), refs_.begin());
   std::copy_n(previous.regions_.begin(), static_cast<std::ptrdiff_t>(r.regions), regions_.begin());
   // The new slicer numbers regions and samples from 0 again: continue after the copied ones.
@@ -242,7 +387,11 @@ TrainingCarryOver FieldTrainer::take_over(const FieldTrainer& previous) {
   const FieldTrainerCounters c = previous.counters();
   windows_.set(r.windows);
   regions_added_.set(r.regions);
-  windows_dropped_.set(c.windows_dropped + r.windows_lost);
+  taken_ = r.windows;
+  queue_full_.set(c.windows_queue_full);
+  write_failed_.set(c.windows_write_failed);
+  last_write_errno_.store(c.last_write_errno, std::memory_order_relaxed);
+  windows_dropped_.set(c.windows_dropped - c.windows_queue_full - c.windows_write_failed + r.windows_lost);
   regions_dropped_.set(c.regions_dropped + r.regions_lost);
   windows_rejected_.set(c.windows_rejected);
   window_count_.store(r.windows, std::memory_order_release);
@@ -250,19 +399,17 @@ TrainingCarryOver FieldTrainer::take_over(const FieldTrainer& previous) {
   return r;
 }
 
-void FieldTrainer::reset() noexcept {
-  window_count_.store(0, std::memory_order_release);
-  region_count_.store(0, std::memory_order_release);
-  windows_.set(0);
-  regions_added_.set(0);
-  windows_dropped_.set(0);
-  regions_dropped_.set(0);
-  windows_rejected_.set(0);
-}
-
 FieldTrainerCounters FieldTrainer::counters() const noexcept {
-  return {windows_.get(), regions_added_.get(), windows_dropped_.get(), regions_dropped_.get(),
-          windows_rejected_.get()};
+  FieldTrainerCounters c;
+  c.windows = windows_.get();
+  c.regions = regions_added_.get();
+  c.windows_queue_full = queue_full_.get();
+  c.windows_write_failed = write_failed_.get();
+  c.windows_dropped = windows_dropped_.get() + c.windows_queue_full + c.windows_write_failed;
+  c.last_write_errno = last_write_errno_.load(std::memory_order_relaxed);
+  c.regions_dropped = regions_dropped_.get();
+  c.windows_rejected = windows_rejected_.get();
+  return c;
 }
 
 }  // namespace ptda::daemon

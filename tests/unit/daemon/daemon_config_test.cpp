@@ -256,6 +256,20 @@ TEST(DaemonConfigPaths, MissingBaselineAndRecordingAreProblemsNamingThePath) {
   EXPECT_NE(p[0].find("the directory " + (dir / "no_such_dir").string() + " does not exist"),
             std::string::npos)
       << p[0];
+  // The windows' spill directory: the baseline's by default, else [training] spill_dir, which must exist.
+  EXPECT_EQ(training_spill_dir(cfg), dir / "no_such_dir");
+  cfg.daemon.baseline = dir / "b.bin";
+  EXPECT_EQ(training_spill_dir(cfg), dir);
+  cfg.training.output = dir / "out" / "trained.bin";
+  EXPECT_EQ(training_spill_dir(cfg), dir / "out");
+  cfg = parse_daemon_config(sim_config(baseline, dir, "fast") + "\n[training]\nspill_dir = \"" +
+                                (dir / "no_spill").string() + "\"\n",
+                            "t.toml");
+  EXPECT_EQ(training_spill_dir(cfg), dir / "no_spill");
+  p = check_config_paths(cfg, true);
+  ASSERT_EQ(p.size(), 1U);
+  EXPECT_EQ(p[0], "[training] spill_dir " + (dir / "no_spill").string() +
+                      ": not a directory, so field training has nowhere to keep its windows");
 
   // A real baseline: no problem; then a replay of a recording that is not there.
   write_sim_baseline(baseline);

@@ -435,40 +435,39 @@ void status_dir_deleted() {
 }
 
 void baseline_write_failure() {
-  // Field training's baseline write fails at its write step (the file system refuses: EFBIG from a
-  // file size limit that status.json and the metrics file still fit in), then succeeds on a retry.
+  // Field training's baseline write fails at its open step (the output's directory is a file:
+  // ENOTDIR), then succeeds on a retry once the directory is there. The windows' spill file has its
+  // own directory ([training] spill_dir), which works throughout.
   const Scene s("baseline_write");
   FakeDevices dev(clean_source(), clean_frames());
-  dev.gate.t_ns = healthy()->loop_ns / 20;  // too little for 5 cycles per class: no write yet
-  Live live(s, s.training_config(5), dev, true);
-  ASSERT_TRUE(
-      wait_for([&] { return has(read_text(s.status()), "\"state\":\"training\"") && fs::exists(s.prom()); }));
-  ASSERT_FALSE(fs::exists(s.dir / "trained.bin"));
-  const auto state_bytes = std::max(fs::file_size(s.status()), fs::file_size(s.prom()));
-  const rlim_t limit = 4 * state_bytes;
-  ASSERT_GT(s.baseline_bytes.size(), 2 * limit) << "a trained baseline must exceed the limit";
+  const fs::path out_dir = s.dir / "out";
+  fs::create_directories(s.dir / "spill");
+  std::string cfg = s.training_config(5);
+  cfg.replace(cfg.find((s.dir / "trained.bin").string()), (s.dir / "trained.bin").string().size(),
+              (out_dir / "trained.bin").string());
+  cfg.replace(cfg.find("[training]\n"), 11,
+              "[training]\nspill_dir = \"" + (s.dir / "spill").string() + "\"\n");
+  { std::ofstream blocker(out_dir); }
+  dev.gate.t_ns = healthy()->loop_ns / 2;  // enough for 5 cycles per class; the stream does not end
+  Live live(s, cfg, dev, true);
   std::string text, entry;
-  {
-    FileSizeLimit full(limit);
-    dev.gate.t_ns = healthy()->loop_ns / 2;  // enough for 5 cycles per class; the stream does not end
-    const bool failed = wait_for([&] {
-      text = read_text(s.status());
-      entry = state_file_json(text, "baseline");
-      return has(entry, "\"failing\":true");
-    });
-    // (b) the collected windows are kept while the write fails.
-    EXPECT_GT(training_u64(text, "windows"), 0U) << text;
-    EXPECT_TRUE(has(text, "\"state\":\"training\"")) << text;
-    full.lift();
-    ASSERT_TRUE(failed) << text;
-  }
+  ASSERT_TRUE(wait_for([&] {
+    text = read_text(s.status());
+    entry = state_file_json(text, "baseline");
+    return has(entry, "\"failing\":true");
+  })) << text;
   // (a)
-  EXPECT_TRUE(has(entry, "\"last_errno\":27,")) << entry;
-  EXPECT_TRUE(has(entry, "EFBIG (File too large)")) << entry;
+  EXPECT_TRUE(has(entry, "\"last_errno\":20,")) << entry;
+  EXPECT_TRUE(has(entry, "ENOTDIR (Not a directory)")) << entry;
+  // (b) the collected windows are kept while the write fails.
+  EXPECT_GT(training_u64(text, "windows"), 0U) << text;
+  EXPECT_TRUE(has(text, "\"state\":\"training\"")) << text;
   // (c) retried: the baseline is written and monitoring starts on it; the failures stay counted.
+  fs::remove(out_dir);
+  fs::create_directory(out_dir);
   ASSERT_TRUE(wait_for([&] { return dev.pipelines == 2 && live.d.view().state != DaemonState::kTraining; }));
-  EXPECT_FALSE(formats::read_baseline(s.dir / "trained.bin").classes.empty());
-  EXPECT_EQ(temp_files(s.dir), 0U);
+  EXPECT_FALSE(formats::read_baseline(out_dir / "trained.bin").classes.empty());
+  EXPECT_EQ(temp_files(out_dir), 0U);
   ASSERT_TRUE(wait_for([&] {
     entry = state_file_json(read_text(s.status()), "baseline");
     return has(entry, "\"failing\":false");
@@ -476,7 +475,44 @@ void baseline_write_failure() {
   EXPECT_FALSE(has(entry, "\"failures\":0,")) << entry;
   dev.gate.t_ns = std::numeric_limits<std::int64_t>::max();
   ASSERT_TRUE(wait_for([&] { return live.d.view().pipeline.scored > 0; }));
-  s.expect_baseline_kept();  // the configured baseline.bin: field training writes trained.bin
+  s.expect_baseline_kept();  // the configured baseline.bin: field training writes out/trained.bin
+}
+
+void spill_write_failure() {
+  // The disk refuses field training's spill file (EFBIG from a file size limit that status.json and
+  // the metrics file still fit in): the windows it refuses are counted as dropped (never held in RAM
+  // instead), the windows before it stay, and training completes once the disk takes writes again.
+  const Scene s("spill_write");
+  FakeDevices dev(clean_source(), clean_frames());
+  dev.gate.t_ns = healthy()->loop_ns / 20;  // too little for 5 cycles per class: no baseline yet
+  Live live(s, s.training_config(5), dev, true);
+  std::string text;
+  ASSERT_TRUE(wait_for([&] {
+    text = read_text(s.status());
+    return has(text, "\"state\":\"training\"") && fs::exists(s.prom()) && training_u64(text, "windows") > 0 &&
+           live.reach(dev, dev.gate.t_ns);
+  })) << text;
+  const std::uint64_t before = training_u64(text, "windows");
+  const auto state_bytes = std::max(fs::file_size(s.status()), fs::file_size(s.prom()));
+  {
+    FileSizeLimit full(4 * state_bytes);
+    dev.gate.t_ns = healthy()->loop_ns / 2;  // enough for 5 cycles per class, if the windows were kept
+    const bool dropped = wait_for([&] {
+      text = read_text(s.status());
+      return training_u64(text, "dropped") > 0;
+    });
+    // (a) counted as dropped; (b) the windows written before stay.
+    EXPECT_TRUE(dropped) << text;
+    EXPECT_GE(training_u64(text, "windows"), before) << text;
+    EXPECT_TRUE(has(text, "\"state\":\"training\"")) << text;
+    full.lift();
+  }
+  // (c) training goes on: with the disk back the baseline is written and monitoring starts on it.
+  dev.gate.t_ns = std::numeric_limits<std::int64_t>::max();
+  ASSERT_TRUE(wait_for([&] { return live.d.view().state != DaemonState::kTraining && dev.pipelines >= 2; }));
+  EXPECT_FALSE(formats::read_baseline(s.dir / "trained.bin").classes.empty());
+  EXPECT_EQ(temp_files(s.dir), 0U);
+  s.expect_baseline_kept();
 }
 
 /// `bytes` with the first float equal to `find` replaced by `value` and the trailing CRC-32 recomputed.
@@ -630,6 +666,7 @@ TEST_F(FaultMatrix, ClearCauseNoDataLostStillServing) {
       {"status directory full (EFBIG)", status_disk_full},
       {"status directory deleted", status_dir_deleted},
       {"baseline write failure in field training", baseline_write_failure},
+      {"spill write failure in field training (EFBIG)", spill_write_failure},
       {"corrupt baseline (CRC)", [] { bad_baseline("corrupt_baseline", false); }},
       {"forged CRC-valid baseline (NaN)", [] { bad_baseline("forged_baseline", true); }},
       {"symlinks at the temporary names", symlink_at_temp_names},

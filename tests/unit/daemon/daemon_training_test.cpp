@@ -340,6 +340,9 @@ TEST_F(Training, BaselineWriteFailureShowsInTheStatusAndIsRetried) {
   const fs::path out_dir = dir / "out";
   cfg.replace(cfg.find((dir / "trained.bin").string()), (dir / "trained.bin").string().size(),
               (out_dir / "trained.bin").string());
+  // The windows' spill file cannot live in the blocked directory: it has its own.
+  fs::create_directories(dir / "spill");
+  cfg.replace(cfg.find("[training]\n"), 11, "[training]\nspill_dir = \"" + (dir / "spill").string() + "\"\n");
   write_text(dir / "ptdad.toml", cfg);
   { std::ofstream blocker(out_dir); }
   DaemonOptions opt;

@@ -1,15 +1,21 @@
 #include "training/field_trainer.hpp"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <numbers>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "alloc_counter.hpp"
@@ -36,6 +42,9 @@ fs::path scratch(const std::string& name) {
 
 FieldTrainerConfig config() {
   FieldTrainerConfig c;
+  // Per test: ctest runs the tests of this file in parallel processes, and scratch() clears its directory.
+  c.spill_dir =
+      scratch(std::string("spill_") + ::testing::UnitTest::GetInstance()->current_test_info()->name());
   c.fs_hz = kFs;
   c.window_len = kLen;
   c.max_windows = 100;
@@ -69,6 +78,7 @@ class Feeder {
         x[n] = static_cast<float>(std::sin(2.0 * std::numbers::pi * 8.0 * n / kLen)) + noise(rng_);
       }
       EXPECT_TRUE(t_.add_window(ref, x));
+      t_.flush();  // as the writer thread would (these tests do not start it)
     }
     dsp::RegionInfo r;
     r.seq = region;
@@ -133,10 +143,14 @@ TEST(FieldTrainer, ProgressCountsCyclesAndWindowsPerClass) {
   EXPECT_TRUE(p.can_finish);
   EXPECT_FALSE(p.ready);
 
-  // A window whose speed matches no class seen so far.
+  // A window whose speed matches no class seen so far; queued, it is not counted before it is written.
   dsp::WindowRef stray;
   stray.speed_rad_s = 2.0;
   EXPECT_TRUE(t.add_window(stray, std::vector<float>(kLen, 0.0F)));
+  EXPECT_EQ(t.progress().windows_queued, 1U);
+  EXPECT_EQ(t.progress().windows_unmatched, 0U);
+  t.flush();
+  EXPECT_EQ(t.progress().windows_queued, 0U);
   EXPECT_EQ(t.progress().windows_unmatched, 1U);
 }
 
@@ -214,6 +228,7 @@ TEST(FieldTrainer, FullPoolIsCountedAndRejectedWindowsToo) {
   dsp::WindowRef ref;
   for (int i = 0; i < 7; ++i) t.add_window(ref, x);
   EXPECT_FALSE(t.add_window(ref, x));
+  t.flush();
   dsp::RegionInfo r;
   r.mean_speed_rad_s = 0.5;
   EXPECT_TRUE(t.add_region(r));
@@ -221,25 +236,130 @@ TEST(FieldTrainer, FullPoolIsCountedAndRejectedWindowsToo) {
   EXPECT_FALSE(t.add_region(r));
   r.mean_speed_rad_s = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(t.add_region(r));
+  const TrainingProgress p = t.progress();
+  EXPECT_EQ(p.windows, 5U);
+  EXPECT_EQ(p.windows_dropped, 3U);
+  EXPECT_EQ(t.counters().windows_dropped, 3U);
+  EXPECT_EQ(t.counters().windows_queue_full, 0U);
+  EXPECT_EQ(p.regions_dropped, 1U);
+  EXPECT_EQ(p.windows_rejected, 1U);  // the NaN region
 
   std::vector<float> bad(kLen, 0.0F);
   bad[10] = std::numeric_limits<float>::infinity();
-  t.reset();
-  EXPECT_EQ(t.counters().windows, 0U);
-  EXPECT_FALSE(t.add_window(ref, bad));
-  EXPECT_FALSE(t.add_window(ref, std::vector<float>(kLen - 1, 0.0F)));
-  EXPECT_TRUE(t.add_window(ref, x));
-  const FieldTrainerCounters k = t.counters();
+  FieldTrainer u(c);
+  EXPECT_FALSE(u.add_window(ref, bad));
+  EXPECT_FALSE(u.add_window(ref, std::vector<float>(kLen - 1, 0.0F)));
+  EXPECT_TRUE(u.add_window(ref, x));
+  u.flush();
+  const FieldTrainerCounters k = u.counters();
   EXPECT_EQ(k.windows, 1U);
   EXPECT_EQ(k.windows_rejected, 2U);
-  EXPECT_EQ(t.progress().windows, 1U);
+  EXPECT_EQ(u.progress().windows, 1U);
+}
 
-  FieldTrainer u(c);
-  for (int i = 0; i < 8; ++i) u.add_window(ref, x);
-  const TrainingProgress p = u.progress();
-  EXPECT_EQ(p.windows, 5U);
-  EXPECT_EQ(p.windows_dropped, 3U);
-  EXPECT_EQ(u.counters().windows_dropped, 3U);
+// The windows live on disk, not in RAM: a writer that falls behind costs windows (counted), never
+// memory, and the processing thread never waits for it.
+TEST(FieldTrainer, AFullQueueIsCountedAndTheSpillFileLeavesNothingBehind) {
+  const FieldTrainerConfig c = config();
+  FieldTrainer t(c);
+  // The spill file is anonymous: nothing in the directory, during training or after.
+  EXPECT_TRUE(fs::is_empty(c.spill_dir));
+  const std::vector<float> x(kLen, 0.5F);
+  dsp::WindowRef ref;
+  int accepted = 0;
+  for (std::size_t i = 0; i < FieldTrainer::kSpillSlots + 3; ++i) accepted += t.add_window(ref, x) ? 1 : 0;
+  EXPECT_EQ(accepted, static_cast<int>(FieldTrainer::kSpillSlots));
+  EXPECT_EQ(t.free_slots(), 0U);
+  EXPECT_EQ(t.counters().windows_queue_full, 3U);
+  EXPECT_EQ(t.progress().windows_dropped, 3U);
+  t.flush();
+  EXPECT_EQ(t.free_slots(), FieldTrainer::kSpillSlots);
+  EXPECT_EQ(t.progress().windows, FieldTrainer::kSpillSlots);
+  EXPECT_TRUE(t.add_window(ref, x));
+  EXPECT_TRUE(fs::is_empty(c.spill_dir));
+}
+
+// A failing disk: the window is counted as a failed write with its errno and not published; the
+// windows before it still train.
+TEST(FieldTrainer, AFailedSpillWriteIsCountedWithItsErrorAndTheWindowIsNotKept) {
+  FieldTrainer t(config());
+  Feeder f(t);
+  for (int k = 0; k < 3; ++k) f.cycle(kFwd);
+  const int full = ::open("/dev/full", O_WRONLY | O_CLOEXEC);
+  ASSERT_GE(full, 0);
+  const int saved = ::dup(t.spill_fd_for_test());
+  ASSERT_EQ(::dup2(full, t.spill_fd_for_test()), t.spill_fd_for_test());
+  const std::vector<float> x(kLen, 0.5F);
+  dsp::WindowRef ref;
+  ref.speed_rad_s = kFwd;
+  EXPECT_TRUE(t.add_window(ref, x));  // queued: the write fails later, on the writer
+  t.flush();
+  const FieldTrainerCounters k = t.counters();
+  EXPECT_EQ(k.windows_write_failed, 1U);
+  EXPECT_EQ(k.last_write_errno, ENOSPC);
+  EXPECT_EQ(k.windows, 6U);
+  EXPECT_EQ(t.progress().windows_dropped, 1U);
+  ASSERT_EQ(::dup2(saved, t.spill_fd_for_test()), t.spill_fd_for_test());
+  ::close(saved);
+  ::close(full);
+  const dsp::Baseline b = t.finish(scratch("failed_write") / "baseline.bin", FinishMode::kWhatIsThere);
+  ASSERT_EQ(b.classes.size(), 1U);
+  EXPECT_EQ(b.classes[0].n_windows, 6U);
+}
+
+// The writer thread against the in-memory training: the spill file round trip changes no byte.
+TEST(FieldTrainer, TheWriterThreadsWindowsTrainTheSameBaselineAsTheWindowsInMemory) {
+  FieldTrainer t(config());
+  t.start(nullptr);
+  dsp::CollectedWindows mem;
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0.0F, 0.05F);
+  std::uint64_t seq = 0;
+  for (int cycle = 0; cycle < 8; ++cycle) {
+    const double speed = cycle % 2 == 0 ? kFwd : kBack;
+    for (int k = 0; k < 3; ++k) {
+      dsp::WindowRef ref;
+      ref.seq = seq++;
+      ref.region_seq = static_cast<std::uint64_t>(cycle);
+      ref.index_in_region = static_cast<std::uint32_t>(k);
+      ref.first_sample = cycle * 1000 + k * static_cast<std::int64_t>(kLen);
+      ref.t_start_ns = ref.first_sample * 1'000'000;
+      ref.t_end_ns = ref.t_start_ns + kLen * 1'000'000;
+      ref.speed_rad_s = speed;
+      std::vector<float> x(kLen);
+      for (std::uint32_t n = 0; n < kLen; ++n) {
+        x[n] =
+            static_cast<float>(std::sin(2.0 * std::numbers::pi * (cycle % 2 == 0 ? 8.0 : 5.0) * n / kLen)) +
+            noise(rng);
+      }
+      // The processing thread never waits: a full queue here would be a drop (not expected at this pace).
+      while (t.free_slots() == 0) std::this_thread::yield();
+      ASSERT_TRUE(t.add_window(ref, x));
+      mem.refs.push_back(ref);
+      mem.windows.push_back(x);
+    }
+    dsp::RegionInfo r;
+    r.seq = static_cast<std::uint64_t>(cycle);
+    r.t_begin_ns = cycle * 1'000'000'000LL;
+    r.t_end_ns = r.t_begin_ns + 500'000'000;
+    r.mean_speed_rad_s = speed;
+    r.direction = speed < 0 ? -1 : 1;
+    ASSERT_TRUE(t.add_region(r));
+    mem.regions.push_back(r);
+  }
+  t.stop();
+  EXPECT_EQ(t.progress().windows, 24U);
+  const fs::path dir = scratch("writer");
+  const dsp::Baseline spilled = t.finish(dir / "spilled.bin");
+  dsp::Baseline direct = dsp::train_baseline(mem, t.config().classes, t.config().thresholds, kFs, {});
+  direct.source = spilled.source;
+  formats::write_baseline(dir / "direct.bin", direct);
+  ASSERT_EQ(spilled.classes.size(), 2U);
+  std::ifstream a(dir / "spilled.bin", std::ios::binary), b(dir / "direct.bin", std::ios::binary);
+  const std::string sa((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
+  const std::string sb((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
+  EXPECT_GT(sa.size(), 1000U);
+  EXPECT_TRUE(sa == sb) << "the baseline trained from the spill file differs from the in-memory one";
 }
 
 TEST(FieldTrainer, AddingMakesNoAllocations) {
@@ -255,6 +375,7 @@ TEST(FieldTrainer, AddingMakesNoAllocations) {
       ref.seq = static_cast<std::uint64_t>(i);
       accepted += t.add_window(ref, x) ? 1 : 0;
       accepted += t.add_region(r) ? 1 : 0;
+      if (i % 16 == 15) t.flush();  // the writer's side allocates nothing either
     }
     EXPECT_EQ(scope.count(), 0U);
   }
@@ -325,8 +446,16 @@ TEST(FieldTrainer, RejectsBadConfiguration) {
   EXPECT_NE(what_of([&] { FieldTrainer t(c); }).find("training.target_cycles"), std::string::npos);
   c = config();
   c.max_windows = 1'000'000;
-  c.window_len = 1024;  // 3.8 GiB
+  c.window_len = 32768;  // 122 GiB of disk
   EXPECT_NE(what_of([&] { FieldTrainer t(c); }).find("training.max_windows"), std::string::npos);
+  c = config();
+  c.spill_dir = scratch("spill_missing") / "missing";
+  EXPECT_EQ(what_of([&] { FieldTrainer t(c); })
+                .rfind("training.spill_dir: cannot create the field-training "
+                       "spill file in " +
+                           c.spill_dir.string() + ": ",
+                       0),
+            0U);
 }
 
 }  // namespace
