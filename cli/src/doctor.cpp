@@ -61,7 +61,11 @@ struct IdTrial {
     if (decoded == 0 || v < lo) lo = v;
     if (decoded == 0 || v > hi) hi = v;
     ++decoded;
-    if (speeds.size() < kLikenessFrames) speeds.push_back(v);
+    if (speeds.size() < kLikenessFrames) {
+      if (speeds.empty()) speeds.reserve(kLikenessFrames / 16);
+      if (speeds.size() == speeds.capacity()) speeds.reserve(std::min(2 * speeds.size(), kLikenessFrames));
+      speeds.push_back(v);
+    }
   }
 };
 
@@ -210,6 +214,9 @@ class DoctorSink final : public PipelineSink {
   std::uint64_t speeds = 0;  // speed samples, and their range (kept as counts: memory stays flat)
   double speed_lo = 0.0, speed_hi = 0.0;
   std::int64_t first_speed_t_ns = 0, last_speed_t_ns = 0;
+  // The plateaus are judged on the first kPlateauRegions (memory stays flat on long recordings); the
+  // windows are kept up to the end of the last of them.
+  static constexpr std::size_t kPlateauRegions = std::size_t{1} << 16;
   std::vector<dsp::RegionInfo> regions;
   std::vector<std::int64_t> window_starts;  // t_start_ns of each configured window
   std::vector<float> fastest_window;
@@ -219,7 +226,9 @@ class DoctorSink final : public PipelineSink {
   void drain() {
     dsp::WindowRef ref;
     while (configured_.pop(ref, buf_)) {
-      window_starts.push_back(ref.t_start_ns);
+      if (regions.size() < kPlateauRegions || ref.t_start_ns <= regions.back().t_end_ns) {
+        window_starts.push_back(ref.t_start_ns);
+      }
       // The configured windows are longer (a finer spectrum): preferred for the GMF check.
       if (!configured_fastest_ || std::fabs(ref.speed_rad_s) > fastest_speed_rad_s) {
         configured_fastest_ = true;
@@ -236,7 +245,9 @@ class DoctorSink final : public PipelineSink {
         fastest_window = relaxed_buf_;
       }
     }
-    while (relaxed_.pop_region(r)) regions.push_back(r);
+    while (relaxed_.pop_region(r)) {
+      if (regions.size() < kPlateauRegions) regions.push_back(r);
+    }
   }
 
   bool configured_fastest_ = false;

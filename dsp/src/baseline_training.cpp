@@ -221,9 +221,11 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
   // its held-out windows' features.
   struct Plan {
     ClassBaselineBuilder builder;
-    std::map<std::uint64_t, std::size_t> group_size;  // fit groups, ascending, and their window counts
+    // Fit groups, ascending, and their window counts (a vector: 12 bytes a group, where a map node
+    // took about 64; one window per group is common).
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> group_size;
     std::map<std::uint64_t, std::vector<std::pair<std::vector<float>, std::uint32_t>>> pending;
-    std::map<std::uint64_t, std::size_t>::const_iterator next_group;
+    std::size_t next_group = 0;
     std::vector<std::array<Features, kMethodCount>> held;  // features of the held-out windows, in cut order
     std::size_t held_windows = 0;
     std::size_t class_windows = 0;  // windows matching the class (fit and held out)
@@ -260,17 +262,33 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
     const std::uint64_t first_held = n_hold == 0 ? ~std::uint64_t{0} : distinct[distinct.size() - n_hold];
     SegmentClass renumbered = seg;
     renumbered.id = static_cast<std::uint32_t>(plans.size());
-    Plan plan{ClassBaselineBuilder(renumbered, n, policy), {}, {}, {}, {}, 0, 0, {}, {}, {}};
+    Plan plan{ClassBaselineBuilder(renumbered, n, policy), {}, {}, 0, {}, 0, 0, {}, {}, {}};
     for (std::size_t j = 0; j < members[k].windows.size(); ++j) {
       const std::size_t i = members[k].windows[j];
       plan_of[i] = static_cast<std::int32_t>(plans.size());
-      if (members[k].groups[j] >= first_held) {
+      const std::uint64_t g = members[k].groups[j];
+      if (g >= first_held) {
         is_held[i] = true;
         ++plan.held_windows;
+      } else if (!plan.group_size.empty() && plan.group_size.back().first == g) {
+        ++plan.group_size.back().second;  // a group's windows come in a run (cut order)
       } else {
-        ++plan.group_size[members[k].groups[j]];
+        plan.group_size.emplace_back(g, 1U);
       }
     }
+    // Cut order is group order within a recording; sort (stable) and merge runs of a group, in case not.
+    std::stable_sort(plan.group_size.begin(), plan.group_size.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::size_t merged = 0;
+    for (std::size_t j = 0; j < plan.group_size.size(); ++j) {
+      if (merged > 0 && plan.group_size[merged - 1].first == plan.group_size[j].first) {
+        plan.group_size[merged - 1].second += plan.group_size[j].second;
+      } else {
+        plan.group_size[merged++] = plan.group_size[j];
+      }
+    }
+    plan.group_size.resize(merged);
+    plan.group_size.shrink_to_fit();
     plan.class_windows = members[k].windows.size();
     plans.push_back(std::move(plan));
   }
@@ -301,7 +319,7 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
   check_complete("pass 1");
   for (Plan& p : plans) {
     p.builder.finish_mean();
-    p.next_group = p.group_size.cbegin();
+    p.next_group = 0;
     if (policy.mesh_stats) {
       const ClassBaseline& c = p.builder.means();
       p.mesh.emplace(mesh_geometry(fs_hz, n, gearbox, c.segment), c.mean_magnitude);
@@ -338,9 +356,10 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
     }
     p.pending[group[i]].emplace_back(std::vector<float>(x.begin(), x.end()),
                                      data.recording.empty() ? 0U : data.recording[i]);
-    while (p.next_group != p.group_size.cend()) {
-      const auto it = p.pending.find(p.next_group->first);
-      if (it == p.pending.end() || it->second.size() < p.next_group->second) break;
+    while (p.next_group < p.group_size.size()) {
+      const auto& [next_id, next_count] = p.group_size[p.next_group];
+      const auto it = p.pending.find(next_id);
+      if (it == p.pending.end() || it->second.size() < next_count) break;
       group_windows.clear();
       group_recordings.clear();
       for (const auto& [w, rec] : it->second) {
@@ -357,7 +376,7 @@ Baseline train_baseline_streamed(const CollectedWindows& data, std::size_t n, co
   check_complete("pass 2");
 
   for (Plan& p : plans) {
-    if (p.next_group != p.group_size.cend() || p.held.size() != p.held_windows) {
+    if (p.next_group != p.group_size.size() || p.held.size() != p.held_windows) {
       throw Error("train_baseline: pass 2 left windows of class " +
                   std::to_string(p.builder.means().segment.id) +
                   " unscored (the windows changed between passes)");

@@ -121,6 +121,52 @@ double small_sample_scale(std::uint32_t n, const ThresholdPolicy& policy) noexce
   }
 }
 
+void VarianceAccumulator::add(double value, std::uint32_t group) {
+  if (last_ >= groups_.size() || groups_[last_].id != group) {
+    last_ = 0;
+    while (last_ < groups_.size() && groups_[last_].id != group) ++last_;
+    if (last_ == groups_.size()) groups_.push_back(Group{group, 0, 0.0, 0.0, 0.0});
+  }
+  Group& g = groups_[last_];
+  ++g.n;
+  g.sum += value;
+  const double d = value - g.mean;
+  g.mean += d / static_cast<double>(g.n);
+  g.m2 += d * (value - g.mean);
+  total_ += value;
+  ++n_;
+}
+
+VarianceComponents VarianceAccumulator::result() const {
+  if (n_ == 0) throw Error("variance_components: no values");
+  VarianceComponents vc;
+  vc.n = static_cast<std::uint32_t>(n_);
+  const auto n = static_cast<double>(n_);
+  const auto r = static_cast<double>(groups_.size());
+  vc.groups = static_cast<std::uint32_t>(groups_.size());
+  vc.mean = total_ / n;
+  // Within: the groups' own squared deviations; total = within + between (exact for any split).
+  double ssw = 0.0;
+  double ssb = 0.0;
+  double sum_n2 = 0.0;
+  for (const Group& g : groups_) {
+    const auto ng = static_cast<double>(g.n);
+    const double d = g.sum / ng - vc.mean;
+    ssw += g.m2;
+    ssb += ng * d * d;
+    sum_n2 += ng * ng;
+  }
+  if (groups_.size() < 2 || n_ == groups_.size()) {
+    vc.within_var = n_ > 1 ? (ssw + ssb) / (n - 1.0) : 0.0;
+    return vc;
+  }
+  vc.within_var = ssw / (n - r);
+  vc.msb = ssb / (r - 1.0);
+  vc.n0 = (n - sum_n2 / n) / (r - 1.0);
+  vc.between_var = std::max(0.0, (vc.msb - vc.within_var) / vc.n0);
+  return vc;
+}
+
 VarianceComponents variance_components(std::span<const double> values,
                                        std::span<const std::uint32_t> groups) {
   if (values.empty()) throw Error("variance_components: no values");
@@ -128,45 +174,9 @@ VarianceComponents variance_components(std::span<const double> values,
     throw Error("variance_components: " + std::to_string(groups.size()) + " group ids for " +
                 std::to_string(values.size()) + " values");
   }
-  VarianceComponents vc;
-  vc.n = static_cast<std::uint32_t>(values.size());
-  std::map<std::uint32_t, std::pair<double, std::size_t>> sums;  // group -> (sum, count)
-  double total = 0.0;
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    auto& g = sums[groups.empty() ? 0U : groups[i]];
-    g.first += values[i];
-    ++g.second;
-    total += values[i];
-  }
-  const auto n = static_cast<double>(values.size());
-  const auto r = static_cast<double>(sums.size());
-  vc.groups = static_cast<std::uint32_t>(sums.size());
-  vc.mean = total / n;
-  double ss_total = 0.0;
-  for (const double v : values) ss_total += (v - vc.mean) * (v - vc.mean);
-  if (sums.size() < 2 || values.size() == sums.size()) {
-    vc.within_var = values.size() > 1 ? ss_total / (n - 1.0) : 0.0;
-    return vc;
-  }
-  double ssw = 0.0;
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    const auto& g = sums.at(groups[i]);
-    const double d = values[i] - g.first / static_cast<double>(g.second);
-    ssw += d * d;
-  }
-  double ssb = 0.0;
-  double sum_n2 = 0.0;
-  for (const auto& [id, g] : sums) {
-    const auto ng = static_cast<double>(g.second);
-    const double d = g.first / ng - vc.mean;
-    ssb += ng * d * d;
-    sum_n2 += ng * ng;
-  }
-  vc.within_var = ssw / (n - r);
-  vc.msb = ssb / (r - 1.0);
-  vc.n0 = (n - sum_n2 / n) / (r - 1.0);
-  vc.between_var = std::max(0.0, (vc.msb - vc.within_var) / vc.n0);
-  return vc;
+  VarianceAccumulator acc;
+  for (std::size_t i = 0; i < values.size(); ++i) acc.add(values[i], groups.empty() ? 0U : groups[i]);
+  return acc.result();
 }
 
 SeqScale sequential_scale(const ClassBaseline& c, Method method, const ThresholdPolicy& policy,
@@ -339,7 +349,7 @@ struct ClassBaselineBuilder::State {
   // Band CUSUM statistics (policy.band_count > 0): clean floor bins of the full mean, and per band the
   // leave-one-out ln band energies of the referred PTDA residual, in the values' order.
   std::vector<unsigned char> clean;
-  std::vector<std::vector<double>> band_values;
+  std::vector<VarianceAccumulator> band_values;  ///< per band, added window by window (no value kept)
   std::array<double, kMaxBands> band_tmp{};
 };
 
@@ -415,8 +425,7 @@ void ClassBaselineBuilder::finish_mean() {
   if (s.policy.band_count > 0) {
     // From the mean of all the class's windows, like the line groups (docs/method.md §6, band detector).
     s.clean = clean_floor_bins(cls.mean_magnitude);
-    s.band_values.assign(s.policy.band_count, {});
-    for (auto& v : s.band_values) v.reserve(s.m);
+    s.band_values.assign(s.policy.band_count, VarianceAccumulator{});
   }
 }
 
@@ -479,7 +488,9 @@ void ClassBaselineBuilder::score_group(std::span<const std::span<const float>> w
     if (!s.band_values.empty()) {
       // analyze_all() ends with PTDA: the analyzer's energies are its (leave-one-out, referred) residual.
       band_log_energies(s.analyzer.residual_energy(), s.clean, s.band_values.size(), s.band_tmp);
-      for (std::size_t b = 0; b < s.band_values.size(); ++b) s.band_values[b].push_back(s.band_tmp[b]);
+      for (std::size_t b = 0; b < s.band_values.size(); ++b) {
+        s.band_values[b].add(s.band_tmp[b], recordings.empty() ? 0U : recordings[k]);
+      }
     }
   }
   ++s.groups;
@@ -572,7 +583,7 @@ ClassBaseline ClassBaselineBuilder::finish() {
     for (std::size_t b = 0; b < s.band_values.size(); ++b) {
       BandEnergyStats& st = cls.band_stats[b];
       st.clean_bins = clean_n[b];
-      const VarianceComponents v = variance_components(s.band_values[b], value_recording);
+      const VarianceComponents v = s.band_values[b].result();
       cls.band_recordings = v.groups;
       st.mean = v.mean;
       st.within_sd = std::sqrt(v.within_var);

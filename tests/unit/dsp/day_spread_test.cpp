@@ -32,6 +32,38 @@ TEST(VarianceComponents, UnbalancedOneWayClosedForm) {
   EXPECT_NEAR(vc.between_var, 6.153846153846153, 1e-12);
 }
 
+// The training keeps no band values since session 21: it adds them to accumulators window by window.
+// Same closed form as above (pinned there), groups interleaved as several recordings' windows are not.
+TEST(VarianceComponents, TheAccumulatorGivesTheClosedFormWhateverTheOrderOfGroups) {
+  const std::vector<double> v = {1, 2, 3, 4, 6, 5, 5, 8, 10};
+  const std::vector<std::uint32_t> g = {7, 7, 7, 2, 2, 9, 9, 9, 9};
+  for (const std::vector<std::size_t>& order : {std::vector<std::size_t>{0, 1, 2, 3, 4, 5, 6, 7, 8},
+                                                std::vector<std::size_t>{5, 0, 3, 6, 1, 4, 7, 2, 8},
+                                                std::vector<std::size_t>{8, 7, 6, 5, 4, 3, 2, 1, 0}}) {
+    VarianceAccumulator acc;
+    for (const std::size_t i : order) acc.add(v[i], g[i]);
+    const VarianceComponents vc = acc.result();
+    EXPECT_EQ(acc.count(), 9U);
+    EXPECT_EQ(vc.groups, 3U);
+    EXPECT_NEAR(vc.mean, 4.888888888888889, 1e-14);
+    EXPECT_NEAR(vc.within_var, 3.6666666666666665, 1e-13);
+    EXPECT_NEAR(vc.msb, 21.444444444444443, 1e-12);
+    EXPECT_NEAR(vc.n0, 2.888888888888889, 1e-14);
+    EXPECT_NEAR(vc.between_var, 6.153846153846153, 1e-12);
+  }
+  // Large values with a small spread (ln band energies sit near a constant): Welford keeps the
+  // within-group variance where a sum of squares would cancel. 1e8 + k * 1e-3, k = 0..3, two groups.
+  VarianceAccumulator big;
+  for (int k = 0; k < 4; ++k) big.add(1e8 + k * 1e-3, 0);
+  for (int k = 0; k < 4; ++k) big.add(1e8 + k * 1e-3, 1);
+  const VarianceComponents b = big.result();
+  // Each group: squared deviations 2 x (1.5e-3^2 + 0.5e-3^2) = 5e-6; MSW = 1e-5 / (8 - 2). The inputs
+  // themselves carry 1e8's rounding (ulp 1.5e-8), hence 1e-9; a sum of squares (~4e16) would lose it all.
+  EXPECT_NEAR(b.within_var, 1e-5 / 6.0, 1e-9);
+  EXPECT_EQ(b.between_var, 0.0);
+  EXPECT_THROW((void)VarianceAccumulator{}.result(), Error);
+}
+
 TEST(VarianceComponents, OneGroupAndNoBetweenSpread) {
   const std::vector<double> v = {1, 2, 3, 4, 6};
   const VarianceComponents one = variance_components(v, {});

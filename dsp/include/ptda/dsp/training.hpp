@@ -57,6 +57,32 @@ struct VarianceComponents {
 [[nodiscard]] VarianceComponents variance_components(std::span<const double> values,
                                                      std::span<const std::uint32_t> groups);
 
+/// variance_components() without keeping the values: add them one at a time (any order of groups).
+/// Per group it keeps the count, the sum and Welford's running sum of squared deviations, so memory is
+/// O(groups), not O(values). The grand mean and the group means are the same sums in the same order as
+/// variance_components()'s, and that function is built on this class, so both give the same result.
+/// Thread: any (one object per thread). add() allocates when a new group appears.
+class VarianceAccumulator {
+ public:
+  void add(double value, std::uint32_t group);
+  /// Throws ptda::Error when no value was added.
+  [[nodiscard]] VarianceComponents result() const;
+  [[nodiscard]] std::size_t count() const noexcept { return n_; }
+
+ private:
+  struct Group {
+    std::uint32_t id = 0;
+    std::size_t n = 0;
+    double sum = 0.0;
+    double mean = 0.0;  ///< Welford's running mean (for m2 only)
+    double m2 = 0.0;    ///< sum of squared deviations from the group mean
+  };
+  std::vector<Group> groups_;  ///< in order of first appearance (few: one per recording)
+  std::size_t last_ = 0;       ///< the group of the previous value (values come in runs)
+  double total_ = 0.0;
+  std::size_t n_ = 0;
+};
+
 /// The sequential detector's standardisation for `method` in class `c` (docs/method.md §6): means of the
 /// leave-one-out ln(rms_res) and entropy_res, their within-day sds (c.day_spread; the stats' stddev for a
 /// baseline of format <= 3), the small-sample scale c_n of small_sample_scale(), and the between-day
