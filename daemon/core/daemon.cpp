@@ -453,6 +453,10 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
   }
   if (mode == PipelineMode::kTrain) fresh->set_previous_trainer(carried_trainer_.get());
   fresh->configure();
+  if (fresh->trainer() != nullptr) {
+    const std::string room = fresh->trainer()->spill_space_warning();
+    if (!room.empty()) spdlog::warn("{}", room);
+  }
   fresh->activate();
   if (mode != PipelineMode::kTrain) {
     carried_trainer_.reset();

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -123,6 +124,23 @@ FieldTrainer::FieldTrainer(const FieldTrainerConfig& cfg) : cfg_(cfg) {
   refs_.assign(cfg.max_windows, dsp::WindowRef{});
   regions_.assign(cfg.max_regions, dsp::RegionInfo{});
   fd_ = create_spill_file(cfg.spill_dir.empty() ? std::filesystem::path(".") : cfg.spill_dir);
+}
+
+std::string FieldTrainer::spill_space_text(const std::filesystem::path& dir, std::uint64_t need_bytes,
+                                           std::uint64_t free_bytes) {
+  if (free_bytes >= need_bytes) return {};
+  return "field training: the spill file in " + dir.string() + " may grow to " +
+         std::to_string(need_bytes >> 20) + " MiB ([training] max_windows x window_len x 4 bytes) but " +
+         std::to_string(free_bytes >> 20) +
+         " MiB are free there: windows that do not fit will be dropped (training.dropped); lower "
+         "[training] max_windows or set [training] spill_dir";
+}
+
+std::string FieldTrainer::spill_space_warning() const {
+  struct statvfs st {};
+  if (fd_ < 0 || ::fstatvfs(fd_, &st) != 0) return {};
+  const std::uint64_t free_bytes = std::uint64_t{st.f_bavail} * st.f_frsize;
+  return spill_space_text(cfg_.spill_dir, max_spill_bytes(), free_bytes);
 }
 
 FieldTrainer::~FieldTrainer() {

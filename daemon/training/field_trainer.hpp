@@ -170,6 +170,12 @@ class FieldTrainer {
   /// Thread: any. Never allocates or blocks.
   [[nodiscard]] FieldTrainerCounters counters() const noexcept;
   [[nodiscard]] std::uint64_t window_capacity() const noexcept { return cfg_.max_windows; }
+  /// The warning to log when the spill file's file system has less room than the file may need
+  /// (max_spill_bytes()), else "". Thread: the main thread (after configure). Never throws; one fstatvfs.
+  [[nodiscard]] std::string spill_space_warning() const;
+  /// The text of that warning for `need_bytes` against `free_bytes` in `dir` ("" when it fits).
+  [[nodiscard]] static std::string spill_space_text(const std::filesystem::path& dir,
+                                                    std::uint64_t need_bytes, std::uint64_t free_bytes);
   /// Test hook: the spill file's descriptor (a test swaps in /dev/full to see a failing disk).
   [[nodiscard]] int spill_fd_for_test() const noexcept { return fd_; }
   /// Bytes one window takes in the spill file, and the most the file can grow to.

@@ -279,6 +279,20 @@ TEST(FieldTrainer, AFullQueueIsCountedAndTheSpillFileLeavesNothingBehind) {
   EXPECT_TRUE(fs::is_empty(c.spill_dir));
 }
 
+// Configure checks the room for the spill file: a warning (not an error: the windows that fit still
+// train) naming the directory, the sizes and the fix.
+TEST(FieldTrainer, TooLittleRoomForTheSpillFileIsSaid) {
+  EXPECT_EQ(
+      FieldTrainer::spill_space_text("/var/lib/ptda", std::uint64_t{200} << 20, std::uint64_t{150} << 20),
+      "field training: the spill file in /var/lib/ptda may grow to 200 MiB ([training] max_windows x "
+      "window_len x 4 bytes) but 150 MiB are free there: windows that do not fit will be dropped "
+      "(training.dropped); lower [training] max_windows or set [training] spill_dir");
+  EXPECT_EQ(FieldTrainer::spill_space_text("/x", 100, 100), "");
+  const FieldTrainer t(config());  // 100 windows of 64 samples: 25 KiB
+  EXPECT_EQ(t.max_spill_bytes(), 100U * 64U * 4U);
+  EXPECT_EQ(t.spill_space_warning(), "");
+}
+
 // A failing disk: the window is counted as a failed write with its errno and not published; the
 // windows before it still train.
 TEST(FieldTrainer, AFailedSpillWriteIsCountedWithItsErrorAndTheWindowIsNotKept) {
