@@ -1,6 +1,7 @@
 // ptdad: the condition-monitoring daemon (docs/daemon.md).
 #include <spdlog/spdlog.h>
 
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -121,6 +122,9 @@ Cli parse_cli(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A file size limit (LimitFSIZE=) must fail a write with EFBIG, which the writers count and report
+  // (status files, the baseline, field training's spill file), not kill the daemon with SIGXFSZ.
+  std::signal(SIGXFSZ, SIG_IGN);
   Cli cli = parse_cli(argc, argv);
   using namespace ptda::daemon;
 

@@ -61,11 +61,7 @@ struct IdTrial {
     if (decoded == 0 || v < lo) lo = v;
     if (decoded == 0 || v > hi) hi = v;
     ++decoded;
-    if (speeds.size() < kLikenessFrames) {
-      if (speeds.empty()) speeds.reserve(kLikenessFrames / 16);
-      if (speeds.size() == speeds.capacity()) speeds.reserve(std::min(2 * speeds.size(), kLikenessFrames));
-      speeds.push_back(v);
-    }
+    if (speeds.size() < kLikenessFrames) speeds.push_back(v);
   }
 };
 
@@ -217,6 +213,8 @@ class DoctorSink final : public PipelineSink {
   // The plateaus are judged on the first kPlateauRegions (memory stays flat on long recordings); the
   // windows are kept up to the end of the last of them.
   static constexpr std::size_t kPlateauRegions = std::size_t{1} << 16;
+  static constexpr std::size_t kPlateauWindows = std::size_t{1} << 20;  // 8 MiB of window starts
+  bool capped = false;  // regions beyond kPlateauRegions came: the last kept one is cut, like an edge
   std::vector<dsp::RegionInfo> regions;
   std::vector<std::int64_t> window_starts;  // t_start_ns of each configured window
   std::vector<float> fastest_window;
@@ -226,7 +224,8 @@ class DoctorSink final : public PipelineSink {
   void drain() {
     dsp::WindowRef ref;
     while (configured_.pop(ref, buf_)) {
-      if (regions.size() < kPlateauRegions || ref.t_start_ns <= regions.back().t_end_ns) {
+      if ((regions.size() < kPlateauRegions || ref.t_start_ns <= regions.back().t_end_ns) &&
+          window_starts.size() < kPlateauWindows) {
         window_starts.push_back(ref.t_start_ns);
       }
       // The configured windows are longer (a finer spectrum): preferred for the GMF check.
@@ -246,7 +245,11 @@ class DoctorSink final : public PipelineSink {
       }
     }
     while (relaxed_.pop_region(r)) {
-      if (regions.size() < kPlateauRegions) regions.push_back(r);
+      if (regions.size() < kPlateauRegions) {
+        regions.push_back(r);
+      } else {
+        capped = true;
+      }
     }
   }
 
@@ -741,6 +744,8 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
         r.t_end_ns, 0,
         r.t_begin_ns <= sink.first_speed_t_ns + edge_ns || r.t_end_ns >= sink.last_speed_t_ns - edge_ns});
   }
+  // Plateaus beyond kPlateauRegions were not kept: the last kept piece may continue in them.
+  if (sink.capped && !regions.empty()) regions.back().edge = true;
   // Pieces of one plateau (broken by a single speed outlier) are merged back: same direction and
   // speed, at most 3 speed periods apart.
   {

@@ -451,6 +451,7 @@ void Daemon::restart_pipeline(const DaemonConfig& cfg, PipelineMode mode) {
     }
     pipeline_.reset();
   }
+  training_end_seen_ = false;
   if (mode == PipelineMode::kTrain) fresh->set_previous_trainer(carried_trainer_.get());
   fresh->configure();
   if (fresh->trainer() != nullptr) {
@@ -934,6 +935,9 @@ void Daemon::report_level_change(const LevelChange& c, const PipelineStatus& ps,
 void Daemon::check_training(std::int64_t now) {
   if (mode_ != PipelineMode::kTrain || !pipeline_ || pipeline_->trainer() == nullptr) return;
   const FieldTrainer& trainer = *pipeline_->trainer();
+  // The end first, then the progress: a window published in between is then counted, not missed. At
+  // the end of a replay the last windows may still wait in the slicer or be on their way to the file.
+  const bool ended = pipeline_->status().ended && !pipeline_->training_backlog() && trainer.queued() == 0;
   const TrainingProgress progress = trainer.progress();  // allocates: training mode only
   snapshot_.training_windows = progress.windows;
   snapshot_.training_capacity = progress.window_capacity;
@@ -951,13 +955,11 @@ void Daemon::check_training(std::int64_t now) {
         "field training: {} window(s) not kept: {} failed writes to the spill file in {} (last: {}), "
         "{} while the writer was behind",
         tk.windows_write_failed + tk.windows_queue_full - training_spill_problems_, tk.windows_write_failed,
-        training_spill_dir(cfg_).string(),
+        trainer.config().spill_dir.string(),
         tk.last_write_errno != 0 ? std::strerror(tk.last_write_errno) : "none", tk.windows_queue_full);
     training_spill_problems_ = tk.windows_write_failed + tk.windows_queue_full;
   }
   const bool timed_out = now - training_started_ns_ > seconds_to_ns(cfg_.training.max_duration_s);
-  // At the end of a replay the last windows may still be on their way to the spill file.
-  const bool ended = pipeline_->status().ended && trainer.queued() == 0;
   training_end_seen_ = ended;
   if (!progress.ready && !((timed_out || ended) && progress.can_finish)) return;
   if (baseline_health_.failing && now < baseline_retry_ns_) return;  // backoff after a failed write

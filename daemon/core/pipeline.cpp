@@ -450,7 +450,7 @@ void Pipeline::activate() {
     pthread_setname_np(acq_thread_.native_handle(), "ptdad-acq");
     pthread_setname_np(can_thread_.native_handle(), "ptdad-can");
   }
-  if (trainer_) trainer_->start(&work_signal_);
+  if (trainer_) trainer_->start(source_fast_ ? &work_signal_ : nullptr);  // only a fast replay waits for it
   proc_thread_ = std::thread([this] { processing_loop(); });
   pthread_setname_np(proc_thread_.native_handle(), "ptdad-proc");
 }
@@ -867,19 +867,35 @@ void Pipeline::drain_windows(std::int64_t now) noexcept {
       coverage_->on_discarded_total(sc.windows_invalid + sc.windows_lost + sc.windows_overflow);
     }
   }
-  if (train_slicer_) {
-    dsp::WindowRef ref;
-    while (train_slicer_->pop(ref, std::span<float>(train_window_))) {
-      ++st_.windows;
-      trainer_->add_window(ref, train_window_);
+  if (train_slicer_) drain_training();
+}
+
+void Pipeline::drain_training() noexcept {
+  // A fast replay takes a window out of the slicer only when the trainer's queue has a slot: the rest
+  // wait in the slicer's history (no block is released meanwhile, so no sample overwrites them).
+  // A real-time source cannot wait: a window that finds the queue full is dropped and counted.
+  dsp::WindowRef ref;
+  bool backlog = false;
+  for (;;) {
+    if (source_fast_ && trainer_->free_slots() == 0) {
+      backlog = train_slicer_->has_window();
+      break;
     }
-    dsp::RegionInfo region;
-    while (train_slicer_->pop_region(region)) trainer_->add_region(region);
+    if (!train_slicer_->pop(ref, std::span<float>(train_window_))) break;
+    ++st_.windows;
+    trainer_->add_window(ref, train_window_);
   }
+  train_backlog_.store(backlog, std::memory_order_release);
+  dsp::RegionInfo region;
+  while (train_slicer_->pop_region(region)) trainer_->add_region(region);
 }
 
 bool Pipeline::process_step(std::int64_t now) noexcept {
   bool work = false;
+  if (train_slicer_ && source_fast_ && train_backlog_.load(std::memory_order_relaxed)) {
+    drain_training();  // windows that waited for the trainer's writer
+    work = !train_backlog_.load(std::memory_order_relaxed);
+  }
   // Only the valid samples of a block are copied out of the ring (a 256-sample block: 1 of 4 KiB).
   if (!have_block_ && sample_ring_->pop_with([this](const drivers::SampleBlock& b) noexcept {
         drivers::SampleBlock& h = *held_block_;
@@ -925,8 +941,11 @@ bool Pipeline::process_step(std::int64_t now) noexcept {
     const bool release =
         have_speed_ || can_end ||
         (!fast_ && (now - block_end > hold_ns_ || sample_ring_->size_approx() > kSampleRingBlocks * 3 / 4));
-    // Field training from a fast replay: wait (the writer rings work_signal_) rather than drop windows.
-    const bool trainer_room = !source_fast_ || !trainer_ || trainer_->free_slots() >= train_block_windows_;
+    // Field training from a fast replay: wait (the writer rings work_signal_) rather than drop windows:
+    // nothing left in the slicer, and room for what one block can complete.
+    const bool trainer_room =
+        !source_fast_ || !trainer_ ||
+        (!train_backlog_.load(std::memory_order_relaxed) && trainer_->free_slots() >= train_block_windows_);
     if (release && trainer_room) {
       push_block(b);
       have_block_ = false;

@@ -321,6 +321,11 @@ class Pipeline {
   [[nodiscard]] const DaemonConfig& config() const noexcept { return cfg_; }
   /// The field trainer (training mode), else nullptr. Thread: see FieldTrainer.
   [[nodiscard]] const FieldTrainer* trainer() const noexcept { return trainer_.get(); }
+  /// Fast replay in training mode: cut windows still wait in the slicer for room in the trainer's
+  /// queue (the end of the replay is not reached for training until they are out). Thread: any.
+  [[nodiscard]] bool training_backlog() const noexcept {
+    return train_backlog_.load(std::memory_order_acquire);
+  }
   /// A one-line description of the inputs, e.g. "adc sim (scenario ...), can sim". Thread: any.
   [[nodiscard]] const std::string& inputs_text() const noexcept { return inputs_text_; }
   /// Daemon-clock time that sample 0 of a WAV replay and the start of a candump replay map to; unset
@@ -344,6 +349,7 @@ class Pipeline {
   void configure_monitoring();                    ///< baseline, engine, coverage (or refusal_)
   void configure_order_front();                   ///< order domain: resampler, cutter, frame clock
   void configure_training();                      ///< slicer and FieldTrainer (takes over a previous pool)
+  void drain_training() noexcept;                 ///< train slicer -> FieldTrainer (processing thread)
   void configure_alarm_manager();                 ///< AlarmManager (warning, hold, latch)
   void configure_rings_and_timing();              ///< rings, blocks, staleness and hold times, status
 
@@ -430,7 +436,8 @@ class Pipeline {
   std::vector<float> order_nan_;                  ///< NaN chunk for gaps and invalid blocks
   std::unique_ptr<dsp::WindowSlicer> train_slicer_;
   std::unique_ptr<FieldTrainer> trainer_;
-  std::size_t train_block_windows_ = 1;  ///< queue slots a fast replay keeps free before releasing a block
+  std::size_t train_block_windows_ = 1;     ///< queue slots a fast replay keeps free before releasing a block
+  std::atomic<bool> train_backlog_{false};  ///< fast replay: cut windows wait in the train slicer
   const FieldTrainer* previous_trainer_ = nullptr;
   std::optional<TrainingCarryOver> carry_;
   std::vector<float> train_window_;

@@ -140,7 +140,9 @@ std::string FieldTrainer::spill_space_warning() const {
   struct statvfs st {};
   if (fd_ < 0 || ::fstatvfs(fd_, &st) != 0) return {};
   const std::uint64_t free_bytes = std::uint64_t{st.f_bavail} * st.f_frsize;
-  return spill_space_text(cfg_.spill_dir, max_spill_bytes(), free_bytes);
+  const std::uint64_t written = window_count_.load(std::memory_order_acquire) * window_bytes();
+  return spill_space_text(cfg_.spill_dir, max_spill_bytes() - std::min(written, max_spill_bytes()),
+                          free_bytes);
 }
 
 FieldTrainer::~FieldTrainer() {
@@ -161,6 +163,7 @@ void FieldTrainer::stop() noexcept {
   stop_.store(true, std::memory_order_release);
   work_.ring();
   writer_.join();
+  on_space_ = nullptr;  // it belongs to the pipeline, which may go before this trainer (a reload)
 }
 
 void FieldTrainer::flush() noexcept {
@@ -215,7 +218,8 @@ bool FieldTrainer::add_window(const dsp::WindowRef& ref, std::span<const float> 
       return false;
     }
   }
-  if (taken_ >= cfg_.max_windows) {
+  // Windows whose write failed do not count against max_windows (the writer's counter only grows).
+  if (taken_ - write_failed_.get() >= cfg_.max_windows) {
     windows_dropped_.add();
     return false;
   }
@@ -385,6 +389,7 @@ TrainingCarryOver FieldTrainer::take_over(const FieldTrainer& previous) {
   }
   ::close(fd_);
   fd_ = shared;
+  cfg_.spill_dir = pc.spill_dir;  // the file stays where it was created: a reload cannot move it
   r.kept = true;
   r.windows = std::min<std::uint64_t>(old.windows, cfg_.max_windows);
   r.regions = std::min<std::uint64_t>(old.regions, cfg_.max_regions);

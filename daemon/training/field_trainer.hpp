@@ -131,8 +131,8 @@ class FieldTrainer {
   /// windows_queue_full), or the window has the wrong length or a non-finite sample
   /// (windows_rejected). Thread: the processing thread only. Never allocates, blocks or throws.
   bool add_window(const dsp::WindowRef& ref, std::span<const float> samples) noexcept;
-  /// Free queue slots now (at least this many add_window() calls will find room).
-  /// Thread: the processing thread. Never blocks or allocates.
+  /// Free queue slots now (for the processing thread: at least this many add_window() calls will find
+  /// room). Thread: any. Never blocks or allocates.
   [[nodiscard]] std::size_t free_slots() const noexcept { return kSpillSlots - queue_.size_approx(); }
   /// Windows queued and not yet written. Thread: any. Never blocks or allocates.
   [[nodiscard]] std::size_t queued() const noexcept { return queue_.size_approx(); }
@@ -162,8 +162,10 @@ class FieldTrainer {
   /// is shared (a dup of its descriptor: `previous` stays valid, so a reload that fails can hand the
   /// same windows to the restart), and this trainer's own empty file is closed. Windows and regions
   /// added afterwards get region and sample numbers after the copied ones, so the two slicers'
-  /// numbering cannot merge windows into one overlap group. Call before start(). Thread: the main
-  /// thread (configure). Throws ptda::Error when the descriptor cannot be duplicated.
+  /// numbering cannot merge windows into one overlap group. The file stays in previous's spill_dir
+  /// (config().spill_dir says so afterwards). Call before start(): it sets counters that the writer and
+  /// the processing thread own once running. Thread: the main thread (configure). Throws ptda::Error
+  /// when the descriptor cannot be duplicated.
   TrainingCarryOver take_over(const FieldTrainer& previous);
 
   [[nodiscard]] const FieldTrainerConfig& config() const noexcept { return cfg_; }

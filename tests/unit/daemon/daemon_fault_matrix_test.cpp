@@ -497,13 +497,23 @@ void spill_write_failure() {
   {
     FileSizeLimit full(4 * state_bytes);
     dev.gate.t_ns = healthy()->loop_ns / 2;  // enough for 5 cycles per class, if the windows were kept
-    const bool dropped = wait_for([&] {
+    // Every window the slicer cut is either collected or counted as dropped (none lost silently, none
+    // held in RAM instead), once the replay reached the gate and the status caught up.
+    const auto slicer_windows = [](const std::string& t) {
+      const auto obj = t.find("\"slicer\":{");
+      const auto at = obj == std::string::npos ? obj : t.find("\"windows\":", obj);
+      return at == std::string::npos ? 0ULL : std::strtoull(t.c_str() + at + 10, nullptr, 10);
+    };
+    const bool accounted = wait_for([&] {
       text = read_text(s.status());
-      return training_u64(text, "dropped") > 0;
+      const std::uint64_t w = training_u64(text, "windows");
+      const std::uint64_t d = training_u64(text, "dropped");
+      return live.reach(dev, dev.gate.t_ns) && d > 0 && w + d == slicer_windows(text);
     });
     // (a) counted as dropped; (b) the windows written before stay.
-    EXPECT_TRUE(dropped) << text;
+    EXPECT_TRUE(accounted) << text;
     EXPECT_GE(training_u64(text, "windows"), before) << text;
+    EXPECT_LT(training_u64(text, "windows"), slicer_windows(text)) << text;
     EXPECT_TRUE(has(text, "\"state\":\"training\"")) << text;
     full.lift();
   }

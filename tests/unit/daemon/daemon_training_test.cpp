@@ -166,6 +166,48 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
       static_cast<unsigned long long>(healthy.pipeline.alarm_counters.alarms_raised));
 }
 
+// Field training from a fast replay waits for the spill file's writer instead of dropping windows,
+// even when one speed sample lets the slicer cut hundreds of windows at once (a run reaching
+// min_duration_s with a small hop) and the trainer's queue holds 32.
+TEST_F(Training, AFastReplayWaitsForTheSpillWriterInsteadOfDroppingWindows) {
+  const fs::path dir = scratch("training_backpressure");
+  const auto rec = make_sim_recording(arc_scenario(), 7);
+  FakeDevices dev(source_of(*rec), frames_of(*rec));
+  dev.gate.t_ns = rec->loop_ns / 8;
+  std::string cfg = train_config(dir, 1000);
+  const auto edit = [&](const std::string& from, const std::string& to) {
+    const auto at = cfg.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    cfg.replace(at, from.size(), to);
+  };
+  edit("hop = 3200\n", "hop = 32\n");
+  edit("max_windows_per_region = 1\n", "max_windows_per_region = 0\n");
+  edit("min_duration_s = 0.13\n", "min_duration_s = 0.5\n");
+  edit("[training]\n", "[training]\nmax_windows = 200000\nmax_regions = 1000\n");
+  write_text(dir / "ptdad.toml", cfg);
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  opt.train = true;
+  drivers::MonotonicClock clock;
+  Daemon d(opt, clock);
+  d.set_device_factory(&dev);
+  d.configure();
+  d.activate();
+  DaemonRunThread runner(d);
+  const fs::path status = dir / "status" / "status.json";
+  std::string text;
+  ASSERT_TRUE(wait_for([&] {
+    text = read_text(status);
+    return d.view().pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000 &&
+           training_u64(text, "windows") == d.view().pipeline.windows && training_u64(text, "windows") > 0;
+  })) << text;
+  // Hundreds of windows per cycle, every one written; none dropped.
+  EXPECT_GT(training_u64(text, "windows"), 1000U) << text;
+  EXPECT_EQ(training_u64(text, "dropped"), 0U) << text;
+  EXPECT_EQ(d.view().state, DaemonState::kTraining);
+}
+
 TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
   const fs::path dir = scratch("training_stop");
   const auto rec = make_sim_recording(arc_scenario(), 7);

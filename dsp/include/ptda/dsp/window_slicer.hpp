@@ -95,6 +95,12 @@ class WindowSlicer {
   /// in the history are skipped and counted. Returns false when none is complete yet.
   /// Thread: the owner's. Never allocates or blocks.
   bool pop(WindowRef& ref, std::span<float> out) noexcept;
+  /// Whether pop() has a window to consider now (the oldest cut window has all its samples; pop() may
+  /// still skip it as invalid or lost). Thread: the owner's. Never allocates or blocks.
+  [[nodiscard]] bool has_window() const noexcept {
+    return !pending_.empty() &&
+           pending_.front().first_sample + static_cast<std::int64_t>(cfg_.window_len) <= samples_total_;
+  }
   /// The next region that ended (and reached min_duration), oldest first; the last 256 are kept.
   /// Thread: the owner's. Never allocates or blocks.
   bool pop_region(RegionInfo& region) noexcept;
