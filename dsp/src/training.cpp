@@ -169,7 +169,6 @@ VarianceComponents VarianceAccumulator::result() const {
 
 VarianceComponents variance_components(std::span<const double> values,
                                        std::span<const std::uint32_t> groups) {
-  if (values.empty()) throw Error("variance_components: no values");
   if (!groups.empty() && groups.size() != values.size()) {
     throw Error("variance_components: " + std::to_string(groups.size()) + " group ids for " +
                 std::to_string(values.size()) + " values");

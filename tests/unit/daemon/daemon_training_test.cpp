@@ -39,6 +39,15 @@ std::string train_config(const fs::path& dir, std::uint32_t target_cycles) {
          std::to_string(target_cycles) + "\noutput = \"" + (dir / "trained.bin").string() + "\"\n\n" + pipe;
 }
 
+/// `ptdad --train --config DIR/ptdad.toml` without drop-ins.
+DaemonOptions training_options(const fs::path& dir) {
+  DaemonOptions opt;
+  opt.config_file = dir / "ptdad.toml";
+  opt.config_dir = fs::path();
+  opt.train = true;
+  return opt;
+}
+
 std::shared_ptr<const SourcePlan> source_of(const SimRecording& rec, float gain_from_to[3] = nullptr) {
   auto p = std::make_shared<SourcePlan>(plan_blocks(rec, 512));
   if (gain_from_to != nullptr) {
@@ -75,10 +84,7 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   FakeDevices dev(source_of(*rec), frames_of(*rec));
   dev.gate.t_ns = rec->loop_ns / 5;  // hold the data early in training, to look at the progress
   write_text(dir / "ptdad.toml", train_config(dir, kTarget));
-  DaemonOptions opt;
-  opt.config_file = dir / "ptdad.toml";
-  opt.config_dir = fs::path();
-  opt.train = true;
+  DaemonOptions opt = training_options(dir);
   opt.exit_at_end = true;
   drivers::MonotonicClock clock;
   Daemon d(opt, clock);
@@ -185,10 +191,7 @@ TEST_F(Training, AFastReplayWaitsForTheSpillWriterInsteadOfDroppingWindows) {
   edit("min_duration_s = 0.13\n", "min_duration_s = 0.5\n");
   edit("[training]\n", "[training]\nmax_windows = 200000\nmax_regions = 1000\n");
   write_text(dir / "ptdad.toml", cfg);
-  DaemonOptions opt;
-  opt.config_file = dir / "ptdad.toml";
-  opt.config_dir = fs::path();
-  opt.train = true;
+  DaemonOptions opt = training_options(dir);
   drivers::MonotonicClock clock;
   Daemon d(opt, clock);
   d.set_device_factory(&dev);
@@ -212,10 +215,7 @@ TEST_F(Training, StopAtAnyMomentLeavesNoPartialBaseline) {
   const fs::path dir = scratch("training_stop");
   const auto rec = make_sim_recording(arc_scenario(), 7);
   write_text(dir / "ptdad.toml", train_config(dir, 5));
-  DaemonOptions opt;
-  opt.config_file = dir / "ptdad.toml";
-  opt.config_dir = fs::path();
-  opt.train = true;
+  DaemonOptions opt = training_options(dir);
   drivers::MonotonicClock clock;
   const auto src = source_of(*rec);
   const auto frames = frames_of(*rec);
@@ -308,10 +308,7 @@ TEST_F(Training, ReloadKeepsTheCollectedWindowsUnlessTheWindowLengthChanges) {
   FakeDevices dev(source_of(*rec), frames_of(*rec));
   dev.gate.t_ns = rec->loop_ns / 5;  // every pipeline replays the stream from its start up to here
   write_text(dir / "ptdad.toml", train_config(dir, 12));
-  DaemonOptions opt;
-  opt.config_file = dir / "ptdad.toml";
-  opt.config_dir = fs::path();
-  opt.train = true;
+  DaemonOptions opt = training_options(dir);
   drivers::MonotonicClock clock;
   Daemon d(opt, clock);
   d.set_device_factory(&dev);
@@ -387,10 +384,7 @@ TEST_F(Training, BaselineWriteFailureShowsInTheStatusAndIsRetried) {
   cfg.replace(cfg.find("[training]\n"), 11, "[training]\nspill_dir = \"" + (dir / "spill").string() + "\"\n");
   write_text(dir / "ptdad.toml", cfg);
   { std::ofstream blocker(out_dir); }
-  DaemonOptions opt;
-  opt.config_file = dir / "ptdad.toml";
-  opt.config_dir = fs::path();
-  opt.train = true;
+  DaemonOptions opt = training_options(dir);
   drivers::MonotonicClock clock;
   Daemon d(opt, clock);
   d.set_device_factory(&dev);
