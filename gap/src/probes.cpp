@@ -133,8 +133,10 @@ double interp_peak(const std::vector<double>& p, std::size_t k) {
 double envelope_lag(const GapRecording& rec, const std::vector<Segment>& segs,
                     const std::vector<char>& use_cycle) {
   const double fs = rec.fs_hz;
-  const double frame_s = 0.005;
-  const auto frame = static_cast<std::size_t>(frame_s * fs);
+  // Frames of about 5 ms, whole samples; their time step is the frame's true length (at 20480 Hz a
+  // frame is 102 samples, 4.98 ms: timing them as 5 ms made the lag drift by 3.9 ms per second).
+  const auto frame = std::max<std::size_t>(1, static_cast<std::size_t>(0.005 * fs));
+  const double frame_s = static_cast<double>(frame) / fs;
   const std::size_t frames = rec.accel_ms2.size() / frame;
   if (frames < 10 || rec.speed.size() < 3) return std::numeric_limits<double>::quiet_NaN();
   std::vector<double> env(frames), spd(frames);

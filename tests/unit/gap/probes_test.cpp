@@ -274,6 +274,28 @@ TEST(Probes, ClockLatencyAndClippingShowInTheirProbes) {
   EXPECT_GT(element(d.probes, "amplitude", "extreme_share_log10"), -3.0);  // flat tops
 }
 
+TEST(Probes, TheEnvelopeLagKeepsTimeAtASampleRateWhose5MsFrameIsNotWhole) {
+  // At 20480 Hz a 5 ms frame is 102.4 samples. Frames of 102 samples timed as 5 ms put the envelope
+  // 3.9 ms per second behind the CAN speed: the per-cycle lags drifted from -33 to +53 ms over one gen2
+  // recording (gen2-1707, development), the jackknife spread hid a 37 ms CAN latency, and the model's own
+  // lag read +36..45 ms. The lag must not depend on the rate, and one cycle must agree with the others.
+  sim::Scenario s = job(6);
+  s.sensor.fs_hz = 20480.0;
+  const Measured a = measure(s, 16);
+  sim::Scenario f = job(6);  // 25600 Hz: 5 ms is 128 samples
+  const Measured b = measure(f, 16);
+  // Measured with seed 16: 20480 Hz -0.08 ms, 25600 Hz +0.12 ms (before the fix: +28.4 ms at 20480 Hz).
+  EXPECT_NEAR(a.probes.lag_s, b.probes.lag_s, 0.003);
+  ProbeContext ctx;
+  ctx.gearbox = s.gearbox;
+  ctx.nominal_orders = {1, 4, 5, 7, 8};
+  ctx.plan = a.plan;
+  const ElementVariance jack = jackknife_variance(a.rec, a.segs, a.windows, a.plan.cycles, ctx);
+  ASSERT_TRUE(jack.count("tracking/envelope_lag_ms"));
+  // Jackknife sd of the all-cycle lag: 0.18 ms (before the fix: 7.38 ms).
+  EXPECT_LT(std::sqrt(jack.at("tracking/envelope_lag_ms")), 1.5);
+}
+
 TEST(Probes, JackknifeNoiseModelSeparatesANullPairFromAnEffect) {
   // Significance test of docs/gap.md: the gap of two independent realisations stays within the
   // expectation from the measured cycles' jackknife variance + 3 sd; a 30 % direction dependence of the
