@@ -947,6 +947,9 @@ void Daemon::check_training(std::int64_t now) {
   snapshot_.training_target_cycles = progress.target_cycles;
   snapshot_.training_dropped = progress.windows_dropped + progress.regions_dropped;
   const FieldTrainerCounters tk = trainer.counters();
+  snapshot_.training_spill_write_failed = tk.windows_write_failed;
+  snapshot_.training_spill_queue_full = tk.windows_queue_full;
+  snapshot_.training_spill_errno = tk.last_write_errno;
   if (tk.windows_write_failed + tk.windows_queue_full < training_spill_problems_)
     training_spill_problems_ = 0;
   if (tk.windows_write_failed + tk.windows_queue_full > training_spill_problems_) {

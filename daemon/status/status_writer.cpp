@@ -9,6 +9,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <span>
 #include <string_view>
@@ -442,6 +443,14 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.u64("classes_complete", s.training_classes_complete);
     j.u64("target_cycles", s.training_target_cycles);
     j.u64("dropped", s.training_dropped);
+    // Why windows were dropped, so a full disk is told apart from a full pool.
+    j.u64("spill_write_failed", s.training_spill_write_failed);
+    j.u64("spill_queue_full", s.training_spill_queue_full);
+    if (s.training_spill_errno != 0) {
+      j.str("spill_last_error", std::strerror(s.training_spill_errno));
+    } else {
+      j.null("spill_last_error");
+    }
     j.close('}');
   } else {
     j.null("training");
@@ -739,8 +748,13 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     p.gauge("ptda_training_classes_complete", "Classes with the target number of cycles.",
             s.training_classes_complete);
     p.gauge("ptda_training_target_cycles", "Cycles wanted per class.", s.training_target_cycles);
-    p.counter("ptda_training_dropped_total", "Windows and regions dropped because the pool was full.",
+    p.counter("ptda_training_dropped_total",
+              "Windows and regions not kept: the pool full, the spill file refusing a write or its writer behind.",
               s.training_dropped);
+    p.counter("ptda_training_spill_write_failed_total", "Windows the spill file refused (part of dropped).",
+              s.training_spill_write_failed);
+    p.counter("ptda_training_spill_queue_full_total",
+              "Windows dropped while the spill writer was behind (part of dropped).", s.training_spill_queue_full);
   }
 
   for (const CounterGroup& g : kCounterGroups) {

@@ -510,8 +510,10 @@ void spill_write_failure() {
       const std::uint64_t d = training_u64(text, "dropped");
       return live.reach(dev, dev.gate.t_ns) && d > 0 && w + d == slicer_windows(text);
     });
-    // (a) counted as dropped; (b) the windows written before stay.
+    // (a) counted as dropped, and why; (b) the windows written before stay.
     EXPECT_TRUE(accounted) << text;
+    EXPECT_GT(training_u64(text, "spill_write_failed"), 0U) << text;
+    EXPECT_TRUE(has(text, "\"spill_last_error\":\"File too large\"")) << text;
     EXPECT_GE(training_u64(text, "windows"), before) << text;
     EXPECT_LT(training_u64(text, "windows"), slicer_windows(text)) << text;
     EXPECT_TRUE(has(text, "\"state\":\"training\"")) << text;

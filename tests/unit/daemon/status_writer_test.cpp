@@ -205,8 +205,20 @@ TEST(StatusWriter, JsonForEmptyAndTrainingSnapshots) {
   EXPECT_TRUE(JsonChecker(text).valid()) << text;
   EXPECT_NE(
       text.find(R"("training":{"windows":10,"capacity":4096,"regions":3,"classes":2,"classes_complete":1,)"
-                R"("target_cycles":10,"dropped":0})"),
+                R"("target_cycles":10,"dropped":0,"spill_write_failed":0,"spill_queue_full":0,)"
+                R"("spill_last_error":null})"),
       std::string::npos)
+      << text;
+  // A refused spill write says why (a full disk is not a full pool).
+  s.training_dropped = 7;
+  s.training_spill_write_failed = 5;
+  s.training_spill_queue_full = 2;
+  s.training_spill_errno = ENOSPC;
+  text = w.render_json(s);
+  EXPECT_TRUE(JsonChecker(text).valid()) << text;
+  EXPECT_NE(text.find(R"("dropped":7,"spill_write_failed":5,"spill_queue_full":2,)"
+                      R"("spill_last_error":"No space left on device"})"),
+            std::string::npos)
       << text;
   EXPECT_NE(text.find(R"("rms":null,"entropy":null)"), std::string::npos) << text;
 }
