@@ -938,6 +938,9 @@ void Daemon::check_training(std::int64_t now) {
   // The end first, then the progress: a window published in between is then counted, not missed. At
   // the end of a replay the last windows may still wait in the slicer or be on their way to the file.
   const bool ended = pipeline_->status().ended && !pipeline_->training_backlog() && trainer.queued() == 0;
+  // The spill counters before the progress (whose dropped count includes them): they only grow, so
+  // their sum never exceeds the dropped count shown beside them.
+  const FieldTrainerCounters tk = trainer.counters();
   const TrainingProgress progress = trainer.progress();  // allocates: training mode only
   snapshot_.training_windows = progress.windows;
   snapshot_.training_capacity = progress.window_capacity;
@@ -946,7 +949,6 @@ void Daemon::check_training(std::int64_t now) {
   snapshot_.training_classes_complete = progress.classes_complete;
   snapshot_.training_target_cycles = progress.target_cycles;
   snapshot_.training_dropped = progress.windows_dropped + progress.regions_dropped;
-  const FieldTrainerCounters tk = trainer.counters();
   snapshot_.training_spill_write_failed = tk.windows_write_failed;
   snapshot_.training_spill_queue_full = tk.windows_queue_full;
   snapshot_.training_spill_errno = tk.last_write_errno;

@@ -9,7 +9,6 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <ctime>
 #include <span>
 #include <string_view>
@@ -447,7 +446,7 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     j.u64("spill_write_failed", s.training_spill_write_failed);
     j.u64("spill_queue_full", s.training_spill_queue_full);
     if (s.training_spill_errno != 0) {
-      j.str("spill_last_error", std::strerror(s.training_spill_errno));
+      j.str("spill_last_error", errno_text(s.training_spill_errno));
     } else {
       j.null("spill_last_error");
     }

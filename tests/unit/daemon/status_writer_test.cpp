@@ -220,6 +220,13 @@ TEST(StatusWriter, JsonForEmptyAndTrainingSnapshots) {
                       R"("spill_last_error":"No space left on device"})"),
             std::string::npos)
       << text;
+  const std::string prom(w.render_prometheus(s));
+  EXPECT_EQ(test::prom_samples(prom, "ptda_training_dropped_total"),
+            std::vector<std::string>{"ptda_training_dropped_total 7"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_training_spill_write_failed_total"),
+            std::vector<std::string>{"ptda_training_spill_write_failed_total 5"});
+  EXPECT_EQ(test::prom_samples(prom, "ptda_training_spill_queue_full_total"),
+            std::vector<std::string>{"ptda_training_spill_queue_full_total 2"});
   EXPECT_NE(text.find(R"("rms":null,"entropy":null)"), std::string::npos) << text;
 }
 
