@@ -747,13 +747,15 @@ void render_prom_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
     p.gauge("ptda_training_classes_complete", "Classes with the target number of cycles.",
             s.training_classes_complete);
     p.gauge("ptda_training_target_cycles", "Cycles wanted per class.", s.training_target_cycles);
-    p.counter("ptda_training_dropped_total",
-              "Windows and regions not kept: the pool full, the spill file refusing a write or its writer behind.",
-              s.training_dropped);
+    p.counter(
+        "ptda_training_dropped_total",
+        "Windows and regions not kept: the pool full, the spill file refusing a write or its writer behind.",
+        s.training_dropped);
     p.counter("ptda_training_spill_write_failed_total", "Windows the spill file refused (part of dropped).",
               s.training_spill_write_failed);
     p.counter("ptda_training_spill_queue_full_total",
-              "Windows dropped while the spill writer was behind (part of dropped).", s.training_spill_queue_full);
+              "Windows dropped while the spill writer was behind (part of dropped).",
+              s.training_spill_queue_full);
   }
 
   for (const CounterGroup& g : kCounterGroups) {

@@ -213,7 +213,7 @@ struct StatusSnapshot {
   std::uint32_t training_classes = 0;
   std::uint32_t training_classes_complete = 0;
   std::uint32_t training_target_cycles = 0;
-  std::uint64_t training_dropped = 0;  ///< windows/regions beyond the pool
+  std::uint64_t training_dropped = 0;             ///< windows/regions beyond the pool
   std::uint64_t training_spill_write_failed = 0;  ///< windows the spill file refused (in training_dropped)
   std::uint64_t training_spill_queue_full = 0;    ///< windows dropped while the writer was behind (ditto)
   std::int32_t training_spill_errno = 0;          ///< the last failed spill write's errno (0: none)
