@@ -21,6 +21,15 @@ function(ptda_add_test)
   cmake_parse_arguments(T "" "NAME;LABEL" "SOURCES;LIBS" ${ARGN})
   add_executable(${T_NAME} ${T_SOURCES})
   target_link_libraries(${T_NAME} PRIVATE ${T_LIBS} ptda_options GTest::gtest GTest::gtest_main)
+  # The test files themselves get line tables only (-g1) and, on the host, -O1: with gtest's macros
+  # they are two thirds of the build's compile time, and -O2 -g costs them 1.5-2x -O1 -g1 (5 test
+  # files, docs/benchmarks.md "CI time"). The libraries they test keep the build type's flags.
+  # Cross builds keep -O2: on arm64 GCC forms fused multiply-adds only from -O2, and a test body's
+  # reference arithmetic should round as the library's does.
+  target_compile_options(${T_NAME} PRIVATE $<$<CONFIG:RelWithDebInfo>:-g1>)
+  if(NOT CMAKE_CROSSCOMPILING)
+    target_compile_options(${T_NAME} PRIVATE $<$<CONFIG:RelWithDebInfo>:-O1>)
+  endif()
   target_compile_definitions(${T_NAME} PRIVATE
     PTDA_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
     PTDA_SHARED_DIR="${PROJECT_SOURCE_DIR}/../shared")
