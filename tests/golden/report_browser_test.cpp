@@ -230,7 +230,7 @@ TEST(ReportBrowser, ChromiumRendersAHistoryReport) {
   fs::create_directories(hist);
   // 7 days, one window every 30 min per class (2 classes); abnormal and alarm on the last day.
   const auto line = [](int day, int minute, int cls, double rms, bool abnormal, bool alarm, int n) {
-    char t[32];
+    char t[48];  // room for any int the format could print: -O1 builds warn otherwise
     std::snprintf(t, sizeof t, "2026-11-%02dT%02d:%02d:00.000Z", 20 + day, minute / 60, minute % 60);
     char buf[640];
     std::snprintf(buf, sizeof buf,
