@@ -4,6 +4,8 @@
 # Called by scripts/test.sh (stage aarch64; armhf on demand). Needs scripts/bootstrap.sh cross.
 # Usage: scripts/cross_test.sh <aarch64|armhf|armhf-neon> [ctest args...]   e.g. -L dsp, -R Fft
 #   PTDA_CROSS_JOBS  build and ctest parallelism (default: nproc)
+#   PTDA_CROSS_GATEWAY_ONLY=1  build and run only the unit tests of the modules ptdad is built from
+#                    (not cli, gap: scripts/test.sh's CI stage; default: the whole unit suite)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -41,7 +43,9 @@ sysroot="$(realpath "${PTDA_SYSROOTS_DIR:-build/sysroots}")/$triplet"
 echo "=== cross_test $target: configure ($preset) ==="
 mkdir -p "build/$preset"
 # The sysroot just made, also when the build directory was configured with another one before.
-cmake --preset "$preset" -DPTDA_SYSROOT="$sysroot" > "build/$preset/cross_test-configure.log" 2>&1 || {
+all_tests=ON
+[ "${PTDA_CROSS_GATEWAY_ONLY:-0}" = 1 ] && all_tests=OFF
+cmake --preset "$preset" -DPTDA_SYSROOT="$sysroot" -DPTDA_CROSS_ALL_TESTS="$all_tests" > "build/$preset/cross_test-configure.log" 2>&1 || {
   cat "build/$preset/cross_test-configure.log" >&2
   die "configure of preset $preset failed (log above)"
 }
