@@ -4,8 +4,8 @@
 # Called by scripts/test.sh (stage aarch64; armhf on demand). Needs scripts/bootstrap.sh cross.
 # Usage: scripts/cross_test.sh <aarch64|armhf|armhf-neon> [ctest args...]   e.g. -L dsp, -R Fft
 #   PTDA_CROSS_JOBS  build and ctest parallelism (default: nproc)
-#   PTDA_CROSS_GATEWAY_ONLY=1  build and run only the unit tests of the modules ptdad is built from
-#                    (not cli, gap: scripts/test.sh's CI stage; default: the whole unit suite)
+#   PTDA_CROSS_GATEWAY_ONLY=1  build and run only the unit tests of the gateway's real-time path
+#                    (not cli, gap, sim: scripts/test.sh's CI stage; default: the whole unit suite)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

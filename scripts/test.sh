@@ -9,8 +9,8 @@
 #   fuzz    - the libFuzzer harnesses built with clang (build/fuzz), each seed corpus replayed once
 #             (scripts/fuzz.sh 0; about 12 min of clang build from cold on 2 cores, so not in 'all':
 #             release and asan replay the same corpora through the GCC build)
-#   aarch64 - the unit tests of the modules ptdad is built from, cross-built for arm64 and run under
-#             qemu-user (scripts/cross_test.sh); the offline tool's (cli, gap) run in release and asan.
+#   aarch64 - the unit tests of the gateway's real-time path, cross-built for arm64 and run under
+#             qemu-user (scripts/cross_test.sh); cli, gap and sim run in release and asan.
 #             PTDA_CROSS_ALL_TESTS=1: the whole unit suite, the gap searches included
 #   armhf   - the same for armhf (not in 'all': run it before a release)    (scripts/cross_test.sh)
 #   package - the .deb built and installed, upgraded, removed in a Debian 12 chroot (scripts/package_test.sh)
