@@ -58,7 +58,7 @@ run_stage() {
     aarch64|armhf)
       stage "$1: cross build + qemu-user"
       if [ "${PTDA_CROSS_ALL_TESTS:-0}" = 1 ]; then scripts/cross_test.sh "$1"
-      else PTDA_CROSS_GATEWAY_ONLY=1 scripts/cross_test.sh "$1" -LE gap_search; fi ;;
+      else PTDA_CROSS_GATEWAY_ONLY=1 scripts/cross_test.sh "$1"; fi ;;  # gap (and gap_search) not built
     package) stage "package"; scripts/package_test.sh ;;
     vm) stage "vm"; scripts/vm_test.sh all ;;
   esac
