@@ -243,7 +243,7 @@ TEST(Diagnose, NoiseLevelIsSearchedUpToMultiplesOfALoudFloor) {
 
 TEST(Diagnose, ClippingStartsFromTheCalibratedLevel) {
   // The machine's floor rises by 14 dB per decade (the GFD rig's calibrated slope); the user's nominal
-  // is white at the machine's measured floor rms, as one would write it from a recording. The floor's
+  // has a white floor at the recording's measured rms, as one would write it down. The floor's
   // level (density at the pivot) and slope are calibration. The acquisition clips at 70 % of the peak.
   // Candidates used to start from the nominal's noise level with the calibrated slope: a model several
   // times too loud, which a clamp at the measured peak distorted throughout before the one calibration
@@ -268,8 +268,8 @@ TEST(Diagnose, ClippingStartsFromTheCalibratedLevel) {
   opt.max_effects = 1;
   const Diagnosis d = diagnose(nominal, real, opt);
   ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
-  // Located by the bench's rule (level within 5 %). Measured with this build: 8.37 m/s^2 for 8.33, held-out
-  // gap 17.4, shrink 91.0 %; before, nothing was named (the clamp was no candidate).
+  // Located by the bench's rule (level within 5 %). Measured with this build: 8.37 m/s^2 for 8.33, the
+  // nominal's held-out gap 17.4 shrunk by 91.0 %; before, nothing was named (the clamp was no candidate).
   EXPECT_NEAR(d.chosen[0].effect.get("level_ms2"), 0.7 * peak, 0.05 * 0.7 * peak) << d.verdict;
   EXPECT_GT(d.total_shrink_pct, 50.0) << d.verdict;
 }
