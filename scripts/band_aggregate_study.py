@@ -32,45 +32,23 @@ def agg_defs(width):
     return d
 
 
-def stats_of(per_day):
-    allv = np.concatenate([np.asarray(x) for x in per_day if len(x)])
-    sd_w = float(np.std(allv, ddof=1)) if allv.size > 1 else 1.0
-    means = [np.mean(x) for x in per_day if len(x)]
-    sd_b = float(np.std(means, ddof=1)) if len(means) > 1 else 0.0
-    sd_b = max(sd_b, 0.3 * sd_w)
-    return float(allv.mean()), math.sqrt(sd_w ** 2 + sd_b ** 2) or 1.0
-
-
 def machine(args, d, aggs):
-    cfg_path = os.path.join(d, "config.toml")
-    cfg = open(cfg_path).read()
-    fs = float(fsg.toml_value(cfg, "acquisition", "fs_hz", "0"))
-    n = int(fsg.toml_value(cfg, "extraction", "window_len"))
-    z_in, z_spur, z_pin = (int(fsg.toml_value(cfg, "gearbox", k, "0")) for k in ("z_in", "z_spur", "z_pin"))
-    ratio = fsg.toml_value(cfg, "gearbox", "ratio")
-    ratio = float(ratio) if ratio else (1.0 + z_spur / z_in * z_pin if z_in and z_pin else 1.0)
-    tag = os.path.basename(os.path.normpath(d))
-    wd = os.path.join(args.work, tag)
-    os.makedirs(wd, exist_ok=True)
-    train_dirs = sorted(x for x in os.listdir(d) if x.startswith("train") and os.path.isdir(os.path.join(d, x)))
-    train = {}
-    for t in train_dirs:
-        j = os.path.join(wd, t + ".jsonl")
-        fsg.monitor_once(args.ptda, d, t, cfg_path, j)
-        train[t] = fsg.windows(os.path.join(d, t), j, fs, n)
+    mach = fsg.Machine(d, args.work)
+    fs, n = mach.fs, mach.n
+    train = mach.train_windows(args.ptda)
     classes = sorted({w[0] for ws in train.values() for w in ws})
     models = {c: fsg.ClassModel([w[2] for ws in train.values() for w in ws if w[0] == c], n) for c in classes}
-    f_in = lambda v: ratio * abs(v) / (2 * math.pi)  # noqa: E731
+    f_in = mach.f_in
     bands = fsg.BANDS
     tb = {t: [(w[0], np.array([fsg.features(models[w[0]], w[2], f_in(w[1]), fs, loo=True)[b] for b in bands]))
               for w in ws] for t, ws in train.items()}
     bstat, astat = {}, {}
     for c in classes:
         per = {t: np.array([v for cc, v in tb[t] if cc == c]) for t in tb}
-        bstat[c] = [stats_of([per[t][:, b] for t in per if per[t].size]) for b in range(NB)]
+        bstat[c] = [fsg.day_stats([per[t][:, b] for t in per if per[t].size]) for b in range(NB)]
         mu = np.array([s[0] for s in bstat[c]]); sd = np.array([s[1] for s in bstat[c]])
         zt = {t: (per[t] - mu) / sd for t in per if per[t].size}
-        astat[c] = {a: stats_of([zt[t][:, idx].mean(axis=1) for t in zt]) for a, idx in aggs.items()}
+        astat[c] = {a: fsg.day_stats([zt[t][:, idx].mean(axis=1) for t in zt]) for a, idx in aggs.items()}
     result = {}
     for name, specs in args.sets:
         rec = os.path.join(d, fsg.name_to_dir(d, name, specs))
@@ -87,7 +65,7 @@ def machine(args, d, aggs):
                 m, s = astat[c][a]
                 za[a].append((float(z[idx].mean()) - m) / s)
         result[name] = {"bands": zb, "aggs": za}
-    return tag, result
+    return mach.tag, result
 
 
 def cusum_max(z, k):

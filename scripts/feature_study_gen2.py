@@ -289,36 +289,67 @@ def band_cusum_max(res, k=None):
     return max(cusum_max(res[b], K_BAND if k is None else k) for b in BANDS)
 
 
+class Machine:
+    """A machine directory's configuration (DIR/config.toml) and its work directory WORK/<tag> (created)."""
+
+    def __init__(self, d, work):
+        self.dir = d
+        self.cfg_path = os.path.join(d, "config.toml")
+        with open(self.cfg_path) as f:
+            cfg = f.read()
+        self.fs = float(toml_value(cfg, "acquisition", "fs_hz", "0"))
+        self.n = int(toml_value(cfg, "extraction", "window_len"))
+        z_in, z_spur, z_pin = (int(toml_value(cfg, "gearbox", k, "0")) for k in ("z_in", "z_spur", "z_pin"))
+        ratio = toml_value(cfg, "gearbox", "ratio")
+        self.ratio = float(ratio) if ratio else (1.0 + z_spur / z_in * z_pin if z_in and z_pin else 1.0)
+        self.tag = os.path.basename(os.path.normpath(d))
+        self.work = os.path.join(work, self.tag)
+        os.makedirs(self.work, exist_ok=True)
+
+    def train_windows(self, ptda):
+        """The windows of every DIR/train* recording, by recording name (`ptda monitor` once each)."""
+        d = self.dir
+        names = sorted(x for x in os.listdir(d) if x.startswith("train") and os.path.isdir(os.path.join(d, x)))
+        train = {}
+        for t in names:
+            j = os.path.join(self.work, t + ".jsonl")
+            monitor_once(ptda, d, t, self.cfg_path, j)
+            train[t] = windows(os.path.join(d, t), j, self.fs, self.n)
+        return train
+
+    def f_in(self, speed_rad_s):
+        """Input-shaft rotation frequency in Hz at a joint speed."""
+        return self.ratio * abs(speed_rad_s) / (2 * math.pi)
+
+
+def day_stats(per_day):
+    """(mean, total sd) of one feature's training values given per training day: within sd of all values,
+    between-day sd of the day means floored at 0.3 within (like [thresholds] day_sd_floor)."""
+    allv = np.concatenate([np.asarray(x) for x in per_day if len(x)])
+    sd_w = float(np.std(allv, ddof=1)) if allv.size > 1 else 1.0
+    means = [np.mean(x) for x in per_day if len(x)]
+    sd_b = float(np.std(means, ddof=1)) if len(means) > 1 else 0.0
+    sd_b = max(sd_b, 0.3 * sd_w)
+    return float(allv.mean()), math.sqrt(sd_w ** 2 + sd_b ** 2) or 1.0
+
+
 def machine(args, d):
-    cfg_path = os.path.join(d, "config.toml")
-    with open(cfg_path) as f:
-        cfg = f.read()
-    fs = float(toml_value(cfg, "acquisition", "fs_hz", "0"))
-    n = int(toml_value(cfg, "extraction", "window_len"))
-    z_in, z_spur, z_pin = (int(toml_value(cfg, "gearbox", k, "0")) for k in ("z_in", "z_spur", "z_pin"))
-    ratio = toml_value(cfg, "gearbox", "ratio")
-    ratio = float(ratio) if ratio else (1.0 + z_spur / z_in * z_pin if z_in and z_pin else 1.0)
-    tag = os.path.basename(os.path.normpath(d))
-    wd = os.path.join(args.work, tag)
-    os.makedirs(wd, exist_ok=True)
-    train_dirs = sorted(x for x in os.listdir(d) if x.startswith("train") and os.path.isdir(os.path.join(d, x)))
-    train = {}
+    m = Machine(d, args.work)
+    fs, n, tag = m.fs, m.n, m.tag
     first_set = None
     if args.split_train:
         # One recording: its first half (in time) trains, its second half is the first set.
         name, spec = args.sets[0]
         ws = windows(os.path.join(d, name_to_dir(d, name, spec)), os.path.join(d, spec), fs, n)
         half = len(ws) // 2
-        train_dirs = []
-        train["train"], first_set = ws[:half], ws[half:]
+        train = {"train": ws[:half]}
+        first_set = ws[half:]
         fs = fs or read_recording(os.path.join(d, name_to_dir(d, name, spec)))[2]
-    for t in train_dirs:
-        j = os.path.join(wd, t + ".jsonl")
-        monitor_once(args.ptda, d, t, cfg_path, j)
-        train[t] = windows(os.path.join(d, t), j, fs, n)
+    else:
+        train = m.train_windows(args.ptda)
     classes = sorted({w[0] for ws in train.values() for w in ws})
     models = {c: ClassModel([w[2] for ws in train.values() for w in ws if w[0] == c], n) for c in classes}
-    f_in = lambda v: ratio * abs(v) / (2 * math.pi)  # noqa: E731
+    f_in = m.f_in
     feats = {}
     for t, ws in train.items():
         feats[t] = [(w[0], features(models[w[0]], w[2], f_in(w[1]), fs, loo=True)) for w in ws]
@@ -326,13 +357,7 @@ def machine(args, d):
     for c in classes:
         stats[c] = {}
         for f in FEATURES + BANDS:
-            per_day = [[v[f] for cc, v in feats[t] if cc == c] for t in train]
-            allv = np.concatenate([np.asarray(x) for x in per_day])
-            sd_w = float(np.std(allv, ddof=1)) if allv.size > 1 else 1.0
-            means = [np.mean(x) for x in per_day if len(x)]
-            sd_b = float(np.std(means, ddof=1)) if len(means) > 1 else 0.0
-            sd_b = max(sd_b, 0.3 * sd_w)
-            stats[c][f] = (float(allv.mean()), math.sqrt(sd_w ** 2 + sd_b ** 2) or 1.0)
+            stats[c][f] = day_stats([[v[f] for cc, v in feats[t] if cc == c] for t in train])
     result = {}
     for name, spec in args.sets:
         rec_jsonl = os.path.join(d, spec)
