@@ -326,7 +326,10 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   for (const std::string& w : cfg.warnings) std::cerr << "warning: " << w << "\n";
   if (cfg.domain == dsp::Domain::kOrder) return train_order(a, cfg, config_path, range, out);
 
-  dsp::CollectedWindows all;
+  // The index of every window (place, recording) and the regions spill to $TMPDIR beyond 256 KiB per
+  // list: with the streamed passes below, memory does not grow with the recordings' length.
+  dsp::TrainingIndex all;
+  IndexRenumber renumber;
   double fs_hz = 0.0;
   std::string first_recording;
   std::string source = "ptda train";
@@ -346,14 +349,16 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     opts.config_source = config_path;
     // Pass 0: the windows' places and the regions only; the samples come in the training's two passes.
     opts.progress_label = "train " + rec.dir.filename().string() + " (pass 1 of 3)";
-    CollectResult c =
-        collect_windows(rec, cfg, fs, opts, [](const dsp::WindowRef&, std::span<const float>) {});
+    Span span;
+    span.begin = all.refs.size();
+    const IndexResult c = index_windows(rec, cfg, fs, opts, all, renumber);
+    span.end = all.refs.size();
     // The commissioning checks of `ptda doctor` (speed scale against the vibration, plateaus against
     // the window): a baseline on a wrong speed scale must not be written silently.
     diagnoses.push_back(diagnose_commissioning(rec, cfg, config_path, nullptr, ""));
     recs.push_back(rec);
     out << "recording " << dir << ": " << fixed(rec.duration_s, 2) << " s at " << general(fs, 10) << " Hz, "
-        << c.data.regions.size() << " constant-speed regions, " << c.data.refs.size() << " windows\n";
+        << c.regions << " constant-speed regions, " << c.windows << " windows\n";
     out << "  slicer: " << c.slicer.windows_invalid << " invalid and " << c.slicer.windows_lost
         << " lost windows (" << c.slicer.windows_overflow << " overflowed), " << c.slicer.speed_gaps
         << " speed gaps, " << c.slicer.speed_out_of_order
@@ -361,12 +366,8 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
         << " speed, " << c.can.other_id << " other ids, " << c.can.wrong_dlc << " wrong DLC, "
         << c.can.error_frames << " error frames\n";
     source += " --recording " + dir;
-    Span span;
     span.rec.id = recording_id(rec);
     span.rec.path = dir;
-    span.begin = all.refs.size();
-    append_collected(all, std::move(c.data));
-    span.end = all.refs.size();
     spans.push_back(span);
   }
   // What each recording contributed after --windows, for `ptda monitor`'s in-sample warning.
@@ -374,15 +375,24 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   {
     const auto first = static_cast<std::size_t>(range.first(all.refs.size()));
     const auto last = static_cast<std::size_t>(range.last(all.refs.size()));
+    dsp::SpillVector<dsp::WindowRef>::Reader refs(all.refs);
+    std::size_t i = 0;
     for (Span& sp : spans) {
       const std::size_t b = std::max(sp.begin, first);
       const std::size_t e = std::min(sp.end, last);
       if (b >= e) continue;
-      sp.rec.from_unix_s = ns_to_seconds(all.refs[b].t_start_ns);
-      sp.rec.to_unix_s = ns_to_seconds(all.refs[e - 1].t_end_ns);
-      for (std::size_t i = b; i < e; ++i) {
-        sp.rec.from_unix_s = std::min(sp.rec.from_unix_s, ns_to_seconds(all.refs[i].t_start_ns));
-        sp.rec.to_unix_s = std::max(sp.rec.to_unix_s, ns_to_seconds(all.refs[i].t_end_ns));
+      while (i < b) {
+        (void)refs.next();
+        ++i;
+      }
+      bool any = false;
+      for (; i < e; ++i) {
+        const dsp::WindowRef r = refs.next();
+        const double from = ns_to_seconds(r.t_start_ns);
+        const double to = ns_to_seconds(r.t_end_ns);
+        sp.rec.from_unix_s = any ? std::min(sp.rec.from_unix_s, from) : from;
+        sp.rec.to_unix_s = any ? std::max(sp.rec.to_unix_s, to) : to;
+        any = true;
       }
       sp.rec.windows = static_cast<std::uint32_t>(e - b);
       training.push_back(sp.rec);
@@ -416,11 +426,6 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
       return kExitCommissioning;
     }
   }
-  if (all.refs.empty()) {
-    throw Error("no constant-speed windows in the training recording(s): check [extraction] in " +
-                config_path + " (window_len " + std::to_string(cfg.extraction.window_len) +
-                ", min_duration_s " + general(cfg.extraction.min_duration_s) + ")");
-  }
 
   // The training streams each recording twice more (the class sums, then the leave-one-group-out
   // features) instead of holding every window: memory does not grow with the recordings' length.
@@ -428,6 +433,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   int pass_no = 1;
   const dsp::TrainingWindowPass pass = [&](const dsp::TrainingWindowVisitor& visit) {
     ++pass_no;
+    dsp::SpillVector<dsp::WindowRef>::Reader kept(all.refs);  // the kept windows, in cut order
     for (std::size_t r = 0; r < spans.size(); ++r) {
       const Span& sp = spans[r];
       const std::uint64_t lo = std::max<std::uint64_t>(sp.begin, kept_first);
@@ -443,11 +449,15 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
             const std::uint64_t g = cut++;
             if (g < lo || g >= hi) return;
             const auto i = static_cast<std::size_t>(g - kept_first);
-            if (ref.first_sample != all.refs[i].first_sample || ref.t_start_ns != all.refs[i].t_start_ns) {
+            if (kept.done() || kept.position() != i) {
+              throw Error(recs[r].dir.string() + ": window " + std::to_string(g - sp.begin) +
+                          " is not in the first pass's cut order: did the recording change?");
+            }
+            const dsp::WindowRef k = kept.next();
+            if (ref.first_sample != k.first_sample || ref.t_start_ns != k.t_start_ns) {
               throw Error(recs[r].dir.string() + ": window " + std::to_string(g - sp.begin) +
                           " is not where the first pass cut it (sample " + std::to_string(ref.first_sample) +
-                          ", was " + std::to_string(all.refs[i].first_sample) +
-                          "): did the recording change?");
+                          ", was " + std::to_string(k.first_sample) + "): did the recording change?");
             }
             visit(i, x);
           });

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -281,6 +282,59 @@ class CollectSink final : public PipelineSink {
   const CollectVisitor& visitor_;
 };
 
+// Pass 0 of `ptda train`: the windows' places and the regions into a spilled index, renumbered.
+class IndexSink final : public PipelineSink {
+ public:
+  IndexSink(const dsp::ExtractionConfig& cfg, double fs_hz, std::int64_t t0_ns, dsp::TrainingIndex& index,
+            IndexRenumber& renumber)
+      : slicer_(cfg, fs_hz, t0_ns),
+        buf_(cfg.window_len),
+        index_(index),
+        renumber_(renumber),
+        region_offset_(renumber.region_offset),
+        window_offset_(renumber.window_offset) {}
+
+  void on_speed(const dsp::SpeedSample& s) override { slicer_.push_speed(s); }
+  void on_samples(std::span<const float> block) override { slicer_.push_samples(block); }
+  void on_block_end() override { drain(); }
+  void on_finish() override {
+    slicer_.finish();
+    drain();
+  }
+
+  [[nodiscard]] const dsp::WindowSlicer& slicer() const noexcept { return slicer_; }
+  std::uint64_t windows = 0;
+  std::uint64_t regions = 0;
+
+ private:
+  void drain() {
+    dsp::WindowRef ref;
+    while (slicer_.pop(ref, buf_)) {
+      ref.seq += window_offset_;
+      ref.region_seq += region_offset_;
+      index_.refs.push_back(ref);
+      index_.recording.push_back(renumber_.recordings);
+      renumber_.window_offset = std::max(renumber_.window_offset, ref.seq + 1);
+      renumber_.region_offset = std::max(renumber_.region_offset, ref.region_seq + 1);
+      ++windows;
+    }
+    dsp::RegionInfo region;
+    while (slicer_.pop_region(region)) {
+      region.seq += region_offset_;
+      index_.regions.push_back(region);
+      renumber_.region_offset = std::max(renumber_.region_offset, region.seq + 1);
+      ++regions;
+    }
+  }
+
+  dsp::WindowSlicer slicer_;
+  std::vector<float> buf_;
+  dsp::TrainingIndex& index_;
+  IndexRenumber& renumber_;
+  const std::uint64_t region_offset_;
+  const std::uint64_t window_offset_;
+};
+
 class MonitorSink final : public PipelineSink {
  public:
   MonitorSink(dsp::MonitorEngine& engine, dsp::CoverageTracker& coverage, std::vector<dsp::WindowResult>* out,
@@ -495,6 +549,48 @@ void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more) {
     if (more.windows.size() == more.refs.size()) all.windows.push_back(std::move(more.windows[i]));
     all.recording.push_back(recording);
   }
+}
+
+IndexResult index_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg, double fs_hz,
+                          const RunOptions& options, dsp::TrainingIndex& index, IndexRenumber& renumber) {
+  IndexSink sink(cfg.extraction, fs_hz, rec.t0_ns, index, renumber);
+  IndexResult result;
+  result.can = run_recording(rec, cfg, sink, options);
+  result.slicer = sink.slicer().counters();
+  result.windows = sink.windows;
+  result.regions = sink.regions;
+  ++renumber.recordings;
+  return result;
+}
+
+dsp::TrainingIndex select_windows(const dsp::TrainingIndex& all, const FractionRange& range) {
+  const std::uint64_t count = all.refs.size();
+  const std::uint64_t first = range.first(count);
+  const std::uint64_t last = range.last(count);
+  dsp::TrainingIndex out(all.spill);
+  dsp::SpillVector<std::uint64_t> used(all.spill);
+  {
+    dsp::SpillVector<dsp::WindowRef>::Reader refs(all.refs);
+    dsp::SpillVector<std::uint32_t>::Reader recs(all.recording);
+    for (std::uint64_t i = 0; i < last; ++i) {
+      const dsp::WindowRef r = refs.next();
+      const std::uint32_t rec = recs.next();
+      if (i < first) continue;
+      out.refs.push_back(r);
+      out.recording.push_back(rec);
+      used.push_back(r.region_seq);
+    }
+  }
+  // The regions whose seq is used: both lists in seq order, merged.
+  const dsp::SpillVector<std::uint64_t> used_sorted = dsp::sorted(used, std::less<>());
+  const dsp::SpillVector<dsp::RegionInfo> regions = dsp::sorted(
+      all.regions, [](const dsp::RegionInfo& a, const dsp::RegionInfo& b) { return a.seq < b.seq; });
+  dsp::SpillVector<std::uint64_t>::Reader u(used_sorted);
+  regions.for_each([&](const dsp::RegionInfo& r) {
+    while (!u.done() && u.peek() < r.seq) (void)u.next();
+    if (!u.done() && u.peek() == r.seq) out.regions.push_back(r);
+  });
+  return out;
 }
 
 dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all, const FractionRange& range) {

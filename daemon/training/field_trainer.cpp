@@ -340,9 +340,16 @@ dsp::Baseline FieldTrainer::finish(const std::filesystem::path& path, FinishMode
   // the spill file (each pass reads it in order, one window at a time, as `ptda train` reads a
   // recording).
   const Snapshot snap{p.windows, p.regions};
-  dsp::CollectedWindows index;
-  index.refs.assign(refs_.begin(), refs_.begin() + static_cast<std::ptrdiff_t>(snap.windows));
-  index.regions.assign(regions_.begin(), regions_.begin() + static_cast<std::ptrdiff_t>(snap.regions));
+  // The training's own per-window lists spill to the same directory as the windows (beyond 256 KiB
+  // per list), so a hardened service needs one writable place.
+  dsp::SpillConfig spill;
+  spill.dir = (cfg_.spill_dir.empty() ? std::filesystem::path(".") : cfg_.spill_dir).string();
+  dsp::TrainingIndex index(spill);
+  for (std::size_t i = 0; i < snap.windows; ++i) {
+    index.refs.push_back(refs_[i]);
+    index.recording.push_back(0U);
+  }
+  for (std::size_t i = 0; i < snap.regions; ++i) index.regions.push_back(regions_[i]);
   std::vector<float> x(cfg_.window_len);
   const dsp::TrainingWindowPass pass = [&](const dsp::TrainingWindowVisitor& visit) {
     for (std::size_t i = 0; i < snap.windows; ++i) {

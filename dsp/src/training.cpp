@@ -8,6 +8,8 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <functional>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <numbers>
@@ -17,6 +19,7 @@
 #include "ptda/dsp/analyzer.hpp"
 #include "ptda/dsp/band_energy.hpp"
 #include "ptda/dsp/real_fft.hpp"
+#include "ptda/dsp/spill.hpp"
 
 namespace ptda::dsp {
 
@@ -41,17 +44,51 @@ double inverse_normal_cdf(double p) {
   return x;
 }
 
-FeatureStats feature_stats(std::span<const double> values) {
+namespace {
+
+// Statistics of values handed over in chunks (`chunks(f)` calls f(std::span<const double>) on each, in
+// order). One chunk gives exactly the Eigen sums of feature_stats(span); more (spilled training values)
+// sum each chunk with Eigen and add the chunks' sums, which differs only in rounding.
+template <class Chunks>
+FeatureStats chunked_stats(std::size_t n, Chunks&& chunks) {
   FeatureStats s;
-  s.n = static_cast<std::uint32_t>(values.size());
-  if (values.empty()) return s;
-  const Eigen::Map<const Eigen::ArrayXd> v(values.data(), static_cast<Eigen::Index>(values.size()));
-  s.min = v.minCoeff();
-  s.max = v.maxCoeff();
-  s.mean = v.sum() / static_cast<double>(values.size());
-  if (values.size() > 1)
-    s.stddev = std::sqrt((v - s.mean).square().sum() / static_cast<double>(values.size() - 1));
+  s.n = static_cast<std::uint32_t>(n);
+  if (n == 0) return s;
+  bool first = true;
+  double sum = 0.0;
+  chunks([&](std::span<const double> c) {
+    if (c.empty()) return;
+    const Eigen::Map<const Eigen::ArrayXd> v(c.data(), static_cast<Eigen::Index>(c.size()));
+    s.min = first ? v.minCoeff() : std::min(s.min, v.minCoeff());
+    s.max = first ? v.maxCoeff() : std::max(s.max, v.maxCoeff());
+    sum = first ? v.sum() : sum + v.sum();
+    first = false;
+  });
+  s.mean = sum / static_cast<double>(n);
+  if (n > 1) {
+    double ss = 0.0;
+    bool first_ss = true;
+    chunks([&](std::span<const double> c) {
+      if (c.empty()) return;
+      const Eigen::Map<const Eigen::ArrayXd> v(c.data(), static_cast<Eigen::Index>(c.size()));
+      const double part = (v - s.mean).square().sum();
+      ss = first_ss ? part : ss + part;
+      first_ss = false;
+    });
+    s.stddev = std::sqrt(ss / static_cast<double>(n - 1));
+  }
   return s;
+}
+
+}  // namespace
+
+FeatureStats feature_stats(std::span<const double> values) {
+  return chunked_stats(values.size(), [&](const auto& f) { f(values); });
+}
+
+FeatureStats feature_stats(const SpillVector<double>& values) {
+  if (!values.spilled()) return feature_stats(values.memory());
+  return chunked_stats(values.size(), [&](const auto& f) { values.for_each_chunk(f); });
 }
 
 namespace {
@@ -199,6 +236,151 @@ SeqScale sequential_scale(const ClassBaseline& c, Method method, const Threshold
   return s;
 }
 
+namespace {
+
+// What fit_band() reads: the values in memory (one span) or in a spill vector (chunks; quantiles from
+// a bounded-memory sort). The span source gives exactly the results of the in-memory code.
+struct SpanSource {
+  std::span<const double> v;
+  [[nodiscard]] std::size_t size() const { return v.size(); }
+  template <class F>
+  void chunks(F&& f) const {
+    f(v);
+  }
+  // Type-7 quantiles of the values.
+  [[nodiscard]] std::vector<double> quantiles(std::initializer_list<double> qs) const {
+    std::vector<double> sorted(v.begin(), v.end());
+    std::sort(sorted.begin(), sorted.end());
+    std::vector<double> out;
+    for (const double q : qs) out.push_back(sorted_quantile(sorted, q));
+    return out;
+  }
+};
+
+struct SpillSource {
+  const SpillVector<double>& v;
+  [[nodiscard]] std::size_t size() const { return v.size(); }
+  template <class F>
+  void chunks(F&& f) const {
+    v.for_each_chunk(f);
+  }
+  [[nodiscard]] std::vector<double> quantiles(std::initializer_list<double> qs) const {
+    const SpillVector<double> s = sorted(v, std::less<>());
+    std::vector<double> out;
+    for (const double q : qs) {
+      const double h = static_cast<double>(s.size() - 1) * q;
+      const auto lo = static_cast<std::size_t>(std::floor(h));
+      const std::size_t hi = std::min(lo + 1, s.size() - 1);
+      const double a = s.at(lo);
+      out.push_back(a + (h - static_cast<double>(lo)) * (s.at(hi) - a));
+    }
+    return out;
+  }
+};
+
+template <class Source>
+Band fit_band_from(const Source& src, const ThresholdPolicy& policy, FeatureScale scale, double day_ratio,
+                   double within_ratio) {
+  const std::size_t count = src.size();
+  if (count < 2) {
+    throw Error("fit_band: needs at least 2 feature values, got " + std::to_string(count));
+  }
+  {
+    std::size_t i = 0;
+    src.chunks([&](std::span<const double> c) {
+      for (const double x : c) {
+        if (!std::isfinite(x)) throw Error("fit_band: feature value " + std::to_string(i) + " is not finite");
+        ++i;
+      }
+    });
+  }
+  const double alpha = policy.false_alarm_rate;
+  if (!(alpha > 0.0 && alpha < 1.0)) {
+    throw Error("fit_band: false_alarm_rate " + std::to_string(alpha) + " is not in (0, 1)");
+  }
+  if (!(policy.margin >= 0.0 && std::isfinite(policy.margin))) {
+    throw Error("fit_band: margin " + std::to_string(policy.margin) + " must be finite and >= 0");
+  }
+  if (!(std::isfinite(day_ratio) && day_ratio >= 0.0 && std::isfinite(within_ratio) && within_ratio > 0.0)) {
+    throw Error("fit_band: between-day ratio " + std::to_string(day_ratio) +
+                " must be finite and >= 0, within ratio " + std::to_string(within_ratio) + " finite and > 0");
+  }
+  const auto stats = [&] { return chunked_stats(count, [&](const auto& f) { src.chunks(f); }); };
+  // The sd of a new day's value: the within-day sd (within_ratio x the sample sd) with the between-day
+  // part added, sqrt(w^2 + b^2) = w sqrt(1 + day_ratio^2).
+  const double widen_sd = day_ratio > 0.0 ? within_ratio * std::sqrt(1.0 + day_ratio * day_ratio) : 1.0;
+  const auto total_sd = [&](double sample_sd) { return widen_sd * sample_sd; };
+  Band b;
+  switch (policy.kind) {
+    case ThresholdPolicy::Kind::kGaussian: {
+      const FeatureStats s = stats();
+      const double z = -inverse_normal_cdf(0.5 * alpha);  // two-sided: alpha/2 in each tail
+      const double sd = total_sd(s.stddev);
+      b = Band{s.mean - z * sd, s.mean + z * sd};
+      break;
+    }
+    case ThresholdPolicy::Kind::kQuantile: {
+      const std::vector<double> q = src.quantiles({0.5 * alpha, 1.0 - 0.5 * alpha, 0.5});
+      b = Band{q[0], q[1]};
+      if (day_ratio > 0.0) {  // both quantiles move away from the median by the same factor
+        const double med = q[2];
+        b = Band{med - widen_sd * (med - b.lo), med + widen_sd * (b.hi - med)};
+      }
+      break;
+    }
+    case ThresholdPolicy::Kind::kTolerance: {
+      const auto n = static_cast<std::uint32_t>(count);
+      if (scale == FeatureScale::kLog) {
+        // The logs chunk by chunk (one chunk in memory: the same values as a whole log vector).
+        std::vector<double> logs;
+        const auto log_chunks = [&](const auto& f) {
+          std::size_t i = 0;
+          src.chunks([&](std::span<const double> c) {
+            logs.resize(c.size());
+            for (std::size_t j = 0; j < c.size(); ++j, ++i) {
+              if (!(c[j] > 0.0)) {
+                throw Error("fit_band: feature value " + std::to_string(i) + " = " + std::to_string(c[j]) +
+                            " is not > 0 (the log-scale tolerance model needs positive values)");
+              }
+              logs[j] = std::log(c[j]);
+            }
+            f(std::span<const double>(logs));
+          });
+        };
+        const FeatureStats s = chunked_stats(count, log_chunks);
+        const double k1 = tolerance_factor_one_sided(n, 1.0 - alpha, policy.confidence);
+        const double sd = total_sd(s.stddev);
+        b = Band{std::exp(s.mean - k1 * sd), std::exp(s.mean + k1 * sd)};
+      } else {
+        const FeatureStats s = stats();
+        const double k2 = tolerance_factor_two_sided(n, 1.0 - alpha, policy.confidence);
+        const double sd = total_sd(s.stddev);
+        b = Band{s.mean - k2 * sd, s.mean + k2 * sd};
+      }
+      break;
+    }
+    default:
+      throw Error("fit_band: unknown threshold policy kind " + std::to_string(static_cast<int>(policy.kind)));
+  }
+  const double widen = policy.margin * (b.hi - b.lo);
+  b.lo -= widen;
+  b.hi += widen;
+  return b;
+}
+
+}  // namespace
+
+Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale,
+              double day_ratio, double within_ratio) {
+  return fit_band_from(SpanSource{values}, policy, scale, day_ratio, within_ratio);
+}
+
+Band fit_band(const SpillVector<double>& values, const ThresholdPolicy& policy, FeatureScale scale,
+              double day_ratio, double within_ratio) {
+  if (!values.spilled()) return fit_band(values.memory(), policy, scale, day_ratio, within_ratio);
+  return fit_band_from(SpillSource{values}, policy, scale, day_ratio, within_ratio);
+}
+
 Band cover_recordings(const Band& pooled, std::span<const double> values,
                       std::span<const std::uint32_t> recordings, const ThresholdPolicy& policy,
                       FeatureScale scale) {
@@ -228,84 +410,45 @@ Band cover_recordings(const Band& pooled, std::span<const double> values,
   return b;
 }
 
-Band fit_band(std::span<const double> values, const ThresholdPolicy& policy, FeatureScale scale,
-              double day_ratio, double within_ratio) {
-  if (values.size() < 2) {
-    throw Error("fit_band: needs at least 2 feature values, got " + std::to_string(values.size()));
+Band cover_recordings(const Band& pooled, const SpillVector<double>& values,
+                      const SpillVector<std::uint32_t>& recordings, const ThresholdPolicy& policy,
+                      FeatureScale scale) {
+  if (!values.spilled() && !recordings.spilled())
+    return cover_recordings(pooled, values.memory(), recordings.memory(), policy, scale);
+  if (recordings.size() != values.size()) {
+    throw Error("cover_recordings: " + std::to_string(recordings.size()) + " recording ids for " +
+                std::to_string(values.size()) + " values");
   }
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    if (!std::isfinite(values[i])) {
-      throw Error("fit_band: feature value " + std::to_string(i) + " is not finite");
+  // Each recording's values in a spill vector of its own (few recordings: days of training).
+  std::map<std::uint32_t, SpillVector<double>> by_recording;
+  {
+    SpillVector<double>::Reader v(values);
+    SpillVector<std::uint32_t>::Reader r(recordings);
+    while (!v.done()) {
+      const double x = v.next();
+      const std::uint32_t id = r.next();
+      if (scale == FeatureScale::kLog && !(x > 0.0)) continue;  // as the pooled log model
+      by_recording.try_emplace(id, values.config()).first->second.push_back(x);
     }
   }
-  const double alpha = policy.false_alarm_rate;
-  if (!(alpha > 0.0 && alpha < 1.0)) {
-    throw Error("fit_band: false_alarm_rate " + std::to_string(alpha) + " is not in (0, 1)");
-  }
-  if (!(policy.margin >= 0.0 && std::isfinite(policy.margin))) {
-    throw Error("fit_band: margin " + std::to_string(policy.margin) + " must be finite and >= 0");
-  }
-  if (!(std::isfinite(day_ratio) && day_ratio >= 0.0 && std::isfinite(within_ratio) && within_ratio > 0.0)) {
-    throw Error("fit_band: between-day ratio " + std::to_string(day_ratio) +
-                " must be finite and >= 0, within ratio " + std::to_string(within_ratio) + " finite and > 0");
-  }
-  // The sd of a new day's value: the within-day sd (within_ratio x the sample sd) with the between-day
-  // part added, sqrt(w^2 + b^2) = w sqrt(1 + day_ratio^2).
-  const double widen_sd = day_ratio > 0.0 ? within_ratio * std::sqrt(1.0 + day_ratio * day_ratio) : 1.0;
-  const auto total_sd = [&](double sample_sd) { return widen_sd * sample_sd; };
-  Band b;
-  switch (policy.kind) {
-    case ThresholdPolicy::Kind::kGaussian: {
-      const FeatureStats s = feature_stats(values);
-      const double z = -inverse_normal_cdf(0.5 * alpha);  // two-sided: alpha/2 in each tail
-      const double sd = total_sd(s.stddev);
-      b = Band{s.mean - z * sd, s.mean + z * sd};
-      break;
+  if (by_recording.size() < 2) return pooled;
+  Band b = pooled;
+  for (const auto& [id, v] : by_recording) {
+    if (v.size() < 3) continue;
+    Band r;
+    try {
+      r = fit_band(v, policy, scale);
+    } catch (const Error& e) {
+      throw Error("cover_recordings: recording " + std::to_string(id) + ": " + e.what());
     }
-    case ThresholdPolicy::Kind::kQuantile: {
-      std::vector<double> sorted(values.begin(), values.end());
-      std::sort(sorted.begin(), sorted.end());
-      b = Band{sorted_quantile(sorted, 0.5 * alpha), sorted_quantile(sorted, 1.0 - 0.5 * alpha)};
-      if (day_ratio > 0.0) {  // both quantiles move away from the median by the same factor
-        const double med = sorted_quantile(sorted, 0.5);
-        b = Band{med - widen_sd * (med - b.lo), med + widen_sd * (b.hi - med)};
-      }
-      break;
-    }
-    case ThresholdPolicy::Kind::kTolerance: {
-      const auto n = static_cast<std::uint32_t>(values.size());
-      if (scale == FeatureScale::kLog) {
-        std::vector<double> logs(values.size());
-        for (std::size_t i = 0; i < values.size(); ++i) {
-          if (!(values[i] > 0.0)) {
-            throw Error("fit_band: feature value " + std::to_string(i) + " = " + std::to_string(values[i]) +
-                        " is not > 0 (the log-scale tolerance model needs positive values)");
-          }
-          logs[i] = std::log(values[i]);
-        }
-        const FeatureStats s = feature_stats(logs);
-        const double k1 = tolerance_factor_one_sided(n, 1.0 - alpha, policy.confidence);
-        const double sd = total_sd(s.stddev);
-        b = Band{std::exp(s.mean - k1 * sd), std::exp(s.mean + k1 * sd)};
-      } else {
-        const FeatureStats s = feature_stats(values);
-        const double k2 = tolerance_factor_two_sided(n, 1.0 - alpha, policy.confidence);
-        const double sd = total_sd(s.stddev);
-        b = Band{s.mean - k2 * sd, s.mean + k2 * sd};
-      }
-      break;
-    }
-    default:
-      throw Error("fit_band: unknown threshold policy kind " + std::to_string(static_cast<int>(policy.kind)));
+    b.lo = std::min(b.lo, r.lo);
+    b.hi = std::max(b.hi, r.hi);
   }
-  const double widen = policy.margin * (b.hi - b.lo);
-  b.lo -= widen;
-  b.hi += widen;
   return b;
 }
 
 struct ClassBaselineBuilder::State {
-  State(const SegmentClass& seg, std::size_t n_in, const ThresholdPolicy& pol)
+  State(const SegmentClass& seg, std::size_t n_in, const ThresholdPolicy& pol, const SpillConfig& spill_in)
       : where("class " + std::to_string(seg.id)),
         policy(pol),
         n(n_in),
@@ -319,8 +462,12 @@ struct ClassBaselineBuilder::State {
         group_x(n_in),
         loo_mag(bins),
         loo_x(n_in),
-        loo_x_spectrum(bins) {
+        loo_x_spectrum(bins),
+        spill(spill_in),
+        value_recording(spill_in) {
     cls.segment = seg;
+    for (auto& v : rms_values) v = SpillVector<double>(spill_in);
+    for (auto& v : entropy_values) v = SpillVector<double>(spill_in);
   }
   std::string where;
   ThresholdPolicy policy;
@@ -342,9 +489,11 @@ struct ClassBaselineBuilder::State {
   std::vector<float> loo_mag;
   std::vector<float> loo_x;
   std::vector<std::complex<float>> loo_x_spectrum;
-  std::array<std::vector<double>, kMethodCount> rms_values;
-  std::array<std::vector<double>, kMethodCount> entropy_values;
-  std::vector<std::uint32_t> value_recording;  // the recording of each value, in the values' order
+  SpillConfig spill;
+  // The leave-one-out features, in scoring order: kept in memory up to spill.memory_bytes each.
+  std::array<SpillVector<double>, kMethodCount> rms_values;
+  std::array<SpillVector<double>, kMethodCount> entropy_values;
+  SpillVector<std::uint32_t> value_recording;  // the recording of each value, in the values' order
   // Band CUSUM statistics (policy.band_count > 0): clean floor bins of the full mean, and per band the
   // leave-one-out ln band energies of the referred PTDA residual, in the values' order.
   std::vector<unsigned char> clean;
@@ -353,7 +502,7 @@ struct ClassBaselineBuilder::State {
 };
 
 ClassBaselineBuilder::ClassBaselineBuilder(const SegmentClass& segment, std::size_t window_len,
-                                           const ThresholdPolicy& policy) {
+                                           const ThresholdPolicy& policy, const SpillConfig& spill) {
   const std::string where = "class " + std::to_string(segment.id);
   if (!RealFft::supported_length(window_len)) {
     throw Error(where + ": window length " + std::to_string(window_len) +
@@ -366,7 +515,7 @@ ClassBaselineBuilder::ClassBaselineBuilder(const SegmentClass& segment, std::siz
     throw Error(where + ": decision.band_count = " + std::to_string(policy.band_count) + " must be <= " +
                 std::to_string(kMaxBands) + " and <= window_len / 2 = " + std::to_string(window_len / 2));
   }
-  s_ = std::make_unique<State>(segment, window_len, policy);
+  s_ = std::make_unique<State>(segment, window_len, policy, spill);
 }
 
 ClassBaselineBuilder::~ClassBaselineBuilder() = default;
@@ -418,9 +567,6 @@ void ClassBaselineBuilder::finish_mean() {
   cls.floor_gain = s.policy.ptda_floor_gain;
   cls.tda_spectrum.resize(s.bins);
   s.fft.forward(cls.tda_mean, cls.tda_spectrum);
-  for (auto& v : s.rms_values) v.reserve(s.m);
-  for (auto& v : s.entropy_values) v.reserve(s.m);
-  s.value_recording.reserve(s.m);
   if (s.policy.band_count > 0) {
     // From the mean of all the class's windows, like the line groups (docs/method.md §6, band detector).
     s.clean = clean_floor_bins(cls.mean_magnitude);
@@ -507,30 +653,53 @@ ClassBaseline ClassBaselineBuilder::finish() {
   ClassBaseline& cls = s.cls;
   const ThresholdPolicy& policy = s.policy;
   const std::string& where = s.where;
-  auto& rms_values = s.rms_values;
-  auto& entropy_values = s.entropy_values;
+  const auto& rms_values = s.rms_values;
+  const auto& entropy_values = s.entropy_values;
   const auto& value_recording = s.value_recording;
 
   for (std::size_t mi = 0; mi < kMethodCount; ++mi) {
     const std::string what = where + ", method " + std::string(method_name(static_cast<Method>(mi)));
+    const SpillVector<double>& rms = rms_values[mi];
+    const SpillVector<double>& entropy = entropy_values[mi];
     // Within- and between-day spread of the leave-one-out features, recordings as groups (docs/method.md
-    // §5). A zero residual is left out of the log values, as below.
-    std::vector<double> logs;
-    std::vector<std::uint32_t> log_recording;
-    logs.reserve(rms_values[mi].size());
-    for (std::size_t j = 0; j < rms_values[mi].size(); ++j) {
-      if (rms_values[mi][j] > 0.0) {
-        logs.push_back(std::log(rms_values[mi][j]));
-        log_recording.push_back(value_recording[j]);
+    // §5). A zero residual is left out of the log values, as below. Streamed: the accumulators take the
+    // values in order (the same sums as variance_components() of whole vectors).
+    VarianceAccumulator log_acc;
+    VarianceAccumulator entropy_acc;
+    std::size_t n_logs = 0;
+    {
+      SpillVector<double>::Reader r(rms);
+      SpillVector<double>::Reader e(entropy);
+      SpillVector<std::uint32_t>::Reader rec(value_recording);
+      while (!r.done()) {
+        const double v = r.next();
+        const std::uint32_t id = rec.next();
+        if (v > 0.0) {
+          log_acc.add(std::log(v), id);
+          ++n_logs;
+        }
+        entropy_acc.add(e.next(), id);
       }
     }
+    // The positive values' logs chunk by chunk (one chunk in memory: the whole log vector as before).
+    std::vector<double> log_buf;
+    const auto log_chunks = [&](const auto& f) {
+      rms.for_each_chunk([&](std::span<const double> c) {
+        log_buf.clear();
+        for (const double v : c) {
+          if (v > 0.0) log_buf.push_back(std::log(v));
+        }
+        f(std::span<const double>(log_buf));
+      });
+    };
+    const FeatureStats log_stats = chunked_stats(n_logs, log_chunks);
     DaySpread& day = cls.day_spread[mi];
-    if (!logs.empty()) {
-      const VarianceComponents vl = variance_components(logs, log_recording);
+    if (n_logs > 0) {
+      const VarianceComponents vl = log_acc.result();
       day.log_rms_within_sd = std::sqrt(vl.within_var);
       day.log_rms_between_est = std::sqrt(vl.between_var);
     }
-    const VarianceComponents ve = variance_components(entropy_values[mi], value_recording);
+    const VarianceComponents ve = entropy_acc.result();
     day.recordings = ve.groups;
     day.entropy_within_sd = std::sqrt(ve.within_var);
     day.entropy_between_est = std::sqrt(ve.between_var);
@@ -544,22 +713,22 @@ ClassBaseline ClassBaselineBuilder::finish() {
     };
     day.log_rms_between_sd = pooled(day.log_rms_between_est, day.log_rms_within_sd);
     day.entropy_between_sd = pooled(day.entropy_between_est, day.entropy_within_sd);
+    const FeatureStats entropy_stats = feature_stats(entropy);
     try {
       // Ratios, so the widening holds in whatever units the policy fits (ln or linear rms_res).
       const auto ratio = [](double num, double den) { return den > 0.0 && num > 0.0 ? num / den : 0.0; };
       const auto within = [](double w, double sample) { return w > 0.0 && sample > 0.0 ? w / sample : 1.0; };
-      cls.thresholds[mi].rms = fit_band(rms_values[mi], policy, FeatureScale::kLog,
-                                        ratio(day.log_rms_between_sd, day.log_rms_within_sd),
-                                        within(day.log_rms_within_sd, feature_stats(logs).stddev));
-      cls.thresholds[mi].entropy =
-          fit_band(entropy_values[mi], policy, FeatureScale::kLinear,
-                   ratio(day.entropy_between_sd, day.entropy_within_sd),
-                   within(day.entropy_within_sd, feature_stats(entropy_values[mi]).stddev));
+      cls.thresholds[mi].rms =
+          fit_band(rms, policy, FeatureScale::kLog, ratio(day.log_rms_between_sd, day.log_rms_within_sd),
+                   within(day.log_rms_within_sd, log_stats.stddev));
+      cls.thresholds[mi].entropy = fit_band(entropy, policy, FeatureScale::kLinear,
+                                            ratio(day.entropy_between_sd, day.entropy_within_sd),
+                                            within(day.entropy_within_sd, entropy_stats.stddev));
       if (policy.cover_recordings && ve.groups >= 2) {
-        cls.thresholds[mi].rms = cover_recordings(cls.thresholds[mi].rms, rms_values[mi], value_recording,
-                                                  policy, FeatureScale::kLog);
-        cls.thresholds[mi].entropy = cover_recordings(cls.thresholds[mi].entropy, entropy_values[mi],
-                                                      value_recording, policy, FeatureScale::kLinear);
+        cls.thresholds[mi].rms =
+            cover_recordings(cls.thresholds[mi].rms, rms, value_recording, policy, FeatureScale::kLog);
+        cls.thresholds[mi].entropy = cover_recordings(cls.thresholds[mi].entropy, entropy, value_recording,
+                                                      policy, FeatureScale::kLinear);
       }
     } catch (const Error& e) {
       throw Error(what + ": " + e.what());
@@ -567,10 +736,10 @@ ClassBaseline ClassBaselineBuilder::finish() {
     // Both features are >= 0 by construction: a negative lower bound only makes reports confusing.
     cls.thresholds[mi].rms.lo = std::max(0.0, cls.thresholds[mi].rms.lo);
     cls.thresholds[mi].entropy.lo = std::max(0.0, cls.thresholds[mi].entropy.lo);
-    cls.rms_stats[mi] = feature_stats(rms_values[mi]);
-    cls.entropy_stats[mi] = feature_stats(entropy_values[mi]);
+    cls.rms_stats[mi] = feature_stats(rms);
+    cls.entropy_stats[mi] = entropy_stats;
     // A zero residual (possible only for a window identical to the mean) is left out of the log stats.
-    cls.log_rms_stats[mi] = feature_stats(logs);
+    cls.log_rms_stats[mi] = log_stats;
   }
   // Band CUSUM statistics: per band the random-effects split of the leave-one-out ln band energies with
   // the recordings as groups; the between-day sd used is floored at day_sd_floor x within sd (one

@@ -353,6 +353,92 @@ TEST(TrainBaselineStreamed, TwoPassesGiveTheSameBaselineAsTheWindowsHeldWithAHol
   EXPECT_TRUE(same_thresholds(direct, held.classes[0]));
 }
 
+// Every per-window list of the streamed training (index, groups, classes, leave-one-out features,
+// hold-out features, durations) spills beyond SpillConfig::memory_bytes. With 64 bytes (8 doubles, one
+// WindowRef) every list spills: the classes, counts and means are identical to the in-memory training,
+// and the thresholds and statistics agree to rounding (the sums are formed chunk by chunk; the
+// quantiles are exact). A directory that does not exist proves the spill happens: the training names it.
+TEST(TrainBaselineStreamed, SpilledListsGiveTheSameBaselineForEveryThresholdModel) {
+  std::mt19937 rng(11);
+  CollectedWindows d;
+  for (std::uint64_t r = 0; r < 40; ++r) {
+    add_region(d, rng, 2 * r, 1.0 + 0.001 * static_cast<double>(r % 3), 3, kN / 2,
+               1000 * static_cast<std::int64_t>(r));
+    add_region(d, rng, 2 * r + 1, -2.0, 2, kN, 100'000 + 1000 * static_cast<std::int64_t>(r));
+  }
+  d.recording.assign(d.refs.size(), 0U);
+  for (std::size_t i = 0; i < d.refs.size(); ++i)
+    d.recording[i] = static_cast<std::uint32_t>(3 * i / d.refs.size());
+  const auto rel = [](double a, double b) {
+    return std::abs(a - b) / std::max(1e-300, std::max(std::abs(a), std::abs(b)));
+  };
+  for (const auto kind : {ThresholdPolicy::Kind::kGaussian, ThresholdPolicy::Kind::kQuantile,
+                          ThresholdPolicy::Kind::kTolerance}) {
+    SCOPED_TRACE(static_cast<int>(kind));
+    ThresholdPolicy policy;
+    policy.kind = kind;
+    policy.false_alarm_rate = 0.05;
+    policy.holdout_fraction = 0.25;
+    policy.cover_recordings = true;
+    const Baseline mem = train_baseline(d, ClassLearningConfig{}, policy, 2000.0, GearboxInfo{});
+    const TrainingWindowPass pass = [&](const TrainingWindowVisitor& visit) {
+      for (std::size_t i = 0; i < d.windows.size(); ++i) visit(i, d.windows[i]);
+    };
+    SpillConfig tiny;
+    tiny.memory_bytes = 64;
+    const Baseline spilled = train_baseline_streamed(make_training_index(d, tiny), kN, pass,
+                                                     ClassLearningConfig{}, policy, 2000.0, GearboxInfo{});
+    ASSERT_EQ(spilled.classes.size(), 2U);
+    ASSERT_EQ(spilled.classes.size(), mem.classes.size());
+    for (std::size_t k = 0; k < mem.classes.size(); ++k) {
+      const ClassBaseline& a = mem.classes[k];
+      const ClassBaseline& b = spilled.classes[k];
+      EXPECT_EQ(a.segment.speed_rad_s, b.segment.speed_rad_s);
+      EXPECT_EQ(a.segment.duration_s, b.segment.duration_s);
+      EXPECT_EQ(a.segment.regions, b.segment.regions);
+      EXPECT_EQ(a.n_windows, b.n_windows);
+      EXPECT_EQ(a.mean_magnitude, b.mean_magnitude);
+      EXPECT_EQ(a.tda_mean, b.tda_mean);
+      for (std::size_t m = 0; m < kMethodCount; ++m) {
+        EXPECT_LT(rel(a.thresholds[m].rms.lo, b.thresholds[m].rms.lo), 1e-12) << k << " " << m;
+        EXPECT_LT(rel(a.thresholds[m].rms.hi, b.thresholds[m].rms.hi), 1e-12) << k << " " << m;
+        EXPECT_LT(rel(a.thresholds[m].entropy.lo, b.thresholds[m].entropy.lo), 1e-12) << k << " " << m;
+        EXPECT_LT(rel(a.thresholds[m].entropy.hi, b.thresholds[m].entropy.hi), 1e-12) << k << " " << m;
+        EXPECT_EQ(a.rms_stats[m].n, b.rms_stats[m].n);
+        EXPECT_EQ(a.rms_stats[m].min, b.rms_stats[m].min);
+        EXPECT_EQ(a.rms_stats[m].max, b.rms_stats[m].max);
+        EXPECT_LT(rel(a.rms_stats[m].mean, b.rms_stats[m].mean), 1e-12);
+        EXPECT_LT(rel(a.entropy_stats[m].stddev, b.entropy_stats[m].stddev), 1e-12);
+        EXPECT_LT(rel(a.log_rms_stats[m].stddev, b.log_rms_stats[m].stddev), 1e-12);
+        EXPECT_EQ(a.day_spread[m].recordings, b.day_spread[m].recordings);
+        EXPECT_EQ(a.day_spread[m].log_rms_between_sd, b.day_spread[m].log_rms_between_sd);
+        EXPECT_EQ(a.holdout[m].windows, b.holdout[m].windows);
+        EXPECT_EQ(a.holdout[m].abnormal, b.holdout[m].abnormal);
+        EXPECT_LT(rel(a.holdout[m].z_rms_mean, b.holdout[m].z_rms_mean), 1e-9);
+      }
+    }
+    EXPECT_GT(mem.classes[0].holdout[0].windows, 0U);
+    // The lists did spill: a training whose spill directory does not exist stops with its name...
+    SpillConfig nowhere = tiny;
+    nowhere.dir = "/nonexistent-ptda-spill-dir";
+    try {
+      (void)train_baseline_streamed(make_training_index(d, nowhere), kN, pass, ClassLearningConfig{}, policy,
+                                    2000.0, GearboxInfo{});
+      ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("/nonexistent-ptda-spill-dir"), std::string::npos) << e.what();
+    }
+    // ...and the default 256 KiB per list holds these in memory: the same directory is never touched,
+    // and the result is the in-memory training's, bit for bit.
+    nowhere.memory_bytes = SpillConfig{}.memory_bytes;
+    const Baseline held = train_baseline_streamed(make_training_index(d, nowhere), kN, pass,
+                                                  ClassLearningConfig{}, policy, 2000.0, GearboxInfo{});
+    ASSERT_EQ(held.classes.size(), mem.classes.size());
+    for (std::size_t k = 0; k < mem.classes.size(); ++k)
+      EXPECT_TRUE(same_thresholds(mem.classes[k], held.classes[k]));
+  }
+}
+
 TEST(TrainBaselineStreamed, APassThatSkipsOrReordersWindowsIsRefused) {
   std::mt19937 rng(7);
   CollectedWindows d;

@@ -154,6 +154,31 @@ using dsp::window_ref_of;
 /// training uses as the day of each window (docs/method.md §5).
 void append_collected(dsp::CollectedWindows& all, dsp::CollectedWindows more);
 
+/// Pass 0 of `ptda train` in bounded memory: cuts the recording's windows as collect_windows() does,
+/// without their samples, and appends each window's place and recording and the regions to `index`
+/// (spilled: memory does not grow with the recording), renumbered as append_collected() does; the
+/// recording gets the index's next recording number. `renumber` carries the offsets from one recording
+/// to the next (start with {}).
+struct IndexRenumber {
+  std::uint32_t recordings = 0;     ///< recordings indexed so far (the next one's number)
+  std::uint64_t region_offset = 0;  ///< one past the largest region seq indexed so far
+  std::uint64_t window_offset = 0;  ///< one past the largest window seq indexed so far
+};
+struct IndexResult {
+  dsp::SlicerCounters slicer;
+  CanCounters can;
+  std::uint64_t windows = 0;  ///< windows this recording added
+  std::uint64_t regions = 0;  ///< regions this recording added
+};
+[[nodiscard]] IndexResult index_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg,
+                                        double fs_hz, const RunOptions& options, dsp::TrainingIndex& index,
+                                        IndexRenumber& renumber);
+
+/// select_windows() of a streamed index: the windows [range.first(count), range.last(count)) in cut order
+/// with their recordings, and the regions they lie in (in region order), in a new index with the same
+/// spill configuration.
+[[nodiscard]] dsp::TrainingIndex select_windows(const dsp::TrainingIndex& all, const FractionRange& range);
+
 /// Keeps the windows [range.first(count), range.last(count)) in cut order and the regions they lie in
 /// (refs only when `all` holds no windows).
 [[nodiscard]] dsp::CollectedWindows select_windows(const dsp::CollectedWindows& all,

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/spill.hpp"
 #include "ptda/dsp/training.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 
@@ -32,6 +33,22 @@ struct CollectedWindows {
   std::vector<std::uint32_t> recording;
 };
 
+/// The index of a streamed training: each window's place and training recording (day, 0-based), in
+/// cut order, and the regions, in spill vectors, so that its memory does not grow with the training
+/// data (docs/cli.md, `ptda train`, "Memory"). `spill` is also where the training spills its own
+/// per-window values.
+struct TrainingIndex {
+  explicit TrainingIndex(const SpillConfig& cfg = {});
+  SpillConfig spill;
+  SpillVector<WindowRef> refs;
+  SpillVector<std::uint32_t> recording;  ///< one per ref
+  SpillVector<RegionInfo> regions;
+};
+
+/// The index of in-memory training data (its refs, regions and recordings; recording 0 for every window
+/// when data.recording is empty). Throws ptda::Error when data.recording has another size than refs.
+[[nodiscard]] TrainingIndex make_training_index(const CollectedWindows& data, const SpillConfig& spill = {});
+
 struct ClassLearningConfig {
   double speed_tol_rel = 0.05;  ///< regions within this relative speed of each other share a class
   double speed_tol_abs_rad_s = 0.02;
@@ -47,6 +64,10 @@ struct ClassLearningConfig {
 [[nodiscard]] std::vector<SegmentClass> learn_segment_classes(const std::vector<RegionInfo>& regions,
                                                               const ClassLearningConfig& cfg,
                                                               std::vector<std::string>* dropped = nullptr);
+/// learn_segment_classes() of regions in a spill vector (sorted in bounded memory; the same classes).
+[[nodiscard]] std::vector<SegmentClass> learn_segment_classes_streamed(
+    const SpillVector<RegionInfo>& regions, const ClassLearningConfig& cfg,
+    std::vector<std::string>* dropped = nullptr);
 
 /// Builds the baseline: classes from the regions, then build_class_baseline() per class with the
 /// window's overlap group as leave-out group (windows of one region whose sample ranges overlap share
@@ -60,13 +81,23 @@ struct ClassLearningConfig {
                                       std::vector<std::string>* dropped = nullptr);
 
 /// train_baseline() without holding the windows: `index` holds the refs, regions and recording ids
-/// (its `windows` is ignored) and `pass` hands the windows over, one at a time; it is called twice
-/// (the class sums, then the leave-one-group-out features and the hold-out's features), so a caller
-/// can stream a recording twice instead of keeping it. Same result, byte for byte, as train_baseline()
-/// on the same windows (it is built on this). Memory: O(N) per class, a few doubles per window, and the
-/// windows of one overlap group at a time (groups whose windows arrive interleaved are held until
-/// complete). Throws as train_baseline() does, and when a pass does not visit every window exactly
-/// once, in order. Thread: any (offline). Allocates.
+/// and `pass` hands the windows over, one at a time; it is called twice (the class sums, then the
+/// leave-one-group-out features and the hold-out's features), so a caller can stream a recording twice
+/// instead of keeping it. Same result, byte for byte, as train_baseline() on the same windows (it is
+/// built on this) as long as no per-window list spills (index.spill.memory_bytes per list); beyond, the
+/// sums of the threshold statistics are formed chunk by chunk (equal up to rounding) and every order
+/// statistic stays exact. Memory: O(N) per class, index.spill.memory_bytes per per-window list, and the
+/// windows of one overlap group at a time (a group is scored when its last window in cut order has
+/// come). Spill files go to index.spill.dir. Throws as train_baseline() does, when a pass does not
+/// visit every window exactly once, in order, and when a spill file fails. Thread: any (offline).
+/// Allocates.
+[[nodiscard]] Baseline train_baseline_streamed(const TrainingIndex& index, std::size_t window_len,
+                                               const TrainingWindowPass& pass,
+                                               const ClassLearningConfig& classes,
+                                               const ThresholdPolicy& policy, double fs_hz,
+                                               const GearboxInfo& gearbox,
+                                               std::vector<std::string>* dropped = nullptr);
+/// The same with the index of in-memory data (make_training_index(index); its `windows` is ignored).
 [[nodiscard]] Baseline train_baseline_streamed(const CollectedWindows& index, std::size_t window_len,
                                                const TrainingWindowPass& pass,
                                                const ClassLearningConfig& classes,

@@ -9,6 +9,7 @@
 
 #include "ptda/dsp/baseline.hpp"
 #include "ptda/dsp/decision.hpp"
+#include "ptda/dsp/spill.hpp"
 
 namespace ptda::dsp {
 
@@ -113,6 +114,12 @@ enum class FeatureScale : std::uint8_t {
 [[nodiscard]] Band fit_band(std::span<const double> values, const ThresholdPolicy& policy,
                             FeatureScale scale = FeatureScale::kLinear, double day_ratio = 0.0,
                             double within_ratio = 1.0);
+/// fit_band() of values in a spill vector: the same code on the values in memory when none spilled;
+/// else the sums chunk by chunk (equal up to rounding) and kQuantile's order statistics from sorted()
+/// (exact). Also throws when the spill file fails.
+[[nodiscard]] Band fit_band(const SpillVector<double>& values, const ThresholdPolicy& policy,
+                            FeatureScale scale = FeatureScale::kLinear, double day_ratio = 0.0,
+                            double within_ratio = 1.0);
 
 /// The band `pooled` widened to cover each recording's own band (ThresholdPolicy::cover_recordings,
 /// docs/method.md §5): for every recording id in `recordings` with at least 3 values (for kLog: 3 values
@@ -122,6 +129,11 @@ enum class FeatureScale : std::uint8_t {
 /// id). Throws ptda::Error on a size mismatch or as fit_band. Thread: any. Allocates.
 [[nodiscard]] Band cover_recordings(const Band& pooled, std::span<const double> values,
                                     std::span<const std::uint32_t> recordings, const ThresholdPolicy& policy,
+                                    FeatureScale scale = FeatureScale::kLinear);
+/// cover_recordings() of values in spill vectors (recordings must have one id per value).
+[[nodiscard]] Band cover_recordings(const Band& pooled, const SpillVector<double>& values,
+                                    const SpillVector<std::uint32_t>& recordings,
+                                    const ThresholdPolicy& policy,
                                     FeatureScale scale = FeatureScale::kLinear);
 
 /// Problems with the amount of training data for the policy's false-alarm rate, one sentence each,
@@ -135,6 +147,9 @@ enum class FeatureScale : std::uint8_t {
 /// Summary statistics of values (population of the training set; stddev with n-1, 0 for n < 2;
 /// all zero with n = 0 for no values). Thread: any. Never allocates or throws.
 [[nodiscard]] FeatureStats feature_stats(std::span<const double> values);
+/// feature_stats() of a spill vector: identical to the span version when none spilled, else summed
+/// chunk by chunk (equal up to rounding). Thread: any. Allocates; throws when the spill file fails.
+[[nodiscard]] FeatureStats feature_stats(const SpillVector<double>& values);
 
 /// The class baseline of build_class_baseline(), built from windows handed over one at a time, so a
 /// caller can stream them from a recording in two passes instead of holding them (`ptda train`):
@@ -150,7 +165,10 @@ enum class FeatureScale : std::uint8_t {
 /// a call out of order or (finish) fewer than 3 groups.
 class ClassBaselineBuilder {
  public:
-  ClassBaselineBuilder(const SegmentClass& segment, std::size_t window_len, const ThresholdPolicy& policy);
+  /// `spill`: where the per-window leave-one-out features go beyond spill.memory_bytes per feature
+  /// (memory does not grow with the class's windows; docs/cli.md, `ptda train`, "Memory").
+  ClassBaselineBuilder(const SegmentClass& segment, std::size_t window_len, const ThresholdPolicy& policy,
+                       const SpillConfig& spill = {});
   ~ClassBaselineBuilder();
   ClassBaselineBuilder(ClassBaselineBuilder&&) noexcept;
   ClassBaselineBuilder& operator=(ClassBaselineBuilder&&) noexcept;
