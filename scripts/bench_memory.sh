@@ -9,7 +9,9 @@
 #   train    ptda train on it,
 #   simulate ptda simulate of the same job (config/scenarios/arc_welding_faulty.toml, seed 3003) with
 #            its cycle count scaled to HOURS (written to out_dir, deleted at the end),
-# each under GNU time: %M is the peak RSS (ru_maxrss of the child) in KiB.
+# each under GNU time: %M is the peak RSS (ru_maxrss of the child) in KiB; spill_peak_mib is the
+# largest total size of the command's unlinked spill files seen (polled every 0.2 s; ptda train's lists
+# beyond 256 KiB, ptdad --train's windows).
 #
 # Usage: scripts/bench_memory.sh HOURS [build_dir] [out_dir]
 #   HOURS      length of the long recording (fractions allowed; 1 h = 278 MB of WAV + 44 MB of log; at
@@ -112,11 +114,28 @@ measure() {  # name, command...
   local name=$1
   shift
   if [[ " ${SKIP:-} " == *" $name "* ]]; then return; fi
-  /usr/bin/time -f '%M %e %U %S' -o "$out/$name.time" "$@" >"$out/$name.log" 2>&1 || echo "$name exited $?" >&2
+  /usr/bin/time -f '%M %e %U %S' -o "$out/$name.time" "$@" >"$out/$name.log" 2>&1 &
+  local tpid=$! spill=0 child now f l
+  # Peak size of the child's unlinked (spill) files, polled from /proc every 0.2 s: O_TMPFILE and
+  # unlinked files show as "... (deleted)" links; their bytes are on disk, not in the RSS.
+  while kill -0 "$tpid" 2>/dev/null; do
+    child=$(pgrep -P "$tpid" | head -n 1 || true)
+    if [[ -n $child ]]; then
+      now=0
+      for f in /proc/"$child"/fd/*; do
+        l=$(readlink "$f" 2>/dev/null || true)
+        [[ $l == *"(deleted)"* ]] && now=$((now + $(stat -L -c %s "$f" 2>/dev/null || echo 0)))
+      done
+      ((now > spill)) && spill=$now
+    fi
+    sleep 0.2
+  done
+  wait "$tpid" || echo "$name exited $?" >&2
   read -r rss wall user sys <"$out/$name.time"
-  printf '%s\t%s\t%.1f\t%.1f\t%.1f\n' "$name" "$signal_h" "$(echo "$rss / 1024" | bc -l)" "$wall" "$(echo "$user + $sys" | bc -l)" >>"$out/results.tsv"
+  printf '%s\t%s\t%.1f\t%.1f\t%.1f\t%.1f\n' "$name" "$signal_h" "$(echo "$rss / 1024" | bc -l)" "$wall" \
+    "$(echo "$user + $sys" | bc -l)" "$(echo "$spill / 1048576" | bc -l)" >>"$out/results.tsv"
 }
-printf 'command\thours\tpeak_rss_mib\twall_s\tcpu_s\n' >"$out/results.tsv"
+printf 'command\thours\tpeak_rss_mib\twall_s\tcpu_s\tspill_peak_mib\n' >"$out/results.tsv"
 measure replay "$ptdad" --config "$out/ptdad/ptdad.toml" --config-dir '' --exit-at-end --foreground
 measure monitor "$ptda" monitor --recording "$rec" --config "$cfg" --baseline "$base" --quiet
 # fieldtrain: ptdad --train on the same replay; it collects every window (max_windows = FIELD_MAX_WINDOWS,
@@ -165,7 +184,7 @@ PY
     --seed 3003 >"$out/simulate.log" 2>&1 || echo "simulate exited $?" >&2
   read -r rss wall user sys <"$out/simulate.time"
   sim_h=$(awk '$1 == "duration" {printf "%.3f", $2 / 3600}' "$out/simulate.log")
-  printf '%s\t%s\t%.1f\t%.1f\t%.1f\n' simulate "$sim_h" "$(echo "$rss / 1024" | bc -l)" "$wall" \
+  printf '%s\t%s\t%.1f\t%.1f\t%.1f\t-\n' simulate "$sim_h" "$(echo "$rss / 1024" | bc -l)" "$wall" \
     "$(echo "$user + $sys" | bc -l)" >>"$out/results.tsv"
   [[ ${KEEP:-0} == 1 ]] || rm -rf "$sim_out"
 fi

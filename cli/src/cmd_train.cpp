@@ -190,9 +190,6 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
   return kExitOk;
 }
 
-// `ptda train` in the order domain (docs/method.md §9): every recording through the angle resampler and
-// the order window cutter (one pass, windows kept in memory: 4 R S bytes each), then
-// train_order_baseline (speed-band classes, the time domain's per-class training and thresholds).
 /// All training recordings share one sample rate: the first one's (kept in fs_hz / first_recording).
 void take_rate(const RecordingInfo& rec, double fs, const std::string& dir, double& fs_hz,
                std::string& first_recording) {
@@ -205,9 +202,15 @@ void take_rate(const RecordingInfo& rec, double fs, const std::string& dir, doub
   }
 }
 
+// `ptda train` in the order domain (docs/method.md §9): every recording through the angle resampler and
+// the order window cutter three times (an index of the windows, then the class sums, then the
+// leave-one-out features), train_order_baseline_streamed (speed-band classes, the time domain's
+// per-class training and thresholds); no window is held.
 int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const std::string& config_path,
                 const FractionRange& range, std::ostream& out) {
-  dsp::OrderWindows all;
+  // The index (each window's place, recording and mean square) spills beyond 32 KiB per list; the
+  // windows come in two more passes over each recording, so memory does not grow with their length.
+  dsp::OrderTrainingIndex all;
   std::string source = "ptda train";
   double fs_hz = 0.0;
   std::string first_recording;
@@ -216,7 +219,9 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
     std::size_t begin = 0, end = 0;
   };
   std::vector<Span> spans;
+  std::vector<RecordingInfo> recs;
   double recorded_s = 0.0;
+  std::uint64_t seq_offset = 0, segment_offset = 0;  // renumbered as append_order_windows() does
   for (const auto& dir : a.values("recording")) {
     const RecordingInfo rec = open_recording(dir);
     const double fs = pipeline_fs_hz(rec, cfg, config_path);
@@ -224,52 +229,83 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
     recorded_s += rec.duration_s;
     RunOptions opts;
     opts.config_source = config_path;
-    opts.progress_label = "train " + rec.dir.filename().string() + " (order domain)";
-    OrderCollectResult c = collect_order_windows(rec, cfg, fs, opts);
+    opts.progress_label = "train " + rec.dir.filename().string() + " (order domain, pass 1 of 3)";
+    Span span;
+    span.begin = all.refs.size();
+    const auto recording = static_cast<std::uint32_t>(spans.size());
+    const std::uint64_t seq0 = seq_offset, segment0 = segment_offset;
+    const OrderCollectResult c = collect_order_windows(
+        rec, cfg, fs, opts, [&](const dsp::OrderWindowRef& r, std::span<const float> x) {
+          dsp::OrderWindowRef ref = r;
+          ref.seq += seq0;
+          ref.segment += segment0;
+          seq_offset = std::max(seq_offset, ref.seq + 1);
+          segment_offset = std::max(segment_offset, ref.segment + 1);
+          all.refs.push_back(ref);
+          all.recording.push_back(recording);
+          all.mean_square.push_back(dsp::window_mean_square(x));
+        });
+    span.end = all.refs.size();
     const dsp::AngleResamplerCounters& rc = c.resampler;
     out << "recording " << dir << ": " << fixed(rec.duration_s, 2) << " s at " << general(fs, 10) << " Hz, "
-        << c.data.refs.size() << " order windows (" << cfg.order.revolutions << " revolutions of "
+        << (span.end - span.begin) << " order windows (" << cfg.order.revolutions << " revolutions of "
         << cfg.order.samples_per_rev << " samples)\n";
     out << "  resampler: " << rc.frames << " angle frames, " << rc.breaks << " breaks, " << rc.frames_no_angle
         << " frames without angle, " << rc.angle_inconsistent << " inconsistent angle steps, "
         << rc.frames_out_of_order << " out of order; CAN: " << c.can.frames << " frames, "
         << c.can.speed_frames << " speed\n";
     source += " --recording " + dir;
-    Span span;
     span.rec.id = recording_id(rec);
     span.rec.path = dir;
-    span.begin = all.refs.size();
-    append_order_windows(all, std::move(c.data));
-    span.end = all.refs.size();
     spans.push_back(span);
+    recs.push_back(rec);
   }
   source += " --config " + config_path;
-  const std::size_t first = static_cast<std::size_t>(range.first(all.refs.size()));
-  const std::size_t last = static_cast<std::size_t>(range.last(all.refs.size()));
+  const std::size_t total = all.refs.size();
+  const std::size_t first = static_cast<std::size_t>(range.first(total));
+  const std::size_t last = static_cast<std::size_t>(range.last(total));
   std::vector<dsp::TrainingRecording> training;
-  for (Span& sp : spans) {
-    const std::size_t b = std::max(sp.begin, first);
-    const std::size_t e = std::min(sp.end, last);
-    if (b >= e) continue;
-    sp.rec.from_unix_s = ns_to_seconds(all.refs[b].t_start_ns);
-    sp.rec.to_unix_s = ns_to_seconds(all.refs[b].t_end_ns);
-    for (std::size_t i = b; i < e; ++i) {
-      sp.rec.from_unix_s = std::min(sp.rec.from_unix_s, ns_to_seconds(all.refs[i].t_start_ns));
-      sp.rec.to_unix_s = std::max(sp.rec.to_unix_s, ns_to_seconds(all.refs[i].t_end_ns));
+  {
+    dsp::SpillVector<dsp::OrderWindowRef>::Reader refs(all.refs);
+    std::size_t i = 0;
+    for (Span& sp : spans) {
+      const std::size_t b = std::max(sp.begin, first);
+      const std::size_t e = std::min(sp.end, last);
+      if (b >= e) continue;
+      while (i < b) {
+        (void)refs.next();
+        ++i;
+      }
+      bool any = false;
+      for (; i < e; ++i) {
+        const dsp::OrderWindowRef r = refs.next();
+        const double from = ns_to_seconds(r.t_start_ns);
+        const double to = ns_to_seconds(r.t_end_ns);
+        sp.rec.from_unix_s = any ? std::min(sp.rec.from_unix_s, from) : from;
+        sp.rec.to_unix_s = any ? std::max(sp.rec.to_unix_s, to) : to;
+        any = true;
+      }
+      sp.rec.windows = static_cast<std::uint32_t>(e - b);
+      training.push_back(sp.rec);
     }
-    sp.rec.windows = static_cast<std::uint32_t>(e - b);
-    training.push_back(sp.rec);
   }
   if (!range.whole()) {
-    const std::size_t n = all.refs.size();
-    dsp::OrderWindows kept;
-    for (std::size_t i = first; i < last; ++i) {
-      kept.refs.push_back(all.refs[i]);
-      kept.windows.push_back(std::move(all.windows[i]));
-      kept.recording.push_back(all.recording[i]);
+    dsp::OrderTrainingIndex kept(all.spill);
+    dsp::SpillVector<dsp::OrderWindowRef>::Reader refs(all.refs);
+    dsp::SpillVector<std::uint32_t>::Reader recording(all.recording);
+    dsp::SpillVector<double>::Reader ms(all.mean_square);
+    for (std::size_t i = 0; i < last; ++i) {
+      const dsp::OrderWindowRef r = refs.next();
+      const std::uint32_t rec = recording.next();
+      const double m = ms.next();
+      if (i < first) continue;
+      kept.refs.push_back(r);
+      kept.recording.push_back(rec);
+      kept.mean_square.push_back(m);
     }
     all = std::move(kept);
-    out << "windows " << a.value("windows") << ": kept " << all.refs.size() << " of " << n << " windows\n";
+    out << "windows " << a.value("windows") << ": kept " << all.refs.size() << " of " << total
+        << " windows\n";
     source += " --windows " + a.value("windows");
   }
   if (all.refs.empty()) {
@@ -279,12 +315,51 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
            "revolutions\n";
     return kExitNotJudged;
   }
+  // Two more passes over each recording hand the kept windows over in cut order.
+  int pass_no = 1;
+  const dsp::TrainingWindowPass pass = [&](const dsp::TrainingWindowVisitor& visit) {
+    ++pass_no;
+    dsp::SpillVector<dsp::OrderWindowRef>::Reader kept(all.refs);
+    for (std::size_t r = 0; r < spans.size(); ++r) {
+      const Span& sp = spans[r];
+      const std::uint64_t lo = std::max<std::uint64_t>(sp.begin, first);
+      const std::uint64_t hi = std::min<std::uint64_t>(sp.end, first + all.refs.size());
+      if (lo >= hi) continue;
+      RunOptions opts;
+      opts.config_source = config_path;
+      opts.progress_label = "train " + recs[r].dir.filename().string() + " (order domain, pass " +
+                            std::to_string(pass_no) + " of 3)";
+      std::uint64_t cut = sp.begin;
+      (void)collect_order_windows(
+          recs[r], cfg, fs_hz, opts, [&](const dsp::OrderWindowRef& ref, std::span<const float> x) {
+            const std::uint64_t g = cut++;
+            if (g < lo || g >= hi) return;
+            const auto i = static_cast<std::size_t>(g - first);
+            if (kept.done() || kept.position() != i) {
+              throw Error(recs[r].dir.string() + ": order window " + std::to_string(g - sp.begin) +
+                          " is not in the first pass's cut order: did the recording change?");
+            }
+            const dsp::OrderWindowRef k = kept.next();
+            if (ref.k_start != k.k_start || ref.t_start_ns != k.t_start_ns) {
+              throw Error(recs[r].dir.string() + ": order window " + std::to_string(g - sp.begin) +
+                          " is not where the first pass cut it (grid index " + std::to_string(ref.k_start) +
+                          ", was " + std::to_string(k.k_start) + "): did the recording change?");
+            }
+            visit(i, x);
+          });
+      if (cut != sp.end) {
+        throw Error(recs[r].dir.string() + ": " + std::to_string(cut - sp.begin) +
+                    " order windows cut, the first pass cut " + std::to_string(sp.end - sp.begin) +
+                    ": did the recording change?");
+      }
+    }
+  };
   dsp::AngleResamplerConfig rc = config::angle_resampler_config(cfg);
   const dsp::OrderWindowConfig oc = config::order_window_config(cfg, dsp::AngleResampler::pass_order_of(rc));
   std::vector<std::string> dropped;
   dsp::Baseline baseline =
-      dsp::train_order_baseline(all, oc, cfg.order.speed_band_rel, cfg.thresholds, cfg.gearbox, &dropped,
-                                cfg.order.speed_law, cfg.classes.min_regions);
+      dsp::train_order_baseline_streamed(all, pass, oc, cfg.order.speed_band_rel, cfg.thresholds, cfg.gearbox,
+                                         &dropped, cfg.order.speed_law, cfg.classes.min_regions);
   // Windows per hour of recording, for the CUSUM's false-alarm rates per day (the time domain counts the
   // same; with --windows the kept fraction of the recorded time).
   const double kept_s = recorded_s * (range.whole() ? 1.0 : range.to - range.from);
@@ -326,7 +401,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   for (const std::string& w : cfg.warnings) std::cerr << "warning: " << w << "\n";
   if (cfg.domain == dsp::Domain::kOrder) return train_order(a, cfg, config_path, range, out);
 
-  // The index of every window (place, recording) and the regions spill to $TMPDIR beyond 256 KiB per
+  // The index of every window (place, recording) and the regions spill to $TMPDIR beyond 32 KiB per
   // list: with the streamed passes below, memory does not grow with the recordings' length.
   dsp::TrainingIndex all;
   IndexRenumber renumber;

@@ -47,43 +47,71 @@ double gmf_hz(const dsp::GearboxInfo& g, double speed_rad_s) {
   return static_cast<double>(g.z_in) * g.ratio * std::fabs(speed_rad_s) / (2.0 * std::numbers::pi);
 }
 
-// Decoded speeds of one id with the configured layout; empty when the layout cannot apply.
-// The likeness is judged on the first kLikenessFrames decoded values of each id (68 min of a 256 Hz
-// speed frame), so the doctor's memory does not grow with the recording; the range covers them all.
-constexpr std::size_t kLikenessFrames = std::size_t{1} << 20;
+// A uniform sample of at most kSampleSize values of a stream (reservoir sampling, algorithm R, with a
+// fixed-seed splitmix64 generator: reproducible), for medians in bounded memory. It holds every value
+// while fewer came (any recording under 2 min at 256 frames/s), so the median is then exact.
+class ReservoirSample {
+ public:
+  static constexpr std::size_t kSampleSize = std::size_t{1} << 15;
+  void add(double v) {
+    if (values_.size() < kSampleSize) {
+      values_.push_back(v);
+    } else {
+      // Value i (0-based) replaces a kept one with probability kSampleSize / (i + 1).
+      rng_ += 0x9E3779B97F4A7C15ULL;
+      std::uint64_t z = rng_;
+      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+      z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+      z ^= z >> 31;
+      const std::uint64_t j = z % (seen_ + 1);
+      if (j < kSampleSize) values_[static_cast<std::size_t>(j)] = v;
+    }
+    ++seen_;
+  }
+  [[nodiscard]] std::uint64_t seen() const noexcept { return seen_; }
+  /// The sample's (size / 2)-th smallest value (the upper median); needs seen() > 0.
+  [[nodiscard]] double median() const {
+    std::vector<double> v = values_;
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  }
+
+ private:
+  std::vector<double> values_;
+  std::uint64_t seen_ = 0;
+  std::uint64_t rng_ = 0x9E3779B97F4A7C15ULL;
+};
+
+// Decoded speeds of one id with the configured layout. How much they look like a joint speed is judged
+// on all of them in bounded memory: the share in range and the range are counted, and the median step
+// between consecutive values comes from a ReservoirSample of the steps. So the doctor's memory does not
+// grow with the recording.
 struct IdTrial {
   std::uint32_t key = 0;
   std::uint64_t frames = 0;
-  std::vector<double> speeds;  // the first kLikenessFrames decoded values
-  double lo = 0.0, hi = 0.0;   // range of all decoded values (when decoded > 0)
+  double lo = 0.0, hi = 0.0;  // range of all decoded values (when decoded > 0)
   std::uint64_t decoded = 0;
-  void add(double v) {
+  std::uint64_t in_range = 0;  // finite and within max_speed_rad_s
+  double prev = 0.0;
+  ReservoirSample steps;  // |consecutive differences|
+  void add(double v, double max_speed_rad_s) {
     if (decoded == 0 || v < lo) lo = v;
     if (decoded == 0 || v > hi) hi = v;
+    if (std::isfinite(v) && std::fabs(v) <= max_speed_rad_s) ++in_range;
+    if (decoded > 0) steps.add(std::fabs(v - prev));
+    prev = v;
     ++decoded;
-    if (speeds.size() < kLikenessFrames) speeds.push_back(v);
   }
 };
 
 // How much a series of decoded values looks like a joint speed: in range, moving, and smooth
 // (consecutive frames close compared with the range). 0..1.
-double speed_likeness(const std::vector<double>& v, double max_speed_rad_s, double min_speed_rad_s) {
-  if (v.size() < 10) return 0.0;
-  std::size_t in_range = 0;
-  double lo = v.front(), hi = v.front();
-  for (double x : v) {
-    if (std::isfinite(x) && std::fabs(x) <= max_speed_rad_s) ++in_range;
-    lo = std::min(lo, x);
-    hi = std::max(hi, x);
-  }
-  const double range = hi - lo;
+double speed_likeness(const IdTrial& t, double min_speed_rad_s) {
+  if (t.decoded < 10) return 0.0;
+  const double range = t.hi - t.lo;
   if (!(range > min_speed_rad_s)) return 0.0;
-  std::vector<double> steps;
-  steps.reserve(v.size());
-  for (std::size_t i = 1; i < v.size(); ++i) steps.push_back(std::fabs(v[i] - v[i - 1]));
-  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
-  const double smooth = 1.0 - std::min(1.0, 20.0 * steps[steps.size() / 2] / range);
-  return static_cast<double>(in_range) / static_cast<double>(v.size()) * smooth;
+  const double smooth = 1.0 - std::min(1.0, 20.0 * t.steps.median() / range);
+  return static_cast<double>(t.in_range) / static_cast<double>(t.decoded) * smooth;
 }
 
 // Groups regions by direction and |speed| with the [classes] tolerance (sorted by speed, greedy).
@@ -130,7 +158,7 @@ struct AngleCheck {
   std::uint64_t frames = 0, with_angle = 0;
   std::uint64_t wraps = 0;  // steps that differ from the speed's integral by a whole turn (modulo-2 pi angle)
   double moving_s = 0.0;    // time between consecutive frames both above min_speed_rad_s
-  std::vector<double> ratios;
+  ReservoirSample ratios;   // angle step / speed integral per stretch (a sample: bounded memory)
   bool have_prev = false;
   double prev_v = 0.0, prev_a = 0.0;
   std::int64_t prev_t = 0;
@@ -161,7 +189,7 @@ struct AngleCheck {
       d_angle += step;
       d_integral += integral;
       if (++n == kFramesPerStretch) {
-        if (std::fabs(d_integral) > 1e-4) ratios.push_back(d_angle / d_integral);
+        if (std::fabs(d_integral) > 1e-4) ratios.add(d_angle / d_integral);
         d_angle = d_integral = 0.0;
         n = 0;
       }
@@ -210,10 +238,11 @@ class DoctorSink final : public PipelineSink {
   std::uint64_t speeds = 0;  // speed samples, and their range (kept as counts: memory stays flat)
   double speed_lo = 0.0, speed_hi = 0.0;
   std::int64_t first_speed_t_ns = 0, last_speed_t_ns = 0;
-  // The plateaus are judged on the first kPlateauRegions (memory stays flat on long recordings); the
+  // The plateaus are judged on the first kPlateauRegions (memory stays flat on long recordings; 2^12
+  // is about 40 min of the arc-welding job's pieces, so a 1 h and a 24 h recording hold as much); the
   // windows are kept up to the end of the last of them.
-  static constexpr std::size_t kPlateauRegions = std::size_t{1} << 16;
-  static constexpr std::size_t kPlateauWindows = std::size_t{1} << 20;  // 8 MiB of window starts
+  static constexpr std::size_t kPlateauRegions = std::size_t{1} << 12;
+  static constexpr std::size_t kPlateauWindows = std::size_t{1} << 17;  // 1 MiB of window starts
   bool capped = false;  // regions beyond kPlateauRegions came: the last kept one is cut, like an edge
   std::vector<dsp::RegionInfo> regions;
   std::vector<std::int64_t> window_starts;  // t_start_ns of each configured window
@@ -385,18 +414,19 @@ void diagnose_order(const RecordingInfo& rec, const config::PipelineConfig& cfg,
             config_source + " (or use domain = \"time\")");
     return;
   }
-  if (angle.ratios.size() < 3) {
+  if (angle.ratios.seen() < 3) {
     add(Kind::kNote, "angle",
         "the joint never moved long enough in one direction (" +
             std::to_string(AngleCheck::kFramesPerStretch) +
             " frames) to compare the CAN angle with the integrated speed");
   } else {
-    std::vector<double> r = angle.ratios;
-    std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2), r.end());
-    const double m = r[r.size() / 2];
+    const double m = angle.ratios.median();
     const std::string measured =
         "the CAN angle moves " + (std::fabs(m) < 100.0 ? fixed(m, 4) : general(m, 5)) +
-        " times the integral of the CAN speed (median over " + std::to_string(r.size()) + " stretches of " +
+        " times the integral of the CAN speed (median over " + std::to_string(angle.ratios.seen()) +
+        (angle.ratios.seen() > ReservoirSample::kSampleSize
+             ? " stretches, from a sample of " + std::to_string(ReservoirSample::kSampleSize) + ", of "
+             : " stretches of ") +
         std::to_string(AngleCheck::kFramesPerStretch) + " frames)";
     const double scale = cfg.speed_frame.angle.scale;
     if (std::fabs(m - 1.0) <= 0.03) {
@@ -613,7 +643,7 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
       s.extended = record.frame.extended();
       config::DecodedSpeed d;
       if (config::decode_speed(record.frame, s, d) == config::DecodeResult::kOk) {
-        t.add(d.speed_rad_s);
+        t.add(d.speed_rad_s, cfg.extraction.max_speed_rad_s);
         if (key == configured_key) {
           ++rep.speed_frames;
           angle.add(record.frame.t_ns, d.speed_rad_s, d.has_angle, d.angle_rad,
@@ -633,8 +663,7 @@ DoctorReport diagnose_commissioning(const RecordingInfo& rec, const config::Pipe
   const IdTrial* best = nullptr;
   double best_score = 0.0;
   for (const auto& [key, t] : trials) {
-    const double score =
-        speed_likeness(t.speeds, cfg.extraction.max_speed_rad_s, cfg.extraction.min_speed_rad_s);
+    const double score = speed_likeness(t, cfg.extraction.min_speed_rad_s);
     if (score > best_score) {
       best_score = score;
       best = &t;

@@ -266,15 +266,17 @@ class CollectSink final : public PipelineSink {
   void drain() {
     dsp::WindowRef ref;
     while (slicer_.pop(ref, buf_)) {
-      data.refs.push_back(ref);
       if (visitor_) {
-        visitor_(ref, buf_);
+        visitor_(ref, buf_);  // the visitor keeps what it needs: nothing grows here
       } else {
+        data.refs.push_back(ref);
         data.windows.push_back(buf_);
       }
     }
     dsp::RegionInfo region;
-    while (slicer_.pop_region(region)) data.regions.push_back(region);
+    while (slicer_.pop_region(region)) {
+      if (!visitor_) data.regions.push_back(region);
+    }
   }
 
   dsp::WindowSlicer slicer_;
@@ -420,10 +422,10 @@ class OrderCollectSink final : public PipelineSink {
  private:
   void drain() {
     front_.drain([this](const dsp::OrderWindowRef& ref, std::span<const float> x) {
-      data.refs.push_back(ref);
       if (visitor_) {
-        visitor_(ref, x);
+        visitor_(ref, x);  // the visitor keeps what it needs: nothing grows here
       } else {
+        data.refs.push_back(ref);
         data.windows.emplace_back(x.begin(), x.end());
       }
     });

@@ -340,7 +340,7 @@ dsp::Baseline FieldTrainer::finish(const std::filesystem::path& path, FinishMode
   // the spill file (each pass reads it in order, one window at a time, as `ptda train` reads a
   // recording).
   const Snapshot snap{p.windows, p.regions};
-  // The training's own per-window lists spill to the same directory as the windows (beyond 256 KiB
+  // The training's own per-window lists spill to the same directory as the windows (beyond 32 KiB
   // per list), so a hardened service needs one writable place.
   dsp::SpillConfig spill;
   spill.dir = (cfg_.spill_dir.empty() ? std::filesystem::path(".") : cfg_.spill_dir).string();

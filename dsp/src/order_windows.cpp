@@ -3,7 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
@@ -90,47 +93,81 @@ bool OrderWindowCutter::push(const OrderSample& s, OrderWindowRef& ref, std::spa
   return true;
 }
 
-std::vector<SegmentClass> learn_order_classes(const std::vector<OrderWindowRef>& refs, double band_rel,
-                                              std::uint32_t min_segments, std::vector<std::string>* dropped) {
+std::vector<SegmentClass> learn_order_classes_streamed(const SpillVector<OrderWindowRef>& refs,
+                                                       double band_rel, std::uint32_t min_segments,
+                                                       std::vector<std::string>* dropped) {
   if (!(band_rel > 0.0 && band_rel < 1.0))
     throw Error("order classes: band_rel must be in (0, 1), got " + num(band_rel));
+  struct Item {
+    double speed;  // |joint speed|
+    std::uint64_t segment;
+  };
   std::vector<SegmentClass> out;
   for (const std::int8_t dir : {std::int8_t{1}, std::int8_t{-1}}) {
-    std::vector<std::pair<double, std::uint64_t>> items;  // |joint speed|, segment
-    for (const OrderWindowRef& r : refs) {
-      if ((r.direction < 0 ? -1 : 1) == dir) items.emplace_back(std::fabs(r.joint_speed_rad_s), r.segment);
-    }
-    std::stable_sort(items.begin(), items.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
-    std::size_t i = 0;
-    while (i < items.size()) {
-      const double anchor = items[i].first;
-      std::size_t j = i;
+    SpillVector<Item> items(refs.config());
+    refs.for_each([&](const OrderWindowRef& r) {
+      if ((r.direction < 0 ? -1 : 1) == dir) items.push_back(Item{std::fabs(r.joint_speed_rad_s), r.segment});
+    });
+    const SpillVector<Item> by_speed =
+        sorted(items, [](const Item& a, const Item& b) { return a.speed < b.speed; });
+    SpillVector<Item>::Reader rd(by_speed);
+    while (!rd.done()) {
+      const double anchor = rd.peek().speed;
       double sum = 0.0;
-      std::set<std::uint64_t> segments;
-      while (j < items.size() && items[j].first <= anchor * (1.0 + band_rel)) {
-        sum += items[j].first;
-        segments.insert(items[j].second);
-        ++j;
+      std::size_t count = 0;
+      SpillVector<std::uint64_t> segments(refs.config());
+      while (!rd.done() && rd.peek().speed <= anchor * (1.0 + band_rel)) {
+        const Item it = rd.next();
+        sum += it.speed;
+        segments.push_back(it.segment);
+        ++count;
       }
-      const double mean = sum / static_cast<double>(j - i);
-      if (segments.size() >= min_segments) {
+      // Distinct segments: the group's segment ids sorted, then counted.
+      std::uint32_t distinct = 0;
+      {
+        bool first = true;
+        std::uint64_t prev = 0;
+        sorted(segments, std::less<>()).for_each([&](std::uint64_t s) {
+          if (first || s != prev) ++distinct;
+          first = false;
+          prev = s;
+        });
+      }
+      const double mean = sum / static_cast<double>(count);
+      if (distinct >= min_segments) {
         SegmentClass c;
         c.direction = dir;
         c.speed_rad_s = mean;
         c.speed_tol_rad_s = 0.5 * band_rel * mean;
-        c.regions = static_cast<std::uint32_t>(segments.size());
+        c.regions = distinct;
         out.push_back(c);
       } else if (dropped != nullptr) {
         dropped->push_back("order class " + std::string(dir < 0 ? "-" : "+") + num(mean) +
-                           " rad/s: " + std::to_string(segments.size()) + " segment(s), fewer than " +
+                           " rad/s: " + std::to_string(distinct) + " segment(s), fewer than " +
                            std::to_string(min_segments));
       }
-      i = j;
     }
   }
   for (std::size_t k = 0; k < out.size(); ++k) out[k].id = static_cast<std::uint32_t>(k);
   return out;
+}
+
+std::vector<SegmentClass> learn_order_classes(const std::vector<OrderWindowRef>& refs, double band_rel,
+                                              std::uint32_t min_segments, std::vector<std::string>* dropped) {
+  SpillConfig in_memory;
+  in_memory.memory_bytes = std::numeric_limits<std::size_t>::max();  // never spills
+  SpillVector<OrderWindowRef> v(in_memory);
+  for (const OrderWindowRef& r : refs) v.push_back(r);
+  return learn_order_classes_streamed(v, band_rel, min_segments, dropped);
+}
+
+OrderTrainingIndex::OrderTrainingIndex(const SpillConfig& cfg)
+    : spill(cfg), refs(cfg), recording(cfg), mean_square(cfg) {}
+
+double window_mean_square(std::span<const float> x) noexcept {
+  double ss = 0.0;
+  for (const float v : x) ss += static_cast<double>(v) * v;
+  return x.empty() ? 0.0 : ss / static_cast<double>(x.size());
 }
 
 double speed_law_gain(double class_speed_rad_s, double speed_rad_s, double exponent) noexcept {
@@ -153,22 +190,23 @@ int class_of(const OrderWindowRef& r, const std::vector<SegmentClass>& classes) 
 }
 }  // namespace
 
-SpeedLawFit fit_speed_law(const std::vector<OrderWindowRef>& refs,
-                          const std::vector<std::vector<float>>& windows,
-                          const std::vector<SegmentClass>& classes) {
+SpeedLawFit fit_speed_law_streamed(const SpillVector<OrderWindowRef>& refs,
+                                   const SpillVector<double>& mean_square,
+                                   const std::vector<SegmentClass>& classes) {
   // y = ln RMS, x = ln |v|; per class the means are removed (each class has its own level), one slope.
   struct Acc {
     double n = 0.0, sx = 0.0, sy = 0.0, sxx = 0.0, sxy = 0.0, syy = 0.0;
   };
   std::vector<Acc> acc(classes.size());
   SpeedLawFit f;
-  for (std::size_t i = 0; i < refs.size() && i < windows.size(); ++i) {
-    const int k = class_of(refs[i], classes);
-    const double v = std::fabs(refs[i].joint_speed_rad_s);
-    if (k < 0 || !(v > 0.0) || windows[i].empty()) continue;
-    double ss = 0.0;
-    for (const float x : windows[i]) ss += static_cast<double>(x) * x;
-    const double ms = ss / static_cast<double>(windows[i].size());
+  SpillVector<OrderWindowRef>::Reader rr(refs);
+  SpillVector<double>::Reader mr(mean_square);
+  while (!rr.done() && !mr.done()) {
+    const OrderWindowRef r = rr.next();
+    const double ms = mr.next();
+    const int k = class_of(r, classes);
+    const double v = std::fabs(r.joint_speed_rad_s);
+    if (k < 0 || !(v > 0.0)) continue;
     if (!(ms > 0.0) || !std::isfinite(ms)) continue;
     const double x = std::log(v), y = 0.5 * std::log(ms);
     Acc& a = acc[static_cast<std::size_t>(k)];
@@ -199,6 +237,21 @@ SpeedLawFit fit_speed_law(const std::vector<OrderWindowRef>& refs,
   return f;
 }
 
+SpeedLawFit fit_speed_law(const std::vector<OrderWindowRef>& refs,
+                          const std::vector<std::vector<float>>& windows,
+                          const std::vector<SegmentClass>& classes) {
+  SpillConfig in_memory;
+  in_memory.memory_bytes = std::numeric_limits<std::size_t>::max();
+  SpillVector<OrderWindowRef> r(in_memory);
+  SpillVector<double> ms(in_memory);
+  for (std::size_t i = 0; i < refs.size() && i < windows.size(); ++i) {
+    if (windows[i].empty()) continue;  // no samples: no mean square
+    r.push_back(refs[i]);
+    ms.push_back(window_mean_square(windows[i]));
+  }
+  return fit_speed_law_streamed(r, ms, classes);
+}
+
 Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig& cfg, double band_rel,
                               const ThresholdPolicy& policy, const GearboxInfo& gearbox,
                               std::vector<std::string>* dropped, bool learn_speed_law,
@@ -206,49 +259,128 @@ Baseline train_order_baseline(const OrderWindows& data, const OrderWindowConfig&
   if (data.refs.size() != data.windows.size())
     throw Error("train_order_baseline: " + std::to_string(data.refs.size()) + " refs but " +
                 std::to_string(data.windows.size()) + " windows");
+  OrderTrainingIndex index;
+  for (std::size_t i = 0; i < data.refs.size(); ++i) {
+    index.refs.push_back(data.refs[i]);
+    index.recording.push_back(data.recording.empty() ? 0U : data.recording[i]);
+    index.mean_square.push_back(window_mean_square(data.windows[i]));
+  }
+  const TrainingWindowPass pass = [&data](const TrainingWindowVisitor& visit) {
+    for (std::size_t i = 0; i < data.windows.size(); ++i) visit(i, data.windows[i]);
+  };
+  return train_order_baseline_streamed(index, pass, cfg, band_rel, policy, gearbox, dropped, learn_speed_law,
+                                       min_segments);
+}
+
+Baseline train_order_baseline_streamed(const OrderTrainingIndex& data, const TrainingWindowPass& pass,
+                                       const OrderWindowConfig& cfg, double band_rel,
+                                       const ThresholdPolicy& policy, const GearboxInfo& gearbox,
+                                       std::vector<std::string>* dropped, bool learn_speed_law,
+                                       std::uint32_t min_segments) {
+  if (data.recording.size() != data.refs.size() || data.mean_square.size() != data.refs.size()) {
+    throw Error("train_order_baseline: " + std::to_string(data.refs.size()) + " refs but " +
+                std::to_string(data.recording.size()) + " recording ids and " +
+                std::to_string(data.mean_square.size()) + " mean squares");
+  }
+  const std::size_t count = data.refs.size();
+  const std::size_t n = static_cast<std::size_t>(cfg.samples_per_rev) * cfg.revolutions;
   std::vector<std::string> why;
   Baseline b;
   b.fs_hz = cfg.samples_per_rev;
-  b.window_len = cfg.samples_per_rev * cfg.revolutions;
+  b.window_len = static_cast<std::uint32_t>(n);
   b.gearbox = gearbox;
   b.policy = policy;
   const std::vector<SegmentClass> classes =
-      learn_order_classes(data.refs, band_rel, std::max<std::uint32_t>(1, min_segments), &why);
+      learn_order_classes_streamed(data.refs, band_rel, std::max<std::uint32_t>(1, min_segments), &why);
   if (learn_speed_law) {
-    const SpeedLawFit law = fit_speed_law(data.refs, data.windows, classes);
+    const SpeedLawFit law = fit_speed_law_streamed(data.refs, data.mean_square, classes);
     b.speed_law_fit = law.exponent;
     b.speed_law_se = law.se;
     b.speed_law_exponent = law.applied;
   }
-  for (const SegmentClass& c : classes) {
-    std::vector<std::vector<float>> windows;
-    std::vector<std::uint64_t> groups;
-    std::vector<std::uint32_t> recordings;
-    for (std::size_t i = 0; i < data.refs.size(); ++i) {
-      const OrderWindowRef& r = data.refs[i];
-      if (!in_class(r, c)) continue;
-      windows.push_back(data.windows[i]);
-      if (b.speed_law_exponent != 0.0) {
-        const auto g =
-            static_cast<float>(speed_law_gain(c.speed_rad_s, r.joint_speed_rad_s, b.speed_law_exponent));
-        for (float& x : windows.back()) x *= g;
-      }
-      groups.push_back(r.seq);  // non-overlapping windows: each its own leave-out group
-      if (!data.recording.empty()) recordings.push_back(data.recording[i]);
+  // Each class with >= 3 windows gets a builder; a window may fall in more than one class's band.
+  std::vector<std::size_t> members(classes.size(), 0);
+  data.refs.for_each([&](const OrderWindowRef& r) {
+    for (std::size_t k = 0; k < classes.size(); ++k) members[k] += in_class(r, classes[k]) ? 1 : 0;
+  });
+  std::vector<std::optional<ClassBaselineBuilder>> builders(classes.size());
+  for (std::size_t k = 0; k < classes.size(); ++k) {
+    if (members[k] < 3) continue;
+    builders[k].emplace(classes[k], n, policy, data.spill);
+  }
+  std::size_t expected = 0;
+  const auto check = [&](std::size_t i, const char* what) {
+    if (i != expected) {
+      throw Error(std::string("train_order_baseline: ") + what + " handed over window " + std::to_string(i) +
+                  " where window " + std::to_string(expected) +
+                  " was expected (the windows changed between passes)");
     }
-    if (windows.size() < 3) {
-      why.push_back("order class " + num(c.speed_rad_s) + " rad/s: " + std::to_string(windows.size()) +
+    ++expected;
+  };
+  const auto check_complete = [&](const char* what) {
+    if (expected != count) {
+      throw Error(std::string("train_order_baseline: ") + what + " handed over " + std::to_string(expected) +
+                  " of " + std::to_string(count) + " windows (the windows changed between passes)");
+    }
+  };
+  // A class's copy of a window, normalised to the class's speed by the speed law when it is applied.
+  std::vector<float> scaled(n);
+  const auto class_window = [&](const OrderWindowRef& r, const SegmentClass& c,
+                                std::span<const float> x) -> std::span<const float> {
+    if (b.speed_law_exponent == 0.0) return x;
+    const auto g =
+        static_cast<float>(speed_law_gain(c.speed_rad_s, r.joint_speed_rad_s, b.speed_law_exponent));
+    scaled.assign(x.begin(), x.end());
+    for (float& v : scaled) v *= g;
+    return scaled;
+  };
+  {
+    SpillVector<OrderWindowRef>::Reader refs(data.refs);
+    pass([&](std::size_t i, std::span<const float> x) {
+      check(i, "pass 1");
+      const OrderWindowRef r = refs.next();
+      for (std::size_t k = 0; k < classes.size(); ++k) {
+        if (builders[k] && in_class(r, classes[k])) builders[k]->add_to_mean(class_window(r, classes[k], x));
+      }
+    });
+  }
+  check_complete("pass 1");
+  for (auto& bld : builders) {
+    if (bld) bld->finish_mean();
+  }
+  // Pass 2: non-overlapping windows, each its own leave-out group, scored in cut order (= seq order).
+  expected = 0;
+  {
+    SpillVector<OrderWindowRef>::Reader refs(data.refs);
+    SpillVector<std::uint32_t>::Reader recs(data.recording);
+    pass([&](std::size_t i, std::span<const float> x) {
+      check(i, "pass 2");
+      const OrderWindowRef r = refs.next();
+      const std::uint32_t rec = recs.next();
+      for (std::size_t k = 0; k < classes.size(); ++k) {
+        if (!builders[k] || !in_class(r, classes[k])) continue;
+        const std::span<const float> w = class_window(r, classes[k], x);
+        const std::span<const float> one[1] = {w};
+        const std::uint32_t one_rec[1] = {rec};
+        builders[k]->score_group(one, one_rec);
+      }
+    });
+  }
+  check_complete("pass 2");
+  for (std::size_t k = 0; k < classes.size(); ++k) {
+    if (!builders[k]) {
+      why.push_back("order class " + num(classes[k].speed_rad_s) + " rad/s: " + std::to_string(members[k]) +
                     " window(s) within its band, fewer than 3");
       continue;
     }
-    ClassBaseline cb = build_class_baseline(c, windows, groups, policy, recordings);
+    ClassBaseline cb = builders[k]->finish();
     cb.segment.id = static_cast<std::uint32_t>(b.classes.size());
     b.classes.push_back(std::move(cb));
   }
   if (dropped != nullptr) dropped->insert(dropped->end(), why.begin(), why.end());
   if (b.classes.empty()) {
-    std::string msg = "train_order_baseline: no order class has enough windows (" +
-                      std::to_string(data.windows.size()) + " windows)";
+    std::string msg =
+        "train_order_baseline: no order class has enough windows (" + std::to_string(count) + " windows)";
     for (const std::string& w : why) msg += "; " + w;
     throw Error(msg);
   }

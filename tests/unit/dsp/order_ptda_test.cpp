@@ -346,6 +346,63 @@ TEST(OrderPtda, TrainedClassesMatchTheirWindows) {
                Error);
 }
 
+TEST(OrderPtda, StreamedTrainingWithSpilledListsMatchesTheWindowsHeld) {
+  // `ptda train` in the order domain streams its windows (train_order_baseline_streamed). With 64 bytes
+  // per list every per-window list spills (the index, the classes' speeds and segments, the
+  // leave-one-out features): the classes, counts, means and the speed law are the same as with the
+  // windows held, the thresholds agree to rounding; a spill directory that does not exist is named.
+  const Job job = make_job(34, 8, 0.03, 2.6, 0.2, false, false);
+  const OrderWindows w = order_windows(job);
+  const OrderWindowConfig cfg{kS, kR, kRatio};
+  const Baseline held = train_order_baseline(w, cfg, 0.1, ThresholdPolicy{}, GearboxInfo{}, nullptr, true);
+  ASSERT_FALSE(held.classes.empty());
+  EXPECT_NE(held.speed_law_fit, 0.0);
+  const auto index_with = [&](const SpillConfig& spill) {
+    OrderTrainingIndex index(spill);
+    for (std::size_t i = 0; i < w.refs.size(); ++i) {
+      index.refs.push_back(w.refs[i]);
+      index.recording.push_back(0U);
+      index.mean_square.push_back(window_mean_square(w.windows[i]));
+    }
+    return index;
+  };
+  int passes = 0;
+  const TrainingWindowPass pass = [&](const TrainingWindowVisitor& visit) {
+    ++passes;
+    for (std::size_t i = 0; i < w.windows.size(); ++i) visit(i, w.windows[i]);
+  };
+  SpillConfig tiny;
+  tiny.memory_bytes = 64;
+  const Baseline s = train_order_baseline_streamed(index_with(tiny), pass, cfg, 0.1, ThresholdPolicy{},
+                                                   GearboxInfo{}, nullptr, true);
+  EXPECT_EQ(passes, 2);
+  EXPECT_EQ(s.speed_law_fit, held.speed_law_fit);
+  EXPECT_EQ(s.speed_law_exponent, held.speed_law_exponent);
+  ASSERT_EQ(s.classes.size(), held.classes.size());
+  const auto rel = [](double a, double b) {
+    return std::fabs(a - b) / std::max(1e-300, std::max(std::fabs(a), std::fabs(b)));
+  };
+  for (std::size_t k = 0; k < held.classes.size(); ++k) {
+    EXPECT_EQ(s.classes[k].segment.speed_rad_s, held.classes[k].segment.speed_rad_s);
+    EXPECT_EQ(s.classes[k].segment.regions, held.classes[k].segment.regions);
+    EXPECT_EQ(s.classes[k].n_windows, held.classes[k].n_windows);
+    EXPECT_EQ(s.classes[k].mean_magnitude, held.classes[k].mean_magnitude);
+    for (std::size_t m = 0; m < kMethodCount; ++m) {
+      EXPECT_LT(rel(s.classes[k].thresholds[m].rms.hi, held.classes[k].thresholds[m].rms.hi), 1e-12);
+      EXPECT_LT(rel(s.classes[k].thresholds[m].entropy.lo, held.classes[k].thresholds[m].entropy.lo), 1e-12);
+    }
+  }
+  SpillConfig nowhere = tiny;
+  nowhere.dir = "/nonexistent-ptda-order-spill";
+  try {
+    (void)train_order_baseline_streamed(index_with(nowhere), pass, cfg, 0.1, ThresholdPolicy{},
+                                        GearboxInfo{});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent-ptda-order-spill"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OrderPtda, MinSegmentsIsTheConfiguredMinRegions) {
   // The plateau windows of two cycles are two resampler segments: a class needs 3 by default
   // ([classes] min_regions = 3), so training fails naming why; with min_segments 2 (or 1) it trains.

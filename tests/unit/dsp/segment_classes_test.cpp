@@ -428,7 +428,7 @@ TEST(TrainBaselineStreamed, SpilledListsGiveTheSameBaselineForEveryThresholdMode
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find("/nonexistent-ptda-spill-dir"), std::string::npos) << e.what();
     }
-    // ...and the default 256 KiB per list holds these in memory: the same directory is never touched,
+    // ...and the default 32 KiB per list holds these in memory: the same directory is never touched,
     // and the result is the in-memory training's, bit for bit.
     nowhere.memory_bytes = SpillConfig{}.memory_bytes;
     const Baseline held = train_baseline_streamed(make_training_index(d, nowhere), kN, pass,

@@ -120,8 +120,9 @@ struct CollectResult {
 /// Receives each window as it is cut (its samples live for the call only).
 using CollectVisitor = std::function<void(const dsp::WindowRef&, std::span<const float>)>;
 /// Cuts the recording's windows as the monitor does. Without a visitor, every window is kept in
-/// data.windows (memory grows with the recording: 4 N bytes per window); with one, each window goes to
-/// it and only the refs and regions are kept (`ptda train` streams its passes this way).
+/// data.windows with its ref, and the regions in data.regions (memory grows with the recording: 4 N
+/// bytes per window); with one, each window goes to it and nothing is kept (data stays empty; `ptda
+/// train` streams its passes this way, index_windows() its index).
 [[nodiscard]] CollectResult collect_windows(const RecordingInfo& rec, const config::PipelineConfig& cfg,
                                             double fs_hz, const RunOptions& options = {},
                                             const CollectVisitor& visitor = {});
@@ -136,7 +137,7 @@ struct OrderCollectResult {
 };
 /// Receives each order window as it is cut (its samples live for the call only).
 using OrderVisitor = std::function<void(const dsp::OrderWindowRef&, std::span<const float>)>;
-/// With a visitor, each window goes to it and only data.refs is kept (memory stays flat).
+/// With a visitor, each window goes to it and nothing is kept (data stays empty; memory stays flat).
 [[nodiscard]] OrderCollectResult collect_order_windows(const RecordingInfo& rec,
                                                        const config::PipelineConfig& cfg, double fs_hz,
                                                        const RunOptions& options = {},

@@ -14,7 +14,9 @@
 
 #include "ptda/dsp/angle_resampler.hpp"
 #include "ptda/dsp/baseline.hpp"
+#include "ptda/dsp/baseline_training.hpp"
 #include "ptda/dsp/real_fft.hpp"
+#include "ptda/dsp/spill.hpp"
 #include "ptda/dsp/training.hpp"
 #include "ptda/dsp/window_slicer.hpp"
 
@@ -89,6 +91,19 @@ struct OrderWindows {
   std::vector<std::uint32_t> recording;  ///< per window (days); empty = one recording
 };
 
+/// The index of a streamed order-domain training (`ptda train` in the order domain): each window's place,
+/// training recording (0-based) and mean square (mean of x^2, for the speed law), in cut order, in spill
+/// vectors (memory does not grow with the training data; docs/cli.md, `ptda train`, "Memory").
+struct OrderTrainingIndex {
+  explicit OrderTrainingIndex(const SpillConfig& cfg = {});
+  SpillConfig spill;
+  SpillVector<OrderWindowRef> refs;
+  SpillVector<std::uint32_t> recording;  ///< one per ref
+  SpillVector<double> mean_square;       ///< one per ref
+};
+/// The mean of x^2 in double, as the speed law's fit takes it. Thread: any. Never allocates.
+[[nodiscard]] double window_mean_square(std::span<const float> x) noexcept;
+
 /// Classes of order windows: per direction, windows sorted by |joint speed| are grouped greedily, a new
 /// class starting when a speed exceeds the class's first by more than band_rel (relative). A class's
 /// speed_rad_s is the mean of its windows, its speed_tol_rad_s half of band_rel times that (so adjacent
@@ -98,6 +113,10 @@ struct OrderWindows {
 [[nodiscard]] std::vector<SegmentClass> learn_order_classes(const std::vector<OrderWindowRef>& refs,
                                                             double band_rel, std::uint32_t min_segments,
                                                             std::vector<std::string>* dropped = nullptr);
+/// learn_order_classes() of refs in a spill vector (sorted in bounded memory; the same classes).
+[[nodiscard]] std::vector<SegmentClass> learn_order_classes_streamed(
+    const SpillVector<OrderWindowRef>& refs, double band_rel, std::uint32_t min_segments,
+    std::vector<std::string>* dropped = nullptr);
 
 /// The order-domain baseline: learn_order_classes(), then build_class_baseline() per class with the
 /// resampler segment as leave-out group. fs_hz of the result is S (samples per revolution: the
@@ -112,6 +131,17 @@ struct OrderWindows {
                                             const GearboxInfo& gearbox,
                                             std::vector<std::string>* dropped = nullptr,
                                             bool learn_speed_law = false, std::uint32_t min_segments = 3);
+/// train_order_baseline() without holding the windows: `index` holds the refs, recordings and mean
+/// squares and `pass` hands the windows over (twice: the class sums, then each window's leave-one-out
+/// features), as train_baseline_streamed() takes them. The same baseline, bit for bit, while no
+/// per-window list spills (index.spill.memory_bytes); beyond, the thresholds' sums agree to rounding.
+/// Throws as train_order_baseline(), when a pass does not hand over every window once in order, and
+/// when a spill file fails. Thread: any (offline). Allocates.
+[[nodiscard]] Baseline train_order_baseline_streamed(
+    const OrderTrainingIndex& index, const TrainingWindowPass& pass, const OrderWindowConfig& cfg,
+    double band_rel, const ThresholdPolicy& policy, const GearboxInfo& gearbox,
+    std::vector<std::string>* dropped = nullptr, bool learn_speed_law = false,
+    std::uint32_t min_segments = 3);
 
 /// The speed law's fit (see train_order_baseline): exponent p, its standard error, and the p applied
 /// (p when |p| > 2 se and the fit has >= 3 residual degrees of freedom, else 0). Windows of no class are
@@ -125,6 +155,10 @@ struct SpeedLawFit {
 [[nodiscard]] SpeedLawFit fit_speed_law(const std::vector<OrderWindowRef>& refs,
                                         const std::vector<std::vector<float>>& windows,
                                         const std::vector<SegmentClass>& classes);
+/// fit_speed_law() from each window's mean square (window_mean_square()) instead of its samples.
+[[nodiscard]] SpeedLawFit fit_speed_law_streamed(const SpillVector<OrderWindowRef>& refs,
+                                                 const SpillVector<double>& mean_square,
+                                                 const std::vector<SegmentClass>& classes);
 /// (v_c / |v|)^p, the factor that takes a window at joint speed v to its class's speed v_c; 1 when p = 0
 /// or a speed is not positive. Thread: any. Never allocates.
 [[nodiscard]] double speed_law_gain(double class_speed_rad_s, double speed_rad_s, double exponent) noexcept;

@@ -25,8 +25,10 @@ struct SpillConfig {
   /// Where spill files are created (anonymous: nothing is left there once the process ends). Empty:
   /// $TMPDIR when set, else /tmp.
   std::string dir;
-  /// Per container: the elements kept in memory (and the size of a read chunk) before it spills.
-  std::size_t memory_bytes = std::size_t{256} << 10;
+  /// Per container: the elements kept in memory (and the size of a read chunk) before it spills. A
+  /// training keeps some 10 lists per class and a few readers alive at once: 32 KiB each keeps their sum
+  /// to a few MiB, whatever the length (docs/benchmarks.md section 8, session 25).
+  std::size_t memory_bytes = std::size_t{32} << 10;
 };
 
 namespace detail {
@@ -183,8 +185,8 @@ class SpillVector {
 /// A stably sorted copy of v (equal elements keep their order), in bounded memory: runs of chunk()
 /// elements are sorted in memory and written to one file, then merged. Memory: about two chunks plus
 /// a read buffer per run of at least 64 elements, i.e. bounded by the chunk up to chunk^2 / 64
-/// elements (16.7 million doubles with the default 256 KiB; a year of windows at one per second is
-/// 31.5 million: 128 KiB of buffers more).
+/// elements (262 144 doubles with the default 32 KiB: 3 days of windows at one a second; a year of them,
+/// 31.5 million, takes 7700 runs and 3.9 MiB of run buffers).
 template <class T, class Less>
 [[nodiscard]] SpillVector<T> sorted(const SpillVector<T>& v, Less less) {
   SpillVector<T> out(v.config());
