@@ -73,6 +73,7 @@ class SpillVector {
   SpillVector(const SpillVector&) = delete;
   SpillVector& operator=(const SpillVector&) = delete;
   /// A moved-from vector is empty (its file went with the elements).
+  // NOLINTNEXTLINE(performance-move-constructor-init): the moved-from vector keeps its configuration
   SpillVector(SpillVector&& o) noexcept
       : cfg_(o.cfg_),
         chunk_(o.chunk_),
@@ -211,7 +212,7 @@ template <class T, class Less>
   const std::size_t n_runs = run_begin.size() - 1;
   const std::size_t per_run = std::max<std::size_t>(64, v.chunk() / n_runs);
   struct Cursor {
-    std::size_t pos, end, buf_first;
+    std::size_t pos = 0, end = 0, buf_first = 0;
     std::vector<T> buf;
   };
   std::vector<Cursor> cur(n_runs);
