@@ -318,14 +318,28 @@ TEST_F(Training, ReloadKeepsTheCollectedWindowsUnlessTheWindowLengthChanges) {
 
   const fs::path status = dir / "status" / "status.json";
   std::string text;
-  // The current pipeline replayed up to the gate and status.json shows `carried` + its windows.
+  // The current pipeline replayed up to the gate and status.json shows `carried` + its windows, and the
+  // cycle count has stopped moving: a region closes after its last window (when the next speed samples
+  // come), so a status written between the two shows one cycle less. Stable = the same windows and
+  // regions in status.json for 300 ms (6 status periods).
   const auto settled = [&](std::uint64_t carried) {
+    std::string last;
+    auto since = std::chrono::steady_clock::now();
     return wait_for([&] {
       text = read_text(status);
       const DaemonView v = d.view();
-      return text.find("\"state\":\"training\"") != std::string::npos && v.pipeline.windows > 0 &&
-             v.pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000 &&
-             training_u64(text, "windows") == carried + v.pipeline.windows;
+      const bool done = text.find("\"state\":\"training\"") != std::string::npos && v.pipeline.windows > 0 &&
+                        v.pipeline.data_time_ns - dev.origin() >= dev.gate.t_ns - 30'000'000 &&
+                        training_u64(text, "windows") == carried + v.pipeline.windows;
+      const std::string counts =
+          std::to_string(training_u64(text, "windows")) + "/" + std::to_string(training_u64(text, "regions"));
+      const auto now = std::chrono::steady_clock::now();
+      if (!done || counts != last) {
+        last = done ? counts : std::string();
+        since = now;
+        return false;
+      }
+      return now - since >= std::chrono::milliseconds(300);
     });
   };
   ASSERT_TRUE(settled(0)) << text;
