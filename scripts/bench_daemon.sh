@@ -21,7 +21,9 @@
 #              <build_dir>/bench-data)
 #   out_dir    default out/bench-daemon: results.tsv, the logs
 # Environment: PTDA_BENCH_RT_WINDOWS (default 100, about 62 s), RUNS (default 1), PTDAD and DAEMON_BENCH
-# (other binaries, e.g. copies of an older build to compare).
+# (other binaries, e.g. copies of an older build to compare), CAN_TIMER ("auto", the default: the
+# kernel re-sends the verdict frame, emulated by the replay; "daemon": the daemon sends every frame) for
+# the ptdad runs (daemon_bench keeps the default).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=$(realpath "${1:-$root/build/release}")
@@ -60,7 +62,8 @@ mkdir -p "$cfg_dir"
     "$data/$job/baseline.bin" "$status_root/ptdad-rt/status"
   printf '[adc]\nbackend = "wav"\nrecording = "%s"\npace = "realtime"\nblock_len = 256\n\n' "$rec"
   printf '[can]\nbackend = "candump"\npace = "realtime"\nspeed_latency_s = 0.0\n\n'
-  printf '[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n[alarm.can]\nenabled = true\nperiod_s = 0.1\n\n'
+  printf '[alarm]\nmin_hold_s = 0.0\nlatch = false\n\n[alarm.can]\nenabled = true\nperiod_s = 0.1\ntimer = "%s"\n\n' \
+    "${CAN_TIMER:-auto}"
   printf '[monitor]\nmethod = "ptda"\n\n'
   awk '/^\[/{skip = ($0 == "[can]" || $0 == "[monitor]")} !skip' "$root/config/examples/$job.toml"
 } >"$cfg_dir/ptdad.toml"

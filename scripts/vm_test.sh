@@ -142,11 +142,13 @@ fetch_kernel() {  # debarch -> sets kdir
     deb="$(ls "$cache/${pkg}_"*"_$debarch.deb" | head -n 1)"
   fi
   kdir="$vm/kernel/$pkg"
-  if [ ! -f "$kdir/.complete" ]; then
+  # .complete-2: the module list grew (can-bcm); an older unpacking is redone.
+  if [ ! -f "$kdir/.complete-2" ]; then
     rm -rf "$kdir"
     mkdir -p "$kdir"
     dpkg-deb --fsys-tarfile "$deb" | tar -x -C "$kdir" --wildcards './boot/vmlinuz-*' \
       './lib/modules/*/kernel/net/can/can.ko*' './lib/modules/*/kernel/net/can/can-raw.ko*' \
+      './lib/modules/*/kernel/net/can/can-bcm.ko*' \
       './lib/modules/*/kernel/drivers/net/can/dev/can-dev.ko*' './lib/modules/*/kernel/drivers/net/can/vcan.ko*' ||
       die "cannot unpack vmlinuz and the CAN modules from $deb"
     # x86_64: the uncompressed kernel boots in about a third of the time (the xz decompressor is slow
@@ -164,7 +166,7 @@ fetch_kernel() {  # debarch -> sets kdir
       fi
       [ -s "$kdir/boot/vmlinux" ] || say "note: no PVH vmlinux from $z (xz missing?); booting vmlinuz (slower)"
     fi
-    touch "$kdir/.complete"
+    touch "$kdir/.complete-2"
   fi
   kver="${pkg#linux-image-}"
 }
@@ -243,7 +245,7 @@ make_initramfs() {  # arch sroot triplet busybox ptdad gpio(0|1) -> $work/initrd
   cp "$work/canreplay" "$img/usr/bin/canreplay"
   if [ "$gpio" = 1 ]; then cp "$work/gpiowatch" "$img/usr/bin/gpiowatch"; fi
   local m
-  for m in can can-raw can-dev vcan; do
+  for m in can can-raw can-bcm can-dev vcan; do
     local ko
     ko="$(find "$kdir/lib/modules" -name "$m.ko" | head -n 1)"
     [ -n "$ko" ] || die "$m.ko not in $kdir (compressed modules? the test expects plain .ko files)"

@@ -345,6 +345,8 @@ void Daemon::activate() {
   if (!pipeline_) throw Error("ptdad: activate() before configure()");
   pipeline_->activate();
   log_replay_origin(*pipeline_, clock_);
+  if (!pipeline_->can_timer_text().empty())
+    spdlog::info("CAN verdict frame: {}", pipeline_->can_timer_text());
   active_ = true;
   started_ns_ = clock_.now_ns();
   training_started_ns_ = started_ns_;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <system_error>
 
@@ -118,6 +119,15 @@ class DaemonTablesBuilder {
     out.training = training_;
     out.history = history_;
     out.mqtt = mqtt_;
+    if (alarm_.can_enabled && alarm_.can_kernel_timer && alarm_.can_lease_s < 2.0 * alarm_.can_period_s) {
+      const bool lease_set = set_at_.count("alarm.can.lease_s") != 0;
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "alarm.can.lease_s (%g s) must be at least twice alarm.can.period_s (%g s): the kernel "
+                    "would stop sending between two renewals (or set alarm.can.timer = \"daemon\")",
+                    alarm_.can_lease_s, alarm_.can_period_s);
+      fail_key(lease_set ? "alarm.can.lease_s" : "alarm.can.period_s", text);
+    }
     if (mqtt_.enabled) {
       if (mqtt_.topic_prefix.empty())
         fail_key("mqtt.enabled",
@@ -339,6 +349,9 @@ class DaemonTablesBuilder {
       get(cr, "id", alarm_.can_id, std::uint32_t{0}, std::uint32_t{0x1FFFFFFF});
       get(cr, "extended", alarm_.can_extended);
       get(cr, "period_s", alarm_.can_period_s, 0.01, 60.0);
+      if (cr.read_choice("timer", alarm_.can_kernel_timer, {{"auto", true}, {"daemon", false}}))
+        note(cr, "timer");
+      get(cr, "lease_s", alarm_.can_lease_s, 0.02, 60.0);
       if (!alarm_.can_extended && alarm_.can_id > 0x7FF) {
         cr.fail_value("id", "is above 0x7FF: set extended = true for a 29-bit id");
       }

@@ -105,6 +105,10 @@ struct AlarmSection {
   std::uint32_t can_id = 0x3A0;
   bool can_extended = false;
   double can_period_s = 0.1;  ///< the verdict frame is re-sent at least this often
+  /// Who re-sends an unchanged verdict frame: the kernel's broadcast manager where the CAN channel has
+  /// one ("auto": SocketCAN with CAN_BCM, a real-time candump replay), else the daemon ("daemon").
+  bool can_kernel_timer = true;
+  double can_lease_s = 0.5;  ///< kernel timer: the frames stop this long after the daemon's last renewal
 };
 
 /// [training] (field training mode, `ptdad --train`)

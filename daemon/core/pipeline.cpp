@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <span>
@@ -199,6 +200,7 @@ void Pipeline::configure_can(const RecordingLink& link) {
         cc.pace = cfg_.can.pace == Pace::kFast ? drivers::ReplayPace::kAsFastAsPossible
                                                : drivers::ReplayPace::kRealTime;
         if (link.start_unix_ns) cc.timeline.origin_unix_ns = *link.start_unix_ns;
+        cc.cyclic = cfg_.alarm.can_enabled && cfg_.alarm.can_kernel_timer;  // emulated at real-time pace
         auto candump = std::make_unique<drivers::CandumpReplayChannel>(cc, clock_);
         candump_replay_ = candump.get();
         channel_ = std::move(candump);
@@ -215,7 +217,10 @@ void Pipeline::configure_can(const RecordingLink& link) {
         }
         sc.bus_error_frames = cfg_.can.bus_error_frames;
         sc.rcvbuf_bytes = static_cast<int>(cfg_.can.rcvbuf_bytes);
-        channel_ = std::make_unique<drivers::SocketCanChannel>(sc, clock_);
+        sc.cyclic = cfg_.alarm.can_enabled && cfg_.alarm.can_kernel_timer;
+        auto socketcan = std::make_unique<drivers::SocketCanChannel>(sc, clock_);
+        socketcan_ = socketcan.get();
+        channel_ = std::move(socketcan);
         can_fast_ = false;
         inputs_text_ += ", can socketcan (" + cfg_.can.interface + ")";
         break;
@@ -237,7 +242,12 @@ void Pipeline::configure_outputs() {
     drivers::CanAlarmConfig ac;
     ac.id = cfg_.alarm.can_id;
     ac.extended = cfg_.alarm.can_extended;
-    outputs_.push_back(std::make_unique<drivers::CanAlarmOutput>(ac, *channel_));
+    ac.period_ns = seconds_to_ns(cfg_.alarm.can_period_s);
+    ac.kernel_timer = cfg_.alarm.can_kernel_timer;
+    ac.lease_ns = seconds_to_ns(cfg_.alarm.can_lease_s);
+    auto out = std::make_unique<drivers::CanAlarmOutput>(ac, *channel_, &clock_);
+    can_output_ = out.get();
+    outputs_.push_back(std::move(out));
   }
   if (factory_ != nullptr) factory_->add_outputs(outputs_, *channel_);
   for (auto& o : outputs_) o->configure();
@@ -439,6 +449,26 @@ void Pipeline::activate() {
     channel_->deactivate();
     source_->deactivate();
     throw;
+  }
+  // An unchanged verdict is handed to the outputs at least this often: each CAN frame when the daemon
+  // times them, a renewal of the kernel timer's lease otherwise (GPIO needs no re-sends).
+  output_period_ns_ =
+      can_output_ != nullptr ? can_output_->refresh_period_ns() : seconds_to_ns(cfg_.alarm.can_period_s);
+  output_kernel_timed_ = can_output_ != nullptr && can_output_->kernel_timed();
+  wake_.output_refresh_ns = output_period_ns_;
+  wake_.output_kernel_timed = output_kernel_timed_;
+  if (can_output_ != nullptr) {
+    char text[256];
+    if (output_kernel_timed_) {
+      std::snprintf(text, sizeof text, "re-sent every %g s by the kernel (%s), lease %g s",
+                    cfg_.alarm.can_period_s, socketcan_ != nullptr ? "CAN_BCM" : "emulated by the replay",
+                    cfg_.alarm.can_lease_s);
+    } else {
+      std::snprintf(text, sizeof text, "re-sent every %g s by the daemon%s%s", cfg_.alarm.can_period_s,
+                    socketcan_ != nullptr && !socketcan_->cyclic_error().empty() ? ": " : "",
+                    socketcan_ != nullptr ? socketcan_->cyclic_error().c_str() : "");
+    }
+    can_timer_text_ = text;  // activate() may allocate
   }
   stop_.store(false, std::memory_order_relaxed);
   last_block_arrival_ns_ = clock_.now_ns();
@@ -1043,7 +1073,15 @@ void Pipeline::update_phase(std::int64_t now) noexcept {
 void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
   if (outputs_.empty()) return;
   const drivers::AlarmReport report = alarm_->report();
-  const bool changed = report.level != last_output_level_ || report.causes != last_output_causes_;
+  bool changed = report.level != last_output_level_ || report.causes != last_output_causes_;
+  // With the kernel timer a new window's values go into the frames it sends at once (one system call,
+  // no frame of its own), not at the next renewal.
+  if (output_kernel_timed_ && !changed) {
+    changed = report.segment_class != last_output_report_.segment_class ||
+              report.abnormal_windows != last_output_report_.abnormal_windows ||
+              std::memcmp(&report.rms, &last_output_report_.rms, sizeof report.rms) != 0 ||
+              std::memcmp(&report.entropy, &last_output_report_.entropy, sizeof report.entropy) != 0;
+  }
   // At real-time pace an unchanged frame rides on this pass once half its period has passed
   // (resend_due); processing_wait_ns() still wakes this thread for it at the full period. A fast
   // replay passes all the time: there the period alone counts, as before.
@@ -1056,6 +1094,7 @@ void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
   if (probe_ != nullptr) probe_->on_outputs_set(report);
   last_output_level_ = report.level;
   last_output_causes_ = report.causes;
+  last_output_report_ = report;
   last_output_ns_ = now;
 }
 

@@ -63,6 +63,8 @@
 namespace ptda::drivers {
 class WavReplaySource;
 class CandumpReplayChannel;
+class SocketCanChannel;
+class CanAlarmOutput;
 }  // namespace ptda::drivers
 
 namespace ptda::daemon {
@@ -224,6 +226,10 @@ struct WakeSchedule {
   /// Both inputs at real-time pace: the processing thread reads them itself when a window can close
   /// (due + can_offset_ns), and the acquisition and CAN threads are not started (docs/daemon.md).
   bool single_thread = false;
+  /// The outputs are handed the verdict at least this often (set at activate()): the CAN frame's period
+  /// when the daemon sends each frame, half the kernel timer's lease when the kernel re-sends it.
+  std::int64_t output_refresh_ns = 0;
+  bool output_kernel_timed = false;  ///< the kernel re-sends the CAN verdict frame ([alarm.can] timer)
 };
 
 struct StageHeartbeats {
@@ -328,6 +334,8 @@ class Pipeline {
   }
   /// A one-line description of the inputs, e.g. "adc sim (scenario ...), can sim". Thread: any.
   [[nodiscard]] const std::string& inputs_text() const noexcept { return inputs_text_; }
+  /// Who re-sends the CAN verdict frame, for the log ("" without one). Thread: main, after activate().
+  [[nodiscard]] const std::string& can_timer_text() const noexcept { return can_timer_text_; }
   /// Daemon-clock time that sample 0 of a WAV replay and the start of a candump replay map to; unset
   /// for devices and the simulator. Thread: main, after activate().
   [[nodiscard]] std::optional<std::int64_t> replay_origin_mono_ns() const noexcept {
@@ -409,6 +417,9 @@ class Pipeline {
   std::unique_ptr<drivers::CanChannel> channel_;
   drivers::WavReplaySource* wav_replay_ = nullptr;           ///< source_, when it is a WAV replay
   drivers::CandumpReplayChannel* candump_replay_ = nullptr;  ///< channel_, when it is a candump replay
+  drivers::SocketCanChannel* socketcan_ = nullptr;           ///< channel_, when it is SocketCAN
+  drivers::CanAlarmOutput* can_output_ = nullptr;            ///< in outputs_, when [alarm.can] is on
+  std::string can_timer_text_;
   std::optional<std::int64_t> replay_origin_mono_ns_;
   std::int64_t burst_origin_ns_ = 0;               ///< origin of the wake-up grids (activate())
   std::int64_t liveness_ns_ = 0;                   ///< set_liveness_period_ns()
@@ -492,6 +503,8 @@ class Pipeline {
   std::int64_t output_period_ns_ = 0;
   drivers::AlarmLevel last_output_level_ = drivers::AlarmLevel::kFault;
   std::uint8_t last_output_causes_ = 0xFF;
+  drivers::AlarmReport last_output_report_{};
+  bool output_kernel_timed_ = false;
   PipelineStatus st_;  ///< the processing thread's working copy of what it publishes
   drivers::Counter output_errors_;
   std::atomic<std::uint64_t> proc_beat_{0};

@@ -1,6 +1,8 @@
 #include "alarm/can_alarm_output.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 
@@ -35,6 +37,9 @@ void validate(const CanAlarmConfig& c) {
     throw Error("alarm frame", 0, 0, "rms_lsb must be > 0");
   if (!(c.entropy_lsb > 0.0) || !std::isfinite(c.entropy_lsb))
     throw Error("alarm frame", 0, 0, "entropy_lsb must be > 0");
+  if (c.period_ns <= 0) throw Error("alarm frame", 0, 0, "period must be > 0");
+  if (c.kernel_timer && c.lease_ns < 2 * c.period_ns)
+    throw Error("alarm frame", 0, 0, "the kernel timer's lease must be at least two periods");
 }
 
 CanFrame encode_alarm_frame(const AlarmReport& r, const CanAlarmConfig& c, std::uint8_t alive) noexcept {
@@ -71,8 +76,8 @@ bool decode_alarm_frame(const CanFrame& f, const CanAlarmConfig& c, AlarmReport&
   return true;
 }
 
-CanAlarmOutput::CanAlarmOutput(CanAlarmConfig config, CanChannel& channel)
-    : config_(config), channel_(channel) {}
+CanAlarmOutput::CanAlarmOutput(CanAlarmConfig config, CanChannel& channel, const Clock* clock)
+    : config_(config), channel_(channel), clock_(clock) {}
 
 void CanAlarmOutput::configure() {
   validate(config_);
@@ -84,10 +89,47 @@ CanStatus CanAlarmOutput::send_frame(const AlarmReport& report) noexcept {
   return last_send_;
 }
 
+CanStatus CanAlarmOutput::set_cyclic(const AlarmReport& report, bool final_frame) noexcept {
+  const std::int64_t now = clock_->now_ns();
+  const bool same = report.level == last_report_.level && report.causes == last_report_.causes;
+  const bool content = !same || report.segment_class != last_report_.segment_class ||
+                       report.abnormal_windows != last_report_.abnormal_windows ||
+                       std::memcmp(&report.rms, &last_report_.rms, sizeof report.rms) != 0 ||
+                       std::memcmp(&report.entropy, &last_report_.entropy, sizeof report.entropy) != 0;
+  if (content || !set_up_) {
+    for (std::size_t i = 0; i < cyclic_frames_.size(); ++i)
+      cyclic_frames_[i] = encode_alarm_frame(report, config_, static_cast<std::uint8_t>(i));
+  }
+  CanCyclicTx tx;
+  tx.frames = cyclic_frames_;
+  tx.period_ns = config_.period_ns;
+  tx.count = final_frame ? 1 : lease_frames_;
+  // The kernel sends at most lease_frames_ more frames after the last set-up, the last of them no
+  // sooner than (lease_frames_ - 1) periods later: from then on the timer may have stopped (a stalled
+  // caller), so it is started again. A new level or cause goes out at once, with the timer's phase kept.
+  const bool expired =
+      !set_up_ || now - last_setup_ns_ >= static_cast<std::int64_t>(lease_frames_ - 1) * config_.period_ns;
+  tx.start = (expired || final_frame) ? CanCyclicTx::Start::kRestart
+             : !same                  ? CanCyclicTx::Start::kAnnounce
+                                      : CanCyclicTx::Start::kKeepTimer;
+  last_send_ = channel_.set_cyclic(tx);
+  if (last_send_ == CanStatus::kOk) {
+    set_up_ = true;
+    last_setup_ns_ = now;
+    last_report_ = report;
+  }
+  return last_send_;
+}
+
 void CanAlarmOutput::activate() {
   AlarmReport fault;  // level kFault, no causes: "not judged yet"
+  kernel_ = config_.kernel_timer && clock_ != nullptr && channel_.cyclic_supported();
+  lease_frames_ = static_cast<std::uint32_t>(
+      std::max<std::int64_t>(2, (config_.lease_ns + config_.period_ns - 1) / config_.period_ns));
+  set_up_ = false;
+  last_report_ = AlarmReport{};
   active_ = true;
-  const CanStatus s = send_frame(fault);
+  const CanStatus s = kernel_ ? set_cyclic(fault, false) : send_frame(fault);
   if (s != CanStatus::kOk && s != CanStatus::kTxFull) {
     active_ = false;
     throw Error(
@@ -100,13 +142,18 @@ void CanAlarmOutput::deactivate() noexcept {
   if (!active_) return;
   AlarmReport fault;
   fault.causes = kCauseInternal;
-  (void)send_frame(fault);
+  if (kernel_) {
+    (void)set_cyclic(fault, true);
+  } else {
+    (void)send_frame(fault);
+  }
   active_ = false;
 }
 
 OutputStatus CanAlarmOutput::write(const AlarmReport& report) noexcept {
   if (!active_) return OutputStatus::kNotActive;
-  return send_frame(report) == CanStatus::kOk ? OutputStatus::kOk : OutputStatus::kError;
+  const CanStatus s = kernel_ ? set_cyclic(report, false) : send_frame(report);
+  return s == CanStatus::kOk ? OutputStatus::kOk : OutputStatus::kError;
 }
 
 }  // namespace ptda::drivers

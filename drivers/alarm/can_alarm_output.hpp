@@ -8,15 +8,20 @@
 //   bytes 4-5  rms_res, unsigned little-endian, raw = round(rms / rms_lsb), saturated at 0xFFFE;
 //              0xFFFF = not available (NaN)
 //   bytes 6-7  entropy_res, same coding with entropy_lsb
-// The daemon re-sends the current verdict periodically; a receiver treats a missing frame (no frame
-// within its timeout) or a frozen alive counter like level "fault".
+// The current verdict is re-sent periodically; a receiver treats a missing frame (no frame within its
+// timeout) or a frozen alive counter like level "fault". Who times the re-sends: the daemon (one send
+// per period), or, where the channel offers it (SocketCAN's broadcast manager), the kernel: the output
+// hands it 16 frames of the verdict with alive counters 0..15, sent in turn every period, and renews a
+// lease of `lease_ns` on each call; a daemon that stops renewing goes silent within the lease.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include "ptda/common/can_frame.hpp"
 #include "ptda/drivers/alarm_output.hpp"
 #include "ptda/drivers/can_channel.hpp"
+#include "ptda/drivers/clock.hpp"
 
 namespace ptda::drivers {
 
@@ -25,6 +30,9 @@ struct CanAlarmConfig {
   bool extended = false;
   double rms_lsb = 1e-3;      ///< rms_res per raw step (recording unit): 0..65.534 by default
   double entropy_lsb = 1e-4;  ///< entropy_res per raw step: [0, 1] -> 0..10000
+  bool kernel_timer = false;  ///< let the channel's kernel timer re-send (when the channel has one)
+  std::int64_t period_ns = 100'000'000;  ///< the kernel timer's period
+  std::int64_t lease_ns = 500'000'000;   ///< the kernel stops this long after the last call (>= 2 periods)
 };
 
 inline constexpr std::uint16_t kAlarmValueUnavailable = 0xFFFF;
@@ -41,16 +49,28 @@ void validate(const CanAlarmConfig& config);
 
 class CanAlarmOutput final : public AlarmOutput {
  public:
-  /// `channel` must outlive the output; its owner configures and activates it first.
-  CanAlarmOutput(CanAlarmConfig config, CanChannel& channel);
+  /// `channel` (and `clock`, needed for the kernel timer) must outlive the output; its owner configures
+  /// and activates the channel first.
+  CanAlarmOutput(CanAlarmConfig config, CanChannel& channel, const Clock* clock = nullptr);
 
   /// Validates the configuration. Throws ptda::Error.
   void configure() override;
-  /// Sends a "fault" frame (the fail-safe state until the first verdict). Throws ptda::Error when the
+  /// Chooses the timer (the kernel's when configured, given a clock and offered by the channel), then
+  /// sends a "fault" frame (the fail-safe state until the first verdict). Throws ptda::Error when the
   /// channel refuses it.
   void activate() override;
-  /// Sends a final "fault" frame (cause internal); never throws.
+  /// Sends a final "fault" frame (cause internal; with the kernel timer the last frame it sends); never
+  /// throws.
   void deactivate() noexcept override;
+
+  /// Whether the kernel re-sends the frame (known after activate()). Then set() must still be called at
+  /// least every refresh_period_ns() to renew the lease. Thread: any after activate().
+  [[nodiscard]] bool kernel_timed() const noexcept { return kernel_; }
+  /// How often set() must come at the latest: the period (daemon timer) or half the lease (kernel
+  /// timer). Thread: any after activate().
+  [[nodiscard]] std::int64_t refresh_period_ns() const noexcept {
+    return kernel_ ? config_.lease_ns / 2 : config_.period_ns;
+  }
 
   /// The status of the last send (kOk, kTxFull, kBusDown...). Thread: the alarm thread.
   [[nodiscard]] CanStatus last_send_status() const noexcept { return last_send_; }
@@ -58,9 +78,19 @@ class CanAlarmOutput final : public AlarmOutput {
  private:
   OutputStatus write(const AlarmReport& report) noexcept override;
   CanStatus send_frame(const AlarmReport& report) noexcept;
+  /// One set-up of the kernel's cyclic transmission for `report`. `final_frame`: one frame now, then
+  /// stop.
+  CanStatus set_cyclic(const AlarmReport& report, bool final_frame) noexcept;
 
   CanAlarmConfig config_;
   CanChannel& channel_;
+  const Clock* clock_ = nullptr;
+  bool kernel_ = false;
+  std::uint32_t lease_frames_ = 0;
+  std::int64_t last_setup_ns_ = 0;
+  bool set_up_ = false;  ///< a set-up went through since activate()
+  AlarmReport last_report_{};
+  std::array<CanFrame, CanCyclicTx::kMaxFrames> cyclic_frames_{};
   std::uint8_t alive_ = 0;
   bool active_ = false;
   CanStatus last_send_ = CanStatus::kNotActive;

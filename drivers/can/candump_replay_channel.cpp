@@ -92,17 +92,89 @@ CanStatus CandumpReplayChannel::receive(std::span<CanFrame> out, std::size_t& re
   return CanStatus::kOk;
 }
 
-CanStatus CandumpReplayChannel::send(const CanFrame& frame) noexcept {
-  if (!active_) return CanStatus::kNotActive;
+CanStatus CandumpReplayChannel::record(const CanFrame& frame, std::int64_t t_ns) noexcept {
   if (tx_count_ >= tx_.size()) {
     stats_.tx_full.add();
     return CanStatus::kTxFull;
   }
   CanFrame& f = tx_[tx_count_++];
   f = frame;
-  f.t_ns = clock_.now_ns();
+  f.t_ns = t_ns;
   stats_.tx_frames.add();
   return CanStatus::kOk;
+}
+
+CanStatus CandumpReplayChannel::send(const CanFrame& frame) noexcept {
+  if (!active_) return CanStatus::kNotActive;
+  const std::int64_t now = clock_.now_ns();
+  if (cyc_.set) run_cyclic(now);  // the kernel's frames before this one, in time order
+  return record(frame, now);
+}
+
+// Linux's bcm_tx_timeout_handler: at each expiry one frame while count > 0; the expiry that finds count
+// at 0, or the frame that brings it to 0, stops the timer (ival2 is 0: no second interval).
+void CandumpReplayChannel::run_cyclic(std::int64_t now) noexcept {
+  while (cyc_.running && cyc_.due_ns <= now) {
+    if (cyc_.count == 0) {
+      cyc_.running = false;
+      break;
+    }
+    (void)record(cyc_.frames[cyc_.next], cyc_.due_ns);
+    cyc_.next = (cyc_.next + 1) % cyc_.n;
+    if (--cyc_.count == 0) {
+      cyc_.running = false;
+      break;
+    }
+    cyc_.due_ns += cyc_.period_ns;
+  }
+}
+
+void CandumpReplayChannel::cyclic_send_one(std::int64_t now) noexcept {
+  (void)record(cyc_.frames[cyc_.next], now);
+  cyc_.next = (cyc_.next + 1) % cyc_.n;
+  if (cyc_.count > 0) --cyc_.count;
+}
+
+CanStatus CandumpReplayChannel::set_cyclic(const CanCyclicTx& tx) noexcept {
+  if (!active_) return CanStatus::kNotActive;
+  const std::size_t n = tx.frames.size();
+  bool valid =
+      cyclic_supported() && n > 0 && n <= CanCyclicTx::kMaxFrames && tx.period_ns > 0 && tx.count > 0;
+  for (std::size_t i = 0; valid && i < n; ++i) {
+    const CanFrame& f = tx.frames[i];
+    valid = !f.fd() && !f.error() && f.len <= 8 && f.id == tx.frames[0].id &&
+            f.extended() == tx.frames[0].extended();
+  }
+  if (!valid) {
+    stats_.tx_errors.add();
+    return CanStatus::kError;
+  }
+  const std::int64_t now = clock_.now_ns();
+  run_cyclic(now);
+  if (cyc_.set &&
+      (cyc_.frames[0].id != tx.frames[0].id || cyc_.frames[0].extended() != tx.frames[0].extended()))
+    cyc_ = CyclicState{};                       // another id is another operation
+  if (!cyc_.set || n != cyc_.n) cyc_.next = 0;  // the kernel restarts the turn when nframes changes
+  for (std::size_t i = 0; i < n; ++i) cyc_.frames[i] = tx.frames[i];
+  cyc_.n = n;
+  cyc_.count = tx.count;
+  cyc_.period_ns = tx.period_ns;
+  const bool restart = tx.start == CanCyclicTx::Start::kRestart || !cyc_.set;
+  cyc_.set = true;
+  if (restart) {
+    cyclic_send_one(now);
+    cyc_.running = true;
+    cyc_.due_ns = now + tx.period_ns;
+  } else if (tx.start == CanCyclicTx::Start::kAnnounce) {
+    cyclic_send_one(now);
+  }
+  return CanStatus::kOk;
+}
+
+void CandumpReplayChannel::deactivate() noexcept {
+  if (active_ && cyc_.set) run_cyclic(clock_.now_ns());
+  cyc_ = CyclicState{};
+  active_ = false;
 }
 
 }  // namespace ptda::drivers

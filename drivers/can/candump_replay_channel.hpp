@@ -4,6 +4,7 @@
 // kept in a fixed buffer for inspection (tests, dry runs).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -29,6 +30,9 @@ struct CandumpReplayConfig {
   ReplayPace pace = ReplayPace::kRealTime;
   ReplayTimeline timeline;         ///< log time -> daemon clock
   std::size_t tx_capacity = 4096;  ///< sent frames kept; further sends return kTxFull
+  /// Emulate the kernel's cyclic transmission (set_cyclic(), CAN_BCM) at real-time pace: its frames go
+  /// into the transmit buffer stamped with their due times, as the kernel would have sent them.
+  bool cyclic = false;
 };
 
 class CandumpReplayChannel final : public CanChannel {
@@ -58,13 +62,22 @@ class CandumpReplayChannel final : public CanChannel {
                     std::int64_t timeout_ns) noexcept override;
   /// Records the frame (stamped with the clock) in the transmit buffer. Never blocks or allocates.
   CanStatus send(const CanFrame& frame) noexcept override;
-  void deactivate() noexcept override { active_ = false; }
+  [[nodiscard]] bool cyclic_supported() const noexcept override {
+    return config_.cyclic && config_.pace == ReplayPace::kRealTime;
+  }
+  /// As CAN_BCM's TX_SETUP (CanCyclicTx): the frames the kernel would have sent since the last call are
+  /// recorded (stamped with their due times), then the set-up is applied. Thread: the sending thread.
+  /// Never blocks or allocates.
+  CanStatus set_cyclic(const CanCyclicTx& tx) noexcept override;
+  /// Records the cyclic frames due until now, then stops. Thread: main, after sending stopped.
+  void deactivate() noexcept override;
 
   /// Frames in the log (as configure() counted them). Thread: any after configure().
   [[nodiscard]] std::size_t frame_count() const noexcept { return frame_count_; }
   /// Frames released so far. Thread: the receiving thread.
   [[nodiscard]] std::size_t position() const noexcept { return pos_; }
-  /// Frames passed to send() and kept. Thread: the sending thread, or any once sending stopped.
+  /// Frames passed to send() (and the emulated cyclic ones) and kept. Thread: the sending thread, or any once
+  /// sending stopped.
   [[nodiscard]] std::span<const CanFrame> sent_frames() const noexcept { return {tx_.data(), tx_count_}; }
   /// The daemon-clock time of log time t_unix_ns under the active timeline. Thread: any after activate().
   [[nodiscard]] std::int64_t map_time(std::int64_t t_unix_ns) const noexcept {
@@ -74,6 +87,24 @@ class CandumpReplayChannel final : public CanChannel {
  private:
   /// Reads the next kept frame (interface, direction) into next_. False at the end or on a read error.
   bool pull() noexcept;
+  /// Keeps one frame stamped t_ns (kTxFull when the buffer is full).
+  CanStatus record(const CanFrame& frame, std::int64_t t_ns) noexcept;
+  /// The emulated kernel timer: records the cyclic frames due up to now.
+  void run_cyclic(std::int64_t now) noexcept;
+  /// Sends the cyclic transmission's next frame now (STARTTIMER / TX_ANNOUNCE).
+  void cyclic_send_one(std::int64_t now) noexcept;
+
+  struct CyclicState {
+    std::array<CanFrame, CanCyclicTx::kMaxFrames> frames{};
+    std::size_t n = 0;
+    std::size_t next = 0;  ///< the frame in turn
+    std::uint32_t count = 0;
+    std::int64_t period_ns = 0;
+    std::int64_t due_ns = 0;  ///< the timer's next expiry
+    bool running = false;
+    bool set = false;
+  };
+  CyclicState cyc_;
 
   CandumpReplayConfig config_;
   Clock& clock_;

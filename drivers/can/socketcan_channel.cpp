@@ -162,6 +162,7 @@ SocketCanChannel::SocketCanChannel(SocketCanConfig config, const Clock& clock)
 
 SocketCanChannel::~SocketCanChannel() {
   if (fd_ >= 0) ::close(fd_);
+  if (bcm_fd_ >= 0) ::close(bcm_fd_);
 }
 
 void SocketCanChannel::configure() {
@@ -218,6 +219,26 @@ void SocketCanChannel::configure() {
   addr.can_ifindex = static_cast<int>(ifindex);
   if (::bind(fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) fail("bind");
 
+  if (bcm_fd_ >= 0) {
+    ::close(bcm_fd_);
+    bcm_fd_ = -1;
+  }
+  bcm_error_.clear();
+  if (config_.cyclic) {
+    // Not fatal: without the broadcast manager the caller sends every frame itself.
+    bcm_fd_ = ::socket(PF_CAN, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_BCM);
+    if (bcm_fd_ < 0) {
+      const int e = errno;
+      bcm_error_ =
+          std::string("socket(AF_CAN, SOCK_DGRAM, CAN_BCM): ") + std::strerror(e) +
+          (e == EPROTONOSUPPORT ? " (kernel without CONFIG_CAN_BCM, or module can-bcm not loaded)" : "");
+    } else if (::connect(bcm_fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+      bcm_error_ = std::string("connect(CAN_BCM): ") + std::strerror(errno);
+      ::close(bcm_fd_);
+      bcm_fd_ = -1;
+    }
+  }
+
   for (std::size_t i = 0; i < kMaxBatch; ++i) {
     iov_[i].iov_base = &frames_[i];
     iov_[i].iov_len = sizeof(canfd_frame);
@@ -235,7 +256,69 @@ void SocketCanChannel::activate() {
 }
 
 void SocketCanChannel::deactivate() noexcept {
+  if (bcm_fd_ >= 0 && bcm_set_) {
+    bcm_msg_head head{};
+    head.opcode = TX_DELETE;
+    head.can_id = bcm_id_;
+    (void)::write(bcm_fd_, &head, sizeof head);
+    bcm_set_ = false;
+  }
   active_ = false;
+}
+
+CanStatus SocketCanChannel::set_cyclic(const CanCyclicTx& tx) noexcept {
+  if (!active_) return CanStatus::kNotActive;
+  const std::size_t n = tx.frames.size();
+  if (bcm_fd_ < 0 || n == 0 || n > CanCyclicTx::kMaxFrames || tx.period_ns <= 0 || tx.count == 0) {
+    stats_.tx_errors.add();
+    return CanStatus::kError;
+  }
+  bcm_msg_head head{};
+  static_assert(sizeof(bcm_msg_head) % alignof(can_frame) == 0, "the frames follow the head aligned");
+  for (std::size_t i = 0; i < n; ++i) {
+    const CanFrame& f = tx.frames[i];
+    canfd_frame kf{};
+    // One id for all (the operation is keyed by it); classic frames only (no CAN_FD_FRAME flag here).
+    if (f.fd() || to_kernel_frame(f, kf) != CAN_MTU || (i > 0 && kf.can_id != head.can_id)) {
+      stats_.tx_errors.add();
+      return CanStatus::kError;
+    }
+    if (i == 0) head.can_id = kf.can_id;
+    std::memcpy(bcm_msg_ + sizeof(bcm_msg_head) + i * sizeof(can_frame), &kf, sizeof(can_frame));
+  }
+  if (bcm_set_ && head.can_id != bcm_id_) {  // another id: end the old operation first
+    bcm_msg_head del{};
+    del.opcode = TX_DELETE;
+    del.can_id = bcm_id_;
+    (void)::write(bcm_fd_, &del, sizeof del);
+    bcm_set_ = false;
+  }
+  head.opcode = TX_SETUP;
+  head.flags = SETTIMER;
+  // A new operation must start its timer; STARTTIMER also sends one frame at once.
+  if (tx.start == CanCyclicTx::Start::kRestart || !bcm_set_) head.flags |= STARTTIMER;
+  if (tx.start == CanCyclicTx::Start::kAnnounce) head.flags |= TX_ANNOUNCE;
+  head.count = tx.count;
+  head.ival1.tv_sec = static_cast<decltype(head.ival1.tv_sec)>(tx.period_ns / 1'000'000'000);
+  head.ival1.tv_usec = static_cast<decltype(head.ival1.tv_usec)>((tx.period_ns % 1'000'000'000) / 1000);
+  head.ival2 = {};  // after count frames: stop (the lease ran out)
+  head.nframes = static_cast<std::uint32_t>(n);
+  std::memcpy(bcm_msg_, &head, sizeof head);
+  const std::size_t bytes = sizeof(bcm_msg_head) + n * sizeof(can_frame);
+  const ssize_t w = ::write(bcm_fd_, bcm_msg_, bytes);
+  if (w == static_cast<ssize_t>(bytes)) {
+    bcm_set_ = true;
+    bcm_id_ = head.can_id;
+    stats_.tx_frames.add();  // counts set-ups: the kernel's own sends are not seen here
+    return CanStatus::kOk;
+  }
+  if (w < 0 && (errno == ENOBUFS || errno == EAGAIN || errno == EWOULDBLOCK)) {
+    stats_.tx_full.add();
+    return CanStatus::kTxFull;
+  }
+  stats_.tx_errors.add();
+  if (w < 0 && (errno == ENETDOWN || errno == ENETUNREACH || errno == ENXIO)) return CanStatus::kBusDown;
+  return CanStatus::kError;
 }
 
 CanStatus SocketCanChannel::receive(std::span<CanFrame> out, std::size_t& received,

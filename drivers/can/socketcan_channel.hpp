@@ -3,6 +3,7 @@
 #pragma once
 
 #include <linux/can.h>
+#include <linux/can/bcm.h>
 #include <sys/socket.h>
 #include <sys/uio.h>
 #include <time.h>
@@ -33,6 +34,9 @@ struct SocketCanConfig {
   bool bus_error_frames = false;     ///< also CAN_ERR_BUSERROR (one per bus error: may flood a bad bus)
   bool fd_frames = false;            ///< CAN_RAW_FD_FRAMES
   int rcvbuf_bytes = 0;              ///< > 0: SO_RCVBUFFORCE, falling back to SO_RCVBUF
+  /// Open a CAN_BCM socket too, for set_cyclic(). When the kernel has no CAN_BCM (module can-bcm) the
+  /// channel works without it: cyclic_supported() is false and cyclic_error() says why.
+  bool cyclic = false;
 };
 
 /// Receive metadata carried in control messages.
@@ -82,7 +86,15 @@ class SocketCanChannel final : public CanChannel {
   CanStatus receive(std::span<CanFrame> out, std::size_t& received,
                     std::int64_t timeout_ns) noexcept override;
   CanStatus send(const CanFrame& frame) noexcept override;
+  [[nodiscard]] bool cyclic_supported() const noexcept override { return bcm_fd_ >= 0; }
+  /// One TX_SETUP on the CAN_BCM socket (SETTIMER, plus STARTTIMER / TX_ANNOUNCE per tx.start).
+  CanStatus set_cyclic(const CanCyclicTx& tx) noexcept override;
+  /// Ends a cyclic transmission (TX_DELETE) and the channel.
   void deactivate() noexcept override;
+
+  /// Why set_cyclic() is not available ("" when it is, or when it was not asked for). Thread: the main
+  /// thread after configure().
+  [[nodiscard]] const std::string& cyclic_error() const noexcept { return bcm_error_; }
 
   /// The socket (for a caller that polls several fds). -1 before configure(). Thread: any.
   [[nodiscard]] int fd() const noexcept { return fd_; }
@@ -91,6 +103,13 @@ class SocketCanChannel final : public CanChannel {
   SocketCanConfig config_;
   const Clock& clock_;
   int fd_ = -1;
+  int bcm_fd_ = -1;
+  std::string bcm_error_;
+  std::uint32_t bcm_id_ = 0;  ///< can_id (with CAN_EFF_FLAG) of the set-up cyclic transmission
+  bool bcm_set_ = false;
+  // One TX_SETUP message: the head, then the frames (bcm_msg_head ends in a flexible array).
+  alignas(bcm_msg_head) unsigned char bcm_msg_[sizeof(bcm_msg_head) +
+                                               CanCyclicTx::kMaxFrames * sizeof(can_frame)]{};
   bool active_ = false;
   bool drops_seen_ = false;
   std::uint32_t last_drops_ = 0;

@@ -246,6 +246,13 @@ note "bus: $(get N_VERDICT) verdict frames, $(get N_CLEAR) clear frames, $nr of 
   "ptdad's first verdict frame $(get MARKER_DELAY) s after the replay's start"
 [ "$nr" = "$nl" ] || fail "the capture holds $nr frames of the log, the log has $nl (canreplay or the capture lost some)"
 [ "$(get ALIVE_BAD)" = 0 ] || fail "verdict frame alive counter skipped $(get ALIVE_BAD) times"
+# The kernel's broadcast manager re-sends the verdict frame (ptdad renews its lease and changes its content).
+timer="$(sed -n 's/.*CAN verdict frame: \(.*\)$/\1/p' "$out/ptdad.log" 2> /dev/null | head -n 1)"
+note "verdict frame timer: ${timer:-(no log line)}"
+case "$timer" in
+  *"by the kernel (CAN_BCM)"*) ;;
+  *) fail "ptdad did not hand the verdict frame to the kernel's timer (CAN_BCM): ${timer:-no log line}" ;;
+esac
 # Period 0.1 s, but the processing thread that re-sends the frame is busy for a whole window's DSP in
 # between (about 1 ms natively, 0.1-0.5 s under TCG emulation).
 note "verdict frames: longest gap $(get MAX_VERDICT_GAP) s (period 0.1 s)"

@@ -47,11 +47,13 @@ event() { echo "$(uptime_s) $*" >> /tmp/events.log; }
 
 say "init uptime=$(uptime_s) kernel=$(uname -r) machine=$(uname -m) realtime=$(date +%s)"
 
-# ---- CAN: can.ko, can-raw.ko, can-dev.ko, vcan.ko (vcan needs can-dev; the package has no modules.dep)
-for m in can can-raw can-dev vcan; do
+# ---- CAN: can.ko, can-raw.ko, can-bcm.ko (the verdict frame's kernel timer), can-dev.ko, vcan.ko (vcan
+# needs can-dev; the package has no modules.dep)
+for m in can can-raw can-bcm can-dev vcan; do
   insmod "/lib/modules/$m.ko" || fail "insmod $m.ko failed"
 done
 grep -q CAN_RAW /proc/net/protocols || fail "CAN_RAW missing from /proc/net/protocols after insmod"
+grep -q CAN_BCM /proc/net/protocols || fail "CAN_BCM missing from /proc/net/protocols after insmod"
 ip link add dev vcan0 type vcan || fail "ip link add dev vcan0 type vcan failed"
 ip link set vcan0 up || fail "ip link set vcan0 up failed"
 say "vcan0 up uptime=$(uptime_s)"

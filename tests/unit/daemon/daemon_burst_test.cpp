@@ -33,28 +33,6 @@ Rates rates(const DaemonView& a, const DaemonView& b, double wall_s) {
           static_cast<double>(b.pipeline.speeds - a.pipeline.speeds) / wall_s};
 }
 
-// Voluntary context switches (a sleep that blocked: one wake-up each) of this process's threads, by
-// thread name (/proc/self/task/<tid>/status). Allocates: call it outside an AllocScope.
-std::map<std::string, std::uint64_t> sleeps_by_thread() {
-  std::map<std::string, std::uint64_t> out;
-  for (const auto& t : fs::directory_iterator("/proc/self/task")) {
-    std::ifstream comm(t.path() / "comm");
-    std::string name;
-    std::getline(comm, name);
-    std::ifstream status(t.path() / "status");
-    std::string line;
-    while (std::getline(status, line)) {
-      if (line.rfind("voluntary_ctxt_switches:", 0) == 0) {
-        std::istringstream in(line.substr(24));
-        std::uint64_t v = 0;
-        in >> v;
-        out[name] += v;
-      }
-    }
-  }
-  return out;
-}
-
 TEST(WakePlan, FollowsTheDueTimeAndNeverSleepsLongerThanMaxSleep) {
   constexpr std::int64_t kMs = 1'000'000;
   const std::int64_t origin = 1000 * kMs;

@@ -188,6 +188,31 @@ TEST(DaemonConfig, CrossChecksPointAtTheKeyThatWasSet) {
             "(now \"wav\")");
 }
 
+// [alarm.can] timer: the kernel re-sends the verdict frame where it can (default), with a lease that
+// must cover two periods; "daemon" keeps the daemon's own sends.
+TEST(DaemonConfig, AlarmCanTimerAndItsLease) {
+  const DaemonConfig c = parse_daemon_config(kMinimal, "t.toml");
+  EXPECT_TRUE(c.alarm.can_kernel_timer);
+  EXPECT_EQ(c.alarm.can_lease_s, 0.5);
+  const DaemonConfig d = parse_daemon_config(
+      kMinimal + "[alarm.can]\nenabled = true\ntimer = \"daemon\"\nperiod_s = 0.5\n", "t.toml");
+  EXPECT_FALSE(d.alarm.can_kernel_timer);  // the lease does not matter then
+  const DaemonConfig k = parse_daemon_config(
+      kMinimal + "[alarm.can]\nenabled = true\nperiod_s = 0.2\nlease_s = 0.4\n", "t.toml");
+  EXPECT_TRUE(k.alarm.can_kernel_timer);
+  EXPECT_EQ(k.alarm.can_lease_s, 0.4);
+  EXPECT_EQ(error_of(kMinimal + "[alarm.can]\ntimer = \"bcm\"\n"),
+            "t.toml:6:9: alarm.can.timer must be one of \"auto\", \"daemon\", not \"bcm\"");
+  EXPECT_EQ(error_of(kMinimal + "[alarm.can]\nenabled = true\nperiod_s = 0.2\nlease_s = 0.3\n"),
+            "t.toml:8:11: alarm.can.lease_s (0.3 s) must be at least twice alarm.can.period_s (0.2 s): the "
+            "kernel would stop sending between two renewals (or set alarm.can.timer = \"daemon\")");
+  // A longer period alone makes the default lease too short: the error points at the period.
+  EXPECT_EQ(error_of(kMinimal + "[alarm.can]\nenabled = true\nperiod_s = 0.3\n")
+                .rfind("t.toml:7:12: alarm.can.lease_s (0.5 s) must be at least twice", 0),
+            0U)
+      << error_of(kMinimal + "[alarm.can]\nenabled = true\nperiod_s = 0.3\n");
+}
+
 TEST(DaemonConfig, DropInsApplyInLexicalOrderKeyByKeyWithRelativePaths) {
   const fs::path dir = scratch("config_dropins");
   fs::create_directories(dir / "conf.d");

@@ -248,6 +248,63 @@ TEST_F(Lifecycle, CanSilencePausesWithReasonAndResumes) {
   EXPECT_GT(after, 20U);
 }
 
+// [alarm.can] timer = "auto" (docs/drivers.md, "CAN verdict frame"): the kernel re-sends the verdict
+// frame (the real-time candump replay emulates CAN_BCM), so a short period costs the daemon no wake-ups:
+// at 50 frames a second the one thread still wakes only for the windows and its grid; with "daemon" it
+// wakes for every frame.
+TEST_F(Lifecycle, KernelTimedVerdictFrameCostsTheDaemonNoWakeUps) {
+  block_daemon_signals();
+  for (const bool kernel : {true, false}) {
+    SCOPED_TRACE(kernel ? "timer auto (kernel)" : "timer daemon");
+    const fs::path dir = scratch(kernel ? "kernel_timer" : "daemon_timer");
+    write_sim_baseline(dir / "baseline.bin");
+    write_silent_recording(dir / "rec", 1e9, 1e9);  // no silence
+    std::string text =
+        sim_config(dir / "baseline.bin", dir / "status", "realtime", "",
+                   std::string("[alarm]\nmin_hold_s = 0.5\nlatch = false\n[alarm.can]\nenabled = "
+                               "true\nperiod_s = 0.02\ntimer = \"") +
+                       (kernel ? "auto" : "daemon") + "\"\n");
+    text.replace(text.find("backend = \"sim\"\nscenario"), 15,
+                 "backend = \"wav\"\nrecording = \"" + (dir / "rec").string() + "\"");
+    text.replace(text.find("backend = \"sim\"\npace"), 15, "backend = \"candump\"");
+    write_text(dir / "ptdad.toml", text);
+    DaemonOptions opt;
+    opt.config_file = dir / "ptdad.toml";
+    opt.config_dir = fs::path();
+    Daemon d(opt, clock_);
+    d.configure();
+    d.activate();
+    Runner r(d);
+    std::this_thread::sleep_for(1000ms);  // start-up done, the first windows judged
+    const auto sleeps_before = sleeps_by_thread();
+    const auto t0 = std::chrono::steady_clock::now();
+    std::this_thread::sleep_for(3000ms);
+    const auto sleeps_after = sleeps_by_thread();
+    const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const WakeSchedule w = d.view().wake;
+    d.request_stop();
+    EXPECT_EQ(r.join(), 0);
+    ASSERT_TRUE(w.single_thread);
+    EXPECT_EQ(w.output_kernel_timed, kernel);
+    EXPECT_EQ(w.output_refresh_ns, kernel ? 250'000'000 : 20'000'000);  // lease_s / 2, or period_s
+    ASSERT_EQ(sleeps_after.count("ptdad-proc"), 1U);
+    const double wakes_per_s =
+        static_cast<double>(sleeps_after.at("ptdad-proc") - sleeps_before.at("ptdad-proc")) / wall_s;
+    std::printf("timer %s: ptdad-proc wakes %.1f times a second\n", kernel ? "auto (kernel)" : "daemon",
+                wakes_per_s);
+    const double due_and_grid_per_s =
+        1e9 / static_cast<double>(w.spacing_ns) + 1e9 / static_cast<double>(w.max_sleep_ns);
+    if (kernel) {
+      // As DaemonBurst's bound with the 0.1 s frame riding along (12 of 16 a second there); here the
+      // frames would be 50 a second.
+      EXPECT_LE(wakes_per_s, due_and_grid_per_s + 4.0);
+    } else {
+      // The daemon wakes for each frame (a loaded machine may merge a few late ones).
+      EXPECT_GE(wakes_per_s, 25.0);
+    }
+  }
+}
+
 TEST_F(Lifecycle, CanSilenceIsReportedWhileItLasts) {
   // Real-time pace on the simulator: the state is observed while the daemon runs.
   const fs::path dir = scratch("can_silence_live");

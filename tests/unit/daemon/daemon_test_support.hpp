@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -251,6 +252,28 @@ inline void write_sim_order_baseline(const fs::path& path, const std::string& co
 
 /// Blocks the daemon's signals in this thread (before any thread is started) so that a signal sent
 /// to the process stays pending for the daemon's signalfd instead of killing the test.
+// Voluntary context switches (a sleep that blocked: one wake-up each) of this process's threads, by
+// thread name (/proc/self/task/<tid>/status). Allocates: call it outside an AllocScope.
+inline std::map<std::string, std::uint64_t> sleeps_by_thread() {
+  std::map<std::string, std::uint64_t> out;
+  for (const auto& t : fs::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(t.path() / "comm");
+    std::string name;
+    std::getline(comm, name);
+    std::ifstream status(t.path() / "status");
+    std::string line;
+    while (std::getline(status, line)) {
+      if (line.rfind("voluntary_ctxt_switches:", 0) == 0) {
+        std::istringstream in(line.substr(24));
+        std::uint64_t v = 0;
+        in >> v;
+        out[name] += v;
+      }
+    }
+  }
+  return out;
+}
+
 inline void block_daemon_signals() {
   sigset_t set;
   sigemptyset(&set);

@@ -256,6 +256,133 @@ TEST_F(CanAlarmOutputTest, SetNeverAllocates) {
   EXPECT_EQ(scope.count(), 0u);
 }
 
+// ---- the kernel timer (CAN_BCM; here the replay channel's emulation of it) -------------------------
+
+class CanAlarmKernelTimerTest : public CanAlarmOutputTest {
+ protected:
+  void SetUp() override {
+    CanAlarmOutputTest::SetUp();
+    CandumpReplayConfig rc;
+    rc.path = dir_ / "empty.log";
+    rc.tx_capacity = 256;
+    rc.cyclic = true;
+    channel_ = std::make_unique<CandumpReplayChannel>(rc, clock_);
+    channel_->configure();
+    channel_->activate();
+    cfg_.kernel_timer = true;
+    cfg_.period_ns = 100;
+    cfg_.lease_ns = 500;  // 5 frames
+  }
+  CanAlarmConfig cfg_;
+};
+
+TEST_F(CanAlarmKernelTimerTest, TheKernelResendsWithAliveCountersAndStopsWhenTheLeaseIsNotRenewed) {
+  CanAlarmOutput out(cfg_, *channel_, &clock_);
+  out.configure();
+  out.activate();
+  ASSERT_TRUE(out.kernel_timed());
+  EXPECT_EQ(out.refresh_period_ns(), 250);
+  ASSERT_EQ(channel_->sent_frames().size(), 1U);
+  EXPECT_EQ(channel_->sent_frames()[0].data[0], 0x03);  // alive 0, fault "not judged yet"
+  AlarmReport r;
+  r.level = AlarmLevel::kNormal;
+  r.rms = 0.25F;
+  clock_.set_ns(50);
+  ASSERT_EQ(out.set(r), OutputStatus::kOk);  // level change: one frame at once
+  // Renewed every 250 (the pipeline's cadence) with the same verdict: no frame of its own.
+  for (std::int64_t t = 300; t <= 2'050; t += 250) {
+    clock_.set_ns(t);
+    ASSERT_EQ(out.set(r), OutputStatus::kOk);
+  }
+  // No renewal after 2050 (a hung daemon): the lease of 5 frames runs out.
+  clock_.set_ns(5'000);
+  out.deactivate();  // the final frame: cause internal, then nothing
+  channel_->deactivate();
+  const auto s = channel_->sent_frames();
+  // 0: activate, 50: the change, then the timer's frames at 100, 200, ... while renewed.
+  ASSERT_GE(s.size(), 24U);
+  EXPECT_EQ(s[1].t_ns, 50);
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    EXPECT_EQ(s[i].data[0] >> 4, static_cast<int>(i % 16)) << "alive counter of frame " << i;
+    if (i > 0 && i + 1 < s.size()) {
+      EXPECT_LE(s[i].t_ns - s[i - 1].t_ns, 100) << "gap before frame " << i;
+    }
+  }
+  EXPECT_EQ(s[2].t_ns, 100);  // the timer's phase is kept by the level change (announce)
+  // 0, 50, the timer's 100..2500 (25: after the last renewal at 2050 the lease allows 5 more,
+  // 2100..2500), then silence until the final frame at 5000.
+  ASSERT_EQ(s.size(), 28U);
+  EXPECT_EQ(s[s.size() - 2].t_ns, 2'500);
+  EXPECT_EQ(s.back().t_ns, 5'000);
+  EXPECT_EQ(s.back().data[1], kCauseInternal);
+  EXPECT_EQ(s.back().data[0] & 0x03, 3);
+  EXPECT_EQ(s[s.size() - 3].data[4], 250 & 0xFF);  // rms 0.25 in 1e-3 steps
+}
+
+TEST_F(CanAlarmKernelTimerTest, ANewValueGoesIntoTheFramesAndALateRenewalRestartsTheTimer) {
+  CanAlarmOutput out(cfg_, *channel_, &clock_);
+  out.configure();
+  out.activate();  // t 0
+  AlarmReport r;
+  r.level = AlarmLevel::kFault;  // same level and causes as activate(): no frame at once
+  r.rms = 1.0F;
+  clock_.set_ns(120);
+  ASSERT_EQ(out.set(r), OutputStatus::kOk);
+  EXPECT_EQ(channel_->sent_frames().size(), 2U);  // 0 and the timer's 100 only
+  clock_.set_ns(150);
+  (void)out.set(r);
+  EXPECT_EQ(channel_->sent_frames().size(), 2U);
+  // Renewed (5 - 1) periods after the last set-up at 150: the timer may have stopped, so it restarts
+  // (one frame now).
+  clock_.set_ns(150 + 400);
+  ASSERT_EQ(out.set(r), OutputStatus::kOk);
+  const auto s = channel_->sent_frames();
+  ASSERT_GE(s.size(), 3U);
+  EXPECT_EQ(s.back().t_ns, 550);
+  EXPECT_EQ(s[2].t_ns, 200);
+  EXPECT_EQ(s[2].data[4] | (s[2].data[5] << 8), 1000);  // the new value from the next frame on
+}
+
+TEST_F(CanAlarmKernelTimerTest, WithoutAKernelTimerTheDaemonSendsEveryFrame) {
+  CandumpReplayConfig rc;
+  rc.path = dir_ / "empty.log";
+  rc.pace = ReplayPace::kAsFastAsPossible;  // the emulation needs real-time pace
+  rc.cyclic = true;
+  CandumpReplayChannel fast(rc, clock_);
+  fast.configure();
+  fast.activate();
+  CanAlarmOutput out(cfg_, fast, &clock_);
+  out.configure();
+  out.activate();
+  EXPECT_FALSE(out.kernel_timed());
+  EXPECT_EQ(out.refresh_period_ns(), 100);
+  (void)out.set(AlarmLevel::kNormal);
+  (void)out.set(AlarmLevel::kNormal);
+  EXPECT_EQ(fast.sent_frames().size(), 3U);
+  CanAlarmOutput no_clock(cfg_, *channel_);  // the kernel timer needs a clock for the lease
+  no_clock.configure();
+  no_clock.activate();
+  EXPECT_FALSE(no_clock.kernel_timed());
+  CanAlarmConfig bad = cfg_;
+  bad.lease_ns = 150;
+  EXPECT_THROW(validate(bad), Error);
+}
+
+TEST_F(CanAlarmKernelTimerTest, SetNeverAllocates) {
+  CanAlarmOutput out(cfg_, *channel_, &clock_);
+  out.configure();
+  out.activate();
+  AlarmReport r;
+  r.level = AlarmLevel::kAlarm;
+  test::AllocScope scope;
+  for (int i = 0; i < 20; ++i) {
+    r.rms = static_cast<float>(i);
+    clock_.advance_ns(60);
+    (void)out.set(r);
+  }
+  EXPECT_EQ(scope.count(), 0U);
+}
+
 // ---- recording fake ------------------------------------------------------------------------------
 
 TEST(RecordingAlarmOutput, RecordsTheSequenceAndShowsFaultWhenInactive) {

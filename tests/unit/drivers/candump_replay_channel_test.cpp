@@ -193,6 +193,138 @@ TEST_F(CandumpReplay, ReceiveNeverAllocates) {
   EXPECT_EQ(total, 5u);
 }
 
+// ---- the kernel timer's emulation (CAN_BCM TX_SETUP, Linux net/can/bcm.c) ------------------------
+
+std::array<CanFrame, 3> cyclic_frames(std::uint8_t tag) {
+  std::array<CanFrame, 3> f{};
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    f[i].id = 0x3A0;
+    f[i].len = 8;
+    f[i].data[0] = static_cast<std::uint8_t>(i);  // the frame's place in the turn
+    f[i].data[1] = tag;                           // the content
+  }
+  return f;
+}
+
+TEST_F(CandumpReplay, CyclicTransmissionFollowsTheKernelTimer) {
+  cfg_.cyclic = true;
+  ManualClock clock(1'000);
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  ch.activate();
+  ASSERT_TRUE(ch.cyclic_supported());
+  const auto a = cyclic_frames(0xA);
+  CanCyclicTx tx;
+  tx.frames = a;
+  tx.period_ns = 100;
+  tx.count = 5;
+  // The first set-up starts the timer and sends one frame at once, whatever `start` says.
+  ASSERT_EQ(ch.set_cyclic(tx), CanStatus::kOk);
+  ASSERT_EQ(ch.sent_frames().size(), 1U);
+  EXPECT_EQ(ch.sent_frames()[0].t_ns, 1'000);
+  clock.set_ns(1'250);  // two expiries: 1100 and 1200
+  ch.deactivate();
+  ASSERT_EQ(ch.sent_frames().size(), 3U);
+  EXPECT_EQ(ch.sent_frames()[1].t_ns, 1'100);
+  EXPECT_EQ(ch.sent_frames()[2].t_ns, 1'200);
+  EXPECT_EQ(ch.sent_frames()[1].data[0], 1);
+  EXPECT_EQ(ch.sent_frames()[2].data[0], 2);
+
+  // Renewals: a content change keeps the turn and the timer's phase; the lease (count) runs out.
+  ch.activate();
+  clock.set_ns(10'000);
+  ASSERT_EQ(ch.set_cyclic(tx), CanStatus::kOk);  // a new operation after deactivate: starts, sends 1
+  const std::size_t base = ch.sent_frames().size();
+  clock.set_ns(10'150);  // expiry 10100
+  const auto b = cyclic_frames(0xB);
+  tx.frames = b;
+  tx.start = CanCyclicTx::Start::kKeepTimer;
+  tx.count = 3;
+  ASSERT_EQ(ch.set_cyclic(tx), CanStatus::kOk);  // nothing sent now
+  EXPECT_EQ(ch.sent_frames().size(), base + 1);
+  clock.set_ns(11'000);  // expiries 10200, 10300, 10400 send the 3 of the lease, then it stops
+  ch.deactivate();
+  const auto sent = ch.sent_frames();
+  ASSERT_EQ(sent.size(), base + 4);
+  EXPECT_EQ(sent[base].t_ns, 10'100);
+  EXPECT_EQ(sent[base].data[1], 0xA);
+  EXPECT_EQ(sent[base].data[0], 1);
+  for (std::size_t i = 1; i <= 3; ++i) {
+    EXPECT_EQ(sent[base + i].t_ns, static_cast<std::int64_t>(10'100 + 100 * i));
+    EXPECT_EQ(sent[base + i].data[1], 0xB);
+    EXPECT_EQ(sent[base + i].data[0], static_cast<std::uint8_t>((1 + i) % 3));  // the turn goes on
+  }
+}
+
+TEST_F(CandumpReplay, CyclicAnnounceSendsAtOnceAndRestartMovesThePhase) {
+  cfg_.cyclic = true;
+  ManualClock clock(0);
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  ch.activate();
+  const auto a = cyclic_frames(1);
+  CanCyclicTx tx;
+  tx.frames = a;
+  tx.period_ns = 100;
+  tx.count = 100;
+  ASSERT_EQ(ch.set_cyclic(tx), CanStatus::kOk);  // t 0
+  clock.set_ns(130);                             // expiry 100
+  tx.start = CanCyclicTx::Start::kAnnounce;
+  ASSERT_EQ(ch.set_cyclic(tx), CanStatus::kOk);  // t 130, phase kept: next expiry 200
+  clock.set_ns(260);                             // expiry 200
+  tx.start = CanCyclicTx::Start::kRestart;
+  ASSERT_EQ(ch.set_cyclic(tx), CanStatus::kOk);  // t 260, next expiry 360
+  clock.set_ns(370);
+  ch.deactivate();
+  const auto s = ch.sent_frames();
+  ASSERT_EQ(s.size(), 6U);
+  const std::int64_t t[] = {0, 100, 130, 200, 260, 360};
+  for (std::size_t i = 0; i < 6; ++i) {
+    EXPECT_EQ(s[i].t_ns, t[i]) << i;
+    EXPECT_EQ(s[i].data[0], i % 3) << i;
+  }
+}
+
+TEST_F(CandumpReplay, CyclicTransmissionIsRefusedWhereTheKernelCouldNotDoIt) {
+  ManualClock clock(0);
+  const auto a = cyclic_frames(1);
+  CanCyclicTx tx;
+  tx.frames = a;
+  tx.period_ns = 100;
+  tx.count = 2;
+  {
+    CandumpReplayChannel off(cfg_, clock);  // not asked for
+    off.configure();
+    off.activate();
+    EXPECT_FALSE(off.cyclic_supported());
+    EXPECT_EQ(off.set_cyclic(tx), CanStatus::kError);
+  }
+  cfg_.cyclic = true;
+  cfg_.pace = ReplayPace::kAsFastAsPossible;  // no timer can follow a replay faster than real time
+  CandumpReplayChannel fast(cfg_, clock);
+  fast.configure();
+  fast.activate();
+  EXPECT_FALSE(fast.cyclic_supported());
+  EXPECT_EQ(fast.set_cyclic(tx), CanStatus::kError);
+  cfg_.pace = ReplayPace::kRealTime;
+  CandumpReplayChannel ch(cfg_, clock);
+  ch.configure();
+  EXPECT_EQ(ch.set_cyclic(tx), CanStatus::kNotActive);
+  ch.activate();
+  auto mixed = cyclic_frames(1);
+  mixed[2].id = 0x3A1;  // one operation is one id
+  tx.frames = mixed;
+  EXPECT_EQ(ch.set_cyclic(tx), CanStatus::kError);
+  tx.frames = a;
+  tx.count = 0;
+  EXPECT_EQ(ch.set_cyclic(tx), CanStatus::kError);
+  tx.count = 2;
+  tx.period_ns = 0;
+  EXPECT_EQ(ch.set_cyclic(tx), CanStatus::kError);
+  EXPECT_EQ(ch.counters().tx_errors, 3U);
+  EXPECT_TRUE(ch.sent_frames().empty());
+}
+
 }  // namespace
 }  // namespace ptda::drivers
 

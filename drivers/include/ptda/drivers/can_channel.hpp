@@ -64,6 +64,24 @@ struct CanChannelStats {
   }
 };
 
+/// A transmission the kernel times (SocketCAN's broadcast manager, CAN_BCM TX_SETUP): `frames` go out
+/// in turn, one every `period_ns`, until `count` frames have gone out after this call; then the kernel
+/// stops. Calling again before that replaces the frames' content and sets the remaining count anew (a
+/// lease the sender renews); the turn (which frame is next) and the timer's phase are kept unless
+/// `start` says otherwise. A sender that stops renewing (hung, killed) goes silent within count periods.
+struct CanCyclicTx {
+  enum class Start : std::uint8_t {
+    kKeepTimer,  ///< the running timer goes on; nothing is sent now
+    kAnnounce,   ///< one frame now (the next in turn), the timer's phase kept
+    kRestart,    ///< one frame now, the timer restarted from now (also starts a stopped one)
+  };
+  static constexpr std::size_t kMaxFrames = 16;
+  std::span<const CanFrame> frames;  ///< 1..kMaxFrames classic frames of one id
+  std::int64_t period_ns = 0;        ///< > 0
+  std::uint32_t count = 0;           ///< frames after this call before the kernel stops, >= 1
+  Start start = Start::kKeepTimer;
+};
+
 /// Applies one SocketCAN error frame (frame.error(); id = CAN_ERR_* class bits, data[] = details) to
 /// the bus state and counters. Pure state machine shared by every backend. Thread: the receiving thread.
 /// Never allocates.
@@ -89,6 +107,17 @@ class CanChannel {
   /// Queues one frame for transmission without waiting. Thread: one sending thread (may differ from the
   /// receiving one). Never blocks, allocates or throws.
   virtual CanStatus send(const CanFrame& frame) noexcept = 0;
+  /// Whether set_cyclic() works on this channel (SocketCAN with CAN_BCM; a real-time replay emulates
+  /// it). Known after configure(). Thread: any. Never blocks.
+  [[nodiscard]] virtual bool cyclic_supported() const noexcept { return false; }
+  /// Sets up or renews a kernel-timed cyclic transmission (CanCyclicTx). kError when unsupported or the
+  /// request is invalid; kTxFull / kBusDown as send(). Thread: the sending thread. Never blocks,
+  /// allocates or throws; one system call.
+  virtual CanStatus set_cyclic(const CanCyclicTx& tx) noexcept {
+    (void)tx;
+    stats_.tx_errors.add();
+    return CanStatus::kError;
+  }
   /// Stops; safe in any state and twice. Thread: the main thread after receive()/send() stopped.
   virtual void deactivate() noexcept = 0;
 
