@@ -535,6 +535,8 @@ PipelineCounters Pipeline::counters() const noexcept {
   c.can_receive_errors = can_receive_errors_.get();
   c.can_end = can_end_.load(std::memory_order_acquire);
   c.output_errors = output_errors_.get();
+  c.late_waits = late_waits_.get();
+  c.publish_waits = publish_waits_.get();
   return c;
 }
 
@@ -1234,6 +1236,8 @@ void Pipeline::processing_loop() noexcept {
       std::int64_t wait_ns = kProcessingIdleWaitNs;
       if (!fast_) {
         wait_ns = processing_wait_ns(now, unpublished);
+        if (wake_.single_thread && due_late_.load(std::memory_order_relaxed)) late_waits_.add();
+        if (unpublished) publish_waits_.add();
       } else if (unpublished) {
         wait_ns = std::clamp<std::int64_t>(last_publish_ns_ + kPublishPeriodNs - now, 100'000, wait_ns);
       }

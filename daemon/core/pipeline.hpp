@@ -245,6 +245,12 @@ struct PipelineCounters {
   std::uint64_t can_error_frames = 0, can_ring_full = 0, can_clear_frames = 0, can_receive_errors = 0;
   bool can_end = false;
   std::uint64_t output_errors = 0;
+  /// Real-time pace, one thread: sleeps planned one retry step ahead because the due window was still
+  /// open after its inputs were read (WakeSchedule::late: a late speed frame or block, a loaded machine).
+  std::uint64_t late_waits = 0;
+  /// Real-time pace: sleeps cut short to publish work done within kPublishPeriodNs (a pass with work
+  /// that came too soon after the previous publication: passes close together, a slow or loaded machine).
+  std::uint64_t publish_waits = 0;
 };
 
 class Pipeline {
@@ -507,6 +513,7 @@ class Pipeline {
   bool output_kernel_timed_ = false;
   PipelineStatus st_;  ///< the processing thread's working copy of what it publishes
   drivers::Counter output_errors_;
+  drivers::Counter late_waits_, publish_waits_;
   std::atomic<std::uint64_t> proc_beat_{0};
   std::atomic<bool> stall_{false};
 

@@ -130,12 +130,23 @@ TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
   const double wakes_acq = wakes_per_s("ptdad-acq");
   const double wakes_can = wakes_per_s("ptdad-can");
   const double wakes_proc = wakes_per_s("ptdad-proc");
+  // Two kinds of sleep the schedule cuts short by design: one retry step (5 ms) when a due window was
+  // still open (a late frame or block), and the publication of work done within 10 ms (a pass with work
+  // too soon after the previous publication). Both ~0 here in release; under tsan the passes are slow and
+  // the publications take 3-4 wake-ups a second (late retries 0), which the bound must allow.
+  const double late_per_s =
+      static_cast<double>(after.counters.late_waits - before.counters.late_waits) / wall_s;
+  const double publish_per_s =
+      static_cast<double>(after.counters.publish_waits - before.counters.publish_waits) / wall_s;
   std::printf(
       "passes per second: acquisition %.1f, can %.1f, processing %.1f; wake-ups per second: ptdad-acq %.1f, "
-      "ptdad-can %.1f, ptdad-proc %.1f; %.0f samples/s, %.0f speeds/s; max sleep %.0f ms, spacing %.1f ms, "
-      "offsets %.1f / %.1f ms\n",
-      r.acquisition, r.can, r.processing, wakes_acq, wakes_can, wakes_proc, r.samples, r.speeds,
-      w.max_sleep_ns / 1e6, w.spacing_ns / 1e6, w.acq_offset_ns / 1e6, w.can_offset_ns / 1e6);
+      "ptdad-can %.1f, ptdad-proc %.1f (late retries %.1f, publication %.1f); %.0f samples/s, %.0f speeds/s; "
+      "max sleep %.0f "
+      "ms, "
+      "spacing %.1f ms, offsets %.1f / %.1f ms\n",
+      r.acquisition, r.can, r.processing, wakes_acq, wakes_can, wakes_proc, late_per_s, publish_per_s,
+      r.samples, r.speeds, w.max_sleep_ns / 1e6, w.spacing_ns / 1e6, w.acq_offset_ns / 1e6,
+      w.can_offset_ns / 1e6);
   // The schedule from the design (arc-welding job: 3200-sample windows and hop, min_duration 0.13 s,
   // guard 5 ms; 256-sample blocks at 25.6 kHz, 4 ms speed frames, no speed latency):
   ASSERT_TRUE(w.follows_windows);
@@ -157,10 +168,13 @@ TEST(DaemonBurst, RealTimeStagesWakeWhenAWindowCanCloseAndAllocateNothing) {
   const double due_and_grid_per_s =
       1e9 / static_cast<double>(w.spacing_ns) + 1e9 / static_cast<double>(w.max_sleep_ns);
   // The one thread's real wake-ups (sleeps that blocked): those, with the 0.1 s CAN verdict frame riding
-  // on them or standing in for them (each pass reads the inputs), and 4/s of slack: 11.3/s measured
-  // here. Three threads woke ~50 times a second; one thread that also woke for each held block's hold
-  // time, 18/s (docs/benchmarks.md, session 20).
-  EXPECT_LE(wakes_acq + wakes_can + wakes_proc, due_and_grid_per_s + 4.0);
+  // on them or standing in for them (each pass reads the inputs), the cut-short sleeps above, and 4/s of
+  // slack: 11.0-11.3/s measured here in release; under tsan 14-15.3/s of which 3-4 publications (it
+  // once failed the bound without them at 17.3/s). Three threads woke ~50 times a second; one thread
+  // that also woke for each held block's hold time, 18/s (docs/benchmarks.md, session 20).
+  EXPECT_LE(wakes_acq + wakes_can + wakes_proc, due_and_grid_per_s + 4.0 + late_per_s + publish_per_s);
+  // A publication follows a pass with work: at most one per due time or grid point.
+  EXPECT_LE(publish_per_s, due_and_grid_per_s);
   EXPECT_GT(wakes_proc, 0.0);
   // Its passes (a wake-up with work makes a second pass that finds none) read both inputs each time.
   EXPECT_LE(r.processing, 2.0 * (1.5 * due_and_grid_per_s + 10.0 + 2.0));

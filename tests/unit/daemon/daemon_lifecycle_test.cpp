@@ -277,11 +277,17 @@ TEST_F(Lifecycle, KernelTimedVerdictFrameCostsTheDaemonNoWakeUps) {
     Runner r(d);
     std::this_thread::sleep_for(1000ms);  // start-up done, the first windows judged
     const auto sleeps_before = sleeps_by_thread();
+    const PipelineCounters cut_before = d.view().counters;
     const auto t0 = std::chrono::steady_clock::now();
     std::this_thread::sleep_for(3000ms);
     const auto sleeps_after = sleeps_by_thread();
     const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const WakeSchedule w = d.view().wake;
+    const PipelineCounters cut_after = d.view().counters;
+    // Sleeps the schedule cuts short by design (a late window's retries, a publication): as DaemonBurst.
+    const double cut_per_s = static_cast<double>(cut_after.late_waits - cut_before.late_waits +
+                                                 cut_after.publish_waits - cut_before.publish_waits) /
+                             wall_s;
     d.request_stop();
     EXPECT_EQ(r.join(), 0);
     ASSERT_TRUE(w.single_thread);
@@ -290,14 +296,14 @@ TEST_F(Lifecycle, KernelTimedVerdictFrameCostsTheDaemonNoWakeUps) {
     ASSERT_EQ(sleeps_after.count("ptdad-proc"), 1U);
     const double wakes_per_s =
         static_cast<double>(sleeps_after.at("ptdad-proc") - sleeps_before.at("ptdad-proc")) / wall_s;
-    std::printf("timer %s: ptdad-proc wakes %.1f times a second\n", kernel ? "auto (kernel)" : "daemon",
-                wakes_per_s);
+    std::printf("timer %s: ptdad-proc wakes %.1f times a second (late retries and publications %.1f)\n",
+                kernel ? "auto (kernel)" : "daemon", wakes_per_s, cut_per_s);
     const double due_and_grid_per_s =
         1e9 / static_cast<double>(w.spacing_ns) + 1e9 / static_cast<double>(w.max_sleep_ns);
     if (kernel) {
       // As DaemonBurst's bound with the 0.1 s frame riding along (12 of 16 a second there); here the
       // frames would be 50 a second.
-      EXPECT_LE(wakes_per_s, due_and_grid_per_s + 4.0);
+      EXPECT_LE(wakes_per_s, due_and_grid_per_s + 4.0 + cut_per_s);
     } else {
       // The daemon wakes for each frame (a loaded machine may merge a few late ones).
       EXPECT_GE(wakes_per_s, 25.0);
