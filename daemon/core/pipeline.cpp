@@ -370,7 +370,6 @@ void Pipeline::configure_rings_and_timing() {
   hold_ns_ =
       std::min<std::int64_t>(std::max<std::int64_t>(seconds_to_ns(4 * pc.speed_frame.period_s), 50'000'000),
                              std::max<std::int64_t>(speed_stale_ns_ / 2, 1'000'000));
-  output_period_ns_ = seconds_to_ns(cfg_.alarm.can_period_s);
   // Wake-ups (docs/daemon.md, "Sleeping until a window can close"). The acquisition thread wakes one
   // block after the due time (the block holding the window's last sample is then complete; +1 ms for a
   // device's delivery); the CAN thread one speed frame period (+ the speed latency, +1 ms) after that,
@@ -454,12 +453,11 @@ void Pipeline::activate() {
   // times them, a renewal of the kernel timer's lease otherwise (GPIO needs no re-sends).
   output_period_ns_ =
       can_output_ != nullptr ? can_output_->refresh_period_ns() : seconds_to_ns(cfg_.alarm.can_period_s);
-  output_kernel_timed_ = can_output_ != nullptr && can_output_->kernel_timed();
   wake_.output_refresh_ns = output_period_ns_;
-  wake_.output_kernel_timed = output_kernel_timed_;
+  wake_.output_kernel_timed = can_output_ != nullptr && can_output_->kernel_timed();
   if (can_output_ != nullptr) {
     char text[256];
-    if (output_kernel_timed_) {
+    if (wake_.output_kernel_timed) {
       std::snprintf(text, sizeof text, "re-sent every %g s by the kernel (%s), lease %g s",
                     cfg_.alarm.can_period_s, socketcan_ != nullptr ? "CAN_BCM" : "emulated by the replay",
                     cfg_.alarm.can_lease_s);
@@ -1075,15 +1073,10 @@ void Pipeline::update_phase(std::int64_t now) noexcept {
 void Pipeline::drive_outputs(std::int64_t now, bool force) noexcept {
   if (outputs_.empty()) return;
   const drivers::AlarmReport report = alarm_->report();
-  bool changed = report.level != last_output_level_ || report.causes != last_output_causes_;
   // With the kernel timer a new window's values go into the frames it sends at once (one system call,
   // no frame of its own), not at the next renewal.
-  if (output_kernel_timed_ && !changed) {
-    changed = report.segment_class != last_output_report_.segment_class ||
-              report.abnormal_windows != last_output_report_.abnormal_windows ||
-              std::memcmp(&report.rms, &last_output_report_.rms, sizeof report.rms) != 0 ||
-              std::memcmp(&report.entropy, &last_output_report_.entropy, sizeof report.entropy) != 0;
-  }
+  const bool changed = report.level != last_output_level_ || report.causes != last_output_causes_ ||
+                       (wake_.output_kernel_timed && !drivers::same_report(report, last_output_report_));
   // At real-time pace an unchanged frame rides on this pass once half its period has passed
   // (resend_due); processing_wait_ns() still wakes this thread for it at the full period. A fast
   // replay passes all the time: there the period alone counts, as before.

@@ -506,11 +506,10 @@ class Pipeline {
   std::int64_t sensor_stale_ns_ = 0;
   std::int64_t last_publish_ns_ = 0;
   std::int64_t last_output_ns_ = 0;
-  std::int64_t output_period_ns_ = 0;
+  std::int64_t output_period_ns_ = 0;  ///< set at activate(): WakeSchedule::output_refresh_ns
   drivers::AlarmLevel last_output_level_ = drivers::AlarmLevel::kFault;
   std::uint8_t last_output_causes_ = 0xFF;
   drivers::AlarmReport last_output_report_{};
-  bool output_kernel_timed_ = false;
   PipelineStatus st_;  ///< the processing thread's working copy of what it publishes
   drivers::Counter output_errors_;
   drivers::Counter late_waits_, publish_waits_;

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <string>
 
@@ -92,11 +91,7 @@ CanStatus CanAlarmOutput::send_frame(const AlarmReport& report) noexcept {
 CanStatus CanAlarmOutput::set_cyclic(const AlarmReport& report, bool final_frame) noexcept {
   const std::int64_t now = clock_->now_ns();
   const bool same = report.level == last_report_.level && report.causes == last_report_.causes;
-  const bool content = !same || report.segment_class != last_report_.segment_class ||
-                       report.abnormal_windows != last_report_.abnormal_windows ||
-                       std::memcmp(&report.rms, &last_report_.rms, sizeof report.rms) != 0 ||
-                       std::memcmp(&report.entropy, &last_report_.entropy, sizeof report.entropy) != 0;
-  if (content || !set_up_) {
+  if (!set_up_ || !same_report(report, last_report_)) {
     for (std::size_t i = 0; i < cyclic_frames_.size(); ++i)
       cyclic_frames_[i] = encode_alarm_frame(report, config_, static_cast<std::uint8_t>(i));
   }

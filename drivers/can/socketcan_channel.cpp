@@ -38,6 +38,17 @@ timespec to_timespec(std::int64_t ns) noexcept {
   return ts;
 }
 
+/// Counts a transmit that did not go through (errno `err`, 0 for a short write) and says how.
+CanStatus failed_write(int err, CanChannelStats& stats) noexcept {
+  if (err == ENOBUFS || err == EAGAIN || err == EWOULDBLOCK) {
+    stats.tx_full.add();
+    return CanStatus::kTxFull;
+  }
+  stats.tx_errors.add();
+  if (err == ENETDOWN || err == ENETUNREACH || err == ENXIO) return CanStatus::kBusDown;
+  return CanStatus::kError;
+}
+
 }  // namespace
 
 std::vector<can_filter> build_can_filters(std::span<const CanIdFilter> filters) {
@@ -312,13 +323,7 @@ CanStatus SocketCanChannel::set_cyclic(const CanCyclicTx& tx) noexcept {
     stats_.tx_frames.add();  // counts set-ups: the kernel's own sends are not seen here
     return CanStatus::kOk;
   }
-  if (w < 0 && (errno == ENOBUFS || errno == EAGAIN || errno == EWOULDBLOCK)) {
-    stats_.tx_full.add();
-    return CanStatus::kTxFull;
-  }
-  stats_.tx_errors.add();
-  if (w < 0 && (errno == ENETDOWN || errno == ENETUNREACH || errno == ENXIO)) return CanStatus::kBusDown;
-  return CanStatus::kError;
+  return failed_write(w < 0 ? errno : 0, stats_);
 }
 
 CanStatus SocketCanChannel::receive(std::span<CanFrame> out, std::size_t& received,
@@ -402,13 +407,7 @@ CanStatus SocketCanChannel::send(const CanFrame& frame) noexcept {
     stats_.tx_frames.add();
     return CanStatus::kOk;
   }
-  if (w < 0 && (errno == ENOBUFS || errno == EAGAIN || errno == EWOULDBLOCK)) {
-    stats_.tx_full.add();
-    return CanStatus::kTxFull;
-  }
-  stats_.tx_errors.add();
-  if (w < 0 && (errno == ENETDOWN || errno == ENETUNREACH || errno == ENXIO)) return CanStatus::kBusDown;
-  return CanStatus::kError;
+  return failed_write(w < 0 ? errno : 0, stats_);
 }
 
 }  // namespace ptda::drivers

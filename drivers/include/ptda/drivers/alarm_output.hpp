@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <string_view>
 
 #include "ptda/drivers/counter.hpp"
@@ -58,6 +59,14 @@ struct AlarmReport {
   float rms = 0.0F;                              ///< rms_res of the last judged window (recording unit)
   float entropy = 0.0F;                          ///< entropy_res of the last judged window, [0, 1]
 };
+
+/// Whether two verdicts would give the same outputs (every field; the values bit for bit, so NaN equals
+/// NaN). Thread: any. Pure.
+[[nodiscard]] inline bool same_report(const AlarmReport& a, const AlarmReport& b) noexcept {
+  return a.level == b.level && a.causes == b.causes && a.segment_class == b.segment_class &&
+         a.abnormal_windows == b.abnormal_windows && std::memcmp(&a.rms, &b.rms, sizeof a.rms) == 0 &&
+         std::memcmp(&a.entropy, &b.entropy, sizeof a.entropy) == 0;
+}
 
 enum class OutputStatus : std::uint8_t { kOk = 0, kError, kNotActive };
 
