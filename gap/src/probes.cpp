@@ -565,6 +565,8 @@ ProbeSet compute_probes(const GapRecording& rec, const std::vector<Segment>& seg
       for (std::size_t i = 0; i < w->len; ++i) near += std::fabs(x[i]) >= 0.998 * max_abs ? 1U : 0U;
       total += w->len;
     }
+    ps.rail_samples = near;
+    ps.window_samples = total;
     add(ps, "amplitude", "extreme_share_log10",
         std::log10(std::max(static_cast<double>(near) / static_cast<double>(total), 1e-6)),
         kScaleExtremeLog10, 0, 0, SegmentType::kConstant, Stage::kRaw);
@@ -760,6 +762,8 @@ ProbeSet average_probes(const ProbeSet& a, const ProbeSet& b) {
   out.still_power = mean_vec(a.still_power, b.still_power);
   out.transient_power = mean_vec(a.transient_power, b.transient_power);
   out.max_abs_ms2 = std::max(a.max_abs_ms2, b.max_abs_ms2);
+  out.rail_samples = a.rail_samples + b.rail_samples;
+  out.window_samples = a.window_samples + b.window_samples;
   out.lag_s = std::isfinite(a.lag_s) && std::isfinite(b.lag_s) ? 0.5 * (a.lag_s + b.lag_s)
               : std::isfinite(a.lag_s)                         ? a.lag_s
                                                                : b.lag_s;

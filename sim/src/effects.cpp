@@ -56,8 +56,13 @@ constexpr std::array<EffectParamInfo, 9> kElectrical{{
     {"pwm_side_hz", 0.0, 0.0, 5000.0, "sidebands at pwm_hz +- this (0: none)"},
     {"pwm_side_rel", 0.5, 0.0, 2.0, "amplitude of each sideband / the carrier's"},
 }};
-constexpr std::array<EffectParamInfo, 1> kAdcClipping{{
+constexpr std::array<EffectParamInfo, 2> kAdcClipping{{
     {"level_ms2", 5.0, 0.001, 1.0e5, "the acquisition saturates at +-level"},
+    // The second form (issue 11): a model whose amplitude tail is lighter than the machine's (a Gaussian
+    // floor against a rig's impulses) almost never reaches the machine's rails. The gap diagnosis then
+    // clamps the model where it puts the same share of samples at its rails as the machine does.
+    {"sim_level_ms2", 0.0, 0.0, 1.0e5,
+     "level the simulation clamps at, where it differs from the machine's level_ms2 (0: level_ms2)"},
 }};
 constexpr std::array<EffectParamInfo, 1> kSampleClock{{
     {"ppm", 500.0, -20000.0, 20000.0, "real ADC rate = nominal * (1 + ppm 1e-6)"},

@@ -248,7 +248,7 @@ SignalEffects::SignalEffects(const Scenario& s, const MotionProfile& m, std::uin
       }
       case EffectKind::kAdcClipping:
         st.active = true;
-        st.level = e.get("level_ms2");
+        st.level = e.get("sim_level_ms2") > 0.0 ? e.get("sim_level_ms2") : e.get("level_ms2");
         break;
       default:
         break;  // timing and mesh effects act elsewhere

@@ -182,6 +182,21 @@ TEST(Effects, SampleClockErrorShiftsTheMeshByTheRatio) {
   EXPECT_NEAR(f / 600.0, 1.0 / 1.002, 2e-6);
 }
 
+TEST(Effects, AdcClippingsSimulationLevelOverridesTheMachinesLevel) {
+  // The gap diagnosis's second form: the machine's rails at level_ms2, the model clamped at
+  // sim_level_ms2 (where a model with a lighter tail has the machine's share at its rails).
+  const Scenario s = with(rig(), EffectKind::kAdcClipping, {{"level_ms2", 0.9}, {"sim_level_ms2", 0.5}});
+  const SimulatedSignals sig = simulate_signals(s, 1);
+  double mx = 0.0;
+  for (double v : sig.vibration.accel_ms2) mx = std::max(mx, std::fabs(v));
+  EXPECT_DOUBLE_EQ(mx, 0.5);
+  const Scenario plain = with(rig(), EffectKind::kAdcClipping, {{"level_ms2", 0.9}, {"sim_level_ms2", 0.0}});
+  const SimulatedSignals sig_plain = simulate_signals(plain, 1);
+  mx = 0.0;
+  for (double v : sig_plain.vibration.accel_ms2) mx = std::max(mx, std::fabs(v));
+  EXPECT_DOUBLE_EQ(mx, 0.9);
+}
+
 TEST(Effects, AdcClippingCapsTheSignal) {
   const Scenario s = with(rig(), EffectKind::kAdcClipping, {{"level_ms2", 0.7}});
   const SimulatedSignals sig = simulate_signals(s, 1);

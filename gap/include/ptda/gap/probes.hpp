@@ -53,6 +53,10 @@ struct ProbeSet {
   /// (the `transients` probe's knock spectrum, bins fs / kTransientLen apart); empty without boundaries.
   std::vector<double> transient_power;
   double max_abs_ms2 = 0.0;
+  /// Samples of the judged windows within 0.2 % of max_abs_ms2 (flat tops at the rails), and all their
+  /// samples: the `amplitude` probe's extreme share.
+  std::size_t rail_samples = 0;
+  std::size_t window_samples = 0;
   double lag_s = 0.0;  ///< envelope-vs-CAN lag (NaN when the speed does not vary)
   /// Per constant class: share of windows whose PTDA residual rms is outside the reference's mean +- 3 sd
   /// (with a reference: the measured windows judged by the simulation's baseline). Not a gap element.
