@@ -133,8 +133,8 @@ class Evaluator {
       for (const Window& w : cut_windows(rec, segment_recording(rec), plan_)) take(w);
     }
     if (a.empty()) return 0.0;
-    const auto k = std::min(a.size() - 1, static_cast<std::size_t>(std::floor(
-                                              (1.0 - share) * static_cast<double>(a.size()))));
+    const auto k = std::min(
+        a.size() - 1, static_cast<std::size_t>(std::floor((1.0 - share) * static_cast<double>(a.size()))));
     std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(k), a.end());
     return a[k];
   }
@@ -993,10 +993,10 @@ std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
                   : std::string());
     case EffectKind::kAdcClipping:
       return "clipping at +-" + fmt("%.3g", e.get("level_ms2")) + " m/s^2" +
-             (e.get("sim_level_ms2") > 0.0
-                  ? " (the model, whose amplitude tail is lighter, clamps at +-" + fmt("%.3g", e.get("sim_level_ms2")) +
-                        " m/s^2 to put the same share of samples at its rails)"
-                  : std::string());
+             (e.get("sim_level_ms2") > 0.0 ? " (the model, whose amplitude tail is lighter, clamps at +-" +
+                                                 fmt("%.3g", e.get("sim_level_ms2")) +
+                                                 " m/s^2 to put the same share of samples at its rails)"
+                                           : std::string());
     case EffectKind::kSampleClockError:
       return "sample clock off by " + fmt("%.0f", e.get("ppm")) + " ppm";
     case EffectKind::kSpeedLatency:
@@ -1661,8 +1661,8 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       std::string by;
       for (const auto& [k, v] : best.heldout_by_probe) {
         const auto it = cur_held_probes.find(k);
-        by += " " + k + " " + fmt("%.2f", v) + " (" + fmt("%.2f", it != cur_held_probes.end() ? it->second : 0.0) +
-              ")";
+        by += " " + k + " " + fmt("%.2f", v) + " (" +
+              fmt("%.2f", it != cur_held_probes.end() ? it->second : 0.0) + ")";
       }
       log("round " + std::to_string(round + 1) + ": best's held-out gap by probe:" + by);
     }
