@@ -29,6 +29,8 @@ void print_table(std::ostream& out, const gap::BenchResult& r) {
       << (r.errors ? ", " + std::to_string(r.errors) + " failed" : std::string()) << "\n";
   out << "top-1 accuracy  " << 100.0 * r.top1_accuracy << " %\n";
   out << "location        " << 100.0 * r.location_accuracy << " % of the correct top-1\n";
+  out << "named, located  " << (r.effect_cases ? 100.0 * r.named_located / r.effect_cases : 0.0)
+      << " % of the effect cases (the true effect anywhere in the explanation, at its place)\n";
   out << "false attrib.   " << 100.0 * r.false_attribution_rate << " % of the no-effect cases\n";
   if (r.ool_cases)
     out << "false attrib.   " << 100.0 * r.ool_false_attribution_rate << " % of the out-of-library cases\n";

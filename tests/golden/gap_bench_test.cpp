@@ -32,6 +32,7 @@ TEST(GapBench, SmallBenchOnAWithheldJob) {
   // expected from sampling (1.100 before the slope): nothing significant, nothing named.
   EXPECT_EQ(j.at("top1_accuracy").as_number(), 1.0);
   EXPECT_EQ(j.at("location_accuracy").as_number(), 1.0);
+  EXPECT_EQ(j.at("named_located_rate").as_number(), 1.0);
   EXPECT_EQ(j.at("false_attribution_rate").as_number(), 0.0);
   EXPECT_NEAR(j.at("median_shrink_pct").as_number(), 81.33, 1.0);
   const auto& cases = j.at("cases").array;
@@ -43,6 +44,8 @@ TEST(GapBench, SmallBenchOnAWithheldJob) {
   EXPECT_NEAR(cases[1].at("shrink_pct").as_number(), 89.22, 1.0);
   EXPECT_TRUE(cases[2].at("truth").array.empty());
   EXPECT_TRUE(cases[2].at("chosen").array.empty());
+  EXPECT_TRUE(cases[0].at("named_located").as_bool());
+  EXPECT_FALSE(cases[2].at("named_located").as_bool());
   EXPECT_NEAR(cases[2].at("gap_heldout").as_number(), 1.387, 0.01);
   EXPECT_NEAR(cases[2].at("noise_gap").as_number(), 1.428, 0.01);
 }

@@ -46,6 +46,9 @@ struct BenchCaseResult {
   std::vector<sim::EffectSpec> chosen;  ///< what the diagnosis named
   bool top1_correct = false;            ///< first named effect is a true one (none case: nothing named)
   bool location_ok = false;             ///< the named true effect sits where the truth does (see docs/gap.md)
+  /// Some named effect, first or later, is a true one at the truth's place: issue 11's criterion for
+  /// real recordings with an injected effect, where the recording's own gap may be named beside it.
+  bool named_located = false;
   bool false_attribution = false;       ///< control or out-of-library case: something was named
   double shrink_pct = 0.0;              ///< held-out shrink with the chosen effects
   double gap_heldout = 0.0;             ///< calibrated nominal
@@ -73,6 +76,7 @@ struct BenchResult {
   std::uint32_t ool_cases = 0;   ///< out-of-library cases
   std::uint32_t top1_correct = 0;
   std::uint32_t located = 0;
+  std::uint32_t named_located = 0;  ///< effect cases whose true effect is named anywhere, located
   std::uint32_t false_attributions = 0;      ///< on controls
   std::uint32_t ool_false_attributions = 0;  ///< on out-of-library cases
   std::uint32_t errors = 0;                  ///< cases whose diagnosis failed
@@ -120,6 +124,12 @@ struct CorpusBenchOptions {
 /// 5 ms, other axis ratio within 2 %, clipping level within 5 %, direction gain of the same sign, noise
 /// corner within a factor 2, jitter within a factor 2.
 [[nodiscard]] bool location_matches(const sim::EffectSpec& truth, const sim::EffectSpec& fitted);
+
+/// Whether some effect of `chosen` (first or later) is of a kind in `truth` and sits where that truth
+/// does (location_matches): issue 11's criterion on real recordings with an injected effect, where the
+/// recording's own gap may be named beside it.
+[[nodiscard]] bool named_and_located(const std::vector<sim::EffectSpec>& truth,
+                                     const std::vector<sim::EffectSpec>& chosen);
 
 [[nodiscard]] BenchResult run_bench(const BenchOptions& opt);
 /// Diagnoses every case of `corpus` against its own nominal and scores it like run_bench. A case whose
