@@ -753,6 +753,9 @@ void Daemon::fill_snapshot(std::int64_t now) noexcept {
   s.trip_band = ps.alarm.trip.band_index;
   s.trip_band_lo_hz = ps.alarm.trip.band_lo_hz;
   s.trip_band_hi_hz = ps.alarm.trip.band_hi_hz;
+  s.trip_mesh_on = ps.alarm.trip.mesh_on;
+  s.trip_mesh_cusum = ps.alarm.trip.mesh_statistic;
+  s.trip_mesh_feature = dsp::mesh_feature_label(ps.alarm.trip.mesh_feature);
   s.trip_wall_ns = wall(ps.alarm.trip.t_ns);
 
   const drivers::SampleSourceCounters a = p->source_counters();

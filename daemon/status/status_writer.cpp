@@ -376,6 +376,10 @@ void render_json_into(TextBuffer& b, const StatusSnapshot& s, const StateFileHea
         j.null("band_hz");
       }
     }
+    if (s.trip_mesh_on) {  // as the history log and `ptda monitor --jsonl` name them
+      j.num("mesh_cusum", s.trip_mesh_cusum);
+      j.str("mesh_cusum_feature", s.trip_mesh_feature);
+    }
     j.close('}');
   } else {
     j.null("trip");

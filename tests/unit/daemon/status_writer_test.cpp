@@ -859,3 +859,25 @@ TEST(StatusWriter, EventHistoryCountersInStatusAndMetricsWhenItIsOn) {
 
 }  // namespace
 }  // namespace ptda::daemon
+
+namespace ptda::daemon {
+namespace {
+
+TEST(StatusWriter, TripNamesTheMeshStatisticWhenTheMeshDetectorRuns) {
+  StatusWriter w(json_only(scratch("trip_mesh")));
+  StatusSnapshot s = known_snapshot();
+  const std::string off(w.render_json(s));
+  EXPECT_EQ(off.find("mesh_cusum"), std::string::npos) << off;  // off: the trip has no mesh fields
+  s.trip_detector = "mesh";
+  s.trip_mesh_on = true;
+  s.trip_mesh_cusum = 12.25;
+  s.trip_mesh_feature = "pm";
+  const std::string on(w.render_json(s));
+  EXPECT_NE(on.find(R"("detector":"mesh","cusum":7.5,"mesh_cusum":12.25,"mesh_cusum_feature":"pm"}})"),
+            std::string::npos)
+      << on;
+  EXPECT_TRUE(JsonChecker(on).valid());
+}
+
+}  // namespace
+}  // namespace ptda::daemon
