@@ -115,7 +115,7 @@ res="$(awk -v start="$START_UNIX" -v onset="$ONSET_UNIX" -v repair="$REPAIR_UNIX
       match(l, /"rms_res":[0-9.e+-]+/); hr[nh] = substr(l, RSTART + 10, RLENGTH - 10)
       match(l, /"entropy_res":[0-9.e+-]+/); he[nh] = substr(l, RSTART + 14, RLENGTH - 14)
       a = (l ~ /"alarm":true/)
-      if (a && first_alarm_end < 0) first_alarm_end = te[nh]
+      if (a && first_alarm_end < 0) { first_alarm_end = te[nh]; last_sure = nh }
       if (!a && first_alarm_end >= 0 && off_end < 0) off_end = te[nh]
       # Held for sure: by k-of-n, or by a CUSUM at least 25 % above its alarm level (the defaults the
       # VM config keeps: cusum_alarm 7, band_cusum_h 10). A statistic closer to its level than that can
