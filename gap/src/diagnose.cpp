@@ -1378,8 +1378,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
   double current_rep = d.nominal_heldout_replicate;
   std::map<std::string, double> cur_held_bands = d.nominal_heldout.by_band,
                                 cur_rep_bands = nominal_rep.by_band;
-  std::map<std::string, double> cur_held_probes = d.nominal_heldout.by_probe,
-                                cur_rep_probes = nominal_rep.by_probe;
+  std::map<std::string, double> cur_held_probes = d.nominal_heldout.by_probe;  // for the round's log
   ProbeSet cur_model = model_probes, cur_real_fit = real_fit_probes;
   GapBreakdown cur_fit_gap = g_fit0;
   sim::Scenario current = model;
@@ -1708,7 +1707,6 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       current_held = best.gap_heldout;
       cur_held_bands = best.heldout_by_band;
       cur_held_probes = best.heldout_by_probe;
-      cur_rep_probes = best.replicate_by_probe;
       cur_rep_bands = best.replicate_by_band;
       current_rep = best.gap_heldout_replicate;
       cur_fit_gap = ev.gap(current, fit, &cur_model, &cur_real_fit);

@@ -58,7 +58,7 @@ struct CandidateResult {
   /// Held-out gap by octave band with the effect, both realisations (for the local acceptance rule;
   /// not written to the JSON).
   std::map<std::string, double> heldout_by_band, replicate_by_band;
-  /// The same by probe (the local rule of effects with a probe of their own: clipping's flat tops).
+  /// The same by probe (the round's log line; not written to the JSON).
   std::map<std::string, double> heldout_by_probe, replicate_by_probe;
   bool accepted_locally = false;  ///< chosen by the local rule (its own bands), not the global one
 };
