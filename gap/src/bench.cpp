@@ -385,9 +385,9 @@ std::string case_line(const BenchCaseResult& cr) {
   for (const EffectSpec& e : cr.chosen) c += sim::describe(e) + " ";
   std::string line = cr.name + " [" + cr.job + "] truth: " + t + "| named: " + (c.empty() ? "none " : c) +
                      "| " + (cr.top1_correct ? "OK" : "WRONG") + (cr.location_ok ? " located" : "") +
-                     (!cr.top1_correct && cr.named_located ? " (named later, located)" : "") +
-                     " shrink " + num(cr.shrink_pct) + " % gap " + num(cr.gap_heldout) + " expected " +
-                     num(cr.noise_gap) + " +- " + num(cr.noise_gap_sd) + " (" + num(cr.runtime_s) + " s, " +
+                     (!cr.top1_correct && cr.named_located ? " (named later, located)" : "") + " shrink " +
+                     num(cr.shrink_pct) + " % gap " + num(cr.gap_heldout) + " expected " + num(cr.noise_gap) +
+                     " +- " + num(cr.noise_gap_sd) + " (" + num(cr.runtime_s) + " s, " +
                      num(cr.peak_rss_mib) + " MiB, cpu " + num(cr.cpu_s) + " s)";
   if (!cr.error.empty()) line += " ERROR: " + cr.error;
   return line;
@@ -655,11 +655,11 @@ std::string bench_markdown(const std::vector<BenchResult>& rs) {
   for (const BenchResult& r : rs) {
     o << "| " << r.corpus << " | " << pct(r.top1_correct, r.effect_cases) << " | "
       << pct(r.located, r.top1_correct) << " | " << pct(r.named_located, r.effect_cases) << " | "
-      << (r.effect_cases ? fix(r.median_shrink_pct, " %") : "-")
-      << " | " << pct(r.false_attributions, r.none_cases) << " | "
-      << pct(r.ool_false_attributions, r.ool_cases) << " | " << r.errors << " | "
-      << fix(r.median_case_runtime_s, " s") << " / " << fix(r.max_case_runtime_s, " s") << " | "
-      << fix(r.max_case_cpu_s, " s") << " | " << fix(r.max_peak_rss_mib, " MiB") << " |\n";
+      << (r.effect_cases ? fix(r.median_shrink_pct, " %") : "-") << " | "
+      << pct(r.false_attributions, r.none_cases) << " | " << pct(r.ool_false_attributions, r.ool_cases)
+      << " | " << r.errors << " | " << fix(r.median_case_runtime_s, " s") << " / "
+      << fix(r.max_case_runtime_s, " s") << " | " << fix(r.max_case_cpu_s, " s") << " | "
+      << fix(r.max_peak_rss_mib, " MiB") << " |\n";
   }
   for (const BenchResult& r : rs) {
     o << "\n### " << r.corpus << "\n\nConfusion (rows truth, columns first named):\n\n| truth \\ named |";

@@ -49,11 +49,11 @@ struct BenchCaseResult {
   /// Some named effect, first or later, is a true one at the truth's place: issue 11's criterion for
   /// real recordings with an injected effect, where the recording's own gap may be named beside it.
   bool named_located = false;
-  bool false_attribution = false;       ///< control or out-of-library case: something was named
-  double shrink_pct = 0.0;              ///< held-out shrink with the chosen effects
-  double gap_heldout = 0.0;             ///< calibrated nominal
-  double noise_gap = 0.0;               ///< held-out gap expected from sampling
-  double noise_gap_sd = 0.0;            ///< its standard deviation
+  bool false_attribution = false;  ///< control or out-of-library case: something was named
+  double shrink_pct = 0.0;         ///< held-out shrink with the chosen effects
+  double gap_heldout = 0.0;        ///< calibrated nominal
+  double noise_gap = 0.0;          ///< held-out gap expected from sampling
+  double noise_gap_sd = 0.0;       ///< its standard deviation
   double runtime_s = 0.0;
   double peak_rss_mib = 0.0;     ///< peak resident memory of the diagnosis process (0: not measured)
   double cpu_s = 0.0;            ///< CPU time (user + system) of the diagnosis process, all its threads
@@ -76,7 +76,7 @@ struct BenchResult {
   std::uint32_t ool_cases = 0;   ///< out-of-library cases
   std::uint32_t top1_correct = 0;
   std::uint32_t located = 0;
-  std::uint32_t named_located = 0;  ///< effect cases whose true effect is named anywhere, located
+  std::uint32_t named_located = 0;           ///< effect cases whose true effect is named anywhere, located
   std::uint32_t false_attributions = 0;      ///< on controls
   std::uint32_t ool_false_attributions = 0;  ///< on out-of-library cases
   std::uint32_t errors = 0;                  ///< cases whose diagnosis failed
