@@ -12,6 +12,7 @@
 #include <tuple>
 
 #include "ptda/common/error.hpp"
+#include "ptda/gap/fit.hpp"
 #include "ptda/sim/noise_tilt.hpp"
 
 namespace ptda::gap {
@@ -229,14 +230,13 @@ class Evaluator {
   }
 
   /// Speed dependence of the harmonic levels: the change of `amplitude_speed_exponent` that best explains
-  /// the per-class level differences (real - model, nominal orders, per-order offsets profiled out) by
-  /// 20 log10 |speed|, regressed within each direction only (so a level that differs between directions,
-  /// load_dependence, is not taken for a speed law). 0 without two classes of one direction whose speeds
-  /// differ by >= 20 %.
+  /// the level differences (real - model, each class at each nominal order) by 20 log10 |speed|, by least
+  /// squares with a level per order and per direction as nuisance terms (fit_speed_law: a level that
+  /// differs between directions, load_dependence, is not taken for a speed law). 0 without two classes
+  /// of one direction whose speeds differ by >= 20 %.
   double exponent_step(const ProbeSet& r, const ProbeSet& m) const {
-    const double sxx = speed_spread_db2();
-    if (sxx <= 0.0) return 0.0;
-    std::map<int, std::pair<double, int>> per_class;
+    if (speed_spread_db2() <= 0.0) return 0.0;
+    std::vector<LevelObservation> obs;
     for (const auto& [key, d] : profiled_differences(r, m)) {
       if (key.rfind("harmonics/c", 0) != 0) continue;
       const std::size_t dot = key.find(".k");
@@ -245,28 +245,9 @@ class Evaluator {
       const int k = std::stoi(key.substr(dot + 2));
       if (std::find(ctx_.nominal_orders.begin(), ctx_.nominal_orders.end(), k) == ctx_.nominal_orders.end())
         continue;
-      per_class[c].first += d;
-      per_class[c].second += 1;
+      obs.push_back({k, plan_.speeds[static_cast<std::size_t>(c)], d});
     }
-    double sxy = 0.0;
-    for (const double sign : {1.0, -1.0}) {
-      std::vector<std::pair<double, double>> xy;
-      for (const auto& [c, a] : per_class) {
-        const double w = plan_.speeds[static_cast<std::size_t>(c)];
-        if (w * sign > 0.0 && a.second > 0)
-          xy.push_back({20.0 * std::log10(std::fabs(w)), a.first / a.second});
-      }
-      if (xy.size() < 2) continue;
-      double mx = 0.0, my = 0.0;
-      for (const auto& [x, y] : xy) {
-        mx += x;
-        my += y;
-      }
-      mx /= static_cast<double>(xy.size());
-      my /= static_cast<double>(xy.size());
-      for (const auto& [x, y] : xy) sxy += (x - mx) * (y - my);
-    }
-    return sxy / sxx;
+    return fit_speed_law(obs).exponent_step;
   }
 
   /// Within-direction sum of squares of 20 log10 |class speed| (0 when no direction has two classes
