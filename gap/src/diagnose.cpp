@@ -1188,6 +1188,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
   GapRecording rescaled;
   const GapRecording* real_p = &real_in;
   d.speed_scale_tolerance = nominal_in.can.speed_scale_tolerance;
+  d.speed_scale_slip_only = nominal_in.can.speed_scale_slip_only && d.speed_scale_tolerance > 0.0;
   if (d.speed_scale_tolerance > 0.0) {
     Evaluator ev0(real_in, opt.sim_seed);
     ev0.set_context(nominal_in);
@@ -1196,9 +1197,13 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     d.speed_scale_ppm = est.ppm;
     d.speed_scale_sd_ppm = est.sd_ppm;
     d.speed_scale_lines = est.lines;
-    if (est.lines >= 2 && std::fabs(est.ppm) > std::max(kSpeedScaleMinPpm, 3.0 * est.sd_ppm)) {
-      const double tol_ppm = d.speed_scale_tolerance * 1e6;
-      d.speed_scale_applied_ppm = std::clamp(est.ppm, -tol_ppm, tol_ppm);
+    // A slip-only nominal: a shaft that leads its frames is not slip, so nothing of a positive ratio
+    // is calibration (it stays in the gap, where a sample-clock error can explain it).
+    const double tol_ppm = d.speed_scale_tolerance * 1e6;
+    const double max_ppm = d.speed_scale_slip_only ? 0.0 : tol_ppm;
+    if (est.lines >= 2 && std::fabs(est.ppm) > std::max(kSpeedScaleMinPpm, 3.0 * est.sd_ppm) &&
+        std::clamp(est.ppm, -tol_ppm, max_ppm) != 0.0) {
+      d.speed_scale_applied_ppm = std::clamp(est.ppm, -tol_ppm, max_ppm);
       rescaled = real_in;
       for (SpeedPoint& p : rescaled.speed) p.speed_rad_s *= 1.0 + d.speed_scale_applied_ppm * 1e-6;
       real_p = &rescaled;
@@ -1206,7 +1211,9 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     log("speed scale: the measured lines sit at " + fmt("%+.0f", est.ppm) + " ppm (+- " +
         fmt("%.0f", est.sd_ppm) + ", " + std::to_string(est.lines) + " lines) against the speed frames; " +
         (real_p == &rescaled ? "frames scaled by " + fmt("%+.0f", d.speed_scale_applied_ppm) + " ppm"
-                             : std::string("not applied")));
+         : d.speed_scale_slip_only && est.ppm > 0.0
+             ? std::string("not applied (the shaft leads its frames, and the nominal allows it only to lag)")
+             : std::string("not applied")));
   }
   const GapRecording& real = *real_p;
   Evaluator ev(real, opt.sim_seed);
@@ -1303,7 +1310,15 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
                  " ppm against the speed frames (+- " + fmt("%.0f", d.speed_scale_sd_ppm) +
                  " ppm, tolerance +- " + fmt("%.0f", d.speed_scale_tolerance * 1e6) +
                  " ppm; slip or a sample-clock error, which a constant speed cannot tell apart)";
-    if (!c.significant)
+    const bool leads = d.speed_scale_slip_only && d.speed_scale_lines >= 2 &&
+                       d.speed_scale_ppm > std::max(kSpeedScaleMinPpm, 3.0 * d.speed_scale_sd_ppm);
+    if (leads)
+      c.sentence =
+          "the shaft turns " + fmt("%+.0f", d.speed_scale_ppm) + " ppm against the speed frames (+- " +
+          fmt("%.0f", d.speed_scale_sd_ppm) +
+          " ppm): faster than they say, which slip cannot do (the nominal lets the shaft only lag its "
+          "frames), so the frames are not scaled and the offset is left to the effects";
+    else if (!c.significant)
       c.sentence = "the speed frames' scale is right within " +
                    fmt("%.0f", std::max(kSpeedScaleMinPpm, 3.0 * d.speed_scale_sd_ppm)) + " ppm (estimate " +
                    fmt("%+.0f", d.speed_scale_ppm) + " ppm from " + std::to_string(d.speed_scale_lines) +

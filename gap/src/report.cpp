@@ -216,7 +216,7 @@ std::string diagnosis_json(const Diagnosis& d) {
     << ", \"speed_scale\": {\"tolerance\": " << num(d.speed_scale_tolerance)
     << ", \"ppm\": " << num(d.speed_scale_ppm) << ", \"sd_ppm\": " << num(d.speed_scale_sd_ppm)
     << ", \"lines\": " << d.speed_scale_lines << ", \"applied_ppm\": " << num(d.speed_scale_applied_ppm)
-    << "}, \"params\": [";
+    << ", \"slip_only\": " << (d.speed_scale_slip_only ? "true" : "false") << "}, \"params\": [";
   for (std::size_t i = 0; i < d.calibration.size(); ++i) {
     const CalibratedParam& c = d.calibration[i];
     o << (i ? "," : "") << "\n    {\"name\": " << esc(c.name) << ", \"order\": " << c.order

@@ -452,7 +452,7 @@ void parse_signal(Reader& r, config::SignalSpec& s, std::vector<std::string>& wa
 
 void parse_can(Reader& r, CanSpec& c, const std::string& source, std::vector<std::string>& warnings) {
   r.known_keys({"period_s", "clock_offset_s", "clock_drift_ppm", "delay_s", "jitter_s", "other_frames_per_s",
-                "iface", "speed_frame", "speed_scale_tolerance"});
+                "iface", "speed_frame", "speed_scale_tolerance", "speed_scale_slip_only"});
   c.period_s = r.number("period_s", c.period_s);
   require(c.period_s >= 1e-4 && c.period_s <= 1.0, r, "period_s", "must be in [0.0001, 1] s");
   c.clock_offset_s = r.number("clock_offset_s", c.clock_offset_s);
@@ -469,6 +469,9 @@ void parse_can(Reader& r, CanSpec& c, const std::string& source, std::vector<std
   c.speed_scale_tolerance = r.number("speed_scale_tolerance", c.speed_scale_tolerance);
   require(c.speed_scale_tolerance >= 0.0 && c.speed_scale_tolerance <= 0.05, r, "speed_scale_tolerance",
           "must be in [0, 0.05] (a fraction of the speed)");
+  c.speed_scale_slip_only = r.boolean("speed_scale_slip_only", c.speed_scale_slip_only);
+  require(!c.speed_scale_slip_only || c.speed_scale_tolerance > 0.0, r, "speed_scale_slip_only",
+          "needs speed_scale_tolerance > 0 (without a tolerance the frames' speed is exact)");
   c.iface = r.string("iface", c.iface);
   require(!c.iface.empty() && c.iface.find_first_of(" \t()#") == std::string::npos, r, "iface",
           "must be a non-empty interface name without blanks");

@@ -226,5 +226,29 @@ TEST(SpeedScale, BeyondTheToleranceOnlyTheToleranceIsApplied) {
   EXPECT_EQ(find(d0, "speed_scale"), nullptr);
 }
 
+TEST(SpeedScale, ASlipOnlyNominalScalesALaggingShaftButLeavesALeadingOneToTheEffects) {
+  sim::Scenario truth = test::joint_rotation_job(4);
+  sim::Scenario nominal = truth;
+  nominal.can.speed_scale_tolerance = 0.01;
+  nominal.can.speed_scale_slip_only = true;
+  DiagnoseOptions opt;
+  opt.max_effects = 0;  // the scale is what this test is about
+  // The shaft turns 3000 ppm faster than its frames: not slip.
+  const Diagnosis lead = diagnose(nominal, frames_slow_by(truth, 3000.0, 93), opt);
+  EXPECT_NEAR(lead.speed_scale_ppm, 3000.0, 3.0 * lead.speed_scale_sd_ppm + 60.0);
+  EXPECT_EQ(lead.speed_scale_applied_ppm, 0.0);
+  EXPECT_TRUE(lead.speed_scale_slip_only);
+  const CalibratedParam* c = find(lead, "speed_scale");
+  ASSERT_NE(c, nullptr);
+  EXPECT_FALSE(c->significant);
+  EXPECT_NE(c->sentence.find("which slip cannot do"), std::string::npos) << c->sentence;
+  // 3000 ppm slower than its frames: slip, calibrated as without the flag.
+  const Diagnosis lag = diagnose(nominal, frames_slow_by(truth, -3000.0, 93), opt);
+  EXPECT_NEAR(lag.speed_scale_applied_ppm, -3000.0, 3.0 * lag.speed_scale_sd_ppm + 60.0);
+  const CalibratedParam* c2 = find(lag, "speed_scale");
+  ASSERT_NE(c2, nullptr);
+  EXPECT_TRUE(c2->significant);
+}
+
 }  // namespace
 }  // namespace ptda::gap

@@ -90,6 +90,8 @@ TEST(ScenarioParse, WrongTypesAndValuesNameTheKey) {
                "t.toml:5:12: can.jitter_s: must be in [0, period_s)");
   expect_error(std::string(kMinimal) + "[can]\nspeed_scale_tolerance = 0.2\n",
                "t.toml:5:25: can.speed_scale_tolerance: must be in [0, 0.05]");
+  expect_error(std::string(kMinimal) + "[can]\nspeed_scale_slip_only = true\n",
+               "t.toml:5:25: can.speed_scale_slip_only: needs speed_scale_tolerance > 0");
   expect_error(std::string(kMinimal) + "[[fault]]\nkind = \"spur_tooth\"\nonset_cycle = 25\n",
                "t.toml:6:15: fault[0].onset_cycle: is beyond the last cycle (19");
   expect_error(std::string(kMinimal) + "[[fault]]\nkind = \"crack\"\n", "t.toml:5:8: [[fault]] kind must be");

@@ -105,6 +105,8 @@ struct Diagnosis {
   double speed_scale_sd_ppm = 0.0;       ///< its spread over the lines
   int speed_scale_lines = 0;             ///< lines used
   double speed_scale_applied_ppm = 0.0;  ///< what the speed frames were scaled by (0: not applied)
+  /// The nominal's [can] speed_scale_slip_only: a shaft faster than its frames is not calibration.
+  bool speed_scale_slip_only = false;
   /// Effect kinds left out of the candidates because this recording cannot tell them apart, with why.
   std::vector<std::string> not_identifiable;
   std::vector<CalibratedParam> calibration;  ///< per nominal GMF order, then the noise level

@@ -153,6 +153,11 @@ struct CanSpec {
   /// true speed (a drive that slips under load, a log whose speed was written from a nominal). 0: the
   /// frames' speed is exact. The simulator ignores it.
   double speed_scale_tolerance = 0.0;
+  /// Nominal models only: the shaft can only lag its frames, never lead them (an induction motor's slip
+  /// under load, frames that carry the drive's set speed). A shaft that turns faster than the frames is
+  /// then not calibration: the frames are not scaled up, and the offset is left to the effects (a
+  /// sample-clock error explains it). Needs speed_scale_tolerance > 0.
+  bool speed_scale_slip_only = false;
 };
 
 struct Scenario {
