@@ -33,6 +33,12 @@ constexpr double kRecalibrateExponent = 0.05;
 constexpr std::uint64_t kHeldoutSeedOffset = 7777;
 // A speed-scale estimate smaller than this is not applied (the lines' interpolation bias is ~50 ppm).
 constexpr double kSpeedScaleMinPpm = 100.0;
+
+/// The smallest speed-scale estimate that counts as measured: kSpeedScaleMinPpm or 3 sd of the lines.
+double speed_scale_resolution_ppm(double sd_ppm) {
+  return std::max(kSpeedScaleMinPpm, 3.0 * sd_ppm);
+}
+
 /// Interference candidates start at up to this many distinct excess lines, each at least this far (dB)
 /// above the model (the strongest is always tried).
 constexpr std::size_t kLineGuesses = 3;
@@ -1200,10 +1206,9 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     // A slip-only nominal: a shaft that leads its frames is not slip, so nothing of a positive ratio
     // is calibration (it stays in the gap, where a sample-clock error can explain it).
     const double tol_ppm = d.speed_scale_tolerance * 1e6;
-    const double max_ppm = d.speed_scale_slip_only ? 0.0 : tol_ppm;
-    if (est.lines >= 2 && std::fabs(est.ppm) > std::max(kSpeedScaleMinPpm, 3.0 * est.sd_ppm) &&
-        std::clamp(est.ppm, -tol_ppm, max_ppm) != 0.0) {
-      d.speed_scale_applied_ppm = std::clamp(est.ppm, -tol_ppm, max_ppm);
+    const double applied = std::clamp(est.ppm, -tol_ppm, d.speed_scale_slip_only ? 0.0 : tol_ppm);
+    if (est.lines >= 2 && std::fabs(est.ppm) > speed_scale_resolution_ppm(est.sd_ppm) && applied != 0.0) {
+      d.speed_scale_applied_ppm = applied;
       rescaled = real_in;
       for (SpeedPoint& p : rescaled.speed) p.speed_rad_s *= 1.0 + d.speed_scale_applied_ppm * 1e-6;
       real_p = &rescaled;
@@ -1311,7 +1316,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
                  " ppm, tolerance +- " + fmt("%.0f", d.speed_scale_tolerance * 1e6) +
                  " ppm; slip or a sample-clock error, which a constant speed cannot tell apart)";
     const bool leads = d.speed_scale_slip_only && d.speed_scale_lines >= 2 &&
-                       d.speed_scale_ppm > std::max(kSpeedScaleMinPpm, 3.0 * d.speed_scale_sd_ppm);
+                       d.speed_scale_ppm > speed_scale_resolution_ppm(d.speed_scale_sd_ppm);
     if (leads)
       c.sentence =
           "the shaft turns " + fmt("%+.0f", d.speed_scale_ppm) + " ppm against the speed frames (+- " +
@@ -1320,7 +1325,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
           "frames), so the frames are not scaled and the offset is left to the effects";
     else if (!c.significant)
       c.sentence = "the speed frames' scale is right within " +
-                   fmt("%.0f", std::max(kSpeedScaleMinPpm, 3.0 * d.speed_scale_sd_ppm)) + " ppm (estimate " +
+                   fmt("%.0f", speed_scale_resolution_ppm(d.speed_scale_sd_ppm)) + " ppm (estimate " +
                    fmt("%+.0f", d.speed_scale_ppm) + " ppm from " + std::to_string(d.speed_scale_lines) +
                    " lines)";
     d.calibration.insert(d.calibration.begin(), c);
