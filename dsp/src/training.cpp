@@ -876,6 +876,27 @@ std::vector<std::string> training_warnings(const Baseline& baseline) {
                     std::to_string(static_cast<std::uint64_t>(std::ceil(1.5 / alpha))) + " held-out windows");
     }
   }
+  // A class seen in one training recording only: its spread between days is assumed (the day_sd_floor
+  // prior), not measured. 0 recordings = a baseline of format <= 3, which does not say.
+  std::string single;
+  std::size_t singles = 0;
+  for (const ClassBaseline& c : baseline.classes) {
+    std::uint32_t days = 0;
+    for (const DaySpread& d : c.day_spread) days = std::max(days, d.recordings);
+    if (days != 1) continue;
+    single += (singles == 0 ? "" : ", ") + std::to_string(c.segment.id);
+    ++singles;
+  }
+  if (singles > 0) {
+    const std::string why =
+        "the spread between days is not measured but assumed (day_sd_floor = " + g(p.day_sd_floor) +
+        " of the within-day sd), so a healthy day that differs more can raise the alarm (docs/method.md §8: "
+        "2 of 20 development machines with one training day, none with three); train on recordings of at "
+        "least 3 different days (repeat --recording)";
+    out.push_back(singles == baseline.classes.size() ? "trained on one recording: " + why
+                                                     : (singles == 1 ? "class " : "classes ") + single +
+                                                           " seen in one training recording only: " + why);
+  }
   return out;
 }
 

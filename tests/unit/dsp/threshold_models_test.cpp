@@ -147,6 +147,39 @@ TEST(TrainingWarnings, SaysHowManyWindowsAreNeeded) {
       << w[0];
 }
 
+TEST(TrainingWarnings, OneTrainingRecordingSaysTheDaySpreadIsAssumed) {
+  Baseline b;
+  b.policy.kind = ThresholdPolicy::Kind::kTolerance;
+  b.policy.false_alarm_rate = 1e-3;
+  b.policy.day_sd_floor = 0.3;
+  ClassBaseline c;
+  c.segment.id = 0;
+  for (auto& s : c.rms_stats) s.n = 40;  // enough windows: no other warning
+  b.classes.push_back(c);
+  b.classes.push_back(c);
+  // Format <= 3 (recordings 0) does not say how many days: no warning.
+  EXPECT_TRUE(training_warnings(b).empty());
+  for (auto& cls : b.classes) {
+    for (auto& d : cls.day_spread) d.recordings = 1;
+  }
+  auto w = training_warnings(b);
+  ASSERT_EQ(w.size(), 1U);
+  EXPECT_NE(w[0].find("trained on one recording: the spread between days is not measured but assumed "
+                      "(day_sd_floor = 0.3 of the within-day sd)"),
+            std::string::npos)
+      << w[0];
+  EXPECT_NE(w[0].find("at least 3 different days (repeat --recording)"), std::string::npos) << w[0];
+  // Class 7 seen on three days: only class 0's spread is assumed.
+  b.classes[1].segment.id = 7;
+  b.classes[1].day_spread[static_cast<std::size_t>(Method::kPtda)].recordings = 3;
+  w = training_warnings(b);
+  ASSERT_EQ(w.size(), 1U);
+  EXPECT_EQ(w[0].rfind("class 0 seen in one training recording only: the spread between days", 0), 0U)
+      << w[0];
+  b.classes[0].day_spread[static_cast<std::size_t>(Method::kPtda)].recordings = 2;
+  EXPECT_TRUE(training_warnings(b).empty());
+}
+
 TEST(Judge, LowResidualIsItsOwnCauseNotAbnormal) {
   const FeatureThresholds t{Band{1.0, 2.0}, Band{0.5, 0.9}};
   const Verdict low = judge(Features{0.5, 0.7}, t);
