@@ -50,10 +50,19 @@ void band_log_energies(std::span<const float> energy, std::span<const unsigned c
   }
   const std::size_t half = energy.size() - 1;
   for (std::size_t b = 0; b < count; ++b) {
-    double sum = 0.0;
-    for (std::size_t k = band_edge(half, count, b); k < band_edge(half, count, b + 1); ++k) {
-      if (clean[k] != 0) sum += static_cast<double>(energy[k]);
+    // Four independent accumulators (one double chain would wait on every add) and a select, not a
+    // branch or a multiply: an unclean bin adds 0 even when it holds a NaN, a clean NaN propagates.
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    const std::size_t hi = band_edge(half, count, b + 1);
+    std::size_t k = band_edge(half, count, b);
+    for (; k + 4 <= hi; k += 4) {
+      s0 += clean[k] != 0 ? static_cast<double>(energy[k]) : 0.0;
+      s1 += clean[k + 1] != 0 ? static_cast<double>(energy[k + 1]) : 0.0;
+      s2 += clean[k + 2] != 0 ? static_cast<double>(energy[k + 2]) : 0.0;
+      s3 += clean[k + 3] != 0 ? static_cast<double>(energy[k + 3]) : 0.0;
     }
+    for (; k < hi; ++k) s0 += clean[k] != 0 ? static_cast<double>(energy[k]) : 0.0;
+    const double sum = (s0 + s1) + (s2 + s3);
     out[b] = std::isnan(sum) ? sum : std::log(std::max(1e-30, sum));
   }
 }
