@@ -381,7 +381,7 @@ double WindowAnalyzer::floor_median(std::span<const float> a) noexcept {
   }
   double* const cand = select_scratch_.data();
   std::size_t c = 0;
-  // The median's bucket holds about 1 % of the bins: 16 buckets are compared at once (an OR over a
+  // The median's bucket holds a small share of the bins: 16 buckets are compared at once (an OR over a
   // fixed-length inner loop, which the compiler vectorises) and only a block with a match is walked.
   const auto want = static_cast<std::uint16_t>(b);
   constexpr std::size_t kScan = 16;
