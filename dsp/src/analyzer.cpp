@@ -385,17 +385,16 @@ double WindowAnalyzer::floor_median(std::span<const float> a) noexcept {
   // fixed-length inner loop, which the compiler vectorises) and only a block with a match is walked.
   const auto want = static_cast<std::uint16_t>(b);
   constexpr std::size_t kScan = 16;
-  std::size_t j = 1;
-  for (; j + kScan <= bins; j += kScan) {
-    unsigned any = 0;
-    for (std::size_t t = 0; t < kScan; ++t) any |= static_cast<unsigned>(bucket[j + t] == want);
-    if (any == 0) continue;
-    for (std::size_t t = j; t < j + kScan; ++t) {
+  for (std::size_t j = 1; j < bins; j += kScan) {
+    const std::size_t end = std::min(j + kScan, bins);
+    if (end - j == kScan) {  // a whole block (the last, shorter one is always walked)
+      unsigned any = 0;
+      for (std::size_t t = 0; t < kScan; ++t) any |= static_cast<unsigned>(bucket[j + t] == want);
+      if (any == 0) continue;
+    }
+    for (std::size_t t = j; t < end; ++t) {
       if (bucket[t] == want) cand[c++] = static_cast<double>(mag_[t]) / a[t];
     }
-  }
-  for (; j < bins; ++j) {
-    if (bucket[j] == want) cand[c++] = static_cast<double>(mag_[j]) / a[j];
   }
   std::nth_element(cand, cand + (rank - below), cand + c);
   return cand[rank - below];
