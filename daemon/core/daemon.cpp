@@ -20,6 +20,7 @@
 #include "ptda/common/atomic_file.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/common/time.hpp"
+#include "ptda/dsp/training.hpp"
 
 namespace ptda::daemon {
 
@@ -981,6 +982,11 @@ void Daemon::check_training(std::int64_t now) {
     spdlog::info(
         "field training: baseline written to {} ({} segment class(es), {} windows); monitoring starts",
         out.string(), b.classes.size(), progress.windows);
+    // What the amount of data cannot promise (one run: the between-day spread is assumed), as `ptda train`
+    // prints it; a maintenance engineer reads these in the journal before trusting the first alarm.
+    for (const std::string& w : dsp::training_warnings(
+             b, "with `ptda train --recording` once per day, then point [daemon] baseline at that file"))
+      spdlog::warn("field training: {}", w);
     if (baseline_health_.failing) {
       spdlog::info("field training: writing {} works again after {} failed attempt(s)", out.string(),
                    baseline_consecutive_);

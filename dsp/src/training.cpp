@@ -822,7 +822,7 @@ ClassBaseline build_class_baseline(const SegmentClass& segment,
   return builder.finish();
 }
 
-std::vector<std::string> training_warnings(const Baseline& baseline) {
+std::vector<std::string> training_warnings(const Baseline& baseline, std::string_view more_days_how) {
   std::vector<std::string> out;
   const ThresholdPolicy& p = baseline.policy;
   const double alpha = p.false_alarm_rate;
@@ -892,7 +892,8 @@ std::vector<std::string> training_warnings(const Baseline& baseline) {
         "the spread between days is not measured but assumed (day_sd_floor = " + g(p.day_sd_floor) +
         " of the within-day sd), so a healthy day that differs more can raise the alarm (docs/method.md §8: "
         "2 of 20 development machines with one training day, none with three); train on recordings of at "
-        "least 3 different days (repeat --recording)";
+        "least 3 different days (" +
+        std::string(more_days_how) + ")";
     out.push_back(singles == baseline.classes.size() ? "trained on one recording: " + why
                                                      : (singles == 1 ? "class " : "classes ") + single +
                                                            " seen in one training recording only: " + why);

@@ -87,6 +87,7 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   DaemonOptions opt = training_options(dir);
   opt.exit_at_end = true;
   drivers::MonotonicClock clock;
+  LogCapture log;
   Daemon d(opt, clock);
   d.set_device_factory(&dev);
   d.configure();
@@ -127,6 +128,14 @@ TEST_F(Training, CollectsCyclesWritesTheBaselineAndMonitorsOnIt) {
   EXPECT_TRUE(v.pipeline.ended);
   EXPECT_GT(v.pipeline.scored, 0U);
   EXPECT_EQ(d.config().daemon.baseline, dir / "trained.bin");
+  // One run trains every class on one recording: the journal says so, with the way to more days (as
+  // `ptda train` prints it).
+  const std::string journal = log.text();
+  EXPECT_NE(journal.find("warning: field training: trained on one recording: the spread between days is not "
+                         "measured but assumed"),
+            std::string::npos)
+      << journal;
+  EXPECT_NE(journal.find("with `ptda train --recording` once per day"), std::string::npos);
   std::printf(
       "trained: %zu classes (%s); monitoring the same replay: %llu windows scored, %llu abnormal, %llu "
       "alarms\n",

@@ -5,6 +5,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "ptda/dsp/baseline.hpp"
@@ -141,8 +142,12 @@ enum class FeatureScale : std::uint8_t {
 /// class (else the band is the sample range); kGaussian and kTolerance warn when the tolerance factor
 /// for n exceeds the asymptotic z by more than 20 % (the band rests on few windows: kGaussian then
 /// promises a rate it cannot know, kTolerance is that much wider); a hold-out of m windows can only
-/// show a rate >= 3 / m (95 % bound with none abnormal). Thread: any. Allocates.
-[[nodiscard]] std::vector<std::string> training_warnings(const Baseline& baseline);
+/// show a rate >= 3 / m (95 % bound with none abnormal); a class seen in one training recording only
+/// has its between-day spread assumed, and the advice says how to train on more days: `more_days_how`
+/// (the CLI's "repeat --recording"; the daemon, whose field training sees one run, says `ptda train`).
+/// Thread: any. Allocates.
+[[nodiscard]] std::vector<std::string> training_warnings(const Baseline& baseline,
+                                                         std::string_view more_days_how = "repeat --recording");
 
 /// Summary statistics of values (population of the training set; stddev with n-1, 0 for n < 2;
 /// all zero with n = 0 for no values). Thread: any. Never allocates or throws.
