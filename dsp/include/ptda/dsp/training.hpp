@@ -146,8 +146,8 @@ enum class FeatureScale : std::uint8_t {
 /// has its between-day spread assumed, and the advice says how to train on more days: `more_days_how`
 /// (the CLI's "repeat --recording"; the daemon, whose field training sees one run, says `ptda train`).
 /// Thread: any. Allocates.
-[[nodiscard]] std::vector<std::string> training_warnings(const Baseline& baseline,
-                                                         std::string_view more_days_how = "repeat --recording");
+[[nodiscard]] std::vector<std::string> training_warnings(
+    const Baseline& baseline, std::string_view more_days_how = "repeat --recording");
 
 /// Summary statistics of values (population of the training set; stddev with n-1, 0 for n < 2;
 /// all zero with n = 0 for no values). Thread: any. Never allocates or throws.
