@@ -6,8 +6,6 @@
 // of data in a few seconds), which is what made window_age and alarm_level_duration negative.
 // The texts are parsed by the small Cursor below (the project's tests do not use std::regex).
 #include <gtest/gtest.h>
-#include <spdlog/sinks/ostream_sink.h>
-#include <spdlog/spdlog.h>
 #include <time.h>
 
 #include <atomic>
