@@ -1,6 +1,7 @@
 #include "ptda/cli/pipeline_runner.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -63,15 +64,23 @@ RecordingInfo open_recording(const fs::path& dir) {
 std::string recording_id(const RecordingInfo& rec) {
   std::ifstream in(rec.wav_path, std::ios::binary);
   if (!in) throw Error(rec.wav_path.string() + ": cannot open to fingerprint it");
-  std::vector<char> head(std::size_t{1} << 20);
-  in.read(head.data(), static_cast<std::streamsize>(head.size()));
-  const auto got = static_cast<std::size_t>(in.gcount());
+  // The CRC of the first MiB, read through a 64 KiB buffer: a zeroed 1 MiB vector cost more start-up
+  // time (its page faults) than the CRC itself.
+  constexpr std::size_t kHeadBytes = std::size_t{1} << 20;
+  std::array<char, std::size_t{1} << 16> chunk{};
+  std::uint32_t crc_value = 0;
+  for (std::size_t done = 0; done < kHeadBytes && in;) {
+    in.read(chunk.data(), static_cast<std::streamsize>(std::min(chunk.size(), kHeadBytes - done)));
+    const auto got = static_cast<std::size_t>(in.gcount());
+    crc_value = formats::crc32(chunk.data(), got, crc_value);
+    done += got;
+  }
   if (in.bad()) throw Error(rec.wav_path.string() + ": read error while fingerprinting it");
   std::error_code ec;
   const std::uintmax_t size = fs::file_size(rec.wav_path, ec);
   if (ec) throw Error(rec.wav_path.string() + ": cannot read its size: " + ec.message());
   char crc[16];
-  std::snprintf(crc, sizeof crc, "%08x", formats::crc32(head.data(), got));
+  std::snprintf(crc, sizeof crc, "%08x", crc_value);
   return "wav:" + std::to_string(size) + ":" + crc + ":ch" + std::to_string(rec.meta.channel);
 }
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 
 #include "ptda/dsp/features.hpp"
 
@@ -591,6 +592,22 @@ std::vector<float> local_floor_medians(std::span<const float> a) {
   for (std::size_t k = 1; k < bins; ++k) {
     const std::size_t new_lo = k > kHalf + 1 ? k - kHalf : 1;
     const std::size_t new_hi = std::min(bins, k + kHalf + 1);
+    // In the middle of the spectrum one value leaves and one enters: one shift of the values between
+    // the two places instead of an erase and an insert (each moving the tail of the window).
+    if (lo + 1 == new_lo && hi + 1 == new_hi && !win.empty()) {
+      const float gone = a[lo++];
+      const float come = a[hi++];
+      auto at = std::lower_bound(win.begin(), win.end(), gone);
+      if (come >= gone) {
+        auto end = std::upper_bound(at, win.end(), come);
+        std::move(at + 1, end, at);
+        *(end - 1) = come;
+      } else {
+        auto begin = std::upper_bound(win.begin(), at, come);
+        std::move_backward(begin, at, at + 1);
+        *begin = come;
+      }
+    }
     for (; lo < new_lo; ++lo) win.erase(std::lower_bound(win.begin(), win.end(), a[lo]));
     for (; hi < new_hi; ++hi) win.insert(std::upper_bound(win.begin(), win.end(), a[hi]), a[hi]);
     out[k] = win[win.size() / 2];
@@ -599,11 +616,15 @@ std::vector<float> local_floor_medians(std::span<const float> a) {
 }
 
 std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude) {
+  if (mean_magnitude.size() < 3) return {};
+  return find_line_groups(mean_magnitude, local_floor_medians(mean_magnitude));
+}
+
+std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude, std::span<const float> floor) {
   std::vector<LineGroup> out;
   const std::size_t bins = mean_magnitude.size();
-  if (bins < 3) return out;
+  if (bins < 3 || floor.size() != bins) return out;
   constexpr double kLineOverFloor = 4.0;  // 12 dB over the local floor (median of 65 bins around k)
-  const std::vector<float> floor = local_floor_medians(mean_magnitude);
   std::vector<bool> line(bins, false);
   for (std::size_t k = 1; k < bins; ++k) {
     line[k] = static_cast<double>(mean_magnitude[k]) > kLineOverFloor * static_cast<double>(floor[k]);
@@ -656,6 +677,7 @@ std::uint64_t prepare_key(const ClassBaseline& c, bool line_gain, bool floor_gai
 }  // namespace
 
 void prepare_line_groups(Baseline& baseline) {
+  std::optional<RealFft> fft;  // one plan for every class of the same length (its twiddles cost)
   for (ClassBaseline& c : baseline.classes) {
     const std::uint64_t key = prepare_key(c, baseline.policy.ptda_line_gain, baseline.policy.ptda_floor_gain);
     if (c.prepared_key == key) continue;  // derived from these very inputs already
@@ -668,9 +690,9 @@ void prepare_line_groups(Baseline& baseline) {
     }
     c.tda_spectrum.clear();
     if (RealFft::supported_length(c.tda_mean.size())) {
-      RealFft fft(c.tda_mean.size());
-      c.tda_spectrum.resize(fft.bins());
-      fft.forward(c.tda_mean, c.tda_spectrum);
+      if (!fft || fft->size() != c.tda_mean.size()) fft.emplace(c.tda_mean.size());
+      c.tda_spectrum.resize(fft->bins());
+      fft->forward(c.tda_mean, c.tda_spectrum);
     }
   }
 }

@@ -16,12 +16,12 @@ std::vector<unsigned char> clean_floor_bins(std::span<const float> mean_magnitud
   const std::size_t bins = mean_magnitude.size();
   std::vector<unsigned char> clean(bins, 0);
   if (bins < 3) return clean;
+  const std::vector<float> floor = local_floor_medians(mean_magnitude);
   std::vector<unsigned char> in_line(bins, 0);
-  for (const LineGroup& g : find_line_groups(mean_magnitude)) {
+  for (const LineGroup& g : find_line_groups(mean_magnitude, floor)) {
     for (std::size_t k = g.begin; k < std::min<std::size_t>(g.end, bins); ++k) in_line[k] = 1;
   }
   constexpr double kCleanOverFloor = 2.0;  // 6 dB over find_line_groups()' local floor
-  const std::vector<float> floor = local_floor_medians(mean_magnitude);
   for (std::size_t k = 1; k < bins; ++k) {
     if (in_line[k] != 0) continue;
     clean[k] =

@@ -346,3 +346,30 @@ TEST(LocalFloorMedians, KnownValuesOfARamp) {
 
 }  // namespace
 }  // namespace ptda::dsp
+
+namespace ptda::dsp {
+namespace {
+
+// The floor-given overload (clean_floor_bins() computes the floor once for both uses) finds the same
+// groups as the one-argument form, and nothing when the floor does not belong to the spectrum.
+TEST(FindLineGroups, WithTheFloorGivenEqualsTheOneArgumentForm) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> u(0.5F, 1.5F);
+  std::vector<float> a(6401);
+  for (float& x : a) x = u(rng);
+  for (const std::size_t k : {40UL, 41UL, 800UL, 2600UL, 2601UL, 2602UL, 6390UL}) a[k] = 12.0F;
+  const std::vector<LineGroup> one = find_line_groups(a);
+  const std::vector<LineGroup> two = find_line_groups(a, local_floor_medians(a));
+  ASSERT_EQ(one.size(), 4U);  // 40-41, 800, 2600-2602 and 6390, each widened by one bin per side
+  ASSERT_EQ(two.size(), one.size());
+  for (std::size_t i = 0; i < one.size(); ++i) {
+    EXPECT_EQ(two[i].begin, one[i].begin);
+    EXPECT_EQ(two[i].end, one[i].end);
+  }
+  EXPECT_EQ(one[0].begin, 39U);
+  EXPECT_EQ(one[0].end, 43U);
+  EXPECT_TRUE(find_line_groups(a, std::vector<float>(a.size() - 1, 1.0F)).empty());
+}
+
+}  // namespace
+}  // namespace ptda::dsp

@@ -165,6 +165,10 @@ inline constexpr std::size_t kSelectMinValues = 256;
 /// run of such bins widened by one bin on both sides (the leakage skirt of a line between bins), runs
 /// that touch merged. Bin 0 (DC) is never part of a line. Deterministic. Thread: any. Allocates.
 [[nodiscard]] std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude);
+/// find_line_groups() with the local floor given (`floor` = local_floor_medians(mean_magnitude)), for a
+/// caller that needs the floor too; empty when the sizes differ. Thread: any. Allocates.
+[[nodiscard]] std::vector<LineGroup> find_line_groups(std::span<const float> mean_magnitude,
+                                                      std::span<const float> floor);
 
 /// The local floor of bin k (1 <= k < a.size()) that find_line_groups() compares lines with: the median
 /// of a over the up to 65 bins centred on k (bins 1..a.size() - 1). `scratch` is reused between calls.
