@@ -41,7 +41,7 @@ struct Harmonic {
 // `ptda gap`'s time (session 31, perf: __sincos_fma 21 %, __sin_fma 10 %).
 class PhaseRotor {
  public:
-  static constexpr double kMaxStep = 0.8;     // rad per sample (a line at 0.127 fs)
+  static constexpr double kMaxStep = 0.8;  // rad per sample (a line at 0.127 fs)
   static constexpr std::uint32_t kAnchor = 64;
 
   void at(double phi, double& c, double& s) noexcept {
@@ -56,18 +56,19 @@ class PhaseRotor {
       const double sd =
           d * (1.0 + d2 * (-1.0 / 6.0 +
                            d2 * (1.0 / 120.0 +
-                                 d2 * (-1.0 / 5040.0 +
-                                       d2 * (1.0 / 362880.0 +
-                                             d2 * (-1.0 / 39916800.0 +
-                                                   d2 * (1.0 / 6227020800.0 + d2 * (-1.0 / 1307674368000.0))))))));
+                                 d2 * (-1.0 / 5040.0 + d2 * (1.0 / 362880.0 +
+                                                             d2 * (-1.0 / 39916800.0 +
+                                                                   d2 * (1.0 / 6227020800.0 +
+                                                                         d2 * (-1.0 / 1307674368000.0))))))));
       const double cd =
-          1.0 + d2 * (-0.5 +
-                      d2 * (1.0 / 24.0 +
-                            d2 * (-1.0 / 720.0 +
-                                  d2 * (1.0 / 40320.0 +
-                                        d2 * (-1.0 / 3628800.0 +
-                                              d2 * (1.0 / 479001600.0 +
-                                                    d2 * (-1.0 / 87178291200.0 + d2 * (1.0 / 20922789888000.0))))))));
+          1.0 +
+          d2 * (-0.5 +
+                d2 * (1.0 / 24.0 +
+                      d2 * (-1.0 / 720.0 +
+                            d2 * (1.0 / 40320.0 +
+                                  d2 * (-1.0 / 3628800.0 +
+                                        d2 * (1.0 / 479001600.0 + d2 * (-1.0 / 87178291200.0 +
+                                                                        d2 * (1.0 / 20922789888000.0))))))));
       const double cn = c_ * cd - s_ * sd;
       s_ = s_ * cd + c_ * sd;
       c_ = cn;
