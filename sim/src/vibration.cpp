@@ -33,8 +33,8 @@ struct Harmonic {
 };
 
 // cos and sin of a phase that moves by a small step from one sample to the next: the previous pair
-// turned by the step, whose cos/sin come from their Taylor series (to d^16; for |d| <= kMaxStep the
-// first omitted term is below 7e-17), with an exact std::cos/std::sin every kAnchor calls and whenever
+// turned by the step, whose cos/sin come from sin_cos_series() (ptda/sim/random.hpp; for |d| <= kMaxStep
+// the first omitted term is below 7e-17), with an exact std::cos/std::sin every kAnchor calls and whenever
 // the step is larger or not finite. The difference of two consecutive phases is exact in floating
 // point (they are within a factor 2 of each other), so over kAnchor steps the pair differs from the
 // exact one by rounding alone (about 1e-14). One libm sin/cos pair per sample was a third of
@@ -51,24 +51,9 @@ class PhaseRotor {
       s_ = std::sin(phi);
       since_ = 0;
     } else {
-      const double d2 = d * d;
-      // Horner in d^2: sin d = d (1 - d^2/3! + d^4/5! - ... - d^14/15!), cos d = 1 - d^2/2! + ... + d^16/16!
-      const double sd =
-          d * (1.0 + d2 * (-1.0 / 6.0 +
-                           d2 * (1.0 / 120.0 +
-                                 d2 * (-1.0 / 5040.0 + d2 * (1.0 / 362880.0 +
-                                                             d2 * (-1.0 / 39916800.0 +
-                                                                   d2 * (1.0 / 6227020800.0 +
-                                                                         d2 * (-1.0 / 1307674368000.0))))))));
-      const double cd =
-          1.0 +
-          d2 * (-0.5 +
-                d2 * (1.0 / 24.0 +
-                      d2 * (-1.0 / 720.0 +
-                            d2 * (1.0 / 40320.0 +
-                                  d2 * (-1.0 / 3628800.0 +
-                                        d2 * (1.0 / 479001600.0 + d2 * (-1.0 / 87178291200.0 +
-                                                                        d2 * (1.0 / 20922789888000.0))))))));
+      double sd = 0.0;
+      double cd = 1.0;
+      sin_cos_series(d, sd, cd);
       const double cn = c_ * cd - s_ * sd;
       s_ = s_ * cd + c_ * sd;
       c_ = cn;

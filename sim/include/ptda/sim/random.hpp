@@ -19,6 +19,26 @@ namespace ptda::sim {
   return z ^ (z >> 31U);
 }
 
+/// sin x and cos x as their Taylor series to x^15 / x^16 (Horner in x^2), for |x| <= 0.8: the first
+/// omitted terms are below 7e-17. Shared by Rng::turn() and the synthesis' phase rotor
+/// (sim/src/vibration.cpp). Any thread; no allocation.
+inline void sin_cos_series(double x, double& s, double& c) noexcept {
+  const double x2 = x * x;
+  s = x * (1.0 + x2 * (-1.0 / 6.0 +
+                       x2 * (1.0 / 120.0 +
+                             x2 * (-1.0 / 5040.0 +
+                                   x2 * (1.0 / 362880.0 +
+                                         x2 * (-1.0 / 39916800.0 + x2 * (1.0 / 6227020800.0 +
+                                                                         x2 * (-1.0 / 1307674368000.0))))))));
+  c = 1.0 +
+      x2 * (-0.5 + x2 * (1.0 / 24.0 +
+                         x2 * (-1.0 / 720.0 +
+                               x2 * (1.0 / 40320.0 + x2 * (-1.0 / 3628800.0 +
+                                                           x2 * (1.0 / 479001600.0 +
+                                                                 x2 * (-1.0 / 87178291200.0 +
+                                                                       x2 * (1.0 / 20922789888000.0))))))));
+}
+
 /// xoshiro256** with a Gaussian helper. Not thread-safe (one instance per thread); no allocation.
 class Rng {
  public:
@@ -72,23 +92,9 @@ class Rng {
     double f = t - q_floor;  // in [0, 1): the fraction of the quarter turn
     const bool upper = f > 0.5;
     if (upper) f = 1.0 - f;  // exact (Sterbenz): the complementary angle, sin and cos swap
-    const double x = f * (std::numbers::pi / 2.0);
-    const double x2 = x * x;
-    const double sx =
-        x * (1.0 + x2 * (-1.0 / 6.0 +
-                         x2 * (1.0 / 120.0 +
-                               x2 * (-1.0 / 5040.0 +
-                                     x2 * (1.0 / 362880.0 + x2 * (-1.0 / 39916800.0 +
-                                                                  x2 * (1.0 / 6227020800.0 +
-                                                                        x2 * (-1.0 / 1307674368000.0))))))));
-    const double cx =
-        1.0 +
-        x2 * (-0.5 + x2 * (1.0 / 24.0 +
-                           x2 * (-1.0 / 720.0 +
-                                 x2 * (1.0 / 40320.0 + x2 * (-1.0 / 3628800.0 +
-                                                             x2 * (1.0 / 479001600.0 +
-                                                                   x2 * (-1.0 / 87178291200.0 +
-                                                                         x2 * (1.0 / 20922789888000.0))))))));
+    double sx = 0.0;
+    double cx = 1.0;
+    sin_cos_series(f * (std::numbers::pi / 2.0), sx, cx);
     // Angle within the quarter: a = upper ? pi/2 - x : x.
     const double ca = upper ? sx : cx;
     const double sa = upper ? cx : sx;
