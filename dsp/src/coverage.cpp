@@ -172,8 +172,34 @@ void CoverageTracker::on_speed(const SpeedSample& s) noexcept {
   if (!have_speed_ || s.t_ns > last_speed_.t_ns) {  // out-of-order samples do not move the reference
     last_speed_ = s;
     have_speed_ = true;
+    marks_[marks_pushed_ & (kMotionMarks - 1)] = MotionMark{s.t_ns, st_.moving_ns};
+    ++marks_pushed_;
   }
   update_level();
+}
+
+std::int64_t CoverageTracker::moving_at(std::int64_t t_ns) const noexcept {
+  if (marks_pushed_ == 0) return st_.moving_ns;
+  const std::uint64_t first = marks_pushed_ > kMotionMarks ? marks_pushed_ - kMotionMarks : 0;
+  const auto at = [&](std::uint64_t i) -> const MotionMark& { return marks_[i & (kMotionMarks - 1)]; };
+  if (t_ns >= at(marks_pushed_ - 1).t_ns) return st_.moving_ns;
+  if (t_ns <= at(first).t_ns) return at(first).moving_ns;
+  // Marks are in time order: the last one at or before t_ns.
+  std::uint64_t lo = first, hi = marks_pushed_ - 1;  // at(lo).t <= t < at(hi).t
+  while (hi - lo > 1) {
+    const std::uint64_t mid = lo + (hi - lo) / 2;
+    if (at(mid).t_ns <= t_ns) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  const MotionMark& a = at(lo);
+  const MotionMark& b = at(hi);
+  // Motion between two samples accrues evenly over their step (or not at all).
+  const double f = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns);
+  return a.moving_ns +
+         static_cast<std::int64_t>(std::llround(f * static_cast<double>(b.moving_ns - a.moving_ns)));
 }
 
 void CoverageTracker::on_window(const WindowResult& w) noexcept {
@@ -182,13 +208,14 @@ void CoverageTracker::on_window(const WindowResult& w) noexcept {
     ++st_.judged;
     st_.have_judged = true;
     st_.last_judged_t_ns = w.ref.t_end_ns;
-    st_.moving_at_last_judged_ns = st_.moving_ns;
+    const std::int64_t moving_then = moving_at(w.ref.t_end_ns);
+    if (moving_then > st_.moving_at_last_judged_ns) st_.moving_at_last_judged_ns = moving_then;
     if (w.class_id >= 0 && static_cast<std::size_t>(w.class_id) < kCoverageMaxClasses) {
       ClassCoverage& c = st_.classes[static_cast<std::size_t>(w.class_id)];
       ++c.judged;
       c.have = true;
       c.last_t_ns = w.ref.t_end_ns;
-      c.moving_at_last_ns = st_.moving_ns;
+      if (moving_then > c.moving_at_last_ns) c.moving_at_last_ns = moving_then;
     }
   } else {
     const bool forward = w.ref.speed_rad_s >= 0.0;

@@ -143,6 +143,46 @@ TEST(Coverage, PartialThenFullThenRecoveredFromNotJudging) {
   EXPECT_NEAR(t.state().moving_since_judged_s(), 0.0, 1e-12);
 }
 
+TEST(Coverage, AJudgedWindowCountsMotionFromItsOwnEndNotFromWhenItWasJudged) {
+  // A window is judged when the caller drains it: after a whole WAV block (ptda monitor) or a processing
+  // period (ptdad), by which time later speed samples are in. The motion since it must not depend on
+  // that lag. Samples every 4 ms from 0 to 9996 ms at +1.05 rad/s: 9996 ms of motion in all.
+  const Baseline b = three_classes();
+  CoverageTracker late(b, cfg_5s());
+  move(late, 0, 10'000 * kMs, 1.05);
+  ASSERT_EQ(late.state().moving_ns, 9996 * kMs);
+  late.on_window(window(6002 * kMs, 1.05, 0));  // between the samples at 6000 and 6004 ms
+  EXPECT_EQ(late.state().moving_at_last_judged_ns, 6002 * kMs);
+  EXPECT_NEAR(late.state().moving_since_judged_s(), 3.994, 1e-12);  // before the fix: 0
+  EXPECT_EQ(late.state().classes[0].moving_at_last_ns, 6002 * kMs);
+
+  // The same input judged as soon as the window ended gives the same state.
+  CoverageTracker prompt(b, cfg_5s());
+  move(prompt, 0, 6004 * kMs, 1.05);  // up to the sample at 6000 ms
+  move(prompt, 6004 * kMs, 6008 * kMs, 1.05);
+  prompt.on_window(window(6002 * kMs, 1.05, 0));
+  move(prompt, 6008 * kMs, 10'000 * kMs, 1.05);
+  EXPECT_EQ(prompt.state().moving_at_last_judged_ns, late.state().moving_at_last_judged_ns);
+  EXPECT_EQ(prompt.state().level, late.state().level);
+
+  // A window that ended before the oldest kept sample (1024 samples: 5904 ms on) counts from that
+  // sample, and an older window never moves the count back.
+  late.on_window(window(4000 * kMs, 1.05, 0));
+  EXPECT_EQ(late.state().moving_at_last_judged_ns, 6002 * kMs);
+  CoverageTracker old(b, cfg_5s());
+  move(old, 0, 10'000 * kMs, 1.05);
+  old.on_window(window(1000 * kMs, 1.05, 0));
+  EXPECT_EQ(old.state().moving_at_last_judged_ns, 5904 * kMs);
+
+  // Late judging cannot hide blindness: a window judged after 5.49 s more of motion leaves the state
+  // not judging (samples every 10 ms: 800 samples, all kept).
+  CoverageTracker blind(b, cfg_5s());
+  for (std::int64_t x = 0; x < 8000 * kMs; x += 10 * kMs) blind.on_speed(SpeedSample{x, 1.05, 0.0, false});
+  blind.on_window(window(2500 * kMs, 1.05, 0));
+  EXPECT_NEAR(blind.state().moving_since_judged_s(), 5.49, 1e-12);
+  EXPECT_EQ(blind.state().level, CoverageLevel::kNotJudging);
+}
+
 TEST(Coverage, RejectsABadTimeout) {
   CoverageConfig c = cfg_5s();
   c.timeout_s = 0.0;

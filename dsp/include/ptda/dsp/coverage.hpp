@@ -142,7 +142,11 @@ class CoverageTracker {
   /// counts while both are at or above moving_speed_rad_s and no more than max_speed_gap_s apart.
   /// Thread: the owner. Never allocates, blocks or throws.
   void on_speed(const SpeedSample& s) noexcept;
-  /// A polled window (scored or kNoClass). Thread: the owner. Never allocates, blocks or throws.
+  /// A polled window (scored or kNoClass). A judged window resets the motion count as of its own end
+  /// (t_end_ns, interpolated between the speed samples kept), not as of the newest speed sample, so the
+  /// motion since it does not depend on how late it was judged (block size, processing lag). A window
+  /// that ended before the oldest speed sample kept counts from that sample.
+  /// Thread: the owner. Never allocates, blocks or throws.
   void on_window(const WindowResult& w) noexcept;
   /// The slicer's discarded-window count (windows_invalid + windows_lost + windows_overflow), cumulative:
   /// the increase is counted as kInvalid. Thread: the owner. Never allocates, blocks or throws.
@@ -157,6 +161,20 @@ class CoverageTracker {
  private:
   void see_time(std::int64_t t_ns) noexcept;
   void update_level() noexcept;
+  /// CoverageState::moving_ns as it was at data time t_ns (never more than now).
+  [[nodiscard]] std::int64_t moving_at(std::int64_t t_ns) const noexcept;
+
+  /// moving_ns after each speed sample, for moving_at(): a ring of the newest kMotionMarks.
+  struct MotionMark {
+    std::int64_t t_ns = 0;
+    std::int64_t moving_ns = 0;
+  };
+  // 1024 marks hold 1 s of speed frames at 1 kHz (10 s at 100 Hz); a window is judged within a block
+  // or a processing period of its end.
+  static constexpr std::size_t kMotionMarks = 1024;
+  static_assert((kMotionMarks & (kMotionMarks - 1)) == 0, "kMotionMarks: a power of two (index mask)");
+  std::array<MotionMark, kMotionMarks> marks_{};
+  std::uint64_t marks_pushed_ = 0;
 
   CoverageConfig cfg_;
   std::int64_t timeout_ns_ = 0;
