@@ -146,7 +146,11 @@ CanCounters run_recording(const RecordingInfo& rec, const config::PipelineConfig
 
   Progress progress(options.progress_label.empty() ? rec.dir.filename().string() : options.progress_label,
                     rec.wav.frames, options.progress);
-  std::vector<float> block(std::max<std::size_t>(1, options.block_frames));
+  // Windows are drained once per block, so the slicer's history (4 windows + 1 s by default) must hold
+  // a block plus a window: blocks of more than a quarter second are read in quarter seconds. (16384-frame
+  // blocks at 10 kHz with 1000-sample windows lost windows before this cap.)
+  const std::size_t quarter_s = std::max<std::size_t>(1, static_cast<std::size_t>(fs / 4.0));
+  std::vector<float> block(std::clamp<std::size_t>(options.block_frames, 1, quarter_s));
   std::uint64_t pos = 0;
   for (;;) {
     const std::size_t n = wav.read(rec.meta.channel, block);

@@ -113,6 +113,8 @@ TEST(RunRecording, CountsFramesAppliesLatencyAndScaleAndInterleavesByTime) {
   cfg.speed_latency_s = 0.05;  // 50 ms subtracted from every CAN timestamp
   RecordingSink sink;
   RunOptions opts;
+  // 1000 frames asked for; at 1 kHz a block is capped at a quarter second (250 frames), so that the
+  // slicer's default history (4 windows + 1 s) always holds a block plus a window between drains.
   opts.block_frames = 1000;
   opts.progress = false;
   const CanCounters c = run_recording(rec, cfg, sink, opts);
@@ -127,7 +129,7 @@ TEST(RunRecording, CountsFramesAppliesLatencyAndScaleAndInterleavesByTime) {
   ASSERT_EQ(sink.speeds.size(), 101U);
   for (const double v : sink.speeds) EXPECT_NEAR(v, 1.5, 1e-12);
 
-  // Blocks of 1000 samples scaled by 2; the first speed sample comes at -50 ms, before any block.
+  // Blocks of 250 samples scaled by 2; the first speed sample comes at -50 ms, before any block.
   std::int64_t last_block_end = kT0Ns;
   std::size_t blocks = 0, speeds_seen = 0;
   for (const Event& e : sink.events) {
@@ -139,16 +141,44 @@ TEST(RunRecording, CountsFramesAppliesLatencyAndScaleAndInterleavesByTime) {
       }
       ++speeds_seen;
     } else {
-      EXPECT_EQ(e.n, 1000U);
-      EXPECT_EQ(e.first, 2.0F * static_cast<float>(blocks * 1000));
-      // ...and every speed sample earlier than the block's end came before the block.
-      const auto expected_before = std::min<std::size_t>(101, (blocks + 1) * 10 + 1);  // t < end + 50 ms
+      EXPECT_EQ(e.n, 250U);
+      EXPECT_EQ(e.first, 2.0F * static_cast<float>(blocks * 250));
+      // ...and every speed sample earlier than the block's end came before the block: sample k is at
+      // k * 100 - 50 ms, so those with k * 100 < end + 50 ms.
+      const std::size_t end_ms = (blocks + 1) * 250;
+      const auto expected_before = std::min<std::size_t>(101, (end_ms + 49) / 100 + 1);
       EXPECT_EQ(speeds_seen, expected_before) << "block " << blocks;
       last_block_end = e.t_ns;
       ++blocks;
     }
   }
-  EXPECT_EQ(blocks, 10U);
+  EXPECT_EQ(blocks, 40U);
+}
+
+TEST(RunRecording, ABlockLargerThanTheSlicerHistoryLosesNoWindow) {
+  // Windows of 100 samples at 1 kHz: the slicer keeps 4 windows + 1 s = 1400 samples. Blocks of 4000
+  // frames (read whole, drained after) would overwrite windows before they are popped; the runner reads
+  // at most a quarter second per block, so the windows equal those of 100-frame blocks, none lost.
+  const fs::path dir = make_recording("big_block");
+  const RecordingInfo rec = open_recording(dir);
+  config::PipelineConfig cfg;
+  cfg.extraction.window_len = 100;
+  cfg.extraction.max_speed_gap_s = 0.2;  // speed frames every 100 ms
+  RunOptions small;
+  small.block_frames = 100;
+  small.progress = false;
+  RunOptions big = small;
+  big.block_frames = 4000;
+  const CollectResult a = collect_windows(rec, cfg, 1000.0, small);
+  const CollectResult b = collect_windows(rec, cfg, 1000.0, big);
+  EXPECT_EQ(a.slicer.windows_lost, 0U);
+  EXPECT_EQ(b.slicer.windows_lost, 0U);
+  ASSERT_GT(a.data.refs.size(), 80U);  // 0.1 .. 10 s in 100-sample windows
+  ASSERT_EQ(b.data.refs.size(), a.data.refs.size());
+  for (std::size_t i = 0; i < a.data.refs.size(); ++i) {
+    EXPECT_EQ(b.data.refs[i].first_sample, a.data.refs[i].first_sample) << "window " << i;
+    EXPECT_EQ(b.data.windows[i], a.data.windows[i]) << "window " << i;
+  }
 }
 
 TEST(RunRecording, ConfiguredRateMustMatchTheRecording) {

@@ -92,9 +92,9 @@ class PipelineSink {
 };
 
 struct RunOptions {
-  std::size_t block_frames = 4096;
-  bool progress = true;        ///< progress bar when stderr is a terminal
-  std::string progress_label;  ///< e.g. "monitor run1"
+  std::size_t block_frames = 4096;  ///< frames read per block; at most a quarter second is used
+  bool progress = true;             ///< progress bar when stderr is a terminal
+  std::string progress_label;       ///< e.g. "monitor run1"
   /// Coverage of a monitor run (dsp/coverage.hpp): motion without a judged window before "not judging".
   /// The daemon's [daemon] coverage_timeout_s default.
   double coverage_timeout_s = 60.0;
