@@ -701,7 +701,7 @@ struct FitStage {
 };
 
 std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, const sim::Scenario& nominal) {
-  const double top = 0.45 * fs;
+  const double top = kFitTopOfFs * fs;
   auto around = [&](double g, std::initializer_list<double> f) {
     std::vector<double> v;
     for (double x : f) v.push_back(std::clamp(g * x, 20.0, top));
@@ -939,14 +939,19 @@ EffectSpec initial_effect(EffectKind k, const Guesses& q) {
   return e;
 }
 
-void clamp_params(EffectSpec& e) {
+}  // namespace
+
+void clamp_effect_params(EffectSpec& e, double fs_hz) {
   const sim::EffectInfo& info = sim::effect_info(e.kind);
   for (std::size_t i = 0; i < info.params.size(); ++i) {
     e.params[i] = std::clamp(e.params[i], info.params[i].min_value, info.params[i].max_value);
   }
+  const char* place = e.kind == EffectKind::kTransferPath ? "frequency_hz"
+                      : e.kind == EffectKind::kImpacts    ? "resonance_hz"
+                                                          : nullptr;
+  if (place != nullptr && fs_hz > 0.0 && e.get(place) > kFitTopOfFs * fs_hz)
+    e.set(place, kFitTopOfFs * fs_hz);
 }
-
-}  // namespace
 
 std::string effect_location(const EffectSpec& e, const sim::Scenario& nominal) {
   switch (e.kind) {
@@ -1463,7 +1468,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
             if (st.param2 != nullptr) e.set(st.param2, v2);
             if (st.follow != nullptr && old > 0.0 && now > 0.0)
               e.set(st.follow, w.e.get(st.follow) * std::pow(now / old, st.follow_exp) * v3);
-            clamp_params(e);
+            clamp_effect_params(e, real.fs_hz);
             if (e.params == w.e.params && w.evals > 0) continue;
             const double g = eval_fit(e);
             ++w.evals;
@@ -1522,7 +1527,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       w.q.drive_carrier_hz = 0.0;  // the one-line form; the drive form is its own candidate below
       if (k == EffectKind::kAdcClipping) w.q.clip_sim_level_ms2 = clip_model_level(q);
       w.e = initial_effect(k, w.q);
-      clamp_params(w.e);
+      clamp_effect_params(w.e, real.fs_hz);
       w.fit_gap = std::numeric_limits<double>::infinity();
       if (k != EffectKind::kElectricalInterference || !intermittent(0)) work.push_back(w);
       if (k == EffectKind::kOtherAxis) {
@@ -1532,7 +1537,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
           wo.q.own_axis_hz = guess_lines[j];
           wo.q.own_axis_duty = presence[j].share;
           wo.e = initial_effect(k, wo.q);
-          clamp_params(wo.e);
+          clamp_effect_params(wo.e, real.fs_hz);
           work.push_back(wo);
           break;
         }
@@ -1546,7 +1551,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
           Work wp = w;
           wp.q.floor_peak_const_hz = f;
           wp.e = initial_effect(k, wp.q);
-          clamp_params(wp.e);
+          clamp_effect_params(wp.e, real.fs_hz);
           work.push_back(wp);
         }
       }
@@ -1559,7 +1564,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
           if (j < q.more_line_harmonics.size())
             std::tie(wl.q.line_still_harmonics, wl.q.line_still_odd) = q.more_line_harmonics[j];
           wl.e = initial_effect(k, wl.q);
-          clamp_params(wl.e);
+          clamp_effect_params(wl.e, real.fs_hz);
           work.push_back(wl);
         }
         // The second form: the lowest line as mains (with its harmonics) and a drive's carrier near the
@@ -1579,7 +1584,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
                   q.more_line_harmonics[static_cast<std::size_t>(mi - 1)];
           }
           wd.e = initial_effect(k, wd.q);
-          clamp_params(wd.e);
+          clamp_effect_params(wd.e, real.fs_hz);
           work.push_back(wd);
         }
       }

@@ -137,6 +137,31 @@ sim::Scenario constant_speed_rig() {
   return s;
 }
 
+TEST(Diagnose, FittedPlacesStayBelowTheProbesTopSoThatANamedEffectLoadsBack) {
+  // The knock grid's top value at 25600 Hz is 600 * 1.6^6 = 10066 Hz; one relative refinement (x 1.19)
+  // took such a knock to 11979 Hz, and a path guessed at 0.44 fs to 13404 Hz: 0.47 and 0.52 fs. A
+  // scenario rejects a path at 0.49 fs or a knock at fs/2 and above.
+  constexpr double kFs = 25600.0;
+  sim::EffectSpec knock = sim::EffectSpec::with_defaults(sim::EffectKind::kImpacts);
+  knock.set("resonance_hz", 10066.3 * 1.19 * 1.1);
+  knock.set("damping_ratio", 0.001);  // below the library's 0.005
+  clamp_effect_params(knock, kFs);
+  EXPECT_DOUBLE_EQ(knock.get("resonance_hz"), 11520.0);  // 0.45 fs
+  EXPECT_DOUBLE_EQ(knock.get("damping_ratio"), 0.005);
+  sim::EffectSpec path = sim::EffectSpec::with_defaults(sim::EffectKind::kTransferPath);
+  path.set("frequency_hz", 0.44 * kFs * 1.19);
+  clamp_effect_params(path, kFs);
+  EXPECT_DOUBLE_EQ(path.get("frequency_hz"), 11520.0);
+  // Below the top nothing moves; other kinds' frequencies are not places of a resonance.
+  path.set("frequency_hz", 3000.0);
+  clamp_effect_params(path, kFs);
+  EXPECT_DOUBLE_EQ(path.get("frequency_hz"), 3000.0);
+  sim::EffectSpec noise = sim::EffectSpec::with_defaults(sim::EffectKind::kNoiseColor);
+  noise.set("corner_hz", 12000.0);
+  clamp_effect_params(noise, kFs);
+  EXPECT_DOUBLE_EQ(noise.get("corner_hz"), 12000.0);
+}
+
 TEST(Diagnose, KnocksOnAConstantSpeedRigAreFittedAtAPoissonRate) {
   // A constant-speed rig (no torque reversal) with random knocks, 6 per second ringing at 3 kHz: the
   // impacts candidate can only reproduce them with rate_hz > 0, which its fit now tries.

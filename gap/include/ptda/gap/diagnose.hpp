@@ -158,6 +158,15 @@ struct Diagnosis {
 /// Self-contained HTML report with inline SVG plots.
 [[nodiscard]] std::string diagnosis_html(const Diagnosis& d);
 
+/// Keeps a candidate's parameters where the library and the recording allow them while it is fitted:
+/// every parameter within its library range (sim::effect_info), and the places that must lie below
+/// Nyquist (a `transfer_path`'s frequency_hz, a knock's resonance_hz) at most kFitTopOfFs * fs_hz, the
+/// probes' top, so that a named effect always loads back into a scenario (which rejects a path at
+/// 0.49 fs or a knock at fs/2 and above). A relative refinement stage (x 1.19) could push a knock at
+/// the top of the resonance grid to 0.54 fs. Any thread; never allocates.
+void clamp_effect_params(sim::EffectSpec& e, double fs_hz);
+inline constexpr double kFitTopOfFs = 0.45;
+
 /// Where an effect with these parameters acts, in words (for reports and the bench's location check).
 [[nodiscard]] std::string effect_location(const sim::EffectSpec& e, const sim::Scenario& nominal);
 
