@@ -871,20 +871,23 @@ std::vector<FitStage> fit_stages(EffectKind k, const Guesses& q, double fs, cons
       // corner so picked stayed at a few tenths for 8 m/s^2 of red noise at 257 Hz (GFD development
       // gfd-1101). The first form keeps the sequential screen, which located gen2's weak noise better
       // (development 1064: 60 Hz for 57; the joint screen 14 Hz).
-      if (q.noise_from_nominal_floor)
-        return {{"corner_hz",
-                 {20, 50, 100, 200, 500, 1000, 2000},
-                 false,
-                 "rms_ms2",
-                 beyond({0.05, 0.1, 0.2, 0.4, 0.8, 1.6}, {0.5, 1, 2})},
-                {"corner_hz", {20, 35, 60, 100, 170, 300, 500, 1000, 2000}, false, "poles", {1, 2}},
-                {"corner_hz", {0.7, 1.0, 1.4}, true},
-                {"rms_ms2", {0.8, 1.0, 1.25}, true}};
-      return {{"corner_hz", {20, 50, 100, 200, 500, 1000, 2000}},
-              {"rms_ms2", beyond({0.05, 0.1, 0.2, 0.4, 0.8, 1.6}, {0.5, 1, 2})},
-              {"corner_hz", {20, 35, 60, 100, 170, 300, 500, 1000, 2000}, false, "poles", {1, 2}},
-              {"corner_hz", {0.7, 1.0, 1.4}, true},
-              {"rms_ms2", {0.8, 1.0, 1.25}, true}};
+      {
+        const std::vector<double> corners_hz{20, 50, 100, 200, 500, 1000, 2000};
+        const std::vector<double> levels_ms2 = beyond({0.05, 0.1, 0.2, 0.4, 0.8, 1.6}, {0.5, 1, 2});
+        std::vector<FitStage> st;
+        if (q.noise_from_nominal_floor) {
+          st.emplace_back("corner_hz", corners_hz, false, "rms_ms2", levels_ms2);
+        } else {
+          st.emplace_back("corner_hz", corners_hz);
+          st.emplace_back("rms_ms2", levels_ms2);
+        }
+        // The shared tail: slope with corner on the finer grid, then the relative refinements.
+        st.emplace_back("corner_hz", std::vector<double>{20, 35, 60, 100, 170, 300, 500, 1000, 2000}, false,
+                        "poles", std::vector<double>{1, 2});
+        st.emplace_back("corner_hz", std::vector<double>{0.7, 1.0, 1.4}, true);
+        st.emplace_back("rms_ms2", std::vector<double>{0.8, 1.0, 1.25}, true);
+        return st;
+      }
   }
   return {};
 }
@@ -1636,16 +1639,11 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     std::sort(work.begin(), work.end(), [](const Work& a, const Work& b) { return a.fit_gap < b.fit_gap; });
     // Of noise_color's two forms only the better screened one goes on: both took two of the full fits
     // in every gen2 development case looked at (1003-1006), at the cost of other kinds and of time.
-    bool noise_kept = false;
-    for (auto it = work.begin(); it != work.end();) {
-      if (it->e.kind != EffectKind::kNoiseColor) {
-        ++it;
-      } else if (!noise_kept) {
-        noise_kept = true;
-        ++it;
-      } else {
-        it = work.erase(it);
-      }
+    {
+      auto is_noise = [](const Work& w) { return w.e.kind == EffectKind::kNoiseColor; };
+      const auto best_noise = std::find_if(work.begin(), work.end(), is_noise);
+      if (best_noise != work.end())
+        work.erase(std::remove_if(std::next(best_noise), work.end(), is_noise), work.end());
     }
     parallel_for(std::min<std::size_t>(work.size(), opt.full_fits), opt.threads, [&](std::size_t i) {
       Work& w = work[i];

@@ -1,10 +1,13 @@
 // The small joint-rotation job the gap unit tests simulate: out and back over pi at 3.49 rad/s (the paper's
-// joint rotation plateau), Table 1 harmonic pattern up to order 8, 0.3 m/s^2 noise. Test helper.
+// joint rotation plateau), Table 1 harmonic pattern up to order 8, 0.3 m/s^2 noise; and the options and
+// effects the diagnosis tests share. Test helpers.
 #pragma once
 
 #include <cstdint>
+#include <initializer_list>
 #include <numbers>
 
+#include "ptda/gap/diagnose.hpp"
 #include "ptda/sim/simulator.hpp"
 
 namespace ptda::gap::test {
@@ -23,6 +26,23 @@ inline sim::Scenario joint_rotation_job(std::uint32_t cycles) {
   s.vibration.noise_rms = 0.3;
   s.sensor.range_ms2 = 50.0;
   return s;
+}
+
+/// Options that let the diagnosis name at most one effect, of the given kinds only.
+inline DiagnoseOptions one_effect_of(std::initializer_list<sim::EffectKind> kinds) {
+  DiagnoseOptions opt;
+  opt.candidates = kinds;
+  opt.max_effects = 1;
+  return opt;
+}
+
+/// Coloured noise of `rms_ms2` below `corner_hz` with `poles` poles.
+inline sim::EffectSpec noise_color(double rms_ms2, double corner_hz, double poles) {
+  sim::EffectSpec e = sim::EffectSpec::with_defaults(sim::EffectKind::kNoiseColor);
+  e.set("rms_ms2", rms_ms2);
+  e.set("corner_hz", corner_hz);
+  e.set("poles", poles);
+  return e;
 }
 
 }  // namespace ptda::gap::test

@@ -26,9 +26,7 @@ TEST(LocalAcceptance, ExactLineIsNamedBesideALargeUnexplainedGap) {
   truth.effects = {mains};
   const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 2024), truth);
   const sim::Scenario nominal = test::joint_rotation_job(6);
-  DiagnoseOptions opt;
-  opt.candidates = {sim::EffectKind::kElectricalInterference};
-  opt.max_effects = 1;
+  DiagnoseOptions opt = test::one_effect_of({sim::EffectKind::kElectricalInterference});
   const Diagnosis d = diagnose(nominal, real, opt);
   ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
   EXPECT_NEAR(d.chosen[0].effect.get("frequency_hz"), 50.0, 0.5);
@@ -99,9 +97,8 @@ TEST(LocalAcceptance, ADriveCarrierWithSidebandsIsNamedWithTheMains) {
   truth.effects = {e0};
   const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 2026), truth);
   const sim::Scenario nominal = test::joint_rotation_job(6);
-  DiagnoseOptions opt;
-  opt.candidates = {sim::EffectKind::kElectricalInterference, sim::EffectKind::kTransferPath};
-  opt.max_effects = 1;
+  DiagnoseOptions opt =
+      test::one_effect_of({sim::EffectKind::kElectricalInterference, sim::EffectKind::kTransferPath});
   const Diagnosis d = diagnose(nominal, real, opt);
   ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
   const sim::EffectSpec& e = d.chosen[0].effect;
@@ -171,9 +168,7 @@ TEST(LocalAcceptance, ADriveLineOnAHighMeshOrderIsStillACarrier) {
   e0.set("pwm_ms2", 0.2);
   truth.effects = {e0};
   const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 2027), truth);
-  DiagnoseOptions opt;
-  opt.candidates = {sim::EffectKind::kElectricalInterference};
-  opt.max_effects = 1;
+  DiagnoseOptions opt = test::one_effect_of({sim::EffectKind::kElectricalInterference});
   const Diagnosis d = diagnose(test::joint_rotation_job(6), real, opt);
   ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
   EXPECT_NEAR(d.chosen[0].effect.get("frequency_hz"), 50.0, 0.5) << d.verdict;
@@ -196,9 +191,7 @@ TEST(LocalAcceptance, KnocksRingingTwoModesAtStartsAndStopsAreNamedAtTheLowerMod
   e.set("knock_events", 1.0);
   truth.effects = {e};
   const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 2031), truth);
-  DiagnoseOptions opt;
-  opt.candidates = {sim::EffectKind::kImpacts, sim::EffectKind::kTransferPath};
-  opt.max_effects = 1;
+  DiagnoseOptions opt = test::one_effect_of({sim::EffectKind::kImpacts, sim::EffectKind::kTransferPath});
   const Diagnosis d = diagnose(test::joint_rotation_job(6), real, opt);
   ASSERT_EQ(d.chosen.size(), 1U) << d.verdict;
   EXPECT_EQ(d.chosen[0].effect.kind, sim::EffectKind::kImpacts) << d.verdict;

@@ -102,10 +102,8 @@ TEST(LinePresence, SteadyPickupIsOnInEveryFrameAndAWeakLineIsNotJudged) {
 
 TEST(Diagnose, AnotherAxisOnItsOwnProgramIsNamedByItsLineAndSteadyPickupStaysInterference) {
   const sim::Scenario nominal = test::joint_rotation_job(6);
-  DiagnoseOptions opt;
-  opt.candidates = {sim::EffectKind::kElectricalInterference, sim::EffectKind::kOtherAxis,
-                    sim::EffectKind::kTransferPath};
-  opt.max_effects = 1;
+  DiagnoseOptions opt = test::one_effect_of({sim::EffectKind::kElectricalInterference,
+                                             sim::EffectKind::kOtherAxis, sim::EffectKind::kTransferPath});
   opt.threads = 2;
   const GapRecording axis = record({own_axis(437.0, 0.6, 0.5, 0.3)}, 2026);
   const Diagnosis d = diagnose(nominal, axis, opt);
