@@ -191,6 +191,45 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
 }
 
 /// All training recordings share one sample rate: the first one's (kept in fs_hz / first_recording).
+/// One recording's windows in the baseline: `begin`..`end` index the training's window list.
+struct TrainingSpan {
+  dsp::TrainingRecording rec;
+  std::size_t begin = 0, end = 0;
+};
+
+/// What each recording contributed to windows [first, last) of `refs` (--windows applied): its window
+/// count and time range, for `ptda monitor`'s in-sample warning. Recordings with no window kept are left
+/// out. Reads the spilled refs once, in order. Main thread; allocates.
+template <class Ref>
+std::vector<dsp::TrainingRecording> training_recordings(std::vector<TrainingSpan>& spans,
+                                                        const dsp::SpillVector<Ref>& all_refs,
+                                                        std::size_t first, std::size_t last) {
+  std::vector<dsp::TrainingRecording> training;
+  typename dsp::SpillVector<Ref>::Reader refs(all_refs);
+  std::size_t i = 0;
+  for (TrainingSpan& sp : spans) {
+    const std::size_t b = std::max(sp.begin, first);
+    const std::size_t e = std::min(sp.end, last);
+    if (b >= e) continue;
+    while (i < b) {
+      (void)refs.next();
+      ++i;
+    }
+    bool any = false;
+    for (; i < e; ++i) {
+      const Ref r = refs.next();
+      const double from = ns_to_seconds(r.t_start_ns);
+      const double to = ns_to_seconds(r.t_end_ns);
+      sp.rec.from_unix_s = any ? std::min(sp.rec.from_unix_s, from) : from;
+      sp.rec.to_unix_s = any ? std::max(sp.rec.to_unix_s, to) : to;
+      any = true;
+    }
+    sp.rec.windows = static_cast<std::uint32_t>(e - b);
+    training.push_back(sp.rec);
+  }
+  return training;
+}
+
 void take_rate(const RecordingInfo& rec, double fs, const std::string& dir, double& fs_hz,
                std::string& first_recording) {
   if (fs_hz == 0.0) {
@@ -214,11 +253,7 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
   std::string source = "ptda train";
   double fs_hz = 0.0;
   std::string first_recording;
-  struct Span {
-    dsp::TrainingRecording rec;
-    std::size_t begin = 0, end = 0;
-  };
-  std::vector<Span> spans;
+  std::vector<TrainingSpan> spans;
   std::vector<RecordingInfo> recs;
   double recorded_s = 0.0;
   std::uint64_t seq_offset = 0, segment_offset = 0;  // renumbered as append_order_windows() does
@@ -230,7 +265,7 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
     RunOptions opts;
     opts.config_source = config_path;
     opts.progress_label = "train " + rec.dir.filename().string() + " (order domain, pass 1 of 3)";
-    Span span;
+    TrainingSpan span;
     span.begin = all.refs.size();
     const auto recording = static_cast<std::uint32_t>(spans.size());
     const std::uint64_t seq0 = seq_offset, segment0 = segment_offset;
@@ -264,31 +299,7 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
   const std::size_t total = all.refs.size();
   const std::size_t first = static_cast<std::size_t>(range.first(total));
   const std::size_t last = static_cast<std::size_t>(range.last(total));
-  std::vector<dsp::TrainingRecording> training;
-  {
-    dsp::SpillVector<dsp::OrderWindowRef>::Reader refs(all.refs);
-    std::size_t i = 0;
-    for (Span& sp : spans) {
-      const std::size_t b = std::max(sp.begin, first);
-      const std::size_t e = std::min(sp.end, last);
-      if (b >= e) continue;
-      while (i < b) {
-        (void)refs.next();
-        ++i;
-      }
-      bool any = false;
-      for (; i < e; ++i) {
-        const dsp::OrderWindowRef r = refs.next();
-        const double from = ns_to_seconds(r.t_start_ns);
-        const double to = ns_to_seconds(r.t_end_ns);
-        sp.rec.from_unix_s = any ? std::min(sp.rec.from_unix_s, from) : from;
-        sp.rec.to_unix_s = any ? std::max(sp.rec.to_unix_s, to) : to;
-        any = true;
-      }
-      sp.rec.windows = static_cast<std::uint32_t>(e - b);
-      training.push_back(sp.rec);
-    }
-  }
+  const std::vector<dsp::TrainingRecording> training = training_recordings(spans, all.refs, first, last);
   if (!range.whole()) {
     dsp::OrderTrainingIndex kept(all.spill);
     dsp::SpillVector<dsp::OrderWindowRef>::Reader refs(all.refs);
@@ -321,7 +332,7 @@ int train_order(const ParsedArgs& a, const config::PipelineConfig& cfg, const st
     ++pass_no;
     dsp::SpillVector<dsp::OrderWindowRef>::Reader kept(all.refs);
     for (std::size_t r = 0; r < spans.size(); ++r) {
-      const Span& sp = spans[r];
+      const TrainingSpan& sp = spans[r];
       const std::uint64_t lo = std::max<std::uint64_t>(sp.begin, first);
       const std::uint64_t hi = std::min<std::uint64_t>(sp.end, first + all.refs.size());
       if (lo >= hi) continue;
@@ -409,11 +420,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
   std::string first_recording;
   std::string source = "ptda train";
   // Each recording's windows are all.refs[begin, end): select_windows keeps one contiguous range.
-  struct Span {
-    dsp::TrainingRecording rec;
-    std::size_t begin = 0, end = 0;
-  };
-  std::vector<Span> spans;
+  std::vector<TrainingSpan> spans;
   std::vector<RecordingInfo> recs;
   std::vector<DoctorReport> diagnoses;
   for (const auto& dir : a.values("recording")) {
@@ -424,7 +431,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     opts.config_source = config_path;
     // Pass 0: the windows' places and the regions only; the samples come in the training's two passes.
     opts.progress_label = "train " + rec.dir.filename().string() + " (pass 1 of 3)";
-    Span span;
+    TrainingSpan span;
     span.begin = all.refs.size();
     const IndexResult c = index_windows(rec, cfg, fs, opts, all, renumber);
     span.end = all.refs.size();
@@ -446,33 +453,9 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     spans.push_back(span);
   }
   // What each recording contributed after --windows, for `ptda monitor`'s in-sample warning.
-  std::vector<dsp::TrainingRecording> training;
-  {
-    const auto first = static_cast<std::size_t>(range.first(all.refs.size()));
-    const auto last = static_cast<std::size_t>(range.last(all.refs.size()));
-    dsp::SpillVector<dsp::WindowRef>::Reader refs(all.refs);
-    std::size_t i = 0;
-    for (Span& sp : spans) {
-      const std::size_t b = std::max(sp.begin, first);
-      const std::size_t e = std::min(sp.end, last);
-      if (b >= e) continue;
-      while (i < b) {
-        (void)refs.next();
-        ++i;
-      }
-      bool any = false;
-      for (; i < e; ++i) {
-        const dsp::WindowRef r = refs.next();
-        const double from = ns_to_seconds(r.t_start_ns);
-        const double to = ns_to_seconds(r.t_end_ns);
-        sp.rec.from_unix_s = any ? std::min(sp.rec.from_unix_s, from) : from;
-        sp.rec.to_unix_s = any ? std::max(sp.rec.to_unix_s, to) : to;
-        any = true;
-      }
-      sp.rec.windows = static_cast<std::uint32_t>(e - b);
-      training.push_back(sp.rec);
-    }
-  }
+  const std::vector<dsp::TrainingRecording> training =
+      training_recordings(spans, all.refs, static_cast<std::size_t>(range.first(all.refs.size())),
+                          static_cast<std::size_t>(range.last(all.refs.size())));
   source += " --config " + config_path;
   const std::uint64_t total_windows = all.refs.size();
   if (!range.whole()) {
@@ -510,7 +493,7 @@ int cmd_train(std::span<const std::string> args, std::ostream& out) {
     ++pass_no;
     dsp::SpillVector<dsp::WindowRef>::Reader kept(all.refs);  // the kept windows, in cut order
     for (std::size_t r = 0; r < spans.size(); ++r) {
-      const Span& sp = spans[r];
+      const TrainingSpan& sp = spans[r];
       const std::uint64_t lo = std::max<std::uint64_t>(sp.begin, kept_first);
       const std::uint64_t hi = std::min<std::uint64_t>(sp.end, kept_first + all.refs.size());
       if (lo >= hi) continue;  // none of this recording's windows is trained on

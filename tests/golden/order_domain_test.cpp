@@ -13,6 +13,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "golden_support.hpp"
 
@@ -147,6 +148,44 @@ TEST(OrderDomain, HealthyQuietFaultyAlarms) {
   EXPECT_EQ(f.abnormal, 99);
   EXPECT_EQ(f.alarm_windows, 102);
   EXPECT_NEAR(f.rms_sum / f.scored, 0.365955, 2e-6);
+}
+
+// The in-sample warning in the order domain (cmd_train's order path keeps the training recordings'
+// spans like the time path): monitoring the training recording warns, a baseline trained on its first
+// half makes the second half a held-out part, and another run is not in-sample.
+TEST(OrderDomain, MonitoringTheTrainingRecordingWarnsInSample) {
+  const Prepared& p = prepared();
+  const fs::path half = p.dir / "order_half.bin";
+  ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
+                      (p.dir / "order_whole.bin").string()},
+                     p.dir, "train_order_whole")
+                .exit_code,
+            0);
+  ASSERT_EQ(run_ptda({"train", "--recording", p.train.string(), "--config", p.order_config, "--out",
+                      half.string(), "--windows", "0:0.5"},
+                     p.dir, "train_order_half")
+                .exit_code,
+            0);
+  auto monitor_text = [&](const fs::path& rec, const fs::path& baseline, const std::string& tag,
+                          std::vector<std::string> extra) {
+    std::vector<std::string> args{"monitor",      "--recording", rec.string(),     "--config",
+                                  p.order_config, "--baseline",  baseline.string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const RunResult r = run_ptda(args, p.dir, tag);
+    EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+    return r.out;
+  };
+  const std::string same = monitor_text(p.train, p.dir / "order_whole.bin", "order_same", {});
+  EXPECT_TRUE(has(same, "warning: in-sample: this recording is the baseline's training recording " +
+                            p.train.string() + " (id wav:"))
+      << same;
+  const std::string held = monitor_text(p.train, half, "order_held", {"--windows", "0.5:1"});
+  EXPECT_FALSE(has(held, "warning: in-sample")) << held;
+  EXPECT_TRUE(has(held, "a held-out part")) << held;
+  const std::string first = monitor_text(p.train, half, "order_first", {"--windows", "0:0.5"});
+  EXPECT_TRUE(has(first, "warning: in-sample")) << first;
+  const std::string other = monitor_text(p.healthy, p.dir / "order_whole.bin", "order_other", {});
+  EXPECT_FALSE(has(other, "training recording")) << other;
 }
 
 // Without the CAN log-time smoothing (can_time_smoothing_frames = 0) the simulator's 0..0.1 ms log

@@ -18,7 +18,6 @@ namespace ptda::daemon::test {
 namespace {
 
 using namespace std::chrono_literals;
-constexpr std::int64_t kS = 1'000'000'000;
 
 class Training : public ::testing::Test {
  protected:
