@@ -278,6 +278,30 @@ TEST(Diagnose, RedNoiseThatTiltedTheCalibratedFloorIsStillFound) {
   EXPECT_GT(d.total_shrink_pct, 60.0);
 }
 
+TEST(Diagnose, WeakRedNoiseIsNamedWhateverTheModelSeed) {
+  // Red noise a little above a white floor (0.52 m/s^2 below 260 Hz, one pole, on 0.3 m/s^2), as in the
+  // project simulator's development case 9100/10, where the verdict changed with the model seed. Two
+  // defects showed: a noise candidate scored after one calibration pass from the floor that had held the
+  // noise (fits went to 35-50 Hz), and a latency fitted to 0 s with no jitter, which changes nothing in
+  // the model, was named with 29 % shrink (seed 424242). Noise candidates are now scored after two
+  // passes and an effect fitted to "no effect" is never named. Measured with this build: 0.3 m/s^2 below
+  // 100 Hz (one pole) for both seeds, shrink 96.7 % and 94.9 % (seed 9001: 0.2 below 166.6 Hz, 93.8 %).
+  // The corner is low by 1.6-2.6 x on this short job; not asserted.
+  const sim::Scenario nominal = job();
+  sim::Scenario machine = job();
+  machine.effects = {test::noise_color(0.52, 260.0, 1.0)};
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(machine, 46), machine);
+  for (std::uint64_t seed : {424242ULL, 433342ULL}) {
+    DiagnoseOptions opt = test::one_effect_of({sim::EffectKind::kNoiseColor, sim::EffectKind::kSpeedLatency});
+    opt.sim_seed = seed;
+    const Diagnosis d = diagnose(nominal, real, opt);
+    ASSERT_EQ(d.chosen.size(), 1U) << seed << ": " << d.verdict;
+    const sim::EffectSpec& f = d.chosen[0].effect;
+    EXPECT_EQ(f.kind, sim::EffectKind::kNoiseColor) << seed << ": " << sim::describe(f);
+    EXPECT_GT(d.total_shrink_pct, 80.0) << seed;
+  }
+}
+
 TEST(Diagnose, ClippingStartsFromTheCalibratedLevel) {
   // The machine's floor rises by 14 dB per decade (the GFD rig's calibrated slope); the user's nominal
   // has a white floor at the recording's measured rms, as one would write it down. The floor's
