@@ -190,7 +190,6 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
   return kExitOk;
 }
 
-/// All training recordings share one sample rate: the first one's (kept in fs_hz / first_recording).
 /// One recording's windows in the baseline: `begin`..`end` index the training's window list.
 struct TrainingSpan {
   dsp::TrainingRecording rec;
@@ -230,6 +229,7 @@ std::vector<dsp::TrainingRecording> training_recordings(std::vector<TrainingSpan
   return training;
 }
 
+/// All training recordings share one sample rate: the first one's (kept in fs_hz / first_recording).
 void take_rate(const RecordingInfo& rec, double fs, const std::string& dir, double& fs_hz,
                std::string& first_recording) {
   if (fs_hz == 0.0) {
