@@ -174,12 +174,16 @@ void FieldTrainer::flush() noexcept {
 void FieldTrainer::writer_loop() noexcept {
   for (;;) {
     const std::uint32_t ticket = work_.ticket();
+    // Read the stop before draining: the processing thread adds nothing after stop(), so a drain
+    // that follows a stop seen here writes every window. Reading it after an empty drain lost the
+    // windows queued in between (seen under qemu on aarch64).
+    const bool stopping = stop_.load(std::memory_order_acquire);
     if (write_queued() > 0) {
       if (on_space_ != nullptr) on_space_->ring();
       continue;
     }
-    // Stop only with the queue empty: the processing thread has stopped adding before stop().
-    if (stop_.load(std::memory_order_acquire)) return;
+    if (idle_hook_ != nullptr) idle_hook_(idle_ctx_);
+    if (stopping) return;
     work_.wait(ticket, kWriterIdleWaitNs);
   }
 }

@@ -180,6 +180,16 @@ class FieldTrainer {
                                                     std::uint64_t need_bytes, std::uint64_t free_bytes);
   /// Test hook: the spill file's descriptor (a test swaps in /dev/full to see a failing disk).
   [[nodiscard]] int spill_fd_for_test() const noexcept { return fd_; }
+  /// Test hook: `hook(ctx)` runs on the writer each time it found the queue empty, before it decides
+  /// whether to stop (a test holds it there to force the add/stop race). Set before start().
+  void set_idle_hook_for_test(void (*hook)(void*), void* ctx) noexcept {
+    idle_hook_ = hook;
+    idle_ctx_ = ctx;
+  }
+  /// Whether stop() has been asked for (test hook). Thread: any.
+  [[nodiscard]] bool stop_requested_for_test() const noexcept {
+    return stop_.load(std::memory_order_acquire);
+  }
   /// Bytes one window takes in the spill file, and the most the file can grow to.
   [[nodiscard]] std::uint64_t window_bytes() const noexcept { return std::uint64_t{cfg_.window_len} * 4; }
   [[nodiscard]] std::uint64_t max_spill_bytes() const noexcept { return cfg_.max_windows * window_bytes(); }
@@ -212,6 +222,8 @@ class FieldTrainer {
   WakeSignal work_;  ///< rung by add_window for the writer
   WakeSignal* on_space_ = nullptr;
   std::atomic<bool> stop_{false};
+  void (*idle_hook_)(void*) = nullptr;
+  void* idle_ctx_ = nullptr;
   std::thread writer_;
   // windows_ and write_failed_ belong to the writer; the others to the processing thread.
   drivers::Counter windows_, regions_added_, windows_dropped_, queue_full_, write_failed_, regions_dropped_,

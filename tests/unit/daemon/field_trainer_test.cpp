@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -374,6 +375,30 @@ TEST(FieldTrainer, TheWriterThreadsWindowsTrainTheSameBaselineAsTheWindowsInMemo
   const std::string sb((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
   EXPECT_GT(sa.size(), 1000U);
   EXPECT_TRUE(sa == sb) << "the baseline trained from the spill file differs from the in-memory one";
+}
+
+// CI aarch64 run of session 33: under qemu the writer found the queue empty, the test then queued
+// its windows and stopped, and the writer saw the stop and returned without writing them. Here the
+// writer is held right after an empty drain until the window is queued and stop() asked for.
+TEST(FieldTrainer, StopWritesEveryWindowQueuedBeforeIt) {
+  FieldTrainer t(config());
+  struct Hold {
+    FieldTrainer* t;
+    std::atomic<int> entered{0};
+  } hold{&t};
+  t.set_idle_hook_for_test(
+      [](void* ctx) {
+        auto* h = static_cast<Hold*>(ctx);
+        if (h->entered.fetch_add(1) != 0) return;  // hold only the first idle pass
+        while (!h->t->stop_requested_for_test()) std::this_thread::yield();
+      },
+      &hold);
+  t.start(nullptr);
+  while (hold.entered.load() == 0) std::this_thread::yield();
+  const std::vector<float> x(kLen, 0.5F);
+  ASSERT_TRUE(t.add_window(dsp::WindowRef{}, x));
+  t.stop();
+  EXPECT_EQ(t.progress().windows, 1U) << "the window queued before stop() was lost";
 }
 
 TEST(FieldTrainer, AddingMakesNoAllocations) {
