@@ -1515,11 +1515,14 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       // afresh; the truth scored 3.10, and the case was named a speed latency first). Two passes.
       return ev.calibrate(s, fit, e.kind == EffectKind::kNoiseColor ? 2 : 1).total;
     };
-    auto run_stage = [&](Work& w, const FitStage& st) {
-      double best = w.fit_gap;
-      EffectSpec best_e = w.e;
+    // One stage's grid, evaluated on `threads` threads (1 inside the screen, which runs candidates in
+    // parallel; the full fits run one candidate at a time over its grid instead: a knock candidate's
+    // grid is several times the others', and with one candidate per thread the other thread waited for
+    // it). The points are listed and then scored in grid order, so the result is the sequential one.
+    auto run_stage = [&](Work& w, const FitStage& st, unsigned threads) {
       const std::vector<double> second = st.param2 != nullptr ? st.values2 : std::vector<double>{0.0};
       const std::vector<double> third = st.follow != nullptr ? st.follow_values : std::vector<double>{1.0};
+      std::vector<EffectSpec> points;
       for (double v : st.values) {
         for (double v2 : second) {
           for (double v3 : third) {
@@ -1531,18 +1534,26 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
             if (st.follow != nullptr && old > 0.0 && now > 0.0)
               e.set(st.follow, w.e.get(st.follow) * std::pow(now / old, st.follow_exp) * v3);
             clamp_effect_params(e, real.fs_hz);
-            if (e.params == w.e.params && w.evals > 0) continue;
-            const double g = eval_fit(e, w.q.noise_from_nominal_floor);
-            ++w.evals;
-            if (g < best) {
-              best = g;
-              best_e = e;
-            }
+            // The starting point itself is not scored again once the candidate has been scored.
+            if (e.params == w.e.params && w.evals + points.size() > 0) continue;
+            points.push_back(std::move(e));
           }
         }
       }
+      std::vector<double> gaps(points.size());
+      parallel_for(points.size(), threads,
+                   [&](std::size_t i) { gaps[i] = eval_fit(points[i], w.q.noise_from_nominal_floor); });
+      double best = w.fit_gap;
+      std::size_t best_i = points.size();
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        ++w.evals;
+        if (gaps[i] < best) {
+          best = gaps[i];
+          best_i = i;
+        }
+      }
       const bool improved = best < w.fit_gap;
-      w.e = best_e;
+      if (best_i < points.size()) w.e = points[best_i];
       w.fit_gap = best;
       return improved;
     };
@@ -1659,14 +1670,30 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     }
     // Screen: where the effect acts and how strong it is (the first two stages; a joint first stage
     // covers both). A screen over the location alone at the default strength rejected weak effects
-    // whose default was far too strong. Candidates are screened in parallel.
-    parallel_for(work.size(), opt.threads, [&](std::size_t i) {
-      Work& w = work[i];
+    // whose default was far too strong. Candidates are screened in parallel, the largest screens first
+    // (a knock's grid is several times the others': started last, it ran alone at the end).
+    auto grid_size = [](const FitStage& st) {
+      return st.values.size() * std::max<std::size_t>(st.values2.size(), 1) *
+             (st.follow != nullptr ? st.follow_values.size() : 1);
+    };
+    std::vector<std::size_t> screen_order(work.size());
+    std::vector<std::size_t> screen_cost(work.size(), 0);
+    for (std::size_t i = 0; i < work.size(); ++i) {
+      screen_order[i] = i;
+      const std::vector<FitStage> stages = fit_stages(work[i].e.kind, work[i].q, real.fs_hz, current);
+      if (!stages.empty()) screen_cost[i] = grid_size(stages[0]);
+      if (stages.size() > 1 && (stages[0].param2 == nullptr || stages[0].screen_next))
+        screen_cost[i] += grid_size(stages[1]);
+    }
+    std::stable_sort(screen_order.begin(), screen_order.end(),
+                     [&](std::size_t a, std::size_t b) { return screen_cost[a] > screen_cost[b]; });
+    parallel_for(work.size(), opt.threads, [&](std::size_t j) {
+      Work& w = work[screen_order[j]];
       const std::vector<FitStage> stages = fit_stages(w.e.kind, w.q, real.fs_hz, current);
-      if (!stages.empty()) (void)run_stage(w, stages[0]);
+      if (!stages.empty()) (void)run_stage(w, stages[0], 1);
       w.stage = 1;
       if (stages.size() > 1 && (stages[0].param2 == nullptr || stages[0].screen_next)) {
-        (void)run_stage(w, stages[1]);
+        (void)run_stage(w, stages[1], 1);
         w.stage = 2;
       }
     });
@@ -1680,19 +1707,20 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       if (best_noise != work.end())
         work.erase(std::remove_if(std::next(best_noise), work.end(), is_noise), work.end());
     }
-    parallel_for(std::min<std::size_t>(work.size(), opt.full_fits), opt.threads, [&](std::size_t i) {
+    for (std::size_t i = 0; i < std::min<std::size_t>(work.size(), opt.full_fits); ++i) {
       Work& w = work[i];
       const std::vector<FitStage> stages = fit_stages(w.e.kind, w.q, real.fs_hz, current);
       bool improved = false;
-      for (std::size_t s = w.stage; s < stages.size(); ++s) improved = run_stage(w, stages[s]) || improved;
+      for (std::size_t s = w.stage; s < stages.size(); ++s)
+        improved = run_stage(w, stages[s], opt.threads) || improved;
       // One more sweep of the refinement (relative) stages when any stage moved the fit: the
       // parameters are coupled, so one coordinate-descent pass does not always settle.
       if (improved) {
         for (const FitStage& st : stages)
-          if (st.relative) (void)run_stage(w, st);
+          if (st.relative) (void)run_stage(w, st, opt.threads);
       }
       w.stage = stages.size();
-    });
+    }
     // Calibrated model per fully fitted candidate (in work order) and its held-out gaps, in parallel.
     const std::size_t n_full = std::min<std::size_t>(work.size(), opt.full_fits);
     std::vector<sim::Scenario> models(n_full);

@@ -86,6 +86,36 @@ TEST(Diagnose, MeasuredMotionStillNamesTheRipple) {
   EXPECT_LT(d.chosen[0].gap_heldout_replicate, 0.3 * d.rounds[0].gap_before_heldout_replicate);
 }
 
+// The fits score each stage's grid on several threads (session 34; before, one candidate per thread).
+// The grid is scored in its own order whatever the threads, so every number is the same with 1 or 3.
+TEST(Diagnose, TheResultDoesNotDependOnTheNumberOfThreads) {
+  const GapRecording real = measured_with_ripple();
+  DiagnoseOptions opt = test::one_effect_of({sim::EffectKind::kSpeedRipple, sim::EffectKind::kImpacts});
+  opt.threads = 1;
+  const Diagnosis one = diagnose(job(), real, opt);
+  opt.threads = 3;
+  const Diagnosis three = diagnose(job(), real, opt);
+  EXPECT_EQ(one.verdict, three.verdict);
+  ASSERT_EQ(one.rounds.size(), three.rounds.size());
+  std::size_t compared = 0;
+  for (std::size_t r = 0; r < one.rounds.size(); ++r) {
+    ASSERT_EQ(one.rounds[r].ranked.size(), three.rounds[r].ranked.size());
+    for (std::size_t i = 0; i < one.rounds[r].ranked.size(); ++i) {
+      const CandidateResult& a = one.rounds[r].ranked[i];
+      const CandidateResult& b = three.rounds[r].ranked[i];
+      EXPECT_EQ(a.effect.kind, b.effect.kind);
+      EXPECT_EQ(a.effect.params, b.effect.params);
+      EXPECT_EQ(a.evaluations, b.evaluations);
+      EXPECT_EQ(a.gap_fit, b.gap_fit);
+      if (a.fully_fitted) {
+        EXPECT_EQ(a.gap_heldout, b.gap_heldout);
+      }
+      ++compared;
+    }
+  }
+  EXPECT_GE(compared, 2U);  // both kinds screened
+}
+
 TEST(Diagnose, RunnersUpWithinTheTieMarginAreAlternatives) {
   // ranked[0] is the chosen candidate: held-out gaps 10 / 12 (mean 11) from 100 / 104 (mean 102), gain 91;
   // tie margin max(2 x 1.5, 10 % of 91) = 9.1: a runner-up at mean 20 ties, one at mean 20.2 does not,
