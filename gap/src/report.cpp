@@ -238,6 +238,9 @@ std::string diagnosis_json(const Diagnosis& d) {
     const SelectionRound& sr = d.rounds[r];
     o << (r ? "," : "") << "\n    {\"gap_before_heldout\": " << num(sr.gap_before_heldout)
       << ", \"gap_before_heldout_replicate\": " << num(sr.gap_before_heldout_replicate)
+      << ", \"null_heldout\": " << num(sr.null_heldout)
+      << ", \"null_heldout_replicate\": " << num(sr.null_heldout_replicate)
+      << ", \"null_reference\": " << (sr.null_reference ? "true" : "false")
       << ", \"accepted\": " << sr.accepted << ", \"candidates\": [";
     for (std::size_t i = 0; i < sr.ranked.size(); ++i)
       o << (i ? ",\n      " : "\n      ") << candidate_json(sr.ranked[i]);
@@ -292,7 +295,8 @@ std::string diagnosis_html(const Diagnosis& d) {
   o << svg_bars(sorted(d.nominal_heldout.by_stage), "by pipeline stage");
   for (std::size_t r = 0; r < d.rounds.size(); ++r) {
     o << "<h2>Round " << r + 1 << ": candidates (held-out gap before " << num(d.rounds[r].gap_before_heldout)
-      << ")</h2>";
+      << "; with no effect, re-calibrated as the candidates are: " << num(d.rounds[r].null_heldout)
+      << (d.rounds[r].null_reference ? ", the reference for the gain" : "") << ")</h2>";
     std::vector<std::pair<std::string, double>> bars;
     o << "<table><tr><th>effect</th><th>where</th><th>fit gap</th><th>held-out "
          "gap</th><th>replicate</th><th>shrink "

@@ -81,6 +81,13 @@ struct SelectionRound {
   double gap_before_heldout_replicate = 0.0;  ///< the round's starting model, second realisation
   std::vector<CandidateResult> ranked;        ///< by held-out gap (fully fitted first)
   int accepted = -1;                          ///< index into ranked, -1: none significant
+  /// The null candidate: the round's model with no effect added, calibrated along the best candidate's
+  /// own path (from the nominal's levels, two passes). Its held-out gaps, both realisations.
+  double null_heldout = 0.0;
+  double null_heldout_replicate = 0.0;
+  /// The gain was judged against the null (true) or the round's starting model (false): whichever of the
+  /// two has the smaller mean held-out gap, so re-calibration alone never counts as a gain.
+  bool null_reference = false;
 };
 
 struct Diagnosis {
