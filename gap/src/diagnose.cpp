@@ -1491,10 +1491,15 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       log("clipping: " + rails + "; the model has that share beyond +-" + fmt("%.3g", level) + " m/s^2");
       return level > 0.0 && level < 0.995 * g.max_abs_ms2 ? level : 0.0;
     };
-    // A candidate's model before its effect is added: the start of its calibration path.
-    auto path_start = [&](EffectKind kind, bool from_nominal_floor) {
+    // A candidate's calibration path: 0 the usual one (from the nominal's levels), 1 clipping's (from the
+    // calibrated levels), 2 noise from the nominal's floor slope.
+    auto path_of = [](EffectKind kind, bool from_nominal_floor) {
+      return kind == EffectKind::kAdcClipping ? 1 : from_nominal_floor ? 2 : 0;
+    };
+    // The model a path starts from, before any effect is added.
+    auto path_start = [&](int path) {
       sim::Scenario s = current;
-      if (kind != EffectKind::kAdcClipping) {
+      if (path != 1) {
         s.vibration.gmf_amplitudes = nominal_in.vibration.gmf_amplitudes;
         s.vibration.noise_rms = nominal_in.vibration.noise_rms;
       }
@@ -1502,13 +1507,13 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
       // strong red noise tilts the calibrated floor (GFD development gfd-1101: -11.9 dB/decade for the
       // rig's +14), which then already holds most of it; the candidate's calibration pass re-fits the
       // slope with the noise in the model (session 32).
-      if (from_nominal_floor) {
+      if (path == 2) {
         s.vibration.noise_tilt_db_per_decade = nominal_in.vibration.noise_tilt_db_per_decade;
       }
       return s;
     };
     auto candidate_model = [&](const EffectSpec& e, bool from_nominal_floor) {
-      sim::Scenario s = path_start(e.kind, from_nominal_floor);
+      sim::Scenario s = path_start(path_of(e.kind, from_nominal_floor));
       s.effects.push_back(e);
       return s;
     };
@@ -1729,17 +1734,13 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     // The null candidate: no effect, the candidates' calibration path (from the nominal's levels, two
     // passes). The round's model was calibrated along another path (three passes from the nominal, or a
     // chosen candidate's), and that difference alone moved a held-out gap by 29 % for an effect that
-    // changes nothing (session 33): a candidate's gain is judged against the better of the two. Paths:
-    // 0 the usual one, 1 clipping's (from the calibrated levels), 2 noise from the nominal's floor slope.
+    // changes nothing (session 33): a candidate's gain is judged against the better of the two.
     struct NullRef {
       double held = 0.0, rep = 0.0;
       std::map<std::string, double> held_bands, rep_bands;
     };
-    auto path_of = [](EffectKind kind, bool from_nominal_floor) {
-      return kind == EffectKind::kAdcClipping ? 1 : from_nominal_floor ? 2 : 0;
-    };
     auto null_ref = [&](int path) {
-      sim::Scenario s = path_start(path == 1 ? EffectKind::kAdcClipping : EffectKind::kNoiseColor, path == 2);
+      sim::Scenario s = path_start(path);
       (void)ev.calibrate(s, fit, 2);
       const GapBreakdown gh = ev.gap(s, held);
       const GapBreakdown gr = ev.heldout_replicate(s);
@@ -1751,9 +1752,6 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     const std::size_t n_full = std::min<std::size_t>(work.size(), opt.full_fits);
     std::vector<sim::Scenario> models(n_full);
     std::vector<CandidateResult> results(work.size());
-    std::vector<int> paths(work.size());
-    for (std::size_t i = 0; i < work.size(); ++i)
-      paths[i] = path_of(work[i].e.kind, work[i].q.noise_from_nominal_floor);
     NullRef usual_null;
     parallel_for(work.size() + 1, opt.threads, [&](std::size_t i) {
       if (i == work.size()) {
@@ -1790,8 +1788,6 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
                          : 0.0;
     });
     nulls[0] = usual_null;
-    std::vector<std::pair<EffectSpec, int>> path_by_effect;
-    for (std::size_t i = 0; i < work.size(); ++i) path_by_effect.emplace_back(work[i].e, paths[i]);
     sr.ranked = results;
     // Ranked by the held-out gap averaged over both model realisations (less noisy than either).
     std::stable_sort(
@@ -1802,8 +1798,9 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     const CandidateResult& best = sr.ranked.front();
     sr.gap_before_heldout_replicate = current_rep;
     int best_path = 0;
-    for (const auto& [e, p] : path_by_effect)
-      if (e.kind == best.effect.kind && e.params == best.effect.params) best_path = p;
+    for (const Work& w : work)
+      if (w.e.kind == best.effect.kind && w.e.params == best.effect.params)
+        best_path = path_of(w.e.kind, w.q.noise_from_nominal_floor);
     if (nulls.count(best_path) == 0) nulls[best_path] = null_ref(best_path);
     const NullRef& nul = nulls.at(best_path);
     sr.null_heldout = nul.held;
