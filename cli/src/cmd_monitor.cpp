@@ -423,6 +423,10 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
     }
   }
 
+  if (in.cfg.decision.mesh.enabled && !in.cfg.decision.mesh.required) {
+    if (const std::string why = dsp::mesh_cusum_unusable(in.cfg.decision, in.baseline); !why.empty())
+      std::cerr << "note: mesh detector off: " << why << " (the other detectors still judge)\n";
+  }
   if (in.cfg.decision.mesh.enabled && in.baseline.policy.mesh_stats) {
     // Say which classes the mesh detector cannot watch (too slow for two input-shaft revolutions per
     // window, or no mesh line): a commissioning engineer should not take its silence there as health.
@@ -501,8 +505,8 @@ int cmd_monitor(std::span<const std::string> args, std::ostream& out) {
     const auto first = static_cast<std::ptrdiff_t>(range.first(r.windows.size()));
     const auto last = static_cast<std::ptrdiff_t>(range.last(r.windows.size()));
     r.windows = std::vector<dsp::WindowResult>(r.windows.begin() + first, r.windows.begin() + last);
-    redebounce(r.windows, dsp::with_band_geometry(dsp::effective_band(in.cfg.decision, in.baseline, method),
-                                                  in.baseline));
+    redebounce(r.windows, dsp::with_band_geometry(
+                              dsp::effective_detectors(in.cfg.decision, in.baseline, method), in.baseline));
     if (table) print_table_head(r.windows.size());
     for (const auto& w : r.windows) emit(w);
     r.windows.clear();

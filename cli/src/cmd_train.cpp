@@ -185,6 +185,8 @@ int print_trained(std::ostream& out, const std::string& out_path, const dsp::Bas
       }
     }
   }
+  // Said once, where the configuration is decided (ptda monitor stays quiet about it).
+  if (!cfg.mesh_off_reason.empty()) out << "note: mesh detector off: " << cfg.mesh_off_reason << "\n";
   for (const std::string& w : dsp::training_warnings(baseline)) out << "warning: " << w << "\n";
   for (const std::string& d : dropped) out << "warning: no class for " << d << ": dropped, never judged\n";
   return kExitOk;

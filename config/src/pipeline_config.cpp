@@ -322,9 +322,13 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "band_cusum_h", cfg_.decision.band.h, 1000.0)) note(r, "band_cusum_h");
     get(r, "band_cusum_day_allowance", cfg_.decision.band.day_allowance, 0.0, 10.0);
     get(r, "band_count", cfg_.decision.band.band_count, std::uint32_t{1}, dsp::kMaxBands);
-    // The mesh detector (off by default; docs/method.md §6 "Mesh detector"): training stores the mesh
-    // statistics only when it is on, and monitoring then requires them.
-    if (r.read("mesh_cusum", cfg_.decision.mesh.enabled)) note(r, "mesh_cusum");
+    // The mesh detector (on by default since session 37 where the gearbox's teeth are given and the
+    // domain is time; docs/method.md §6 "Mesh detector"): training stores the mesh statistics only when
+    // it is on. Said explicitly, it is required (errors instead of the default's fallback).
+    if (r.read("mesh_cusum", cfg_.decision.mesh.enabled)) {
+      note(r, "mesh_cusum");
+      cfg_.decision.mesh.required = cfg_.decision.mesh.enabled;
+    }
     if (read_positive(r, "mesh_cusum_k", cfg_.decision.mesh.k, 10.0)) note(r, "mesh_cusum_k");
     if (read_positive(r, "mesh_cusum_h", cfg_.decision.mesh.h, 1000.0)) note(r, "mesh_cusum_h");
     get(r, "mesh_cusum_one_day_allowance", cfg_.decision.mesh.one_day_allowance, 0.0, 10.0);
@@ -518,7 +522,21 @@ PipelineConfig PipelineConfigBuilder::finish() const {
   } else {
     g.ratio = from_teeth;
   }
-  // The mesh detector demodulates the mesh at z_in x the input-shaft rate, ratio x the joint speed.
+  // The mesh detector demodulates the mesh at z_in x the input-shaft rate, ratio x the joint speed. On
+  // by default it goes without where it cannot run (no teeth, the order domain); asked for, that is an
+  // error at the key.
+  if (cfg.decision.mesh.enabled && !cfg.decision.mesh.required) {
+    const char* why = nullptr;
+    if (cfg.domain != dsp::Domain::kTime) {
+      why = "the order domain (not measured with it)";
+    } else if (g.z_in == 0 || !(g.ratio > 0.0)) {
+      why = "no gearbox teeth: [gearbox] z_in and the ratio are needed for the mesh frequency";
+    }
+    if (why != nullptr) {
+      cfg.decision.mesh.enabled = false;
+      cfg.mesh_off_reason = why;
+    }
+  }
   if (cfg.decision.mesh.enabled) {
     if (cfg.domain != dsp::Domain::kTime) {
       fail_key("decision.mesh_cusum",

@@ -338,6 +338,11 @@ void Daemon::configure() {
   if (const std::string why = p->band_off_reason(); !why.empty()) {
     spdlog::warn("band detector off: {} (k-of-n and the feature CUSUM still judge)", why);
   }
+  if (!cfg_.pipeline.mesh_off_reason.empty()) {
+    spdlog::info("mesh detector off: {}", cfg_.pipeline.mesh_off_reason);
+  } else if (const std::string why = p->mesh_off_reason(); !why.empty()) {
+    spdlog::warn("mesh detector off: {} (the other detectors still judge)", why);
+  }
   std::lock_guard lock(pipeline_mutex_);
   pipeline_ = std::move(p);
 }

@@ -325,6 +325,10 @@ class Pipeline {
   [[nodiscard]] std::string band_off_reason() const {
     return engine_ ? engine_->band_off_reason() : std::string();
   }
+  /// As band_off_reason(), for the default-on mesh detector (docs/method.md §6 "Mesh detector").
+  [[nodiscard]] std::string mesh_off_reason() const {
+    return engine_ ? engine_->mesh_off_reason() : std::string();
+  }
   [[nodiscard]] const std::string& refusal() const noexcept { return refusal_; }
   [[nodiscard]] const dsp::Baseline* baseline() const noexcept { return baseline_.get(); }
   [[nodiscard]] double fs_hz() const noexcept { return fs_hz_; }

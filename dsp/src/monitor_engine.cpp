@@ -75,12 +75,29 @@ DecisionConfig effective_band(DecisionConfig d, const Baseline& b, Method method
   return d;
 }
 
+std::string mesh_cusum_unusable(const DecisionConfig& /*d*/, const Baseline& b) {
+  if (b.domain != Domain::kTime)
+    return "an order-domain baseline (the mesh detector runs in the time domain)";
+  if (!b.policy.mesh_stats) {
+    return "the baseline has no mesh statistics (format <= 7, or trained with mesh_cusum = false or without "
+           "the gearbox's teeth): retrain to use it";
+  }
+  return {};
+}
+
+DecisionConfig effective_detectors(DecisionConfig d, const Baseline& b, Method method) {
+  d = effective_band(d, b, method);
+  if (d.mesh.enabled && !d.mesh.required && !mesh_cusum_unusable(d, b).empty()) d.mesh.enabled = false;
+  return d;
+}
+
 namespace {
 
 // The band CUSUM needs the band statistics of this very configuration: said here, before anything runs.
 // On by default (not required), it is switched off where it cannot run; asked for, that is an error.
+// The default-on mesh detector is switched off likewise (its explicit checks are in the constructor).
 DecisionConfig checked_band(DecisionConfig d, const Baseline& b, Method method) {
-  d = effective_band(d, b, method);
+  d = effective_detectors(d, b, method);
   if (!d.band.enabled) return d;
   check_band_cusum(d.band);
   if (method != Method::kPtda) {
@@ -145,10 +162,12 @@ MonitorEngine::MonitorEngine(const Baseline& baseline, const ExtractionConfig& c
   for (const ClassBaseline& c : baseline_.classes) {
     z_scale_.push_back(sequential_scale(c, method, baseline_.policy, decision.sequential.day_allowance));
   }
-  if (decision.mesh.enabled) {
-    // Asked for explicitly (off by default): a baseline without mesh statistics is an error, not a
-    // silent fallback. A class too slow for two input-shaft revolutions, or without mesh lines, runs
-    // without it (mesh_classes() counts the others).
+  if (decision.mesh.enabled && !decision.mesh.required)
+    mesh_off_reason_ = mesh_cusum_unusable(decision, baseline_);
+  if (decision.mesh.enabled && mesh_off_reason_.empty()) {
+    // Asked for explicitly: a baseline without mesh statistics is an error, not a silent fallback (on
+    // by default it is off with mesh_off_reason() instead). A class too slow for two input-shaft
+    // revolutions, or without mesh lines, runs without it (mesh_classes() counts the others).
     check_mesh_cusum(decision.mesh);
     if (!baseline_.policy.mesh_stats) {
       throw Error(

@@ -176,5 +176,57 @@ TEST(MonitorCoverage, ABaselineWithoutBandStatisticsMonitorsWithANoteUnlessTheBa
   EXPECT_FALSE(has(off.err, "band detector off")) << off.err;
 }
 
+// The mesh detector is on by default since session 37 where the gearbox's teeth are given (arc_welding.toml
+// gives them). The default-trained baseline carries its statistics and every judged window its record; a
+// baseline trained with it off (as every baseline before session 37) still monitors, with a note that
+// says why, and is an error only when `mesh_cusum = true` is said explicitly.
+TEST(MonitorCoverage, TheMeshDetectorRunsByDefaultWithTeethAndAnOldBaselineMonitorsWithANote) {
+  const Prepared& p = prepared();
+  const std::string text = read_file(p.config);
+  ASSERT_NE(text.find("z_in"), std::string::npos) << "arc_welding.toml gives no teeth";
+  const std::size_t at = text.find("[decision]\n");
+  ASSERT_NE(at, std::string::npos) << "arc_welding.toml has no [decision] table";
+  const auto with_decision = [&](const std::string& line) {
+    std::string t = text;
+    t.insert(at + 11, line + "\n");
+    return t;
+  };
+  const fs::path off_cfg = p.dir / "mesh_off.toml";
+  const fs::path on_cfg = p.dir / "mesh_on.toml";
+  std::ofstream(off_cfg) << with_decision("mesh_cusum = false");
+  std::ofstream(on_cfg) << with_decision("mesh_cusum = true");
+  // Default: the windows carry the mesh detector's record, and there is no note.
+  const fs::path jsonl = p.dir / "mesh_default.jsonl";
+  const RunResult fresh = monitor(p.other, p.baseline, "mesh_default_new", {"--jsonl", jsonl.string()});
+  EXPECT_EQ(fresh.exit_code, 0) << fresh.err;
+  EXPECT_FALSE(has(fresh.err, "mesh detector off")) << fresh.err;
+  const std::string lines = read_file(jsonl);
+  EXPECT_TRUE(has(lines, "\"mesh_cusum_max\":")) << lines.substr(0, 400);
+  const fs::path old_base = p.dir / "no_mesh.bin";
+  const RunResult trained = run_ptda(
+      {"train", "--recording", p.healthy.string(), "--config", off_cfg.string(), "--out", old_base.string()},
+      p.dir, "train_mesh_off");
+  ASSERT_EQ(trained.exit_code, 0) << trained.err;
+  EXPECT_FALSE(has(trained.out, "mesh CUSUM:")) << trained.out;
+  // Default configuration, old-style baseline: runs, says why the mesh detector is off, no mesh record.
+  const fs::path old_jsonl = p.dir / "mesh_default_old.jsonl";
+  const RunResult def = monitor(p.other, old_base, "mesh_default_old", {"--jsonl", old_jsonl.string()});
+  EXPECT_EQ(def.exit_code, 0) << def.err;
+  EXPECT_TRUE(has(def.err, "note: mesh detector off: the baseline has no mesh statistics")) << def.err;
+  EXPECT_FALSE(has(read_file(old_jsonl), "\"mesh_cusum_max\":"));
+  // Explicitly on, the old baseline is refused with the reason.
+  const RunResult req = run_ptda({"monitor", "--recording", p.other.string(), "--config", on_cfg.string(),
+                                  "--baseline", old_base.string(), "--quiet"},
+                                 p.dir, "mesh_required_old");
+  EXPECT_NE(req.exit_code, 0);
+  EXPECT_TRUE(has(req.err, "retrain it with [decision] mesh_cusum = true")) << req.err;
+  // Explicitly off: no note either.
+  const RunResult off = run_ptda({"monitor", "--recording", p.other.string(), "--config", off_cfg.string(),
+                                  "--baseline", old_base.string(), "--quiet"},
+                                 p.dir, "mesh_off_old");
+  EXPECT_EQ(off.exit_code, 0) << off.err;
+  EXPECT_FALSE(has(off.err, "mesh detector off")) << off.err;
+}
+
 }  // namespace
 }  // namespace ptda::golden

@@ -750,14 +750,45 @@ TEST(PipelineConfigBandCusum, BadValuesAreLocated) {
             "window_len / 2 = 16");
 }
 
-TEST(PipelineConfigMeshCusum, OffByDefaultAndOnNeedsTheGearboxAndTheTimeDomain) {
+TEST(PipelineConfigMeshCusum, OnByDefaultWhereItCanRunAndAskedForNeedsTheGearboxAndTheTimeDomain) {
+  // Without tooth counts the default-on detector has no mesh frequency: off, with the reason.
   const PipelineConfig def = parse_pipeline_config("[extraction]\nwindow_len = 4096\n", "cfg.toml");
   EXPECT_FALSE(def.decision.mesh.enabled);
+  EXPECT_FALSE(def.decision.mesh.required);
   EXPECT_FALSE(def.thresholds.mesh_stats);
+  EXPECT_EQ(def.mesh_off_reason.rfind("no gearbox teeth", 0), 0U) << def.mesh_off_reason;
   EXPECT_EQ(def.decision.mesh.k, 1.0);
   EXPECT_EQ(def.decision.mesh.h, 10.0);
   EXPECT_EQ(def.decision.mesh.one_day_allowance, 1.0);
   const std::string gearbox = "[gearbox]\nkind = \"cycloidal\"\nz_in = 28\nz_spur = 23\nz_pin = 40\n";
+  // With them it is on (not required), and training stores the mesh statistics.
+  const PipelineConfig teeth =
+      parse_pipeline_config("[extraction]\nwindow_len = 4096\n" + gearbox, "cfg.toml");
+  EXPECT_TRUE(teeth.decision.mesh.enabled);
+  EXPECT_FALSE(teeth.decision.mesh.required);
+  EXPECT_TRUE(teeth.thresholds.mesh_stats);
+  EXPECT_TRUE(teeth.mesh_off_reason.empty()) << teeth.mesh_off_reason;
+  // A parallel gearbox's teeth give the mesh too.
+  const PipelineConfig parallel = parse_pipeline_config(
+      "[extraction]\nwindow_len = 4096\n[gearbox]\nkind = \"parallel\"\nz_in = 20\nz_spur = 100\n",
+      "cfg.toml");
+  EXPECT_TRUE(parallel.decision.mesh.enabled);
+  // A ratio alone does not (no z_in: no mesh frequency).
+  const PipelineConfig ratio_only =
+      parse_pipeline_config("[extraction]\nwindow_len = 4096\n[gearbox]\nratio = 33.86\n", "cfg.toml");
+  EXPECT_FALSE(ratio_only.decision.mesh.enabled);
+  // The order domain goes without it by default (not measured there).
+  const PipelineConfig order_def =
+      parse_pipeline_config("[extraction]\ndomain = \"order\"\n" + gearbox, "cfg.toml");
+  EXPECT_FALSE(order_def.decision.mesh.enabled);
+  EXPECT_FALSE(order_def.thresholds.mesh_stats);
+  EXPECT_EQ(order_def.mesh_off_reason.rfind("the order domain", 0), 0U) << order_def.mesh_off_reason;
+  // Switched off by the configuration: off, and nothing to explain.
+  const PipelineConfig off = parse_pipeline_config(
+      "[extraction]\nwindow_len = 4096\n[decision]\nmesh_cusum = false\n" + gearbox, "cfg.toml");
+  EXPECT_FALSE(off.decision.mesh.enabled);
+  EXPECT_FALSE(off.thresholds.mesh_stats);
+  EXPECT_TRUE(off.mesh_off_reason.empty());
   const PipelineConfig on = parse_pipeline_config(
       "[extraction]\nwindow_len = 4096\n[decision]\nmesh_cusum = true\nmesh_cusum_k = 1.5\nmesh_cusum_h = "
       "12\n"
@@ -765,7 +796,8 @@ TEST(PipelineConfigMeshCusum, OffByDefaultAndOnNeedsTheGearboxAndTheTimeDomain) 
           gearbox,
       "cfg.toml");
   EXPECT_TRUE(on.decision.mesh.enabled);
-  EXPECT_TRUE(on.thresholds.mesh_stats);  // training stores the mesh statistics
+  EXPECT_TRUE(on.decision.mesh.required);  // said explicitly
+  EXPECT_TRUE(on.thresholds.mesh_stats);   // training stores the mesh statistics
   EXPECT_EQ(on.decision.mesh.k, 1.5);
   EXPECT_EQ(on.decision.mesh.h, 12.0);
   EXPECT_EQ(on.decision.mesh.one_day_allowance, 0.5);

@@ -21,6 +21,7 @@ DecisionConfig mesh_on() {
   DecisionConfig d{3, 5, {}, {}, {}};
   d.band.enabled = false;
   d.mesh.enabled = true;
+  d.mesh.required = true;  // as `mesh_cusum = true` said in the configuration
   return d;
 }
 
@@ -255,6 +256,30 @@ TEST(MeshDetector, ASlowClassGetsNoStatisticsAndAMissingGearboxOrBaselineIsAnErr
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("retrain it with [decision] mesh_cusum = true"), std::string::npos)
         << e.what();
+  }
+  // On by default (not required), the same baseline runs without it and the engine says why.
+  {
+    DecisionConfig def = mesh_on();
+    def.mesh.required = false;
+    const MonitorEngine e(plain, extraction(), def, Method::kPtda, kFs, 0);
+    EXPECT_FALSE(e.mesh_cusum_on());
+    EXPECT_EQ(e.mesh_off_reason().rfind("the baseline has no mesh statistics", 0), 0U) << e.mesh_off_reason();
+    EXPECT_FALSE(effective_detectors(def, plain, Method::kPtda).mesh.enabled);
+    EXPECT_TRUE(effective_detectors(mesh_on(), plain, Method::kPtda).mesh.enabled);  // asked for: kept
+    WindowRef ref;
+    ref.speed_rad_s = kSpeed;
+    WindowResult w;
+    MonitorEngine run(plain, extraction(), def, Method::kPtda, kFs, 0);
+    run.judge_window(ref, window(5, 0.0), w);
+    EXPECT_FALSE(w.mesh_on);  // the window record says the detector did not run
+  }
+  // A baseline with them: the default-on detector runs and there is nothing to explain.
+  {
+    DecisionConfig def = mesh_on();
+    def.mesh.required = false;
+    const MonitorEngine e(train(true, gearbox()), extraction(), def, Method::kPtda, kFs, 0);
+    EXPECT_TRUE(e.mesh_cusum_on());
+    EXPECT_TRUE(e.mesh_off_reason().empty()) << e.mesh_off_reason();
   }
   // Ratio 6: f_in 1.5 Hz, 0.75 revolutions per window: the class has no mesh statistics and the engine
   // runs without a mesh detector for it (mesh fields NaN, statistic 0).

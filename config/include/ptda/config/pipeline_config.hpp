@@ -47,6 +47,9 @@ struct PipelineConfig {
   dsp::DecisionConfig decision;             ///< [decision]
   dsp::Method method = dsp::Method::kPtda;  ///< [monitor] method
   dsp::GearboxInfo gearbox;                 ///< [gearbox]
+  /// Why the default-on mesh detector is off for this configuration (no gearbox teeth, the order
+  /// domain), for the tools' notice; empty when it runs or `mesh_cusum = false` was said.
+  std::string mesh_off_reason;
   /// Accepted but deprecated spellings, one "file:line:col: what to write instead" each (the tools
   /// print them as warnings; see little_endian_deprecation()).
   std::vector<std::string> warnings;

@@ -106,9 +106,15 @@ inline constexpr std::uint32_t kMeshMinTrainingWindows = 5;
 /// Parameters of the mesh CUSUM ([decision] mesh_* keys, config/README.md). Off by default: it needs a
 /// baseline trained with it (format 8) and the gearbox's tooth counts.
 struct MeshCusumConfig {
-  bool enabled = false;  ///< `mesh_cusum`
-  double k = 1.0;        ///< `mesh_cusum_k`: reference value in total sds per window
-  double h = 10.0;       ///< `mesh_cusum_h`: alarm when a feature's statistic exceeds h
+  /// `mesh_cusum`: on by default since session 37 (opt-in in sessions 19-36). On by default it runs only
+  /// where it can (time domain, the gearbox's teeth and ratio known, a baseline with mesh statistics)
+  /// and is off elsewhere with a notice.
+  bool enabled = true;
+  /// The configuration said `mesh_cusum = true` itself: then a baseline without mesh statistics, a
+  /// gearbox without teeth or the order domain is an error, not a silent fallback.
+  bool required = false;
+  double k = 1.0;   ///< `mesh_cusum_k`: reference value in total sds per window
+  double h = 10.0;  ///< `mesh_cusum_h`: alarm when a feature's statistic exceeds h
   /// `mesh_cusum_one_day_allowance`: extra k in between-day sds for a class trained on one recording,
   /// whose between-day sd is only the day_sd_floor prior (docs/method.md §8 "Session 19": one day of
   /// training under-states the mesh features' day-to-day spread). With two or more recordings the

@@ -23,8 +23,8 @@ struct DecisionConfig {
   std::uint32_t k = 3;          ///< abnormal windows ...
   std::uint32_t n = 5;          ///< ... out of the last n scored windows raise the alarm
   SequentialConfig sequential;  ///< per-class CUSUM beside k-of-n (either raises the alarm)
-  BandCusumConfig band;         ///< per-class, per-band CUSUM on band energies (opt-in; any raises it)
-  MeshCusumConfig mesh;         ///< per-class CUSUM on the mesh's am and pm (opt-in; either raises it)
+  BandCusumConfig band;         ///< per-class, per-band CUSUM on band energies (any raises it)
+  MeshCusumConfig mesh;         ///< per-class CUSUM on the mesh's am and pm (either raises it)
 };
 
 /// `decision` with band.half_bins and band.bin_hz set from the baseline (window_len / 2 and
@@ -159,6 +159,16 @@ class DecisionState {
 /// Thread: any. Allocates only inside band_cusum_unusable().
 [[nodiscard]] DecisionConfig effective_band(DecisionConfig decision, const Baseline& baseline, Method method);
 
+/// Why the default-on mesh CUSUM cannot run with this baseline (order domain, no mesh statistics), in
+/// words for a log line; empty when it can. Thread: any. Allocates the message.
+[[nodiscard]] std::string mesh_cusum_unusable(const DecisionConfig& decision, const Baseline& baseline);
+/// effective_band(), and the default-on mesh detector switched off where mesh_cusum_unusable() says it
+/// cannot run (an explicit `mesh_cusum = true`, decision.mesh.required, is left on: MonitorEngine then
+/// throws). The decision a MonitorEngine built from these runs with. Thread: any. Allocates only the
+/// messages.
+[[nodiscard]] DecisionConfig effective_detectors(DecisionConfig decision, const Baseline& baseline,
+                                                 Method method);
+
 class MonitorEngine {
  public:
   /// Copies what it needs of baseline (the caller may drop it). Throws ptda::Error when the baseline's
@@ -200,6 +210,9 @@ class MonitorEngine {
   [[nodiscard]] const std::string& band_off_reason() const noexcept { return band_off_reason_; }
   /// Whether the mesh CUSUM runs, and on how many classes (those with mesh statistics and mesh lines).
   [[nodiscard]] bool mesh_cusum_on() const noexcept { return !mesh_scale_.empty(); }
+  /// Why the default-on mesh detector does not run with this baseline (empty when it runs or was
+  /// switched off by the configuration). Thread: any. Never allocates.
+  [[nodiscard]] const std::string& mesh_off_reason() const noexcept { return mesh_off_reason_; }
   [[nodiscard]] std::size_t mesh_classes() const noexcept;
 
  private:
@@ -218,6 +231,7 @@ class MonitorEngine {
   std::vector<MeshScale> mesh_scale_;                       ///< per class (mesh CUSUM on)
   std::vector<float> window_;
   std::string band_off_reason_;  ///< default-on band detector switched off: why (empty otherwise)
+  std::string mesh_off_reason_;  ///< default-on mesh detector switched off: why (empty otherwise)
 };
 
 }  // namespace ptda::dsp
