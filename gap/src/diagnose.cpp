@@ -5,9 +5,11 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <exception>
 #include <limits>
+#include <numbers>
 #include <thread>
 #include <tuple>
 
@@ -27,6 +29,9 @@ double db(double p) {
 
 // A model is re-calibrated when a free parameter is off by more than this (harmonic level or noise floor).
 constexpr double kRecalibrateDb = 0.5;
+// The harmonics' phases are taken from the measurement when one is off the nominal's waveform by more
+// than this (rad, about 20 degrees; step 1c).
+constexpr double kPhaseCalibrationRad = 0.35;
 // ... or the speed exponent of the harmonic levels by more than this.
 constexpr double kRecalibrateExponent = 0.05;
 // The held-out part is compared with a model simulated with seed + this (see Evaluator::gap).
@@ -145,6 +150,125 @@ class Evaluator {
     std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(k), a.end());
     return a[k];
   }
+  /// The GMF harmonics' phases as the measured fit part has them (calibration, docs/gap.md step 1c). The
+  /// model's own mesh angle b(t) comes from two simulations of `s` with one harmonic and nothing else
+  /// (phase 0 and pi/2: A sin b and A cos b). Each constant-speed fit window gives per nominal order k
+  /// X_k = sum hann(t) x(t) e^{-i k b(t)}. The CAN speed's latency and integration error move each
+  /// window's angle by its own offset d, which turns X_k by e^{i k d}: the windows are aligned to a
+  /// common template by the d that best matches it (three passes), then summed. Result per harmonic
+  /// (index k - 1): the phase in the simulator's sin(k b + phi) convention and the coherence |sum| /
+  /// sum |X_k| (near 1: the same phase in every window). Empty when the model does not move as the
+  /// recording did.
+  struct PhaseEstimate {
+    std::vector<double> phase_rad, coherence, magnitude;
+  };
+  PhaseEstimate estimate_gmf_phases(const sim::Scenario& s) {
+    PhaseEstimate out;
+    if (!measured_motion_) return out;
+    const std::size_t n_h = s.vibration.gmf_amplitudes.size();
+    std::vector<int> orders;
+    for (std::size_t k = 0; k < n_h; ++k)
+      if (s.vibration.gmf_amplitudes[k] > 0.0) orders.push_back(static_cast<int>(k + 1));
+    if (orders.empty()) return out;
+    sim::Scenario probe = s;
+    probe.vibration.gmf_amplitudes = {1.0};
+    probe.vibration.dmf_amplitudes.clear();
+    probe.vibration.shaft_orders.clear();
+    probe.vibration.shaft_order_amplitudes.clear();
+    probe.vibration.noise_rms = 0.0;
+    probe.vibration.noise_shape_hz.clear();
+    probe.vibration.noise_shape_db.clear();
+    probe.vibration.cycle_amplitude_jitter_rel = 0.0;
+    probe.vibration.cycle_noise_jitter_rel = 0.0;
+    probe.faults.clear();
+    probe.effects.clear();
+    probe.drift = sim::DriftSpec{};
+    std::vector<float> sin_b, cos_b;
+    for (const double phi : {0.0, 0.5 * std::numbers::pi}) {
+      probe.vibration.gmf_phases_rad = {phi};
+      simulations_.fetch_add(1, std::memory_order_relaxed);
+      const sim::SimulatedSignals sig = sim::simulate_signals(probe, seed_);
+      (phi == 0.0 ? sin_b : cos_b) = recording_from_simulation(sig, probe).accel_ms2;
+    }
+    using Cd = std::complex<double>;
+    std::vector<std::vector<Cd>> xs;  // per window, per order
+    for (const Window& w : windows_) {
+      if (w.type != SegmentType::kConstant || w.len < 16) continue;
+      if (!fit_.empty() && (w.cycle >= fit_.size() || fit_[w.cycle] == 0)) continue;
+      if (w.start + w.len > real_.accel_ms2.size() || w.start + w.len > sin_b.size() ||
+          w.start + w.len > cos_b.size())
+        continue;
+      std::vector<Cd> x(orders.size());
+      for (std::size_t i = 0; i < w.len; ++i) {
+        const double sv = sin_b[w.start + i], cv = cos_b[w.start + i];
+        const double a = std::sqrt(sv * sv + cv * cv);
+        if (!(a > 1e-9)) continue;
+        const Cd e1(cv / a, -sv / a);  // e^{-i b}
+        const double hann = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * (static_cast<double>(i) + 0.5) /
+                                                 static_cast<double>(w.len));
+        const double v = hann * static_cast<double>(real_.accel_ms2[w.start + i]);
+        Cd ek(1.0, 0.0);
+        int k = 0;
+        for (std::size_t j = 0; j < orders.size(); ++j) {
+          for (; k < orders[j]; ++k) ek *= e1;
+          x[j] += v * ek;
+        }
+      }
+      xs.push_back(std::move(x));
+    }
+    if (xs.empty()) return out;
+    // Template: the window with the most harmonic energy, then the aligned sum.
+    std::vector<Cd> tmpl = xs.front();
+    double top = -1.0;
+    for (const auto& x : xs) {
+      double e = 0.0;
+      for (const Cd& c : x) e += std::norm(c);
+      if (e > top) {
+        top = e;
+        tmpl = x;
+      }
+    }
+    constexpr int kSteps = 720;
+    std::vector<Cd> sum(orders.size());
+    std::vector<double> mag_sum(orders.size());
+    for (int pass = 0; pass < 3; ++pass) {
+      std::fill(sum.begin(), sum.end(), Cd{});
+      std::fill(mag_sum.begin(), mag_sum.end(), 0.0);
+      for (const auto& x : xs) {
+        std::vector<Cd> prod(orders.size());
+        for (std::size_t j = 0; j < orders.size(); ++j) prod[j] = std::conj(tmpl[j]) * x[j];
+        double best = -1e300;
+        double best_d = 0.0;
+        for (int st = 0; st < kSteps; ++st) {
+          const double d = 2.0 * std::numbers::pi * st / kSteps;
+          double r = 0.0;
+          for (std::size_t j = 0; j < orders.size(); ++j)
+            r += (prod[j] * std::polar(1.0, -orders[j] * d)).real();
+          if (r > best) {
+            best = r;
+            best_d = d;
+          }
+        }
+        for (std::size_t j = 0; j < orders.size(); ++j) {
+          sum[j] += x[j] * std::polar(1.0, -orders[j] * best_d);
+          mag_sum[j] += std::abs(x[j]);
+        }
+      }
+      tmpl = sum;
+    }
+    out.phase_rad.assign(n_h, 0.0);
+    out.coherence.assign(n_h, 0.0);
+    out.magnitude.assign(n_h, 0.0);
+    for (std::size_t j = 0; j < orders.size(); ++j) {
+      const auto k = static_cast<std::size_t>(orders[j] - 1);
+      // x = A sin(k b + phi) gives X_k proportional to A e^{i phi} / (2i): phi = arg X_k + pi/2.
+      out.phase_rad[k] = std::remainder(std::arg(sum[j]) + 0.5 * std::numbers::pi, 2.0 * std::numbers::pi);
+      out.coherence[k] = mag_sum[j] > 0.0 ? std::abs(sum[j]) / mag_sum[j] : 0.0;
+      out.magnitude[k] = std::abs(sum[j]);
+    }
+    return out;
+  }
+
   ProbeSet real_probes(const std::vector<char>& part, const ProbeSet* ref) const {
     return compute_probes(real_, segs_, windows_, part, ctx_, ref);
   }
@@ -1352,9 +1476,70 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
   ev.set_context(model);
   ev.set_split(fit, held);
 
+  // 1c. The harmonics' phases (docs/gap.md step 1c). They are never known on a real machine, and they
+  // set the mesh waveform's crest factor and amplitude tail, which the amplitude probe and a clamp read.
+  // Only their shape counts (a common shift of the mesh angle moves phase k by k d), so the measured
+  // phases are compared with the nominal's after the best common shift, and taken when a reliable
+  // harmonic (coherence >= 0.5 over the fit windows, at least a tenth of the strongest) is off by more
+  // than kPhaseCalibrationRad; otherwise the nominal's stay.
+  CalibratedParam phase_cal;
+  if (measured) {
+    const Evaluator::PhaseEstimate est = ev.estimate_gmf_phases(model);
+    const std::size_t n_h = model.vibration.gmf_amplitudes.size();
+    std::vector<double> nom(n_h, 0.0);
+    for (std::size_t k = 0; k < n_h && k < model.vibration.gmf_phases_rad.size(); ++k)
+      nom[k] = model.vibration.gmf_phases_rad[k];
+    std::vector<std::size_t> used;
+    double top = 0.0;
+    for (std::size_t k = 0; k < est.phase_rad.size(); ++k) top = std::max(top, est.magnitude[k]);
+    for (std::size_t k = 0; k < est.phase_rad.size(); ++k)
+      if (est.coherence[k] >= 0.5 && est.magnitude[k] >= 0.1 * top) used.push_back(k);
+    if (used.size() >= 2) {
+      double best = -1e300, best_d = 0.0;
+      for (int st = 0; st < 720; ++st) {
+        const double dd = 2.0 * std::numbers::pi * st / 720.0;
+        double r = 0.0;
+        for (std::size_t k : used)
+          r += est.magnitude[k] * std::cos(est.phase_rad[k] - static_cast<double>(k + 1) * dd - nom[k]);
+        if (r > best) {
+          best = r;
+          best_d = dd;
+        }
+      }
+      std::vector<double> phases = nom;
+      double worst = 0.0;
+      int worst_k = 0;
+      for (std::size_t k : used) {
+        const double delta = std::remainder(est.phase_rad[k] - static_cast<double>(k + 1) * best_d - nom[k],
+                                            2.0 * std::numbers::pi);
+        phases[k] = nom[k] + delta;
+        if (std::fabs(delta) > worst) {
+          worst = std::fabs(delta);
+          worst_k = static_cast<int>(k + 1);
+        }
+      }
+      phase_cal.name = "gmf_phases";
+      phase_cal.order = worst_k;
+      phase_cal.nominal = 0.0;
+      phase_cal.calibrated = worst;
+      phase_cal.significant = worst > kPhaseCalibrationRad;
+      std::string orders_text;
+      for (std::size_t k : used) orders_text += (orders_text.empty() ? "" : ", ") + std::to_string(k + 1);
+      phase_cal.sentence = phase_cal.significant
+                               ? "the harmonics' phases are read off the measured fit part (orders " +
+                                     orders_text + "): order " + std::to_string(worst_k) + " is " +
+                                     fmt("%.2f", worst) + " rad from the nominal's waveform"
+                               : "the harmonics' phases agree with the nominal's waveform within " +
+                                     fmt("%.2f", worst) + " rad (orders " + orders_text + ")";
+      if (phase_cal.significant) model.vibration.gmf_phases_rad = phases;
+    }
+  }
+
   // 1. Calibration of the free parameters (harmonic amplitudes per order, noise level) on the fit cycles.
   (void)ev.calibrate(model, fit, 3);
   d.calibrated_gmf_amplitudes = model.vibration.gmf_amplitudes;
+  d.calibrated_gmf_phases_rad = model.vibration.gmf_phases_rad;
+  d.calibrated_gmf_phases_rad.resize(model.vibration.gmf_amplitudes.size(), 0.0);
   d.calibrated_noise_rms = model.vibration.noise_rms;
   d.calibrated_noise_tilt_db_per_decade = model.vibration.noise_tilt_db_per_decade;
   d.calibration = calibration_report(nominal_in, model, ev.noise_fit(), plan, ev.speed_spread_db2());
@@ -1385,6 +1570,7 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
                    " lines)";
     d.calibration.insert(d.calibration.begin(), c);
   }
+  if (!phase_cal.name.empty()) d.calibration.push_back(phase_cal);
   for (const CalibratedParam& c : d.calibration) {
     d.recalibrated = d.recalibrated || c.significant;
     if (c.significant) log("calibration: " + c.sentence);

@@ -210,6 +210,7 @@ std::string diagnosis_json(const Diagnosis& d) {
     << "},\n";
   o << "  \"not_identifiable\": " << strings_json(d.not_identifiable) << ",\n";
   o << "  \"calibration\": {\"gmf_amplitudes\": " << array_json(d.calibrated_gmf_amplitudes)
+    << ", \"gmf_phases_rad\": " << array_json(d.calibrated_gmf_phases_rad)
     << ", \"noise_rms\": " << num(d.calibrated_noise_rms)
     << ", \"noise_tilt_db_per_decade\": " << num(d.calibrated_noise_tilt_db_per_decade)
     << ", \"recalibrated\": " << (d.recalibrated ? "true" : "false")

@@ -29,17 +29,19 @@ TEST(GapBench, SmallBenchOnAWithheldJob) {
   // every 1.92 for 1.906 input-shaft orders, now without the spurious second other_axis); held-out
   // shrink 73.4 and 89.2 % (median 81.3 %; before the slope 64.7 and 92.1 %, median 78.4 %; session 3:
   // 73.3 and 82.4 %); the recording without effects has a held-out gap of 1.387 against 1.428 +- 0.27
-  // expected from sampling (1.100 before the slope): nothing significant, nothing named.
+  // expected from sampling (1.100 before the slope): nothing significant, nothing named. Session 37 (the
+  // harmonics' phases read off the measurement, docs/gap.md step 1c): the path case's shrink 73.4 -> 79.1 %
+  // (median 81.3 -> 84.2 %); the other cases unchanged.
   EXPECT_EQ(j.at("top1_accuracy").as_number(), 1.0);
   EXPECT_EQ(j.at("location_accuracy").as_number(), 1.0);
   EXPECT_EQ(j.at("named_located_rate").as_number(), 1.0);
   EXPECT_EQ(j.at("false_attribution_rate").as_number(), 0.0);
-  EXPECT_NEAR(j.at("median_shrink_pct").as_number(), 81.33, 1.0);
+  EXPECT_NEAR(j.at("median_shrink_pct").as_number(), 84.17, 1.0);
   const auto& cases = j.at("cases").array;
   ASSERT_EQ(cases.size(), 3U);
   EXPECT_EQ(cases[0].at("truth").array.at(0).at("kind").as_string(), "transfer_path");
   EXPECT_EQ(cases[0].at("chosen").array.at(0).at("kind").as_string(), "transfer_path");
-  EXPECT_NEAR(cases[0].at("shrink_pct").as_number(), 73.44, 1.0);
+  EXPECT_NEAR(cases[0].at("shrink_pct").as_number(), 79.12, 1.0);
   EXPECT_EQ(cases[1].at("chosen").array.at(0).at("kind").as_string(), "mesh_modulation");
   EXPECT_NEAR(cases[1].at("shrink_pct").as_number(), 89.22, 1.0);
   EXPECT_TRUE(cases[2].at("truth").array.empty());

@@ -3,8 +3,10 @@
 // with their uncertainty, and no library effect is named.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 #include "gap_test_job.hpp"
 #include "ptda/gap/diagnose.hpp"
@@ -62,6 +64,62 @@ TEST(Calibration, NominalOffByKnownDecibelsIsRecalibratedAndNamesNoEffect) {
 
 namespace ptda::gap {
 namespace {
+
+// Step 1c (session 37): the machine's mesh waveform has other harmonic phases than the nominal's. They
+// are read off the measured fit part: the calibrated phases equal the machine's up to a common shift of
+// the mesh angle (phase k + k d), and no effect is named. The same nominal with the machine's phases keeps
+// them (the entry is there and not significant).
+TEST(Calibration, HarmonicPhasesAreReadOffTheMeasurementUpToACommonShift) {
+  sim::Scenario truth = test::joint_rotation_job(6);
+  const std::size_t n_h = truth.vibration.gmf_amplitudes.size();
+  ASSERT_GE(n_h, 3U);
+  const double pattern[] = {0.0, 1.9, -2.4, 0.7, 2.8, -1.1, 0.4, -2.9, 1.3, -0.6};
+  truth.vibration.gmf_phases_rad.assign(n_h, 0.0);
+  for (std::size_t k = 0; k < n_h; ++k) truth.vibration.gmf_phases_rad[k] = pattern[k % 10];
+  const GapRecording real = recording_from_simulation(sim::simulate_signals(truth, 4321), truth);
+  sim::Scenario nominal = truth;
+  nominal.vibration.gmf_phases_rad.clear();  // the nominal knows the levels, not the phases
+  const Diagnosis d = diagnose(nominal, real, DiagnoseOptions{});
+  EXPECT_TRUE(d.chosen.empty()) << d.verdict;
+  const CalibratedParam* p = find(d, "gmf_phases");
+  ASSERT_NE(p, nullptr);
+  EXPECT_TRUE(p->significant) << p->sentence;
+  ASSERT_EQ(d.calibrated_gmf_phases_rad.size(), n_h);
+  // The common shift d from orders 1 and 2 (phase k - k d), then every strong order within 0.2 rad.
+  double best = -1e300, shift = 0.0;
+  for (int st = 0; st < 3600; ++st) {
+    const double dd = 2.0 * std::numbers::pi * st / 3600.0;
+    double r = 0.0;
+    for (std::size_t k = 0; k < n_h; ++k) {
+      if (truth.vibration.gmf_amplitudes[k] <= 0.0) continue;
+      r += truth.vibration.gmf_amplitudes[k] *
+           std::cos(d.calibrated_gmf_phases_rad[k] - static_cast<double>(k + 1) * dd -
+                    truth.vibration.gmf_phases_rad[k]);
+    }
+    if (r > best) {
+      best = r;
+      shift = dd;
+    }
+  }
+  double top = 0.0;
+  for (double a : truth.vibration.gmf_amplitudes) top = std::max(top, a);
+  int checked = 0;
+  for (std::size_t k = 0; k < n_h; ++k) {
+    if (truth.vibration.gmf_amplitudes[k] < 0.2 * top) continue;
+    const double err = std::remainder(d.calibrated_gmf_phases_rad[k] - static_cast<double>(k + 1) * shift -
+                                          truth.vibration.gmf_phases_rad[k],
+                                      2.0 * std::numbers::pi);
+    EXPECT_LT(std::fabs(err), 0.2) << "order " << k + 1;
+    ++checked;
+  }
+  EXPECT_GE(checked, 3);
+  // Told the machine's phases, the nominal keeps them.
+  const Diagnosis same = diagnose(truth, real, DiagnoseOptions{});
+  const CalibratedParam* q = find(same, "gmf_phases");
+  ASSERT_NE(q, nullptr);
+  EXPECT_FALSE(q->significant) << q->sentence;
+  EXPECT_EQ(same.calibrated_gmf_phases_rad, truth.vibration.gmf_phases_rad);
+}
 
 TEST(Calibration, SpeedExponentIsCalibratedWithinOneDirection) {
   // Two plateau speeds in the positive direction (2.0 and 3.49 rad/s), one negative: the levels follow

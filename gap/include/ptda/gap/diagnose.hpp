@@ -119,6 +119,9 @@ struct Diagnosis {
   std::vector<CalibratedParam> calibration;  ///< per nominal GMF order, then the noise level
   bool recalibrated = false;                 ///< any calibration parameter significant
   std::vector<double> calibrated_gmf_amplitudes;
+  /// The model's GMF phases after step 1c (rad, sin(k b + phi), one per entry of the amplitudes; the
+  /// nominal's, or zeros, when they were not re-calibrated).
+  std::vector<double> calibrated_gmf_phases_rad;
   double calibrated_noise_rms = 0.0;
   double calibrated_noise_tilt_db_per_decade = 0.0;
   GapBreakdown nominal_heldout;            ///< calibrated nominal model vs held-out cycles
