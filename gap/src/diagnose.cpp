@@ -29,11 +29,11 @@ double db(double p) {
 
 // A model is re-calibrated when a free parameter is off by more than this (harmonic level or noise floor).
 constexpr double kRecalibrateDb = 0.5;
+// ... or the speed exponent of the harmonic levels by more than this.
+constexpr double kRecalibrateExponent = 0.05;
 // The harmonics' phases are taken from the measurement when one is off the nominal's waveform by more
 // than this (rad, about 20 degrees; step 1c).
 constexpr double kPhaseCalibrationRad = 0.35;
-// ... or the speed exponent of the harmonic levels by more than this.
-constexpr double kRecalibrateExponent = 0.05;
 // The held-out part is compared with a model simulated with seed + this (see Evaluator::gap).
 constexpr std::uint64_t kHeldoutSeedOffset = 7777;
 // A speed-scale estimate smaller than this is not applied (the lines' interpolation bias is ~50 ppm).
@@ -152,7 +152,8 @@ class Evaluator {
   }
   /// The GMF harmonics' phases as the measured fit part has them (calibration, docs/gap.md step 1c). The
   /// model's own mesh angle b(t) comes from two simulations of `s` with one harmonic and nothing else
-  /// (phase 0 and pi/2: A sin b and A cos b). Each constant-speed fit window gives per nominal order k
+  /// (phase 0 and pi/2: A sin b and A cos b; the nominal's own [[effects]] are left out of them, so one
+  /// that moves the mesh angle itself is not in b). Each constant-speed fit window gives per nominal order k
   /// X_k = sum hann(t) x(t) e^{-i k b(t)}. The CAN speed's latency and integration error move each
   /// window's angle by its own offset d, which turns X_k by e^{i k d}: the windows are aligned to a
   /// common template by the d that best matches it (three passes), then summed. Result per harmonic
