@@ -177,9 +177,10 @@ endif()
 # Debian 12 runtime libraries, versions as in bookworm. libkissfft-float131 131.1.0-4.1~deb12u1 fixes
 # CVE-2025-34297 (integer overflow on 32-bit systems: armhf) and CVE-2026-41445 (its Debian
 # changelog); dpkg-shlibdeps alone would accept any 131.x. libspdlog1.10-fmt9 is the ABI name
-# dpkg-shlibdeps uses (spdlog built against fmt 9).
+# dpkg-shlibdeps uses (spdlog built against fmt 9). libgcc-s1 (>= 4.0): ptda's complex arithmetic
+# (`ptda gap`'s phase calibration) calls __muldc3@GCC_4.0.0.
 set(_ptda_common_dep "ptda-common (= ${_ptda_deb_version})")
-set(_ptda_libs_base "libc6 (>= 2.34), libgcc-s1 (>= 3.0), libstdc++6 (>= 12), libkissfft-float131 (>= 131.1.0-4.1~deb12u1), libtomlplusplus3 (>= 3.2.0)")
+set(_ptda_libs_base "libc6 (>= 2.34), libgcc-s1 (>= 4.0), libstdc++6 (>= 12), libkissfft-float131 (>= 131.1.0-4.1~deb12u1), libtomlplusplus3 (>= 3.2.0)")
 set(CPACK_DEBIAN_DAEMON_PACKAGE_NAME "ptdad")
 set(CPACK_DEBIAN_DAEMON_PACKAGE_DEPENDS
     "${_ptda_libs_base}, libfmt9 (>= 9.1.0+ds1), libspdlog1.10 (>= 1:1.10.0), libspdlog1.10-fmt9, libgpiod2 (>= 1.6), libsystemd0, libmosquitto1 (>= 2.0.11), ${_ptda_common_dep}, init-system-helpers (>= 1.54~), systemd | systemd-standalone-sysusers | adduser")
