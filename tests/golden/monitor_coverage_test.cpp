@@ -131,23 +131,25 @@ TEST(MonitorCoverage, MonitoringTheTrainingDataWarnsInSample) {
   EXPECT_TRUE(has(first.out, "warning: in-sample")) << first.out;
 }
 
+// arc_welding.toml with `line` added at the top of its [decision] table, written to p.dir / name.
+fs::path config_with_decision(const std::string& line, const std::string& name) {
+  const Prepared& p = prepared();
+  std::string text = read_file(p.config);
+  const std::size_t at = text.find("[decision]\n");
+  EXPECT_NE(at, std::string::npos) << "arc_welding.toml has no [decision] table";
+  if (at != std::string::npos) text.insert(at + 11, line + "\n");
+  const fs::path path = p.dir / name;
+  std::ofstream(path) << text;
+  return path;
+}
+
 // The band detector is on by default since session 13. A baseline trained with it off (as every
 // baseline before session 13) still monitors: the band detector is off with a note that says why, and
 // the windows are judged as before. Said explicitly (`band_cusum = true`), the same baseline is an error.
 TEST(MonitorCoverage, ABaselineWithoutBandStatisticsMonitorsWithANoteUnlessTheBandDetectorIsRequired) {
   const Prepared& p = prepared();
-  const std::string text = read_file(p.config);
-  const std::size_t at = text.find("[decision]\n");
-  ASSERT_NE(at, std::string::npos) << "arc_welding.toml has no [decision] table";
-  const auto with_decision = [&](const std::string& line) {
-    std::string t = text;
-    t.insert(at + 11, line + "\n");
-    return t;
-  };
-  const fs::path off_cfg = p.dir / "band_off.toml";
-  const fs::path on_cfg = p.dir / "band_on.toml";
-  std::ofstream(off_cfg) << with_decision("band_cusum = false");
-  std::ofstream(on_cfg) << with_decision("band_cusum = true");
+  const fs::path off_cfg = config_with_decision("band_cusum = false", "band_off.toml");
+  const fs::path on_cfg = config_with_decision("band_cusum = true", "band_on.toml");
   const fs::path old_base = p.dir / "no_bands.bin";
   ASSERT_EQ(run_ptda({"train", "--recording", p.healthy.string(), "--config", off_cfg.string(), "--out",
                       old_base.string()},
@@ -182,19 +184,9 @@ TEST(MonitorCoverage, ABaselineWithoutBandStatisticsMonitorsWithANoteUnlessTheBa
 // says why, and is an error only when `mesh_cusum = true` is said explicitly.
 TEST(MonitorCoverage, TheMeshDetectorRunsByDefaultWithTeethAndAnOldBaselineMonitorsWithANote) {
   const Prepared& p = prepared();
-  const std::string text = read_file(p.config);
-  ASSERT_NE(text.find("z_in"), std::string::npos) << "arc_welding.toml gives no teeth";
-  const std::size_t at = text.find("[decision]\n");
-  ASSERT_NE(at, std::string::npos) << "arc_welding.toml has no [decision] table";
-  const auto with_decision = [&](const std::string& line) {
-    std::string t = text;
-    t.insert(at + 11, line + "\n");
-    return t;
-  };
-  const fs::path off_cfg = p.dir / "mesh_off.toml";
-  const fs::path on_cfg = p.dir / "mesh_on.toml";
-  std::ofstream(off_cfg) << with_decision("mesh_cusum = false");
-  std::ofstream(on_cfg) << with_decision("mesh_cusum = true");
+  ASSERT_NE(read_file(p.config).find("z_in"), std::string::npos) << "arc_welding.toml gives no teeth";
+  const fs::path off_cfg = config_with_decision("mesh_cusum = false", "mesh_off.toml");
+  const fs::path on_cfg = config_with_decision("mesh_cusum = true", "mesh_on.toml");
   // Default: the windows carry the mesh detector's record, and there is no note.
   const fs::path jsonl = p.dir / "mesh_default.jsonl";
   const RunResult fresh = monitor(p.other, p.baseline, "mesh_default_new", {"--jsonl", jsonl.string()});
