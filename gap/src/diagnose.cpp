@@ -71,6 +71,22 @@ std::string fmt(const char* f, double v) {
 }
 #pragma GCC diagnostic pop
 
+/// The mesh-angle shift d (a 720-point grid over one turn) that maximises Re sum_j c_j e^{-i orders_j d}:
+/// the common shift that best lines phases c_j of harmonic orders_j up with a reference (step 1c).
+double best_common_shift_rad(const std::vector<std::complex<double>>& c, const std::vector<int>& orders) {
+  double best = -std::numeric_limits<double>::infinity(), best_d = 0.0;
+  for (int st = 0; st < 720; ++st) {
+    const double d = 2.0 * std::numbers::pi * st / 720.0;
+    double r = 0.0;
+    for (std::size_t j = 0; j < c.size(); ++j) r += (c[j] * std::polar(1.0, -orders[j] * d)).real();
+    if (r > best) {
+      best = r;
+      best_d = d;
+    }
+  }
+  return best_d;
+}
+
 /// Everything needed to score a model (scenario + effects) against the measured recording.
 class Evaluator {
  public:
@@ -229,7 +245,6 @@ class Evaluator {
         tmpl = x;
       }
     }
-    constexpr int kSteps = 720;
     std::vector<Cd> sum(orders.size());
     std::vector<double> mag_sum(orders.size());
     for (int pass = 0; pass < 3; ++pass) {
@@ -238,18 +253,7 @@ class Evaluator {
       for (const auto& x : xs) {
         std::vector<Cd> prod(orders.size());
         for (std::size_t j = 0; j < orders.size(); ++j) prod[j] = std::conj(tmpl[j]) * x[j];
-        double best = -1e300;
-        double best_d = 0.0;
-        for (int st = 0; st < kSteps; ++st) {
-          const double d = 2.0 * std::numbers::pi * st / kSteps;
-          double r = 0.0;
-          for (std::size_t j = 0; j < orders.size(); ++j)
-            r += (prod[j] * std::polar(1.0, -orders[j] * d)).real();
-          if (r > best) {
-            best = r;
-            best_d = d;
-          }
-        }
+        const double best_d = best_common_shift_rad(prod, orders);
         for (std::size_t j = 0; j < orders.size(); ++j) {
           sum[j] += x[j] * std::polar(1.0, -orders[j] * best_d);
           mag_sum[j] += std::abs(x[j]);
@@ -1496,17 +1500,13 @@ Diagnosis diagnose(const sim::Scenario& nominal_in, const GapRecording& real_in,
     for (std::size_t k = 0; k < est.phase_rad.size(); ++k)
       if (est.coherence[k] >= 0.5 && est.magnitude[k] >= 0.1 * top) used.push_back(k);
     if (used.size() >= 2) {
-      double best = -1e300, best_d = 0.0;
-      for (int st = 0; st < 720; ++st) {
-        const double dd = 2.0 * std::numbers::pi * st / 720.0;
-        double r = 0.0;
-        for (std::size_t k : used)
-          r += est.magnitude[k] * std::cos(est.phase_rad[k] - static_cast<double>(k + 1) * dd - nom[k]);
-        if (r > best) {
-          best = r;
-          best_d = dd;
-        }
+      std::vector<std::complex<double>> c;
+      std::vector<int> orders;
+      for (std::size_t k : used) {
+        c.push_back(std::polar(est.magnitude[k], est.phase_rad[k] - nom[k]));
+        orders.push_back(static_cast<int>(k + 1));
       }
+      const double best_d = best_common_shift_rad(c, orders);
       std::vector<double> phases = nom;
       double worst = 0.0;
       int worst_k = 0;
