@@ -311,6 +311,9 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "cusum_alarm", cfg_.decision.sequential.h_alarm, 1000.0)) note(r, "cusum_alarm");
     // The CUSUM's allowance for the between-day spread, in between-day sds (docs/method.md §6).
     get(r, "cusum_day_allowance", cfg_.decision.sequential.day_allowance, 0.0, 10.0);
+    // Largest step one window adds to a CUSUM (docs/method.md §6 "Step cap"), per detector.
+    if (read_positive(r, "cusum_step_cap", cfg_.decision.sequential.step_cap, dsp::kNoStepCap))
+      note(r, "cusum_step_cap");
     // The band CUSUM (on by default since session 13; docs/method.md §6 "Band detector"). Training
     // stores band statistics only when it is on. Said explicitly, it is required (errors instead of the
     // default's fallback when the method or the baseline cannot carry it).
@@ -321,6 +324,8 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "band_cusum_k", cfg_.decision.band.k, 10.0)) note(r, "band_cusum_k");
     if (read_positive(r, "band_cusum_h", cfg_.decision.band.h, 1000.0)) note(r, "band_cusum_h");
     get(r, "band_cusum_day_allowance", cfg_.decision.band.day_allowance, 0.0, 10.0);
+    if (read_positive(r, "band_cusum_step_cap", cfg_.decision.band.step_cap, dsp::kNoStepCap))
+      note(r, "band_cusum_step_cap");
     get(r, "band_count", cfg_.decision.band.band_count, std::uint32_t{1}, dsp::kMaxBands);
     // The mesh detector (on by default since session 37 where the gearbox's teeth are given and the
     // domain is time; docs/method.md §6 "Mesh detector"): training stores the mesh statistics only when
@@ -332,6 +337,8 @@ void PipelineConfigBuilder::apply(const toml::table& root, const std::string& so
     if (read_positive(r, "mesh_cusum_k", cfg_.decision.mesh.k, 10.0)) note(r, "mesh_cusum_k");
     if (read_positive(r, "mesh_cusum_h", cfg_.decision.mesh.h, 1000.0)) note(r, "mesh_cusum_h");
     get(r, "mesh_cusum_one_day_allowance", cfg_.decision.mesh.one_day_allowance, 0.0, 10.0);
+    if (read_positive(r, "mesh_cusum_step_cap", cfg_.decision.mesh.step_cap, dsp::kNoStepCap))
+      note(r, "mesh_cusum_step_cap");
     r.finish();
   }
 
@@ -698,15 +705,18 @@ std::string format_pipeline_config(const PipelineConfig& cfg) {
      << "cusum_warn = " << shortest(cfg.decision.sequential.h_warn) << "\n"
      << "cusum_alarm = " << shortest(cfg.decision.sequential.h_alarm) << "\n"
      << "cusum_day_allowance = " << shortest(cfg.decision.sequential.day_allowance) << "\n"
+     << "cusum_step_cap = " << shortest(cfg.decision.sequential.step_cap) << "\n"
      << "band_cusum = " << (cfg.decision.band.enabled ? "true" : "false") << "\n"
      << "band_cusum_k = " << shortest(cfg.decision.band.k) << "\n"
      << "band_cusum_h = " << shortest(cfg.decision.band.h) << "\n"
      << "band_cusum_day_allowance = " << shortest(cfg.decision.band.day_allowance) << "\n"
+     << "band_cusum_step_cap = " << shortest(cfg.decision.band.step_cap) << "\n"
      << "band_count = " << cfg.decision.band.band_count << "\n"
      << "mesh_cusum = " << (cfg.decision.mesh.enabled ? "true" : "false") << "\n"
      << "mesh_cusum_k = " << shortest(cfg.decision.mesh.k) << "\n"
      << "mesh_cusum_h = " << shortest(cfg.decision.mesh.h) << "\n"
      << "mesh_cusum_one_day_allowance = " << shortest(cfg.decision.mesh.one_day_allowance) << "\n"
+     << "mesh_cusum_step_cap = " << shortest(cfg.decision.mesh.step_cap) << "\n"
      << "\n[monitor]\nmethod = \"" << dsp::method_name(cfg.method) << "\"\n"
      << "line_gain = " << (cfg.thresholds.ptda_line_gain ? "true" : "false") << "\n"
      << "floor_gain = " << (cfg.thresholds.ptda_floor_gain ? "true" : "false") << "\n"

@@ -9,6 +9,7 @@
 #include "number_text.hpp"
 #include "ptda/common/error.hpp"
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/decision.hpp"
 
 namespace ptda::dsp {
 
@@ -77,6 +78,7 @@ void check_band_cusum(const BandCusumConfig& cfg) {
     throw Error(
         "decision.band_cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
         num(cfg.day_allowance));
+  check_step_cap("band_cusum_step_cap", cfg.step_cap);
   if (cfg.band_count < 1 || cfg.band_count > kMaxBands)
     throw Error("decision.band_count: must be 1.." + std::to_string(kMaxBands) + ", got " +
                 std::to_string(cfg.band_count));

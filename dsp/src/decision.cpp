@@ -66,6 +66,7 @@ void check_sequential(const SequentialConfig& cfg) {
     throw Error("decision.cusum_day_allowance: must be >= 0 and <= 10 between-day standard deviations, got " +
                 std::to_string(cfg.day_allowance));
   }
+  check_step_cap("cusum_step_cap", cfg.step_cap);
   if (cfg.h_warn > cfg.h_alarm) {
     throw Error("decision.cusum_warn: " + std::to_string(cfg.h_warn) + " must not exceed cusum_alarm " +
                 std::to_string(cfg.h_alarm));
@@ -73,15 +74,24 @@ void check_sequential(const SequentialConfig& cfg) {
 }
 
 void Cusum::update(double z_rms, double z_entropy, double k, double cap, double extra_rms,
-                   double extra_entropy) noexcept {
+                   double extra_entropy, double step_cap) noexcept {
   const bool rms_ok = std::isfinite(z_rms);
   const bool ent_ok = std::isfinite(z_entropy);
-  const auto step = [&](double s, double x, double kk) { return std::min(cap, std::max(0.0, s + x - kk)); };
+  const auto step = [&](double s, double x, double kk) {
+    return std::min(cap, std::max(0.0, s + std::min(x - kk, step_cap)));
+  };
   const double k_rms = k + extra_rms;
   const double k_ent = k + extra_entropy;
   s_rms_ = step(s_rms_, rms_ok ? z_rms : k_rms + 1.0, k_rms);
   s_ent_hi_ = step(s_ent_hi_, ent_ok ? z_entropy : k_ent + 1.0, k_ent);
   s_ent_lo_ = step(s_ent_lo_, ent_ok ? -z_entropy : k_ent + 1.0, k_ent);
+}
+
+void check_step_cap(const char* key, double cap) {
+  if (!(cap > 0.0 && cap <= kNoStepCap)) {
+    throw Error(std::string("decision.") + key + ": must be > 0 and <= 1000 (1000: no cap), got " +
+                std::to_string(cap));
+  }
 }
 
 double Cusum::statistic() const noexcept {

@@ -12,6 +12,7 @@
 
 #include "ptda/common/error.hpp"
 #include "ptda/dsp/analyzer.hpp"
+#include "ptda/dsp/decision.hpp"
 
 namespace ptda::dsp {
 
@@ -59,6 +60,7 @@ void check_mesh_cusum(const MeshCusumConfig& cfg) {
         "decision.mesh_cusum_one_day_allowance: must be >= 0 and <= 10 between-day standard deviations, "
         "got " +
         std::to_string(cfg.one_day_allowance));
+  check_step_cap("mesh_cusum_step_cap", cfg.step_cap);
 }
 
 MeshScale mesh_scale(const ClassBaseline& c, double one_day_allowance) noexcept {

@@ -248,13 +248,13 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
   debouncer_.push(w.verdict.abnormal());
   if (seq_.enabled && cls < cusum_.size()) {
     Cusum& c = cusum_[cls];
-    c.update(w.z_rms, w.z_entropy, seq_.k, cap_, w.seq_allowance_rms, w.seq_allowance_entropy);
+    c.update(w.z_rms, w.z_entropy, seq_.k, cap_, w.seq_allowance_rms, w.seq_allowance_entropy, seq_.step_cap);
     w.seq_statistic = c.statistic();
     w.seq_feature = c.feature();
   }
   if (band_.enabled && cls < band_s_.size()) {
-    // S_b <- min(cap, max(0, S_b + x_b - k)), x_b = z_b minus the class's day allowance; a non-finite
-    // x_b counts as k + 1, as in the feature CUSUM.
+    // S_b <- min(cap, max(0, S_b + min(x_b - k, step_cap))), x_b = z_b minus the class's day
+    // allowance; a non-finite x_b counts as k + 1, as in the feature CUSUM.
     std::array<double, kMaxBands>& s = band_s_[cls];
     std::array<std::uint64_t, kMaxBands>& since = band_since_[cls];
     const std::size_t m = std::min<std::size_t>(w.band_count, kMaxBands);
@@ -264,7 +264,7 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     for (std::size_t b = 0; b < m; ++b) {
       const double x =
           std::isfinite(w.band_excess[b]) ? static_cast<double>(w.band_excess[b]) : band_.k + 1.0;
-      s[b] = std::min(band_cap_, std::max(0.0, s[b] + x - band_.k));
+      s[b] = std::min(band_cap_, std::max(0.0, s[b] + std::min(x - band_.k, band_.step_cap)));
       if (!(s[b] > band_.h)) {
         since[b] = 0;
       } else if (since[b] == 0) {
@@ -287,7 +287,8 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     std::int32_t top_f = -1;
     for (std::size_t f = 0; f < kMeshFeatureCount; ++f) {
       if (std::isfinite(w.mesh_excess[f]))
-        s[f] = std::min(mesh_cap_, std::max(0.0, s[f] + w.mesh_excess[f] - mesh_.k));
+        s[f] =
+            std::min(mesh_cap_, std::max(0.0, s[f] + std::min(w.mesh_excess[f] - mesh_.k, mesh_.step_cap)));
       if (s[f] > top) {
         top = s[f];
         top_f = static_cast<std::int32_t>(f);

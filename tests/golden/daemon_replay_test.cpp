@@ -136,13 +136,15 @@ struct Pinned {
 // Measured with the seeds above (and equal to tests/golden/paper_jobs_test.cpp's window counts); arc
 // welding re-measured after its example config moved to k = 4 of n = 10 and the presets gained
 // cycle-to-cycle variation. Re-pinned for issue 12 (CUSUM beside k-of-n, tolerance bands): the CUSUM
-// holds the alarm from the first faulty window on (k-of-n alone: 38, 89, 18).
+// holds the alarm from the first faulty window on (k-of-n alone: 38, 89, 18). Session 38 (the feature
+// CUSUM's step cap of 2.5 per window): arc welding's alarm starts at window 5, so 96 of its 101 windows
+// (docs/method.md §6 "Step cap"); the other two are held by the uncapped band CUSUM from window 0.
 // The band CUSUM on spot welding's faulty recording (full severity; measured with the seeds above): it
 // alarms from the first window, in band 7 of 32 (bins 1121..1280 of 2.5 Hz: 2802.5-3200 Hz).
 constexpr std::size_t kBandFirstAlarm = 0;
 constexpr std::int32_t kBandFirstAlarmBand = 7;
 
-constexpr Pinned kJobs[] = {{"joint_rotation", 40, 40}, {"arc_welding", 101, 101}, {"spot_welding", 20, 20}};
+constexpr Pinned kJobs[] = {{"joint_rotation", 40, 40}, {"arc_welding", 101, 96}, {"spot_welding", 20, 20}};
 
 /// The daemon's coverage tracker reached the state `ptda monitor`'s did (same windows, same speed
 /// samples, same motion time).
@@ -235,8 +237,10 @@ TEST(DaemonReplayBandCusum, ThreadsReproduceMonitorJsonlWithBandCusum) {
   }
   ASSERT_EQ(first_band_alarm, kBandFirstAlarm) << "pinned first band alarm";
   EXPECT_EQ(windows[first_band_alarm].band_max_index, kBandFirstAlarmBand);
-  EXPECT_EQ(windows[first_band_alarm].detector, dsp::AlarmDetector::kSequentialBand);  // k-of-n needs 3
-  EXPECT_NE(p.lines[first_band_alarm].find("\"detector\":\"sequential+band\""), std::string::npos)
+  // k-of-n needs 3 windows, and since session 38 the feature CUSUM too (its step cap 2.5 against
+  // cusum_alarm 7; before: sequential+band at window 0).
+  EXPECT_EQ(windows[first_band_alarm].detector, dsp::AlarmDetector::kBand);
+  EXPECT_NE(p.lines[first_band_alarm].find("\"detector\":\"band\""), std::string::npos)
       << p.lines[first_band_alarm];
 }
 
@@ -261,11 +265,11 @@ TEST(DaemonReplayMeshCusum, ThreadsReproduceMonitorJsonlWithMeshCusum) {
     if (windows[i].mesh_alarm && first_mesh_alarm == windows.size()) first_mesh_alarm = i;
   }
   // Pinned from this run (seeds 1001 / 3003): the project simulator's spot-welding fault is not a
-  // once-per-revolution modulation of the mesh, and the mesh CUSUM stays low (largest 0.219 of h = 10,
-  // with the one-day allowance: one training recording; 1.03 without it) while the other detectors
-  // hold the alarm.
+  // once-per-revolution modulation of the mesh, and the mesh CUSUM stays low (largest 0.719 of h = 10
+  // with mesh_cusum_k 0.75 since session 38, 0.219 with k 1; with the one-day allowance: one training
+  // recording; 1.03 without it at k 1) while the other detectors hold the alarm.
   EXPECT_EQ(first_mesh_alarm, windows.size());
-  EXPECT_NEAR(top, 0.219, 0.02);
+  EXPECT_NEAR(top, 0.719, 0.02);
   EXPECT_EQ(windows.back().detector, dsp::AlarmDetector::kAll);
 }
 
@@ -322,9 +326,9 @@ struct OrderPinned {
 
 // The runs of tests/golden/order_domain_test.cpp (pinned there from `ptda monitor`, session 10): healthy
 // seed 201: 109 windows, 103 scored, no alarm; spur-tooth fault: 109 windows, 102 scored, alarm from the
-// first window on.
+// third scored window on (the first up to session 37: the feature CUSUM's step cap, session 38).
 constexpr OrderPinned kOrderRuns[] = {{"healthy", "joint_rotation_healthy.toml", "201", 109, 103, 0, false},
-                                      {"faulty", "joint_rotation_faulty.toml", "", 109, 102, 102, true}};
+                                      {"faulty", "joint_rotation_faulty.toml", "", 109, 102, 100, true}};
 
 class DaemonReplayOrder : public ::testing::TestWithParam<OrderPinned> {};
 

@@ -135,9 +135,11 @@ TEST(OrderDomain, HealthyQuietFaultyAlarms) {
   EXPECT_TRUE(has(rh.out, "  domain     order: ")) << rh.out;
   // Pinned from the run of session 11 with the speed law (p = 0.558 applied; x86-64, printed by the
   // first run of this test): healthy 109 windows, 103 scored, 2 abnormal, no alarm, mean rms_res
-  // 0.198270; faulty 109 windows, 102 scored, 99 abnormal, alarm from the first window on, mean rms_res
-  // 0.365955. Session 10, without the speed law: 0.199124 / 100 abnormal / 0.362994. For scale: the time
-  // domain on the same recordings (joint_rotation.toml, 40 windows of 0.5 s) gives 0.268 / 0.458.
+  // 0.198270; faulty 109 windows, 102 scored, 99 abnormal, alarm from the first window on (the third since
+  // session 38, below), mean rms_res 0.365955. Session 10, without the speed law: 0.199124 / 100 abnormal /
+  // 0.362994. For scale: the time domain on the same recordings (joint_rotation.toml, 40 windows of 0.5 s)
+  // gives 0.268 / 0.458. Session 38: the feature CUSUM's step cap (2.5 per window) moves the faulty alarm
+  // from the first scored window to the third (k-of-n's own), so 100 alarm windows instead of 102.
   EXPECT_EQ(h.windows, 109);
   EXPECT_EQ(h.scored, 103);
   EXPECT_EQ(h.abnormal, 2);
@@ -146,7 +148,7 @@ TEST(OrderDomain, HealthyQuietFaultyAlarms) {
   EXPECT_EQ(f.windows, 109);
   EXPECT_EQ(f.scored, 102);
   EXPECT_EQ(f.abnormal, 99);
-  EXPECT_EQ(f.alarm_windows, 102);
+  EXPECT_EQ(f.alarm_windows, 100);
   EXPECT_NEAR(f.rms_sum / f.scored, 0.365955, 2e-6);
 }
 

@@ -89,6 +89,9 @@ void expect_config_eq(const PipelineConfig& a, const PipelineConfig& b) {
   EXPECT_EQ(a.decision.sequential.k, b.decision.sequential.k);
   EXPECT_EQ(a.decision.sequential.h_warn, b.decision.sequential.h_warn);
   EXPECT_EQ(a.decision.sequential.h_alarm, b.decision.sequential.h_alarm);
+  EXPECT_EQ(a.decision.sequential.step_cap, b.decision.sequential.step_cap);
+  EXPECT_EQ(a.decision.band.step_cap, b.decision.band.step_cap);
+  EXPECT_EQ(a.decision.mesh.step_cap, b.decision.mesh.step_cap);
   EXPECT_EQ(a.method, b.method);
   EXPECT_EQ(a.gearbox.kind, b.gearbox.kind);
   EXPECT_EQ(a.gearbox.z_in, b.gearbox.z_in);
@@ -151,6 +154,8 @@ sequential = "off"
 cusum_k = 0.5
 cusum_warn = 3.5
 cusum_alarm = 9
+cusum_step_cap = 1.5
+band_cusum_step_cap = 4
 [monitor]
 method = "tda"
 [gearbox]
@@ -185,6 +190,8 @@ TEST(PipelineConfig, DefaultsWhenKeysAbsent) {
   EXPECT_EQ(cfg.decision.sequential.k, 1.0);
   EXPECT_EQ(cfg.decision.sequential.h_warn, 4.0);
   EXPECT_EQ(cfg.decision.sequential.h_alarm, 7.0);
+  EXPECT_EQ(cfg.decision.sequential.step_cap, 2.5);  // session 38; the band CUSUM has none by default
+  EXPECT_EQ(cfg.decision.band.step_cap, dsp::kNoStepCap);
   EXPECT_EQ(cfg.method, dsp::Method::kPtda);
   EXPECT_EQ(cfg.gearbox.kind, dsp::GearboxInfo::Kind::kUnknown);
   EXPECT_EQ(cfg.gearbox.ratio, 0.0);
@@ -226,6 +233,8 @@ TEST(PipelineConfig, ParsesEveryKey) {
   EXPECT_EQ(cfg.decision.sequential.k, 0.5);
   EXPECT_EQ(cfg.decision.sequential.h_warn, 3.5);
   EXPECT_EQ(cfg.decision.sequential.h_alarm, 9.0);
+  EXPECT_EQ(cfg.decision.sequential.step_cap, 1.5);
+  EXPECT_EQ(cfg.decision.band.step_cap, 4.0);
   EXPECT_EQ(cfg.method, dsp::Method::kTda);
   EXPECT_EQ(cfg.gearbox.kind, dsp::GearboxInfo::Kind::kCycloidal);
   EXPECT_EQ(cfg.gearbox.z_in, 28U);
@@ -743,6 +752,14 @@ TEST(PipelineConfigBandCusum, BadValuesAreLocated) {
             "cfg.toml:2:14: decision.band_count = 65 is outside 1..64");
   EXPECT_EQ(error_of("[decision]\nband_cusum_day_allowance = 11\n"),
             "cfg.toml:2:28: decision.band_cusum_day_allowance = 11 is outside 0..10");
+  // The step caps (session 38): > 0 and at most 1000 (no cap).
+  EXPECT_EQ(error_of("[decision]\nband_cusum_step_cap = 1001\n"),
+            "cfg.toml:2:23: decision.band_cusum_step_cap = 1001 is outside 0..1000");
+  EXPECT_EQ(error_of("[decision]\ncusum_step_cap = 0\n").rfind("cfg.toml:2:18: decision.cusum_step_cap", 0),
+            0U)
+      << error_of("[decision]\ncusum_step_cap = 0\n");
+  EXPECT_EQ(error_of("[decision]\nmesh_cusum_step_cap = -2\n"),
+            "cfg.toml:2:23: decision.mesh_cusum_step_cap = -2 is outside 0..1000");
   EXPECT_EQ(error_of("[decision]\nband_cusum = 1\n").rfind("cfg.toml:2:14: decision.band_cusum", 0), 0U)
       << error_of("[decision]\nband_cusum = 1\n");
   EXPECT_EQ(error_of("[extraction]\nwindow_len = 32\n[decision]\nband_cusum = true\nband_count = 32\n"),
@@ -757,9 +774,10 @@ TEST(PipelineConfigMeshCusum, OnByDefaultWhereItCanRunAndAskedForNeedsTheGearbox
   EXPECT_FALSE(def.decision.mesh.required);
   EXPECT_FALSE(def.thresholds.mesh_stats);
   EXPECT_EQ(def.mesh_off_reason.rfind("no gearbox teeth", 0), 0U) << def.mesh_off_reason;
-  EXPECT_EQ(def.decision.mesh.k, 1.0);
+  EXPECT_EQ(def.decision.mesh.k, 0.75);  // 1 up to session 37
   EXPECT_EQ(def.decision.mesh.h, 10.0);
   EXPECT_EQ(def.decision.mesh.one_day_allowance, 1.0);
+  EXPECT_EQ(def.decision.mesh.step_cap, 2.5);
   const std::string gearbox = "[gearbox]\nkind = \"cycloidal\"\nz_in = 28\nz_spur = 23\nz_pin = 40\n";
   // With them it is on (not required), and training stores the mesh statistics.
   const PipelineConfig teeth =
@@ -792,7 +810,7 @@ TEST(PipelineConfigMeshCusum, OnByDefaultWhereItCanRunAndAskedForNeedsTheGearbox
   const PipelineConfig on = parse_pipeline_config(
       "[extraction]\nwindow_len = 4096\n[decision]\nmesh_cusum = true\nmesh_cusum_k = 1.5\nmesh_cusum_h = "
       "12\n"
-      "mesh_cusum_one_day_allowance = 0.5\n" +
+      "mesh_cusum_one_day_allowance = 0.5\nmesh_cusum_step_cap = 3\n" +
           gearbox,
       "cfg.toml");
   EXPECT_TRUE(on.decision.mesh.enabled);
@@ -801,11 +819,13 @@ TEST(PipelineConfigMeshCusum, OnByDefaultWhereItCanRunAndAskedForNeedsTheGearbox
   EXPECT_EQ(on.decision.mesh.k, 1.5);
   EXPECT_EQ(on.decision.mesh.h, 12.0);
   EXPECT_EQ(on.decision.mesh.one_day_allowance, 0.5);
+  EXPECT_EQ(on.decision.mesh.step_cap, 3.0);
   const PipelineConfig back = parse_pipeline_config(format_pipeline_config(on), "formatted.toml");
   EXPECT_TRUE(back.decision.mesh.enabled);
   EXPECT_EQ(back.decision.mesh.k, 1.5);
   EXPECT_EQ(back.decision.mesh.h, 12.0);
   EXPECT_EQ(back.decision.mesh.one_day_allowance, 0.5);
+  EXPECT_EQ(back.decision.mesh.step_cap, 3.0);
   // Without tooth counts there is no mesh frequency: an error at the key that asked for it.
   const std::string no_teeth = error_of("[extraction]\nwindow_len = 4096\n[decision]\nmesh_cusum = true\n");
   EXPECT_EQ(no_teeth.rfind("cfg.toml:4:14: [decision] mesh_cusum = true needs the input pinion's teeth", 0),

@@ -251,6 +251,37 @@ TEST(BandCusumDecision, CrossesHAfterTheComputedWindowsAndNamesTheBand) {
   EXPECT_EQ(o.detector, AlarmDetector::kNone);
 }
 
+// band_cusum_step_cap (session 38; none by default): with a cap of 2.5 a window with x = 20 adds 2.5
+// (20 - k = 19 uncapped, which alone crosses h = 10), so the band alarms at the fifth such window (12.5 >
+// 10, held at the cap C = 12); a healthy window still takes k off. The default: one window alarms.
+TEST(BandCusumDecision, AStepCapLimitsWhatOneWindowAdds) {
+  DecisionConfig d = band_on();
+  EXPECT_EQ(d.band.step_cap, kNoStepCap);
+  DecisionState uncapped(d, 1);
+  WindowResult u;
+  u.band_count = 32;
+  u.band_excess[3] = 20.0F;
+  uncapped.scored(u, 0);
+  EXPECT_EQ(u.band_statistic, 12.0);
+  EXPECT_TRUE(u.band_alarm);
+  d.band.step_cap = 2.5;
+  DecisionState st(d, 1);
+  for (int i = 1; i <= 5; ++i) {
+    WindowResult w;
+    w.band_count = 32;
+    w.band_excess[3] = 20.0F;
+    st.scored(w, 0);
+    EXPECT_EQ(w.band_statistic, std::min(12.0, 2.5 * i)) << i;
+    EXPECT_EQ(w.band_alarm, i == 5) << i;
+  }
+  WindowResult healthy;
+  healthy.band_count = 32;
+  st.scored(healthy, 0);
+  EXPECT_EQ(healthy.band_statistic, 11.0);
+  d.band.step_cap = 0.0;
+  EXPECT_THROW(DecisionState bad(d, 1), ptda::Error);
+}
+
 // Several bands at the cap: the one that went above h first is reported, not the lowest index.
 TEST(BandCusumDecision, AmongEqualStatisticsTheFirstToCrossIsReported) {
   DecisionState st(band_on(), 1);

@@ -22,6 +22,10 @@ DecisionConfig mesh_on() {
   d.band.enabled = false;
   d.mesh.enabled = true;
   d.mesh.required = true;  // as `mesh_cusum = true` said in the configuration
+  // The recursion's arithmetic below is the uncapped one with k = 1 (the defaults up to session 37); the
+  // step cap and the default k have their own test.
+  d.mesh.k = 1.0;
+  d.mesh.step_cap = kNoStepCap;
   return d;
 }
 
@@ -77,6 +81,40 @@ TEST(MeshCusumDecision, CrossesHAfterTheComputedWindowsAndNamesTheFeature) {
   EXPECT_EQ(ow.detector, AlarmDetector::kNone);
 }
 
+// The defaults since session 38: k = 0.75 and a step cap of 2.5. A window with an excess of 5 adds
+// min(5 - 0.75, 2.5) = 2.5, so the statistic is 2.5 i, 10 (not above h) after 4 windows and above it after
+// 5, capped at C = h + (n - k_of_n) k = 10 + 2 x 0.75 = 11.5. Without the cap the same windows add 4.25
+// each and alarm after 3.
+TEST(MeshCusumDecision, OneWindowAddsAtMostTheStepCap) {
+  DecisionConfig d{3, 5, {}, {}, {}};
+  d.band.enabled = false;
+  d.mesh.enabled = true;
+  ASSERT_EQ(d.mesh.k, 0.75);
+  ASSERT_EQ(d.mesh.step_cap, 2.5);
+  DecisionState st(d, 1);
+  for (int i = 1; i <= 5; ++i) {
+    WindowResult w;
+    w.mesh_excess[0] = 5.0;
+    st.scored(w, 0);
+    EXPECT_DOUBLE_EQ(w.mesh_statistic, std::min(11.5, 2.5 * i)) << i;
+    EXPECT_EQ(w.mesh_alarm, i == 5) << i;
+  }
+  d.mesh.step_cap = kNoStepCap;
+  DecisionState uncapped(d, 1);
+  for (int i = 1; i <= 3; ++i) {
+    WindowResult w;
+    w.mesh_excess[0] = 5.0;
+    uncapped.scored(w, 0);
+    EXPECT_DOUBLE_EQ(w.mesh_statistic, std::min(11.5, 4.25 * i)) << i;
+    EXPECT_EQ(w.mesh_alarm, i == 3) << i;
+  }
+  // A healthy window (excess 0) takes k off, whatever the cap.
+  WindowResult healthy;
+  healthy.mesh_excess[0] = 0.0;
+  st.scored(healthy, 0);
+  EXPECT_DOUBLE_EQ(healthy.mesh_statistic, 11.5 - 0.75);
+}
+
 TEST(MeshCusumDecision, DetectorNamesCombineEveryBit) {
   EXPECT_STREQ(alarm_detector_name(static_cast<AlarmDetector>(12)), "band+mesh");
   EXPECT_STREQ(alarm_detector_name(static_cast<AlarmDetector>(15)), "k_of_n+sequential+band+mesh");
@@ -100,6 +138,16 @@ TEST(MeshCusumDecision, ParametersAreCheckedByName) {
   c = MeshCusumConfig{};
   c.one_day_allowance = -1.0;
   EXPECT_THROW(check_mesh_cusum(c), Error);
+  for (const double bad : {0.0, -1.0, 1000.5, std::numeric_limits<double>::quiet_NaN()}) {
+    c = MeshCusumConfig{};
+    c.step_cap = bad;
+    try {
+      check_mesh_cusum(c);
+      FAIL() << "step cap " << bad << " accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("decision.mesh_cusum_step_cap"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(MeshScale, StandardisesWithTheTotalSdAndAddsTheAllowanceOnlyForOneTrainingDay) {

@@ -216,13 +216,17 @@ TEST_F(MonitorEngineTest, HealthyCyclesRaiseNoAlarmImpulsesDo) {
   }
   EXPECT_GE(faulty_abnormal, faulty.size() - 1);
   EXPECT_TRUE(faulty.back().alarm);
-  // k = 3 of n = 5: the k-of-n alarm is up from the third abnormal window on. The CUSUM is faster on
-  // a fault this large (z_rms far above cusum_alarm + k in one window): it holds the alarm from the
-  // first window.
+  // k = 3 of n = 5: the k-of-n alarm is up from the third abnormal window on. On a fault this large
+  // (z_rms far above cusum_alarm + k in one window) the CUSUM adds its step cap, 2.5, per window
+  // (session 38; up to session 37 it held the alarm from the first window): 2.5, 5, then 7.5 >=
+  // cusum_alarm = 7 at the third window, with k-of-n.
   EXPECT_FALSE(faulty[1].kofn_alarm);
   EXPECT_TRUE(faulty[4].kofn_alarm);
-  EXPECT_TRUE(faulty[0].seq_alarm);
-  EXPECT_EQ(faulty[0].detector, AlarmDetector::kSequential);
+  EXPECT_DOUBLE_EQ(faulty[0].seq_statistic, 2.5);
+  EXPECT_DOUBLE_EQ(faulty[1].seq_statistic, 5.0);
+  EXPECT_FALSE(faulty[1].alarm);
+  EXPECT_TRUE(faulty[2].seq_alarm);
+  EXPECT_EQ(faulty[2].detector, AlarmDetector::kBoth);
   EXPECT_EQ(faulty[4].detector, AlarmDetector::kBoth);
   EXPECT_GT(faulty[4].features.rms_res, faulty[4].thresholds.rms.hi);
 }
@@ -260,7 +264,7 @@ TEST(DecisionStateTest, CusumCapBoundsTheRecoveryToKOfNs) {
 TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeatures) {
   for (const double q : {3.0, 0.0}) {  // the default between-day allowance, and none (session 6)
     const auto res = monitor(make_stream(6, 6, 0.65), 700, Method::kPtda, q);
-    SequentialConfig seq;  // defaults: k 1, warn 4, alarm 7
+    SequentialConfig seq;  // defaults: k 1, warn 4, alarm 7, step cap 2.5
     seq.day_allowance = q;
     std::vector<double> s_rms(2, 0.0), s_hi(2, 0.0), s_lo(2, 0.0);
     bool seq_alarm_seen = false;
@@ -288,9 +292,9 @@ TEST_F(MonitorEngineTest, SequentialDetectorIsPerClassCusumOnStandardisedFeature
       // Cap h_alarm + (n - k) cusum_k with the engine's k-of-n 3 of 5: 7 + 2 = 9.
       const double cap = seq.h_alarm + 2.0 * seq.k;
       const double k_f = seq.k + extra;
-      s_rms[c] = std::min(cap, std::max(0.0, s_rms[c] + zr - k_f));
-      s_hi[c] = std::min(cap, std::max(0.0, s_hi[c] + ze - k_f));
-      s_lo[c] = std::min(cap, std::max(0.0, s_lo[c] - ze - k_f));
+      s_rms[c] = std::min(cap, std::max(0.0, s_rms[c] + std::min(zr - k_f, seq.step_cap)));
+      s_hi[c] = std::min(cap, std::max(0.0, s_hi[c] + std::min(ze - k_f, seq.step_cap)));
+      s_lo[c] = std::min(cap, std::max(0.0, s_lo[c] + std::min(-ze - k_f, seq.step_cap)));
       const double mine = std::max(s_rms[c], std::max(s_hi[c], s_lo[c]));
       EXPECT_NEAR(r.seq_statistic, mine, 1e-6);
       const double worst = std::max(std::max(s_rms[0], std::max(s_hi[0], s_lo[0])),

@@ -8,6 +8,7 @@
 //    ARL(2, 1, 7) = 7.666 against 7.726 +- 0.042; ARL(1, 1, 7) = 66.68 against 66.96 +- 0.87.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -242,6 +243,54 @@ TEST(Cusum, KnownSequenceCapAndFeatures) {
   EXPECT_DOUBLE_EQ(d.statistic(), 1.0);
   d.reset();
   EXPECT_EQ(d.feature(), SeqFeature::kNone);
+}
+
+// The step cap (session 38): each statistic's increment z - k is clipped to it, before the floor at 0
+// and the cap C. A healthy day's few outlying windows (machine 2089 of docs/method.md §8 "Session 38":
+// z_entropy -3.8, -5.6 among normal windows) then cannot reach h on their own.
+TEST(Cusum, StepCapClipsEachIncrement) {
+  Cusum c;
+  c.update(10.0, 0.0, 1.0, 9.0, 0.0, 0.0, 2.5);  // rms: min(10 - 1, 2.5) = 2.5
+  EXPECT_DOUBLE_EQ(c.statistic(), 2.5);
+  c.update(2.0, -6.0, 1.0, 9.0, 0.0, 0.0, 2.5);  // rms + min(1, 2.5) = 3.5; entropy lo min(5, 2.5) = 2.5
+  EXPECT_DOUBLE_EQ(c.statistic(), 3.5);
+  EXPECT_EQ(c.feature(), SeqFeature::kRmsHigh);
+  c.update(-10.0, -6.0, 1.0, 9.0, 0.0, 0.0, 2.5);  // a negative increment is not clipped: rms 0
+  EXPECT_DOUBLE_EQ(c.statistic(), 5.0);            // entropy lo 2.5 + 2.5
+  EXPECT_EQ(c.feature(), SeqFeature::kEntropyLow);
+  // The allowance is part of the increment: z = 4 with k 1 + extra 2 adds 1, under the cap.
+  Cusum e;
+  e.update(4.0, 0.0, 1.0, 9.0, 2.0, 0.0, 2.5);
+  EXPECT_DOUBLE_EQ(e.statistic(), 1.0);
+  // Machine 2089's class 2 on its healthy new day (z_entropy of its first 15 windows from `ptda monitor
+  // --jsonl`, rounded to 0.01; allowance 1 + 0.848): six outlying windows among normal ones. Uncapped the
+  // lower entropy statistic reaches 7.154 >= cusum_alarm 7 (the product's false alarm: 7.14 at full
+  // precision); with the cap 2.5 it stays at 6.202 (both values from the same recursion in python).
+  const double z[] = {-3.79, -5.62, -0.46, 0.47,  -2.14, -1.32, -0.10, 0.41,
+                      -2.64, -4.34, -3.71, -0.59, -0.71, -2.80, -5.30};
+  Cusum un;
+  Cusum cap;
+  double top_un = 0.0;
+  double top_cap = 0.0;
+  for (const double v : z) {
+    un.update(0.0, v, 1.0, 14.0, 0.0, 0.848);
+    cap.update(0.0, v, 1.0, 14.0, 0.0, 0.848, 2.5);
+    top_un = std::max(top_un, un.statistic());
+    top_cap = std::max(top_cap, cap.statistic());
+  }
+  EXPECT_NEAR(top_un, 7.154, 1e-9);
+  EXPECT_NEAR(top_cap, 6.202, 1e-9);
+  // Checked by name.
+  SequentialConfig s;
+  s.step_cap = 0.0;
+  try {
+    check_sequential(s);
+    FAIL() << "step cap 0 accepted";
+  } catch (const Error& err) {
+    EXPECT_NE(std::string(err.what()).find("decision.cusum_step_cap"), std::string::npos) << err.what();
+  }
+  s.step_cap = kNoStepCap;
+  EXPECT_NO_THROW(check_sequential(s));
 }
 
 TEST(Cusum, UpdateNeverAllocates) {

@@ -48,6 +48,7 @@ struct BandCusumConfig {
   double k = 1.0;                 ///< `band_cusum_k`: reference value in total sds per window
   double h = 10.0;                ///< `band_cusum_h`: alarm when some band's statistic exceeds h
   double day_allowance = 1.0;     ///< `band_cusum_day_allowance`: extra k in between-day sds
+  double step_cap = 1000.0;       ///< `band_cusum_step_cap`: largest step one window adds (1000: none)
   std::uint32_t band_count = 32;  ///< `band_count`: bands of bins 1..N/2 (training stores them)
   /// Run-time geometry for the alarm record's frequency range (set by with_band_geometry()): N/2
   /// and the bin spacing fs/N in Hz (order domain: cycles per revolution). 0 = unknown.
@@ -56,7 +57,8 @@ struct BandCusumConfig {
 };
 
 /// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h <= 1000,
-/// 0 <= day_allowance <= 10 and 1 <= band_count <= kMaxBands. Thread: any. Allocates only the message.
+/// 0 <= day_allowance <= 10, 0 < step_cap <= 1000 and 1 <= band_count <= kMaxBands. Thread: any. Allocates
+/// only the message.
 void check_band_cusum(const BandCusumConfig& cfg);
 
 /// How one class standardises its band energies: z_b = (ln E_b - mean_b) / sd_b with

@@ -69,10 +69,21 @@ struct SequentialConfig {
   /// features up to day_allowance * sd_between * sqrt(1 + 1/R) (R training days) before they
   /// accumulate. 0 = the within-day CUSUM of session 6.
   double day_allowance = 3.0;
+  /// Largest step one window adds to a statistic (`[decision] cusum_step_cap`, docs/method.md §6 "Step
+  /// cap"; session 38): the increment z - k is clipped to it, so a few outlying windows cannot raise the
+  /// alarm on their own (k-of-n judges single windows). kNoStepCap (1000) = no clipping.
+  double step_cap = 2.5;
 };
 
-/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h_warn <= h_alarm <= 1000 and
-/// 0 <= day_allowance <= 10.
+/// The largest value a `*_step_cap` key takes: a step that large never clips.
+inline constexpr double kNoStepCap = 1000.0;
+
+/// Throws ptda::Error naming `decision.<key>` unless 0 < cap <= kNoStepCap. Thread: any. Allocates only
+/// the message.
+void check_step_cap(const char* key, double cap);
+
+/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h_warn <= h_alarm <= 1000,
+/// 0 <= day_allowance <= 10 and 0 < step_cap <= kNoStepCap.
 /// Thread: any (setup). Allocates only for the message.
 void check_sequential(const SequentialConfig& cfg);
 
@@ -100,8 +111,9 @@ class Cusum {
   /// rule that counts a non-finite feature as abnormal. extra_rms / extra_entropy are added to k for
   /// the z_rms statistic / the two z_entropy statistics (the class's between-day allowance, SeqScale).
   /// Thread: the owner's. Never allocates.
+  /// step_cap clips each statistic's increment z - k (SequentialConfig::step_cap).
   void update(double z_rms, double z_entropy, double k, double cap, double extra_rms = 0.0,
-              double extra_entropy = 0.0) noexcept;
+              double extra_entropy = 0.0, double step_cap = kNoStepCap) noexcept;
   /// max of the three statistics and which one it is.
   [[nodiscard]] double statistic() const noexcept;
   [[nodiscard]] SeqFeature feature() const noexcept;

@@ -113,17 +113,20 @@ struct MeshCusumConfig {
   /// The configuration said `mesh_cusum = true` itself: then a baseline without mesh statistics, a
   /// gearbox without teeth or the order domain is an error, not a silent fallback.
   bool required = false;
-  double k = 1.0;   ///< `mesh_cusum_k`: reference value in total sds per window
+  /// `mesh_cusum_k`: reference value in total sds per window (1 in sessions 19-37; 0.75 with the step
+  /// cap since session 38, docs/method.md §8 "Session 38").
+  double k = 0.75;
   double h = 10.0;  ///< `mesh_cusum_h`: alarm when a feature's statistic exceeds h
   /// `mesh_cusum_one_day_allowance`: extra k in between-day sds for a class trained on one recording,
   /// whose between-day sd is only the day_sd_floor prior (docs/method.md §8 "Session 19": one day of
   /// training under-states the mesh features' day-to-day spread). With two or more recordings the
   /// estimated between-day sd is in the total sd and nothing is added.
   double one_day_allowance = 1.0;
+  double step_cap = 2.5;  ///< `mesh_cusum_step_cap`: largest step one window adds
 };
 
-/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h <= 1000 and
-/// 0 <= one_day_allowance <= 10. Thread: any. Allocates only the message.
+/// Throws ptda::Error naming the [decision] key unless 0 < k <= 10, 0 < h <= 1000,
+/// 0 <= one_day_allowance <= 10 and 0 < step_cap <= 1000. Thread: any. Allocates only the message.
 void check_mesh_cusum(const MeshCusumConfig& cfg);
 
 /// How one class standardises its mesh features (as BandScale): z = (v - mean) / sd with
