@@ -77,9 +77,7 @@ void Cusum::update(double z_rms, double z_entropy, double k, double cap, double 
                    double extra_entropy, double step_cap) noexcept {
   const bool rms_ok = std::isfinite(z_rms);
   const bool ent_ok = std::isfinite(z_entropy);
-  const auto step = [&](double s, double x, double kk) {
-    return std::min(cap, std::max(0.0, s + std::min(x - kk, step_cap)));
-  };
+  const auto step = [&](double s, double x, double kk) { return cusum_step(s, x - kk, step_cap, cap); };
   const double k_rms = k + extra_rms;
   const double k_ent = k + extra_entropy;
   s_rms_ = step(s_rms_, rms_ok ? z_rms : k_rms + 1.0, k_rms);

@@ -264,7 +264,7 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     for (std::size_t b = 0; b < m; ++b) {
       const double x =
           std::isfinite(w.band_excess[b]) ? static_cast<double>(w.band_excess[b]) : band_.k + 1.0;
-      s[b] = std::min(band_cap_, std::max(0.0, s[b] + std::min(x - band_.k, band_.step_cap)));
+      s[b] = cusum_step(s[b], x - band_.k, band_.step_cap, band_cap_);
       if (!(s[b] > band_.h)) {
         since[b] = 0;
       } else if (since[b] == 0) {
@@ -287,8 +287,7 @@ void DecisionState::scored(WindowResult& w, std::size_t cls) noexcept {
     std::int32_t top_f = -1;
     for (std::size_t f = 0; f < kMeshFeatureCount; ++f) {
       if (std::isfinite(w.mesh_excess[f]))
-        s[f] =
-            std::min(mesh_cap_, std::max(0.0, s[f] + std::min(w.mesh_excess[f] - mesh_.k, mesh_.step_cap)));
+        s[f] = cusum_step(s[f], w.mesh_excess[f] - mesh_.k, mesh_.step_cap, mesh_cap_);
       if (s[f] > top) {
         top = s[f];
         top_f = static_cast<std::int32_t>(f);

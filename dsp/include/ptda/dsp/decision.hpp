@@ -2,6 +2,7 @@
 // allocation-free at run time). Formulas: docs/method.md, "Decision".
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 
@@ -77,6 +78,13 @@ struct SequentialConfig {
 
 /// The largest value a `*_step_cap` key takes: a step that large never clips.
 inline constexpr double kNoStepCap = 1000.0;
+
+/// One step of a one-sided CUSUM, shared by the feature, band and mesh detectors:
+/// S <- min(cap, max(0, S + min(increment, step_cap))) with increment = x - k (docs/method.md §6).
+/// Thread: any. Never allocates.
+[[nodiscard]] inline double cusum_step(double s, double increment, double step_cap, double cap) noexcept {
+  return std::min(cap, std::max(0.0, s + std::min(increment, step_cap)));
+}
 
 /// Throws ptda::Error naming `decision.<key>` unless 0 < cap <= kNoStepCap. Thread: any. Allocates only
 /// the message.
